@@ -1,0 +1,65 @@
+"""The ``handflow`` command: sub-commands are entry points of group ``handflow.commands``.
+
+Each entry point names ``register(parser)``, which adds its arguments to its sub-parser and sets
+``func=run`` where ``run(args) -> int`` is the exit code.  Dotted names nest (``evaluate.grasping``
+→ ``handflow evaluate grasping``), so families add commands without touching the framework.
+"""
+from __future__ import annotations
+
+import argparse
+import logging
+import sys
+
+from .registry import command_entries
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="handflow", description="Streams glove, camera and simulator data through "
+                                     "plugins over Zenoh; learns, drives and recognises motions with structured manifolds.")
+    parser.add_argument("--log-level", default="INFO", choices=["DEBUG", "INFO", "WARNING", "ERROR"])
+    subparsers: dict[tuple[str, ...], argparse._SubParsersAction] = {(): parser.add_subparsers(dest="command", metavar="COMMAND")}
+    parsers: dict[tuple[str, ...], argparse.ArgumentParser] = {}
+    for ep in command_entries():
+        path = tuple(ep.name.split("."))
+        for depth in range(1, len(path)):
+            prefix = path[:depth]
+            if prefix not in parsers:
+                grp = subparsers[prefix[:-1]].add_parser(prefix[-1], help=f"{prefix[-1]} commands")
+                parsers[prefix] = grp
+                subparsers[prefix] = grp.add_subparsers(dest=f"command_{depth}", metavar="WHAT")
+        try:
+            register = ep.load()
+        except Exception as exc:  # a broken family must not take the whole CLI down
+            broken = subparsers[path[:-1]].add_parser(path[-1], help=f"(unavailable: {exc})")
+            broken.set_defaults(func=lambda args, exc=exc, name=ep.name: _unavailable(name, exc))
+            continue
+        doc = (register.__doc__ or "").strip().splitlines()
+        sub = subparsers[path[:-1]].add_parser(path[-1], help=doc[0] if doc else None,
+                                               description=" ".join(doc) or None)
+        register(sub)
+        parsers[path] = sub
+    return parser
+
+
+def _unavailable(name: str, exc: Exception) -> int:
+    print(f"handflow {name.replace('.', ' ')} is unavailable: {type(exc).__name__}: {exc}", file=sys.stderr)
+    return 1
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    logging.basicConfig(level=args.log_level, stream=sys.stderr, format="%(asctime)s %(levelname)s [%(name)s] %(message)s")
+    func = getattr(args, "func", None)
+    if func is None:
+        parser.print_help()
+        return 2
+    try:
+        return int(func(args) or 0)
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

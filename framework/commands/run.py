@@ -1,0 +1,51 @@
+"""``handflow run GRAPH.yaml [--duration S] [--record FILE.mcap] [--host NAME]``."""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+
+from ..graph import GraphError, load_graph
+from ..launcher import run_graph
+
+
+def register(parser: argparse.ArgumentParser) -> None:
+    """Run a graph: one process per node (or group), supervised, until Ctrl-C or --duration."""
+    parser.add_argument("graph", help="YAML graph file")
+    parser.add_argument("--duration", type=float, help="stop after this many seconds (orderly, exit 0)")
+    parser.add_argument("--record", metavar="FILE.mcap", help="record the graph's 'record.topics' (default all) to MCAP")
+    parser.add_argument("--host", help="run only the nodes whose 'host' is NAME (a graph spread over machines)")
+    parser.add_argument("--summary-json", metavar="FILE", help="write per-process restarts and exit codes as JSON")
+    parser.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    try:
+        graph = load_graph(args.graph)
+    except GraphError as exc:
+        print(exc, file=sys.stderr)
+        print(f"{args.graph}: fix the problems above (see `handflow validate {args.graph}`)", file=sys.stderr)
+        return 2
+    record_path = args.record or (graph.spec.record.path if graph.spec.record else None)
+    recorder = None
+
+    def attach(launcher):
+        nonlocal recorder
+        if record_path:
+            from ..recording import GraphRecorder
+            recorder = GraphRecorder.for_graph(graph, graph.base_dir / record_path if not args.record else record_path)
+            recorder.attach(launcher.session)
+
+    try:
+        launcher = run_graph(graph, args.duration, args.host, on_started=attach)
+    except ValueError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    finally:
+        if recorder is not None:
+            recorder.close()
+    if args.summary_json:
+        with open(args.summary_json, "w") as f:
+            json.dump(launcher.summary(), f, indent=2)
+    launcher.close()
+    return 0

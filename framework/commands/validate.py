@@ -1,0 +1,24 @@
+"""``handflow validate GRAPH.yaml``."""
+from __future__ import annotations
+
+import argparse
+import sys
+
+from ..graph import validate_file
+
+
+def register(parser: argparse.ArgumentParser) -> None:
+    """Check a graph file; print every problem as file:line: what to change (exit 0 valid, 2 invalid)."""
+    parser.add_argument("graph", help="YAML graph file")
+    parser.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    graph, problems = validate_file(args.graph)
+    for p in problems:
+        print(f"{args.graph}:{p.line}: {p.message}", file=sys.stderr)
+    if problems:
+        print(f"{args.graph}: {len(problems)} problem(s)", file=sys.stderr)
+        return 2
+    print(f"{args.graph}: valid graph '{graph.name}' with {len(graph.nodes)} node(s)")
+    return 0

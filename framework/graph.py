@@ -1,0 +1,273 @@
+"""YAML graph files: pydantic models, loading with line numbers, and validation (spec framework.md).
+
+A graph names nodes, the plugin each runs, its parameters (validated by the plugin's own params
+model) and which outputs feed which inputs (``inputs: {port: node/output}``); plus Zenoh settings,
+topics fed from outside (``external``), process groups, hosts, restart policies and recording.
+:func:`load_graph` returns a :class:`Graph` or raises :class:`GraphError` listing every problem as
+``file:line: message`` with what to change.  Feedback loops are legal.
+"""
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Literal
+
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
+
+from .messages import Message, message_types
+from .plugin import Node
+from .registry import PluginError, load_plugin, plugin_entries
+
+_ID = re.compile(r"^[A-Za-z0-9_\-]+$")
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+
+class ZenohSettings(_Strict):
+    """Transport settings. Default: embedded peer on loopback, multicast scouting off, no router."""
+
+    mode: Literal["peer", "client"] = "peer"
+    listen: list[str] = Field(default_factory=list, description="extra endpoints this graph listens on, e.g. tcp/0.0.0.0:7450")
+    connect: list[str] = Field(default_factory=list, description="endpoints of other machines' graphs, e.g. tcp/192.168.1.7:7450")
+    multicast_scouting: bool = False
+
+
+class RestartPolicy(_Strict):
+    policy: Literal["never", "on-failure"] = "never"
+    max_restarts: int = Field(3, ge=0)
+    backoff_s: float = Field(0.5, ge=0)
+
+
+class NodeSpec(_Strict):
+    id: str
+    plugin: str
+    params: dict[str, Any] = Field(default_factory=dict)
+    inputs: dict[str, str] = Field(default_factory=dict)
+    group: str | None = Field(None, description="nodes of one group share a process")
+    host: str | None = Field(None, description="run only by `handflow run --host NAME`")
+    restart: RestartPolicy = Field(default_factory=RestartPolicy)
+
+    @field_validator("id")
+    @classmethod
+    def _id_chars(cls, v: str) -> str:
+        if not _ID.match(v):
+            raise ValueError("node id may contain letters, digits, '_' and '-' only")
+        return v
+
+
+class RecordSpec(_Strict):
+    path: str | None = Field(None, description="MCAP file; `handflow run --record` overrides it")
+    topics: list[str] = Field(default_factory=lambda: ["**"], description="globs over node/port, e.g. 'glove/*'")
+
+
+class GraphSpec(_Strict):
+    name: str
+    description: str = ""
+    zenoh: ZenohSettings = Field(default_factory=ZenohSettings)
+    external: dict[str, str] = Field(default_factory=dict, description="node/port → message type fed from outside")
+    nodes: list[NodeSpec]
+    record: RecordSpec | None = None
+
+    @field_validator("name")
+    @classmethod
+    def _name_chars(cls, v: str) -> str:
+        if not _ID.match(v):
+            raise ValueError("graph name may contain letters, digits, '_' and '-' only")
+        return v
+
+
+@dataclass
+class Problem:
+    line: int
+    message: str
+
+
+class GraphError(ValueError):
+    """A graph file with problems; ``str()`` lists them as ``file:line: message``."""
+
+    def __init__(self, path: Path, problems: list[Problem]) -> None:
+        self.path, self.problems = path, problems
+        super().__init__("\n".join(f"{path}:{p.line}: {p.message}" for p in problems))
+
+
+@dataclass
+class ResolvedNode:
+    spec: NodeSpec
+    cls: type[Node]
+    params: BaseModel
+
+
+@dataclass
+class Graph:
+    """A validated graph: the spec, each node's class and validated params, where the file lives."""
+
+    spec: GraphSpec
+    path: Path
+    nodes: dict[str, ResolvedNode] = field(default_factory=dict)
+
+    @property
+    def name(self) -> str:
+        return self.spec.name
+
+    @property
+    def base_dir(self) -> Path:
+        return self.path.parent
+
+    def source_type(self, source: str) -> type[Message] | None:
+        """Message type published at ``node/port`` (a graph node or an external topic)."""
+        node_id, _, port = source.partition("/")
+        if node_id in self.nodes:
+            return self.nodes[node_id].cls.outputs.get(port)
+        name = self.spec.external.get(source)
+        return _message_type(name) if name else None
+
+    def subscribers(self, source: str) -> list[tuple[str, str]]:
+        """(node id, input port) pairs fed by ``node/port``."""
+        return [(nid, port) for nid, rn in self.nodes.items() for port, src in rn.spec.inputs.items() if src == source]
+
+
+def _message_type(name: str) -> type[Message] | None:
+    types = message_types()
+    return types.get(name) or types.get(f"handflow.{name}")
+
+
+# ----------------------------------------------------------------------------------------------
+# Line numbers
+# ----------------------------------------------------------------------------------------------
+def _line_index(node: yaml.Node, path: tuple = (), out: dict | None = None) -> dict[tuple, int]:
+    """Map every key path of a composed YAML document to its 1-based line."""
+    out = {} if out is None else out
+    out.setdefault(path, node.start_mark.line + 1)
+    if isinstance(node, yaml.MappingNode):
+        for k, v in node.value:
+            out[path + (k.value,)] = k.start_mark.line + 1
+            _line_index(v, path + (k.value,), out)
+    elif isinstance(node, yaml.SequenceNode):
+        for i, v in enumerate(node.value):
+            _line_index(v, path + (i,), out)
+    return out
+
+
+def _line_of(lines: dict[tuple, int], loc: tuple) -> int:
+    loc = tuple(loc)
+    while loc and loc not in lines:
+        loc = loc[:-1]
+    return lines.get(loc, 1)
+
+
+def _pydantic_problems(exc: ValidationError, lines: dict[tuple, int], prefix: tuple = (), what: str = "") -> list[Problem]:
+    problems = []
+    for err in exc.errors():
+        loc = prefix + tuple(err["loc"])
+        name = ".".join(str(p) for p in err["loc"]) or "(top level)"
+        hint = err["msg"]
+        if err["type"] == "extra_forbidden":
+            hint = "unknown field; remove it or check its spelling"
+        elif err["type"] == "missing":
+            hint = "required field is missing; add it"
+        problems.append(Problem(_line_of(lines, loc), f"{what}{name}: {hint}"))
+    return problems
+
+
+# ----------------------------------------------------------------------------------------------
+# Loading and validation
+# ----------------------------------------------------------------------------------------------
+def read_graph_text(text: str, path: Path) -> tuple[Graph | None, list[Problem]]:
+    """Parse and validate graph YAML; returns the graph (None if unusable) and all problems."""
+    try:
+        doc = yaml.compose(text)
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        line = mark.line + 1 if mark else 1
+        return None, [Problem(line, f"YAML syntax error: {getattr(exc, 'problem', exc)}; fix the indentation/quoting there")]
+    if doc is None or not isinstance(data, dict):
+        return None, [Problem(1, "a graph file must be a YAML mapping with 'name' and 'nodes'")]
+    lines = _line_index(doc)
+    try:
+        spec = GraphSpec.model_validate(data)
+    except ValidationError as exc:
+        return None, _pydantic_problems(exc, lines)
+
+    graph = Graph(spec, path)
+    problems: list[Problem] = []
+    seen: dict[str, int] = {}
+    for i, ns in enumerate(spec.nodes):
+        if ns.id in seen:
+            problems.append(Problem(_line_of(lines, ("nodes", i, "id")),
+                                    f"duplicate node id '{ns.id}' (first used on line {seen[ns.id]}); give each node a unique id"))
+            continue
+        seen[ns.id] = _line_of(lines, ("nodes", i, "id"))
+        try:
+            cls = load_plugin(ns.plugin)
+        except PluginError as exc:
+            problems.append(Problem(_line_of(lines, ("nodes", i, "plugin")), str(exc)))
+            continue
+        try:
+            params = cls.Params.model_validate(ns.params)
+        except ValidationError as exc:
+            problems += _pydantic_problems(exc, lines, ("nodes", i, "params"), f"node '{ns.id}' param ")
+            continue
+        graph.nodes[ns.id] = ResolvedNode(ns, cls, params)
+
+    for topic, tname in spec.external.items():
+        if _message_type(tname) is None:
+            problems.append(Problem(_line_of(lines, ("external", topic)),
+                                    f"external topic '{topic}': unknown message type '{tname}'; known: {', '.join(sorted(message_types()))}"))
+
+    for i, ns in enumerate(spec.nodes):
+        rn = graph.nodes.get(ns.id)
+        if rn is None or rn.spec is not ns:
+            continue
+        for port, source in ns.inputs.items():
+            line = _line_of(lines, ("nodes", i, "inputs", port))
+            problems += _input_problems(graph, rn, port, source, line)
+    return (graph if not problems else None), problems
+
+
+def _input_problems(graph: Graph, rn: ResolvedNode, port: str, source: str, line: int) -> list[Problem]:
+    nid = rn.spec.id
+    if port not in rn.cls.inputs:
+        return [Problem(line, f"node '{nid}' ({rn.spec.plugin}) has no input port '{port}'; its inputs: {', '.join(rn.cls.inputs) or 'none'}")]
+    src_node, sep, src_port = source.partition("/")
+    if not sep or not src_port:
+        return [Problem(line, f"node '{nid}' input '{port}': source must be 'node/port', got '{source}'")]
+    if src_node not in graph.nodes and source not in graph.spec.external:
+        known = [n for n in graph.spec.nodes if n.id == src_node]
+        if known:  # the source node exists but failed its own checks (reported there)
+            return []
+        return [Problem(line, f"node '{nid}' input '{port}' reads from missing node '{src_node}'; "
+                              f"existing nodes: {', '.join(graph.nodes)} (or declare '{source}' under 'external:')")]
+    out_type = graph.source_type(source)
+    if out_type is None:
+        outs = graph.nodes[src_node].cls.outputs
+        return [Problem(line, f"node '{nid}' input '{port}': node '{src_node}' has no output '{src_port}'; its outputs: {', '.join(outs) or 'none'}")]
+    in_type = rn.cls.inputs[port]
+    if not issubclass(out_type, in_type):
+        return [Problem(line, f"node '{nid}' input '{port}' expects {in_type.TYPE or 'any message'} but '{source}' publishes {out_type.TYPE}; connect a matching output")]
+    return []
+
+
+def validate_file(path: str | Path) -> tuple[Graph | None, list[Problem]]:
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        return None, [Problem(1, f"cannot read graph file: {exc.strerror}")]
+    return read_graph_text(text, path.resolve())
+
+
+def load_graph(path: str | Path) -> Graph:
+    """A validated :class:`Graph`, or :class:`GraphError` with every problem."""
+    graph, problems = validate_file(path)
+    if problems or graph is None:
+        raise GraphError(Path(path), problems)
+    return graph
+
+
+def known_plugins() -> list[str]:
+    return sorted(plugin_entries())

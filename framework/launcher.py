@@ -1,0 +1,165 @@
+"""Launch and supervise a graph: one process per node or per group (spec framework.md, "Runtime").
+
+The launcher opens the hub Zenoh session, starts a :mod:`framework.runner` process per unit,
+restarts crashed units according to their restart policy (``never`` | ``on-failure`` with a maximum
+count and exponential backoff), optionally records topics to MCAP, and on Ctrl-C, SIGTERM or the
+end of ``--duration`` stops every unit in order (their teardown runs) and exits 0.
+"""
+from __future__ import annotations
+
+import logging
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from . import transport
+from .graph import Graph, RestartPolicy
+
+log = logging.getLogger("handflow.launcher")
+
+STOP_GRACE_S = 8.0
+
+
+@dataclass
+class Unit:
+    """A process running one or more nodes, with its restart bookkeeping."""
+
+    name: str
+    node_ids: list[str]
+    policy: RestartPolicy
+    proc: subprocess.Popen | None = None
+    restarts: int = 0
+    restart_at: float | None = None
+    exit_codes: list[int] = field(default_factory=list)
+
+
+def plan_units(graph: Graph, host: str | None = None) -> list[Unit]:
+    """Group the graph's nodes (for ``host``) into process units; a group's policy is its most permissive one."""
+    units: dict[str, Unit] = {}
+    for nid, rn in graph.nodes.items():
+        if rn.spec.host != host:
+            continue
+        key = f"group:{rn.spec.group}" if rn.spec.group else nid
+        unit = units.setdefault(key, Unit(rn.spec.group or nid, [], rn.spec.restart))
+        if unit.node_ids and rn.spec.restart.policy == "on-failure":
+            unit.policy = rn.spec.restart if unit.policy.policy == "never" else unit.policy
+        unit.node_ids.append(nid)
+    return list(units.values())
+
+
+class Launcher:
+    """Runs a validated graph until stopped; see :func:`run_graph`."""
+
+    def __init__(self, graph: Graph, host: str | None = None, lockstep: bool = False,
+                 log_level: str = "INFO") -> None:
+        self.graph = graph
+        self.units = plan_units(graph, host)
+        if not self.units:
+            where = f" for host '{host}'" if host else ""
+            raise ValueError(f"graph '{graph.name}' has no nodes to run{where}; check the nodes' 'host' fields")
+        self.lockstep = lockstep
+        self.log_level = log_level
+        self.hub_endpoint = transport.hub_endpoint_for()
+        self.session = transport.open_hub(graph.spec.zenoh, self.hub_endpoint)
+        self._state_dir = tempfile.TemporaryDirectory(prefix=f"handflow-{graph.name}-")
+        self.stopping = False
+
+    # -- processes --------------------------------------------------------------------------
+    def _spawn(self, unit: Unit) -> None:
+        cmd = [sys.executable, "-m", "framework.runner", str(self.graph.path), "--nodes", ",".join(unit.node_ids),
+               "--hub", self.hub_endpoint, "--state-dir", self._state_dir.name, "--log-level", self.log_level]
+        if self.lockstep:
+            cmd.append("--lockstep")
+        unit.proc = subprocess.Popen(cmd, start_new_session=True)
+        log.info("started %s (pid %d)", unit.name, unit.proc.pid)
+
+    def start(self) -> None:
+        for unit in self.units:
+            self._spawn(unit)
+
+    def poll(self) -> None:
+        """Reap exited units and restart them per policy."""
+        now = time.monotonic()
+        for unit in self.units:
+            if unit.proc is not None and (code := unit.proc.poll()) is not None:
+                unit.proc = None
+                unit.exit_codes.append(code)
+                if code == 0 or self.stopping:
+                    log.info("%s exited normally", unit.name)
+                    continue
+                why = f"killed by signal {-code}" if code < 0 else f"exit code {code}"
+                if unit.policy.policy == "on-failure" and unit.restarts < unit.policy.max_restarts:
+                    delay = unit.policy.backoff_s * (2 ** unit.restarts)
+                    unit.restart_at = now + delay
+                    log.warning("%s failed (%s); restarting in %.2fs (%d/%d)", unit.name, why, delay,
+                                unit.restarts + 1, unit.policy.max_restarts)
+                else:
+                    log.error("%s failed (%s); restart policy '%s' gives up; the rest of the graph keeps running",
+                              unit.name, why, unit.policy.policy)
+            if unit.proc is None and unit.restart_at is not None and now >= unit.restart_at:
+                unit.restart_at = None
+                unit.restarts += 1
+                self._spawn(unit)
+
+    def alive(self) -> bool:
+        return any(u.proc is not None or u.restart_at is not None for u in self.units)
+
+    def stop(self) -> None:
+        """Orderly shutdown: SIGTERM every unit (teardown runs), SIGKILL stragglers after a grace period."""
+        self.stopping = True
+        running = [u for u in self.units if u.proc is not None]
+        for u in running:
+            u.proc.send_signal(signal.SIGTERM)
+        deadline = time.monotonic() + STOP_GRACE_S
+        for u in running:
+            try:
+                u.proc.wait(timeout=max(0.1, deadline - time.monotonic()))
+            except subprocess.TimeoutExpired:
+                log.error("%s did not stop within %.0fs; killing it", u.name, STOP_GRACE_S)
+                u.proc.kill()
+                u.proc.wait()
+            u.exit_codes.append(u.proc.returncode)
+            u.proc = None
+
+    def close(self) -> None:
+        self.session.close()
+        self._state_dir.cleanup()
+
+    def summary(self) -> dict[str, dict[str, object]]:
+        return {u.name: {"nodes": u.node_ids, "restarts": u.restarts, "exit_codes": u.exit_codes} for u in self.units}
+
+
+def run_graph(graph: Graph, duration_s: float | None = None, host: str | None = None,
+              on_started=None, lockstep: bool = False) -> Launcher:
+    """Run ``graph`` until Ctrl-C/SIGTERM or ``duration_s``; returns the stopped launcher (for its summary).
+
+    ``on_started(launcher)`` runs after the units are spawned (used to attach a recorder).
+    """
+    launcher = Launcher(graph, host, lockstep, logging.getLevelName(logging.getLogger().level))
+    stop = {"flag": False}
+
+    def _stop(signum, frame):  # noqa: ARG001
+        stop["flag"] = True
+
+    old = {s: signal.signal(s, _stop) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        launcher.start()
+        if on_started is not None:
+            on_started(launcher)
+        t_end = None if duration_s is None else time.monotonic() + duration_s
+        while not stop["flag"] and (t_end is None or time.monotonic() < t_end):
+            launcher.poll()
+            if not launcher.alive():
+                log.info("all nodes have exited")
+                break
+            time.sleep(0.05)
+        launcher.stop()
+    finally:
+        for s, h in old.items():
+            signal.signal(s, h)
+    return launcher
+

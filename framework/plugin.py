@@ -1,0 +1,110 @@
+"""The plugin base class every node derives from (spec framework.md, "Rooms").
+
+A plugin declares typed input and output ports, a pydantic ``Params`` model, and any of the hooks
+``setup`` / ``on_message`` / ``tick`` / ``teardown``.  The runtime calls all hooks from one thread,
+so a node never needs locks.  Everything the node may do to the outside world goes through its
+:class:`Context`: publish on an output port, read the clock (virtual during lock-step replay), log,
+resolve a path relative to the graph file.
+
+Example::
+
+    class Gain(Node):
+        class Params(BaseModel):
+            gain: float = 1.0
+        inputs = {"in": Array}
+        outputs = {"out": Array}
+
+        def on_message(self, port, msg):
+            self.ctx.publish("out", Array(data=msg.data * self.params.gain))
+"""
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+from typing import Any, ClassVar, Protocol
+
+from pydantic import BaseModel, ConfigDict
+
+from .messages import Message
+
+
+class NoParams(BaseModel):
+    """Params model of a plugin without parameters (unknown keys are rejected)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+
+class Context(Protocol):
+    """What the runtime gives a node (see ``framework.runner.NodeContext`` for the implementation)."""
+
+    node_id: str
+    graph_name: str
+    log: logging.Logger
+
+    def publish(self, port: str, msg: Message, stamp_ns: int | None = None) -> None:
+        """Validate ``msg`` and publish it on output ``port``; header filled in (stamp defaults to now)."""
+
+    def now_ns(self) -> int:
+        """Current time in ns: wall clock live, virtual time of the replayed stream in lock-step."""
+
+    def resolve_path(self, path: str | Path) -> Path:
+        """A path from the params, made absolute relative to the graph file's folder."""
+
+
+class Node:
+    """Base class of all plugins.
+
+    Class attributes to set in a subclass:
+    - ``Params``: pydantic model of the ``params:`` block (``extra="forbid"`` recommended);
+    - ``inputs`` / ``outputs``: port name → message type;
+    - ``description``: one line shown by ``handflow plugins`` (defaults to the docstring's first line).
+    A node with a ``tick`` override is ticked at ``tick_rate_hz()`` (default: ``params.rate_hz``).
+    """
+
+    Params: ClassVar[type[BaseModel]] = NoParams
+    inputs: ClassVar[dict[str, type[Message]]] = {}
+    outputs: ClassVar[dict[str, type[Message]]] = {}
+    description: ClassVar[str] = ""
+
+    def __init__(self, params: BaseModel, ctx: Context) -> None:
+        self.params = params
+        self.ctx = ctx
+
+    # -- hooks ------------------------------------------------------------------------------
+    def setup(self) -> None:
+        """Acquire resources (open devices, load models). Called once before any message or tick."""
+
+    def on_message(self, port: str, msg: Message) -> None:
+        """Handle one message arriving on input ``port``."""
+
+    def tick(self) -> None:
+        """Periodic work at ``tick_rate_hz()``."""
+
+    def teardown(self) -> None:
+        """Release resources; also called on Ctrl-C / SIGTERM and at the end of ``--duration``."""
+
+    def safe_output(self) -> dict[str, Message]:
+        """Messages to publish when the node stops or its inputs go stale (port → message). Default: none."""
+        return {}
+
+    # -- scheduling -------------------------------------------------------------------------
+    @classmethod
+    def has_tick(cls) -> bool:
+        return cls.tick is not Node.tick
+
+    def tick_rate_hz(self) -> float | None:
+        if not self.has_tick():
+            return None
+        rate = getattr(self.params, "rate_hz", None)
+        if rate is None:
+            raise TypeError(f"{type(self).__name__} overrides tick() but its Params has no 'rate_hz'; override tick_rate_hz()")
+        return float(rate)
+
+    @classmethod
+    def summary(cls) -> str:
+        doc = cls.description or (cls.__doc__ or "").strip().splitlines()[0:1]
+        return doc if isinstance(doc, str) else (doc[0] if doc else "")
+
+    @classmethod
+    def params_schema(cls) -> dict[str, Any]:
+        return cls.Params.model_json_schema()

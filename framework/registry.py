@@ -1,0 +1,54 @@
+"""Plugin and command discovery through entry points (spec framework.md, "Rooms").
+
+Built-in plugins register exactly like third-party ones: entry-point group ``handflow.plugins``
+(name → ``module:NodeClass``).  CLI commands come from group ``handflow.commands``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+from importlib.metadata import EntryPoint, entry_points
+
+from .plugin import Node
+
+PLUGIN_GROUP = "handflow.plugins"
+COMMAND_GROUP = "handflow.commands"
+
+
+class PluginError(LookupError):
+    """An unknown plugin, or one whose module fails to import."""
+
+
+@dataclass(frozen=True)
+class PluginEntry:
+    name: str
+    target: str
+    entry_point: EntryPoint
+
+    def load(self) -> type[Node]:
+        try:
+            cls = self.entry_point.load()
+        except Exception as exc:  # an import error inside a plugin must not hide the others
+            raise PluginError(f"plugin '{self.name}' ({self.target}) failed to load: {type(exc).__name__}: {exc}") from exc
+        if not (isinstance(cls, type) and issubclass(cls, Node)):
+            raise PluginError(f"plugin '{self.name}' ({self.target}) is not a framework.plugin.Node subclass")
+        return cls
+
+
+@lru_cache(maxsize=None)
+def plugin_entries() -> dict[str, PluginEntry]:
+    """All installed plugins by name (not yet imported)."""
+    return {ep.name: PluginEntry(ep.name, ep.value, ep) for ep in entry_points(group=PLUGIN_GROUP)}
+
+
+def load_plugin(name: str) -> type[Node]:
+    """The node class of plugin ``name``; :class:`PluginError` lists the known names if unknown."""
+    entries = plugin_entries()
+    if name not in entries:
+        raise PluginError(f"unknown plugin '{name}'; installed plugins: {', '.join(sorted(entries))}")
+    return entries[name].load()
+
+
+def command_entries() -> list[EntryPoint]:
+    """CLI command registrations, sorted by (dotted) name."""
+    return sorted(entry_points(group=COMMAND_GROUP), key=lambda ep: ep.name)

@@ -1,0 +1,283 @@
+"""One node process: runs a group of graph nodes on one thread (spec framework.md, "Runtime").
+
+Started by the launcher as ``python -m framework.runner GRAPH --nodes a,b --hub ENDPOINT``.
+Zenoh callbacks only enqueue; a single loop dispatches ``on_message`` and due ``tick``s, so node
+code is single-threaded.  Each node publishes a ``_health`` heartbeat with its counters.
+
+Sequence numbers and the last sequence seen per input survive a restart through a small state file
+per node (written in place, so a ``kill -9`` loses nothing): a restarted node continues its
+numbering and counts the messages it missed while down as gaps.
+
+Lock-step mode (``--lockstep``): no wall-clock ticks; the replayer publishes the virtual time on
+``_clock``, nodes run the ticks due up to it and report their per-port counters on ``_progress``
+after every event, so the replayer can release the next message only when the graph is quiet.
+"""
+from __future__ import annotations
+
+import argparse
+import heapq
+import json
+import logging
+import os
+import queue
+import signal
+import sys
+import time
+import traceback
+from pathlib import Path
+
+import numpy as np
+
+from . import transport
+from .graph import Graph, ResolvedNode, load_graph
+from .messages import Header, Message, MessageError, Status, decode, encode
+from .plugin import Node
+from .testing import check_publish
+
+log = logging.getLogger("handflow.runner")
+
+HEARTBEAT_S = 0.5
+_STATE_SLOTS = 128
+
+
+class SeqState:
+    """Persistent per-node counters: output sequence numbers and last input sequence per source."""
+
+    def __init__(self, path: Path | None, keys: list[str]) -> None:
+        self.index = {k: i for i, k in enumerate(keys[:_STATE_SLOTS])}
+        if path is None:
+            self.values = np.zeros(_STATE_SLOTS, dtype=np.int64)
+        else:
+            mode = "r+" if path.exists() and path.stat().st_size == _STATE_SLOTS * 8 else "w+"
+            self.values = np.memmap(path, dtype=np.int64, mode=mode, shape=(_STATE_SLOTS,))
+
+    def get(self, key: str) -> int:
+        return int(self.values[self.index[key]])
+
+    def set(self, key: str, value: int) -> None:
+        self.values[self.index[key]] = value
+
+
+class NodeContext:
+    """The runtime's :class:`framework.plugin.Context` for one node."""
+
+    def __init__(self, runtime: "GroupRuntime", rn: ResolvedNode, state: SeqState) -> None:
+        self.node_id = rn.spec.id
+        self.graph_name = runtime.graph.name
+        self.log = logging.getLogger(f"handflow.node.{self.node_id}")
+        self._rt = runtime
+        self._outputs = rn.cls.outputs
+        self._state = state
+        self._pubs = {port: runtime.session.declare_publisher(transport.topic_key(self.graph_name, self.node_id, port))
+                      for port in self._outputs}
+        self.published = {port: 0 for port in self._outputs}
+
+    def publish(self, port: str, msg: Message, stamp_ns: int | None = None) -> None:
+        check_publish(self.node_id, self._outputs, port, msg)
+        seq = self._state.get("out:" + port) + 1
+        self._state.set("out:" + port, seq)
+        msg.header = Header(self.node_id, seq, self.now_ns() if stamp_ns is None else int(stamp_ns))
+        self._pubs[port].put(encode(msg))
+        self.published[port] += 1
+
+    def now_ns(self) -> int:
+        return self._rt.now_ns()
+
+    def resolve_path(self, path: str | Path) -> Path:
+        p = Path(path).expanduser()
+        return p if p.is_absolute() else (self._rt.graph.base_dir / p).resolve()
+
+
+class _NodeSlot:
+    """Runtime bookkeeping of one node: instance, context, counters, next tick."""
+
+    def __init__(self, rt: "GroupRuntime", rn: ResolvedNode, state_dir: Path | None) -> None:
+        self.rn = rn
+        self.id = rn.spec.id
+        keys = [f"out:{p}" for p in sorted(rn.cls.outputs)] + [f"in:{p}" for p in sorted(rn.spec.inputs)]
+        self.state = SeqState(state_dir / f"{self.id}.seq" if state_dir else None, keys)
+        self.ctx = NodeContext(rt, rn, self.state)
+        self.node: Node = rn.cls(rn.params, self.ctx)
+        self.handled = {port: 0 for port in rn.spec.inputs}
+        self.gaps = {port: 0 for port in rn.spec.inputs}
+        self.errors = 0
+        rate = self.node.tick_rate_hz()
+        self.period_ns = int(1e9 / rate) if rate else 0
+        self.ticks = 0
+
+    def note_seq(self, port: str, seq: int) -> None:
+        last = self.state.get("in:" + port)
+        if last and seq > last + 1:
+            self.gaps[port] += seq - last - 1
+        self.state.set("in:" + port, seq)
+
+    def health(self) -> Status:
+        counters: dict[str, float] = {"ticks": self.ticks, "errors": self.errors}
+        counters.update({f"handled.{p}": n for p, n in self.handled.items()})
+        counters.update({f"gaps.{p}": n for p, n in self.gaps.items()})
+        counters.update({f"published.{p}": n for p, n in self.ctx.published.items()})
+        return Status(state="ok", counters=counters, text=f"pid {os.getpid()}")
+
+
+class GroupRuntime:
+    """Runs the named nodes of a graph in this process until stopped."""
+
+    def __init__(self, graph: Graph, node_ids: list[str], hub: str, lockstep: bool = False,
+                 state_dir: Path | None = None) -> None:
+        self.graph = graph
+        self.lockstep = lockstep
+        self.virtual_ns = 0
+        self.stop_requested = False
+        self.session = transport.open_node_session(graph.spec.zenoh, hub)
+        self.inbox: queue.SimpleQueue = queue.SimpleQueue()
+        self.slots = [_NodeSlot(self, graph.nodes[nid], state_dir) for nid in node_ids]
+        self._subs = []
+        self._health_pubs = {s.id: self.session.declare_publisher(transport.topic_key(graph.name, s.id, "_health"))
+                             for s in self.slots}
+        self._progress_pubs = ({s.id: self.session.declare_publisher(transport.topic_key(graph.name, s.id, "_progress"))
+                                for s in self.slots} if lockstep else {})
+
+    # -- clock ------------------------------------------------------------------------------
+    def now_ns(self) -> int:
+        return self.virtual_ns if self.lockstep else time.time_ns()
+
+    # -- wiring -----------------------------------------------------------------------------
+    def _subscribe(self) -> None:
+        g = self.graph.name
+        for slot in self.slots:
+            for port, source in slot.rn.spec.inputs.items():
+                node, _, out = source.partition("/")
+                key = transport.topic_key(g, node, out)
+                self._subs.append(self.session.declare_subscriber(
+                    key, lambda sample, s=slot, p=port: self.inbox.put(("msg", s, p, sample.payload.to_bytes()))))
+        if self.lockstep:
+            self._subs.append(self.session.declare_subscriber(
+                transport.clock_key(g), lambda sample: self.inbox.put(("clock", None, None, sample.payload.to_bytes()))))
+
+    # -- main loop --------------------------------------------------------------------------
+    def run(self, duration_s: float | None = None) -> int:
+        for slot in self.slots:
+            slot.node.setup()
+        self._subscribe()
+        start = time.monotonic()
+        ticks: list[tuple[int, int]] = []  # (due ns, slot index)
+        t0 = time.time_ns()
+        for i, slot in enumerate(self.slots):
+            if slot.period_ns:
+                heapq.heappush(ticks, (t0 + slot.period_ns if not self.lockstep else slot.period_ns, i))
+        next_health = 0.0
+        lockstep_ticks_started = False
+        while not self.stop_requested:
+            now_m = time.monotonic()
+            if duration_s is not None and now_m - start >= duration_s:
+                break
+            if now_m >= next_health:
+                self._publish_health()
+                next_health = now_m + HEARTBEAT_S
+            timeout = HEARTBEAT_S
+            if ticks and not self.lockstep:
+                timeout = min(timeout, max(0.0, (ticks[0][0] - time.time_ns()) / 1e9))
+            try:
+                kind, slot, port, payload = self.inbox.get(timeout=timeout)
+            except queue.Empty:
+                kind = None
+            if kind == "msg":
+                self._deliver(slot, port, payload)
+                if self.lockstep:
+                    self._publish_progress(slot)
+            elif kind == "clock":
+                target = int(json.loads(payload)["t_ns"])
+                if not lockstep_ticks_started:  # first clock: anchor tick schedules at the replay start
+                    ticks = [(target + self.slots[i].period_ns, i) for _, i in ticks]
+                    heapq.heapify(ticks)
+                    lockstep_ticks_started = True
+                self._run_due_ticks(ticks, target)
+                self.virtual_ns = max(self.virtual_ns, target)
+                for s in self.slots:
+                    self._publish_progress(s, clock=target)
+            if not self.lockstep:
+                self._run_due_ticks(ticks, time.time_ns())
+        return 0
+
+    def _run_due_ticks(self, ticks: list[tuple[int, int]], until_ns: int) -> None:
+        while ticks and ticks[0][0] <= until_ns:
+            due, i = heapq.heappop(ticks)
+            slot = self.slots[i]
+            if self.lockstep:
+                self.virtual_ns = due
+            slot.node.tick()
+            slot.ticks += 1
+            nxt = due + slot.period_ns
+            if not self.lockstep and nxt < until_ns - 5 * slot.period_ns:
+                nxt = until_ns  # fell far behind: skip missed ticks instead of bursting
+            heapq.heappush(ticks, (nxt, i))
+
+    def _deliver(self, slot: _NodeSlot, port: str, payload: bytes) -> None:
+        try:
+            msg = decode(payload)
+        except MessageError as exc:
+            slot.errors += 1
+            slot.ctx.log.error("dropped undecodable message on input '%s': %s", port, exc)
+            return
+        slot.note_seq(port, msg.header.seq)
+        if self.lockstep:
+            self.virtual_ns = max(self.virtual_ns, msg.header.stamp_ns)
+        slot.node.on_message(port, msg)
+        slot.handled[port] += 1
+
+    def _publish_health(self) -> None:
+        for slot in self.slots:
+            status = slot.health()
+            status.header = Header(slot.id, 0, time.time_ns())
+            self._health_pubs[slot.id].put(encode(status))
+
+    def _publish_progress(self, slot: _NodeSlot, clock: int | None = None) -> None:
+        body = {"handled": slot.handled, "published": slot.ctx.published, "clock": clock}
+        self._progress_pubs[slot.id].put(json.dumps(body))
+
+    # -- shutdown ---------------------------------------------------------------------------
+    def shutdown(self) -> None:
+        for slot in self.slots:
+            try:
+                for port, msg in slot.node.safe_output().items():
+                    slot.ctx.publish(port, msg)
+                slot.node.teardown()
+            except Exception:
+                log.error("teardown of node '%s' failed:\n%s", slot.id, traceback.format_exc())
+        for sub in self._subs:
+            sub.undeclare()
+        self.session.close()
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m framework.runner", description="Run nodes of a graph (used by the launcher).")
+    ap.add_argument("graph")
+    ap.add_argument("--nodes", required=True, help="comma-separated node ids")
+    ap.add_argument("--hub", required=True, help="zenoh endpoint of the launcher's hub session")
+    ap.add_argument("--lockstep", action="store_true")
+    ap.add_argument("--state-dir", type=Path)
+    ap.add_argument("--log-level", default="INFO")
+    args = ap.parse_args(argv)
+    logging.basicConfig(level=args.log_level, stream=sys.stderr,
+                        format="%(asctime)s %(levelname)s [%(name)s] %(message)s")
+    graph = load_graph(args.graph)
+    rt = GroupRuntime(graph, args.nodes.split(","), args.hub, args.lockstep, args.state_dir)
+
+    def _stop(signum, frame):  # noqa: ARG001 - signal handler signature
+        rt.stop_requested = True
+
+    signal.signal(signal.SIGTERM, _stop)
+    signal.signal(signal.SIGINT, _stop)
+    code = 0
+    try:
+        rt.run()
+    except Exception:
+        log.error("node group %s crashed:\n%s", args.nodes, traceback.format_exc())
+        code = 1
+    finally:
+        rt.shutdown()
+    return code
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,79 @@
+"""Zenoh transport: key expressions and session configuration (spec framework.md, "Runtime").
+
+Keys are ``handflow/<graph>/<node>/<port>``; runtime-internal topics use ports starting with ``_``
+(``_health``, ``_progress``) and the graph-wide ``handflow/<graph>/_clock``.
+
+Default topology: the launcher opens a *hub* session (an embedded Zenoh peer listening on a free
+loopback port, multicast scouting off, no router); every node process is a peer that connects to
+the hub and finds the other peers through gossip.  A graph's ``zenoh.listen`` / ``zenoh.connect``
+endpoints are added to the hub so graphs on several machines join one Zenoh network.
+"""
+from __future__ import annotations
+
+import json
+import socket
+
+import zenoh
+
+from .graph import ZenohSettings
+
+PREFIX = "handflow"
+
+
+def topic_key(graph: str, node: str, port: str) -> str:
+    return f"{PREFIX}/{graph}/{node}/{port}"
+
+
+def clock_key(graph: str) -> str:
+    return f"{PREFIX}/{graph}/_clock"
+
+
+def split_key(key: str) -> tuple[str, str, str] | None:
+    """``handflow/<graph>/<node>/<port>`` → (graph, node, port), else None."""
+    parts = str(key).split("/")
+    if len(parts) != 4 or parts[0] != PREFIX:
+        return None
+    return parts[1], parts[2], parts[3]
+
+
+def free_tcp_port(host: str = "127.0.0.1") -> int:
+    with socket.socket() as s:
+        s.bind((host, 0))
+        return s.getsockname()[1]
+
+
+def _config(mode: str, listen: list[str], connect: list[str], multicast: bool) -> zenoh.Config:
+    conf = zenoh.Config()
+    conf.insert_json5("mode", json.dumps(mode))
+    conf.insert_json5("scouting/multicast/enabled", json.dumps(multicast))
+    conf.insert_json5("scouting/gossip/enabled", "true")
+    conf.insert_json5("listen/endpoints", json.dumps(listen))
+    conf.insert_json5("connect/endpoints", json.dumps(connect))
+    # keep retrying the hub instead of failing when a node starts slightly before it
+    conf.insert_json5("connect/timeout_ms", "-1")
+    return conf
+
+
+def open_hub(settings: ZenohSettings, hub_endpoint: str) -> zenoh.Session:
+    """The launcher's session: listens on ``hub_endpoint`` plus the graph's endpoints."""
+    return zenoh.open(_config(settings.mode, [hub_endpoint, *settings.listen], list(settings.connect),
+                              settings.multicast_scouting))
+
+
+def open_node_session(settings: ZenohSettings, hub_endpoint: str) -> zenoh.Session:
+    """A node process's session: a peer connected to the local hub.
+
+    It listens on an ephemeral port of the interface the graph listens on (loopback by default) so
+    gossip can connect peers directly.
+    """
+    host = "127.0.0.1"
+    for ep in settings.listen:
+        proto, _, addr = ep.partition("/")
+        if proto == "tcp" and addr:
+            host = addr.rsplit(":", 1)[0]
+            break
+    return zenoh.open(_config("peer", [f"tcp/{host}:0"], [hub_endpoint], settings.multicast_scouting))
+
+
+def hub_endpoint_for(port: int | None = None) -> str:
+    return f"tcp/127.0.0.1:{port or free_tcp_port()}"

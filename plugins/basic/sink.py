@@ -1,0 +1,41 @@
+"""Sink that counts, logs, or writes what it receives (any message type)."""
+from __future__ import annotations
+
+import json
+import time
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from framework.messages import Message
+from framework.plugin import Node
+
+
+class SinkParams(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    log_every: int = Field(0, ge=0, description="log every n-th message (0: only a summary at teardown)")
+    jsonl: str | None = Field(None, description="append one JSON line per message (arrival ns, latency ns, message)")
+
+
+class Sink(Node):
+    """Counts messages on input 'in', optionally logs them or writes them as JSON lines."""
+
+    Params = SinkParams
+    inputs = {"in": Message}
+
+    def setup(self) -> None:
+        self.count = 0
+        self.file = open(self.ctx.resolve_path(self.params.jsonl), "a", buffering=1) if self.params.jsonl else None
+
+    def on_message(self, port: str, msg: Message) -> None:
+        self.count += 1
+        if self.file is not None:
+            arrival = time.time_ns()
+            line = {"arrival_ns": arrival, "latency_ns": arrival - msg.header.stamp_ns, "msg": msg.to_dict()}
+            self.file.write(json.dumps(line) + "\n")
+        if self.params.log_every and self.count % self.params.log_every == 0:
+            self.ctx.log.info("#%d from %s seq %d: %s", self.count, msg.header.source, msg.header.seq, msg)
+
+    def teardown(self) -> None:
+        self.ctx.log.info("received %d message(s)", self.count)
+        if self.file is not None:
+            self.file.close()

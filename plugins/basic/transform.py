@@ -1,0 +1,25 @@
+"""Element-wise gain and offset on Array messages."""
+from __future__ import annotations
+
+from pydantic import BaseModel, ConfigDict
+
+from framework.messages import Array
+from framework.plugin import Node
+
+
+class GainOffsetParams(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    gain: float = 1.0
+    offset: float = 0.0
+
+
+class GainOffset(Node):
+    """out = gain · in + offset (keeps the input's stamp, so latency is measured end to end)."""
+
+    Params = GainOffsetParams
+    inputs = {"in": Array}
+    outputs = {"out": Array}
+
+    def on_message(self, port: str, msg: Array) -> None:
+        out = Array(data=msg.data * self.params.gain + self.params.offset, shape=list(msg.shape), names=msg.names)
+        self.ctx.publish("out", out, stamp_ns=msg.header.stamp_ns)

@@ -16,8 +16,9 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from . import transport
+from . import discovery, transport
 from .graph import Graph, RestartPolicy
+from .messages import MessageError, Status, decode
 
 log = logging.getLogger("handflow.launcher")
 
@@ -67,6 +68,17 @@ class Launcher:
         self.session = transport.open_hub(graph.spec.zenoh, self.hub_endpoint)
         self._state_dir = tempfile.TemporaryDirectory(prefix=f"handflow-{graph.name}-")
         self.stopping = False
+        self.run_file = discovery.write_run_file(graph.name, self.hub_endpoint, graph.path, lockstep)
+        self.health: dict[str, Status] = {}
+        self._health_sub = self.session.declare_subscriber(
+            transport.topic_key(graph.name, "*", "_health"), self._on_health)
+
+    def _on_health(self, sample) -> None:
+        try:
+            status = decode(sample.payload.to_bytes())
+        except MessageError:
+            return
+        self.health[status.header.source] = status
 
     # -- processes --------------------------------------------------------------------------
     def _spawn(self, unit: Unit) -> None:
@@ -126,11 +138,18 @@ class Launcher:
             u.proc = None
 
     def close(self) -> None:
+        discovery.remove_run_file(self.run_file)
+        self._health_sub.undeclare()
         self.session.close()
         self._state_dir.cleanup()
 
     def summary(self) -> dict[str, dict[str, object]]:
-        return {u.name: {"nodes": u.node_ids, "restarts": u.restarts, "exit_codes": u.exit_codes} for u in self.units}
+        """Per unit: nodes, restarts, exit codes, and per node the input gaps of its last heartbeat."""
+        def gaps(nid: str) -> int:
+            status = self.health.get(nid)
+            return int(sum(v for k, v in status.counters.items() if k.startswith("gaps."))) if status else 0
+        return {u.name: {"nodes": u.node_ids, "restarts": u.restarts, "exit_codes": u.exit_codes,
+                         "gaps": {nid: gaps(nid) for nid in u.node_ids}} for u in self.units}
 
 
 def run_graph(graph: Graph, duration_s: float | None = None, host: str | None = None,

@@ -1,8 +1,8 @@
 """The plugin base class every node derives from (spec framework.md, "Rooms").
 
 A plugin declares typed input and output ports, a pydantic ``Params`` model, and any of the hooks
-``setup`` / ``on_message`` / ``tick`` / ``teardown``.  The runtime calls all hooks from one thread,
-so a node never needs locks.  Everything the node may do to the outside world goes through its
+``setup`` / ``on_message`` / ``tick`` / ``teardown``.  The runtime never runs two hooks of a node
+(or of nodes sharing a process) at the same time, so a node never needs locks.  Everything the node may do to the outside world goes through its
 :class:`Context`: publish on an output port, read the clock (virtual during lock-step replay), log,
 resolve a path relative to the graph file.
 

@@ -1,8 +1,9 @@
-"""One node process: runs a group of graph nodes on one thread (spec framework.md, "Runtime").
+"""One node process: runs a group of graph nodes (spec framework.md, "Runtime").
 
 Started by the launcher as ``python -m framework.runner GRAPH --nodes a,b --hub ENDPOINT``.
-Zenoh callbacks only enqueue; a single loop dispatches ``on_message`` and due ``tick``s, so node
-code is single-threaded.  Each node publishes a ``_health`` heartbeat with its counters.
+Messages are handled directly in the Zenoh callback and ticks in the main loop, serialised by one
+lock, so node code never runs concurrently with itself (no locks needed in plugins) and a message
+costs no thread hand-off.  Each node publishes a ``_health`` heartbeat with its counters.
 
 Sequence numbers and the last sequence seen per input survive a restart through a small state file
 per node (written in place, so a ``kill -9`` loses nothing): a restarted node continues its
@@ -22,6 +23,7 @@ import os
 import queue
 import signal
 import sys
+import threading
 import time
 import traceback
 from pathlib import Path
@@ -129,7 +131,9 @@ class GroupRuntime:
         self.virtual_ns = 0
         self.stop_requested = False
         self.session = transport.open_node_session(graph.spec.zenoh, hub)
-        self.inbox: queue.SimpleQueue = queue.SimpleQueue()
+        self.inbox: queue.SimpleQueue = queue.SimpleQueue()  # lock-step clock events; None wakes the loop
+        self._lock = threading.Lock()
+        self.failure: str | None = None
         self.slots = [_NodeSlot(self, graph.nodes[nid], state_dir) for nid in node_ids]
         self._subs = []
         self._health_pubs = {s.id: self.session.declare_publisher(transport.topic_key(graph.name, s.id, "_health"))
@@ -149,13 +153,28 @@ class GroupRuntime:
                 node, _, out = source.partition("/")
                 key = transport.topic_key(g, node, out)
                 self._subs.append(self.session.declare_subscriber(
-                    key, lambda sample, s=slot, p=port: self.inbox.put(("msg", s, p, sample.payload.to_bytes()))))
+                    key, lambda sample, s=slot, p=port: self._on_sample(s, p, sample.payload.to_bytes())))
         if self.lockstep:
             self._subs.append(self.session.declare_subscriber(
-                transport.clock_key(g), lambda sample: self.inbox.put(("clock", None, None, sample.payload.to_bytes()))))
+                transport.clock_key(g), lambda sample: self.inbox.put(sample.payload.to_bytes())))
+
+    def _on_sample(self, slot: _NodeSlot, port: str, payload: bytes) -> None:
+        """Zenoh callback: handle the message right here, serialised with ticks by the lock."""
+        with self._lock:
+            if self.stop_requested:
+                return
+            try:
+                self._deliver(slot, port, payload)
+                if self.lockstep:
+                    self._publish_progress(slot)
+            except Exception:
+                self.failure = f"node '{slot.id}' failed in on_message('{port}'):\n{traceback.format_exc()}"
+                self.stop_requested = True
+                self.inbox.put(None)
 
     # -- main loop --------------------------------------------------------------------------
     def run(self, duration_s: float | None = None) -> int:
+        """Set up, then tick (wall clock, or the replayer's virtual clock) until stopped; raise on a node failure."""
         for slot in self.slots:
             slot.node.setup()
         self._subscribe()
@@ -164,9 +183,9 @@ class GroupRuntime:
         t0 = time.time_ns()
         for i, slot in enumerate(self.slots):
             if slot.period_ns:
-                heapq.heappush(ticks, (t0 + slot.period_ns if not self.lockstep else slot.period_ns, i))
+                heapq.heappush(ticks, (t0 + slot.period_ns, i))
         next_health = 0.0
-        lockstep_ticks_started = False
+        clock_started = False
         while not self.stop_requested:
             now_m = time.monotonic()
             if duration_s is not None and now_m - start >= duration_s:
@@ -178,25 +197,26 @@ class GroupRuntime:
             if ticks and not self.lockstep:
                 timeout = min(timeout, max(0.0, (ticks[0][0] - time.time_ns()) / 1e9))
             try:
-                kind, slot, port, payload = self.inbox.get(timeout=timeout)
+                clock = self.inbox.get(timeout=timeout) if timeout > 0 else None
             except queue.Empty:
-                kind = None
-            if kind == "msg":
-                self._deliver(slot, port, payload)
-                if self.lockstep:
-                    self._publish_progress(slot)
-            elif kind == "clock":
-                target = int(json.loads(payload)["t_ns"])
-                if not lockstep_ticks_started:  # first clock: anchor tick schedules at the replay start
-                    ticks = [(target + self.slots[i].period_ns, i) for _, i in ticks]
-                    heapq.heapify(ticks)
-                    lockstep_ticks_started = True
-                self._run_due_ticks(ticks, target)
-                self.virtual_ns = max(self.virtual_ns, target)
-                for s in self.slots:
-                    self._publish_progress(s, clock=target)
-            if not self.lockstep:
-                self._run_due_ticks(ticks, time.time_ns())
+                clock = None
+            with self._lock:
+                if self.stop_requested:
+                    break
+                if clock is not None:
+                    target = int(json.loads(clock)["t_ns"])
+                    if not clock_started:  # first clock: anchor the tick schedules at the replay start
+                        ticks = [(target + self.slots[i].period_ns, i) for _, i in ticks]
+                        heapq.heapify(ticks)
+                        clock_started = True
+                    self._run_due_ticks(ticks, target)
+                    self.virtual_ns = max(self.virtual_ns, target)
+                    for s in self.slots:
+                        self._publish_progress(s, clock=target)
+                elif not self.lockstep:
+                    self._run_due_ticks(ticks, time.time_ns())
+        if self.failure:
+            raise RuntimeError(self.failure)
         return 0
 
     def _run_due_ticks(self, ticks: list[tuple[int, int]], until_ns: int) -> None:
@@ -237,6 +257,15 @@ class GroupRuntime:
 
     # -- shutdown ---------------------------------------------------------------------------
     def shutdown(self) -> None:
+        self.stop_requested = True
+        for sub in self._subs:
+            sub.undeclare()
+        self._publish_health()  # last counters for the launcher's summary
+        with self._lock:
+            self._teardown_all()
+        self.session.close()
+
+    def _teardown_all(self) -> None:
         for slot in self.slots:
             try:
                 for port, msg in slot.node.safe_output().items():
@@ -244,9 +273,6 @@ class GroupRuntime:
                 slot.node.teardown()
             except Exception:
                 log.error("teardown of node '%s' failed:\n%s", slot.id, traceback.format_exc())
-        for sub in self._subs:
-            sub.undeclare()
-        self.session.close()
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -1,0 +1,192 @@
+"""Transport latency and loss: handflow graph vs bare Zenoh, measured in the same run (issue 2).
+
+Setup: 24-float messages.  handflow: ``basic.signal → basic.transform → basic.sink`` (three
+processes, the sink writes arrival − source stamp per message) and the single hop
+``basic.signal → basic.sink`` (two processes).  Baseline: bare Zenoh publisher → subscriber (two
+processes) and publisher → relay → subscriber (three processes) with the same payload (the same
+JSON bytes), the same session topology (a hub peer plus gossip) and the same rates.
+
+    python benchmarks/transport.py [--json] [--seconds 6] [--rates 100 1000]
+
+``overhead_ratio`` = median latency of the handflow chain / median of the bare-Zenoh chain with
+the same number of hops; ``overhead_ratio_single_hop`` compares the two-process set-ups.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+WIDTH = 24
+
+
+# ------------------------------------------------------------------------------------------------
+# bare zenoh roles (run as subprocesses of this script)
+# ------------------------------------------------------------------------------------------------
+def _role(args: argparse.Namespace) -> None:
+    from framework.graph import ZenohSettings
+    from framework.messages import Array, Header, encode
+    from framework import transport
+
+    settings = ZenohSettings()
+    session = transport.open_node_session(settings, args.hub)
+    out_rows: list[tuple[int, int]] = []
+    if args.role == "pub":
+        pub = session.declare_publisher("bench/a")
+        time.sleep(args.warmup)
+        period = 1.0 / args.rate
+        t_next = time.perf_counter()
+        data = np.zeros(WIDTH)
+        for seq in range(1, int(args.seconds * args.rate) + 1):
+            t_next += period
+            while (d := t_next - time.perf_counter()) > 0:
+                time.sleep(d if d > 2e-4 else 0)
+            msg = Array(data=data + seq)
+            msg.header = Header("pub", seq, time.time_ns())
+            pub.put(encode(msg))
+        time.sleep(1.0)
+    elif args.role == "relay":
+        pub = session.declare_publisher("bench/b")
+        session.declare_subscriber("bench/a", lambda s: pub.put(s.payload.to_bytes()))
+        time.sleep(args.seconds + args.warmup + 2)
+    else:
+        from framework.messages import decode
+
+        def on(sample):
+            msg = decode(sample.payload.to_bytes())
+            out_rows.append((msg.header.seq, time.time_ns() - msg.header.stamp_ns))
+
+        session.declare_subscriber(args.key, on)
+        time.sleep(args.seconds + args.warmup + 2)
+        Path(args.out).write_text(json.dumps(out_rows))
+    session.close()
+
+
+def run_raw(rate: float, seconds: float, hops: int) -> dict:
+    from framework.graph import ZenohSettings
+    from framework import transport
+
+    hub_ep = transport.hub_endpoint_for()
+    hub = transport.open_hub(ZenohSettings(), hub_ep)
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "rows.json"
+        common = [sys.executable, __file__, "--_role", "--hub", hub_ep, "--rate", str(rate), "--seconds", str(seconds),
+                  "--warmup", "1.5"]
+        key = "bench/a" if hops == 1 else "bench/b"
+        procs = [subprocess.Popen(common + ["--role", "sub", "--key", key, "--out", str(out)])]
+        if hops == 2:
+            procs.append(subprocess.Popen(common + ["--role", "relay"]))
+        time.sleep(0.3)
+        procs.append(subprocess.Popen(common + ["--role", "pub"]))
+        for p in procs:
+            p.wait(timeout=seconds + 30)
+        rows = json.loads(out.read_text())
+    hub.close()
+    return _stats([r[1] for r in rows], [r[0] for r in rows], int(seconds * rate))
+
+
+# ------------------------------------------------------------------------------------------------
+# handflow graph
+# ------------------------------------------------------------------------------------------------
+def run_handflow(rate: float, seconds: float, hops: int) -> dict:
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        middle = ("  - id: scale\n    plugin: basic.transform\n    inputs: {in: source/out}\n" if hops == 2 else "")
+        sink_src = "scale/out" if hops == 2 else "source/out"
+        graph = tmp / "bench.yaml"
+        graph.write_text(f"""name: bench
+nodes:
+  - id: source
+    plugin: basic.signal
+    params: {{kind: noise, rate_hz: {rate}, width: {WIDTH}}}
+{middle}  - id: sink
+    plugin: basic.sink
+    params: {{jsonl: sink.jsonl}}
+    inputs: {{in: {sink_src}}}
+""")
+        summary = tmp / "summary.json"
+        subprocess.run([sys.executable, "-m", "framework.cli", "--log-level", "WARNING", "run", str(graph),
+                        "--duration", str(seconds + 1.5), "--summary-json", str(summary)], cwd=REPO, check=True)
+        rows = [json.loads(line) for line in (tmp / "sink.jsonl").read_text().splitlines()]
+        gaps_upstream = sum(sum(u["gaps"].values()) for u in json.loads(summary.read_text()).values())
+    # skip the first second (processes still connecting), like the raw set-up's warm-up
+    t0 = rows[0]["arrival_ns"] + 1e9 if rows else 0
+    rows = [r for r in rows if r["arrival_ns"] >= t0]
+    stats = _stats([r["latency_ns"] for r in rows], [r["msg"]["header"]["seq"] for r in rows], None)
+    stats["lost"] += gaps_upstream
+    return stats
+
+
+def _stats(lat_ns: list[int], seqs: list[int], expected: int | None) -> dict:
+    if not lat_ns:
+        return {"median_us": float("nan"), "p99_us": float("nan"), "received": 0, "lost": expected or 0}
+    seqs_arr = np.asarray(sorted(seqs))
+    gaps = int(np.sum(np.diff(seqs_arr) - 1)) if len(seqs_arr) > 1 else 0
+    lost = gaps if expected is None else expected - len(seqs)
+    lat_us = np.asarray(lat_ns) / 1e3
+    return {"median_us": float(np.median(lat_us)), "p99_us": float(np.percentile(lat_us, 99)),
+            "received": len(seqs), "lost": int(lost)}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--json", action="store_true")
+    ap.add_argument("--seconds", type=float, default=6.0)
+    ap.add_argument("--rates", type=float, nargs="+", default=[100.0, 1000.0])
+    ap.add_argument("--max-rates", type=float, nargs="+", default=[1000.0, 2000.0, 4000.0, 8000.0],
+                    help="rates tried for max_rate_hz_no_loss (handflow chain)")
+    ap.add_argument("--_role", action="store_true", help=argparse.SUPPRESS)
+    ap.add_argument("--role"), ap.add_argument("--hub"), ap.add_argument("--rate", type=float)
+    ap.add_argument("--key"), ap.add_argument("--out"), ap.add_argument("--warmup", type=float, default=1.5)
+    args = ap.parse_args()
+    if args._role:
+        _role(args)
+        return
+    results: dict = {"payload_floats": WIDTH, "seconds_per_run": args.seconds, "by_rate": {}}
+    for rate in args.rates:
+        key = str(int(rate))
+        results["by_rate"][key] = {
+            "handflow_chain": run_handflow(rate, args.seconds, 2),
+            "handflow_single_hop": run_handflow(rate, args.seconds, 1),
+            "raw_chain": run_raw(rate, args.seconds, 2),
+            "raw_single_hop": run_raw(rate, args.seconds, 1),
+        }
+        if not args.json:
+            print(f"{key} Hz: " + json.dumps(results["by_rate"][key]), file=sys.stderr)
+    top = results["by_rate"][str(int(max(args.rates)))]
+    results.update({
+        "median_latency_us": top["handflow_chain"]["median_us"],
+        "p99_latency_us": top["handflow_chain"]["p99_us"],
+        "raw_zenoh_median_latency_us": top["raw_single_hop"]["median_us"],
+        "raw_zenoh_chain_median_latency_us": top["raw_chain"]["median_us"],
+        "overhead_ratio": top["handflow_chain"]["median_us"] / top["raw_chain"]["median_us"],
+        "overhead_ratio_single_hop": top["handflow_single_hop"]["median_us"] / top["raw_single_hop"]["median_us"],
+        "lost_at_top_rate": top["handflow_chain"]["lost"],
+    })
+    max_ok = 0.0
+    for rate in args.max_rates:
+        r = run_handflow(rate, min(args.seconds, 4.0), 2)
+        ok = r["lost"] == 0 and r["received"] > 0.9 * rate * (min(args.seconds, 4.0) + 0.5 - 1.0)
+        results.setdefault("max_rate_trials", {})[str(int(rate))] = {"lost": r["lost"], "received": r["received"], "ok": ok}
+        if not ok:
+            break
+        max_ok = rate
+    results["max_rate_hz_no_loss"] = max_ok
+    if args.json:
+        print(json.dumps(results))
+    else:
+        for k in ("median_latency_us", "p99_latency_us", "raw_zenoh_median_latency_us", "raw_zenoh_chain_median_latency_us",
+                  "overhead_ratio", "overhead_ratio_single_hop", "max_rate_hz_no_loss"):
+            print(f"{k:38s} {results[k]:.3f}" if isinstance(results[k], float) else f"{k:38s} {results[k]}")
+
+
+if __name__ == "__main__":
+    main()

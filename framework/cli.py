@@ -13,31 +13,49 @@ import sys
 from .registry import command_entries
 
 
-def build_parser() -> argparse.ArgumentParser:
+def _requested_path(argv: list[str]) -> tuple[str, ...]:
+    """The positional words of ``argv`` before its first option-like word after the command."""
+    words, skip = [], False
+    for arg in argv:
+        if skip:
+            skip = False
+        elif arg == "--log-level":
+            skip = True
+        elif arg.startswith("-"):
+            if words:
+                break
+        else:
+            words.append(arg)
+    return tuple(words)
+
+
+def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
+    """The full parser; only the entry points on the requested command's path are imported (fast start)."""
+    requested = _requested_path(sys.argv[1:] if argv is None else argv)
     parser = argparse.ArgumentParser(prog="handflow", description="Streams glove, camera and simulator data through "
                                      "plugins over Zenoh; learns, drives and recognises motions with structured manifolds.")
     parser.add_argument("--log-level", default="INFO", choices=["DEBUG", "INFO", "WARNING", "ERROR"])
     subparsers: dict[tuple[str, ...], argparse._SubParsersAction] = {(): parser.add_subparsers(dest="command", metavar="COMMAND")}
-    parsers: dict[tuple[str, ...], argparse.ArgumentParser] = {}
     for ep in command_entries():
         path = tuple(ep.name.split("."))
         for depth in range(1, len(path)):
             prefix = path[:depth]
-            if prefix not in parsers:
-                grp = subparsers[prefix[:-1]].add_parser(prefix[-1], help=f"{prefix[-1]} commands")
-                parsers[prefix] = grp
+            if prefix not in subparsers:
+                grp = subparsers[prefix[:-1]].add_parser(prefix[-1], help=f"{prefix[-1]} … (see `handflow {prefix[-1]} -h`)")
                 subparsers[prefix] = grp.add_subparsers(dest=f"command_{depth}", metavar="WHAT")
+        parent = subparsers[path[:-1]]
+        if requested[:len(path)] != path:
+            parent.add_parser(path[-1], help=f"see `handflow {' '.join(path)} -h`")
+            continue
         try:
             register = ep.load()
         except Exception as exc:  # a broken family must not take the whole CLI down
-            broken = subparsers[path[:-1]].add_parser(path[-1], help=f"(unavailable: {exc})")
+            broken = parent.add_parser(path[-1], help=f"(unavailable: {exc})")
             broken.set_defaults(func=lambda args, exc=exc, name=ep.name: _unavailable(name, exc))
             continue
         doc = (register.__doc__ or "").strip().splitlines()
-        sub = subparsers[path[:-1]].add_parser(path[-1], help=doc[0] if doc else None,
-                                               description=" ".join(doc) or None)
+        sub = parent.add_parser(path[-1], help=doc[0] if doc else None, description=" ".join(doc) or None)
         register(sub)
-        parsers[path] = sub
     return parser
 
 
@@ -47,7 +65,7 @@ def _unavailable(name: str, exc: Exception) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
+    parser = build_parser(argv)
     args = parser.parse_args(argv)
     logging.basicConfig(level=args.log_level, stream=sys.stderr, format="%(asctime)s %(levelname)s [%(name)s] %(message)s")
     func = getattr(args, "func", None)

@@ -14,6 +14,10 @@ import os
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    import zenoh
 
 log = logging.getLogger("handflow.discovery")
 
@@ -100,3 +104,13 @@ def find_run(graph: str | None = None) -> RunInfo:
     if len(runs) > 1:
         log.info("%d launchers of graph '%s' are running; joining the newest (pid %d)", len(runs), runs[0].graph, runs[0].pid)
     return runs[0]
+
+
+def join(graph: str | None = None, connect: str | None = None) -> tuple["zenoh.Session", RunInfo | None]:
+    """Open a Zenoh peer session on a running graph's network: ``connect`` if given, else via its run-file."""
+    from .graph import ZenohSettings
+    from .transport import open_node_session
+
+    run = None if connect else find_run(graph)
+    endpoint = connect or run.hub
+    return open_node_session(ZenohSettings(), endpoint), run

@@ -64,6 +64,13 @@ class RecordSpec(_Strict):
     topics: list[str] = Field(default_factory=lambda: ["**"], description="globs over node/port, e.g. 'glove/*'")
 
 
+class FoxgloveSettings(_Strict):
+    """Live view: a Foxglove WebSocket server started by the launcher, streaming every topic."""
+
+    host: str = "127.0.0.1"
+    port: int = Field(8765, ge=0, le=65535, description="0 picks a free port")
+
+
 class GraphSpec(_Strict):
     name: str
     description: str = ""
@@ -71,6 +78,7 @@ class GraphSpec(_Strict):
     external: dict[str, str] = Field(default_factory=dict, description="node/port → message type fed from outside")
     nodes: list[NodeSpec]
     record: RecordSpec | None = None
+    foxglove: FoxgloveSettings | None = None
 
     @field_validator("name")
     @classmethod

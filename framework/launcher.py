@@ -153,12 +153,19 @@ class Launcher:
 
 
 def run_graph(graph: Graph, duration_s: float | None = None, host: str | None = None,
-              on_started=None, lockstep: bool = False) -> Launcher:
+              on_ready=None, lockstep: bool = False) -> Launcher:
     """Run ``graph`` until Ctrl-C/SIGTERM or ``duration_s``; returns the stopped launcher (for its summary).
 
-    ``on_started(launcher)`` runs after the units are spawned (used to attach a recorder).
+    ``on_ready(launcher)`` runs once the hub session is open and before any node starts (attach a
+    recorder or a live view there, so they miss nothing); if it raises, nothing is started.
     """
     launcher = Launcher(graph, host, lockstep, logging.getLevelName(logging.getLogger().level))
+    if on_ready is not None:
+        try:
+            on_ready(launcher)
+        except BaseException:
+            launcher.close()
+            raise
     stop = {"flag": False}
 
     def _stop(signum, frame):  # noqa: ARG001
@@ -167,8 +174,6 @@ def run_graph(graph: Graph, duration_s: float | None = None, host: str | None = 
     old = {s: signal.signal(s, _stop) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
         launcher.start()
-        if on_started is not None:
-            on_started(launcher)
         t_end = None if duration_s is None else time.monotonic() + duration_s
         while not stop["flag"] and (t_end is None or time.monotonic() < t_end):
             launcher.poll()

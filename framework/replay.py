@@ -73,6 +73,7 @@ class GraphWatcher:
     def __init__(self, session: zenoh.Session, graph_name: str) -> None:
         self.graph_name = graph_name
         self.health: dict[str, dict[str, float]] = {}
+        self.beats: Counter = Counter()  # heartbeats received per node
         self.progress: dict[str, dict[str, Any]] = {}
         self.cond = threading.Condition()
         self._subs = [
@@ -87,6 +88,7 @@ class GraphWatcher:
             return
         with self.cond:
             self.health[status.header.source] = dict(getattr(status, "counters", {}))
+            self.beats[status.header.source] += 1
             self.cond.notify_all()
 
     def _on_progress(self, sample: Any) -> None:
@@ -159,6 +161,15 @@ class _Publishers:
             if self.match_timeout_s and not wait_matching([pub], self.match_timeout_s):
                 log.warning("no subscriber for %s after %.1fs; publishing anyway", key, self.match_timeout_s)
         return pub
+
+    def prepare(self, keys: Iterable[str], timeout_s: float) -> None:
+        """Declare publishers up front and wait (once, for all) until they have subscribers."""
+        pubs = [self.session.declare_publisher(k, congestion_control=zenoh.CongestionControl.BLOCK)
+                for k in keys if k not in self.by_key]
+        self.by_key.update({str(p.key_expr): p for p in pubs})
+        if pubs and not wait_matching(pubs, timeout_s):
+            missing = [str(p.key_expr) for p in pubs if not p.matching_status.matching]
+            log.warning("no subscriber yet for %s after %.1fs; replaying anyway", ", ".join(missing), timeout_s)
 
     def close(self) -> None:
         for pub in self.by_key.values():

@@ -5,7 +5,8 @@ import argparse
 import json
 import sys
 
-from ..graph import GraphError, load_graph
+from ..foxglove_bridge import PortInUse, start_bridge
+from ..graph import FoxgloveSettings, GraphError, load_graph
 from ..launcher import run_graph
 
 
@@ -15,6 +16,8 @@ def register(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--duration", type=float, help="stop after this many seconds (orderly, exit 0)")
     parser.add_argument("--record", metavar="FILE.mcap", help="record the graph's 'record.topics' (default all) to MCAP")
     parser.add_argument("--host", help="run only the nodes whose 'host' is NAME (a graph spread over machines)")
+    parser.add_argument("--foxglove", nargs="?", const=8765, type=int, metavar="PORT",
+                        help="live view: stream every topic to Foxglove on ws://127.0.0.1:PORT (default 8765)")
     parser.add_argument("--summary-json", metavar="FILE", help="write per-process restarts and exit codes as JSON")
     parser.set_defaults(func=run)
 
@@ -27,23 +30,33 @@ def run(args: argparse.Namespace) -> int:
         print(f"{args.graph}: fix the problems above (see `handflow validate {args.graph}`)", file=sys.stderr)
         return 2
     record_path = args.record or (graph.spec.record.path if graph.spec.record else None)
-    recorder = None
+    recorder = bridge = None
+    fox = graph.spec.foxglove
+    if args.foxglove is not None:
+        fox = FoxgloveSettings(host=fox.host if fox else "127.0.0.1", port=args.foxglove)
 
     def attach(launcher):
-        nonlocal recorder
+        nonlocal recorder, bridge
+        if fox is not None:
+            bridge = start_bridge(launcher.session, graph.name, fox.host, fox.port)
         if record_path:
             from ..recording import GraphRecorder
             recorder = GraphRecorder.for_graph(graph, graph.base_dir / record_path if not args.record else record_path)
             recorder.attach(launcher.session)
 
     try:
-        launcher = run_graph(graph, args.duration, args.host, on_started=attach)
+        launcher = run_graph(graph, args.duration, args.host, on_ready=attach)
     except ValueError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    except PortInUse as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     finally:
         if recorder is not None:
             recorder.close()
+        if bridge is not None:
+            bridge.close()
     if args.summary_json:
         with open(args.summary_json, "w") as f:
             json.dump(launcher.summary(), f, indent=2)

@@ -1,0 +1,61 @@
+"""``handflow monitor [--graph NAME] [--connect EP] [--once [--json]] [--window S]``."""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+
+from ..discovery import DiscoveryError, join
+from ..monitor import WINDOW_S, Monitor, render
+
+
+def register(parser: argparse.ArgumentParser) -> None:
+    """Live table of a running graph: topics, rates, latency, sequence gaps, last values, node health."""
+    parser.add_argument("--graph", help="name of the running graph (default: the only one running)")
+    parser.add_argument("--connect", metavar="ENDPOINT", help="join this Zenoh endpoint instead of a run-file")
+    parser.add_argument("--once", action="store_true", help="listen for --listen seconds, print one snapshot, exit")
+    parser.add_argument("--json", action="store_true", help="with --once: print the snapshot as JSON")
+    parser.add_argument("--listen", type=float, default=2.0, help="listening window of --once in seconds (default 2)")
+    parser.add_argument("--window", type=float, default=WINDOW_S, help="sliding window for rates and latency (s)")
+    parser.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    if args.json and not args.once:
+        print("error: --json needs --once (the live view is a table)", file=sys.stderr)
+        return 2
+    try:
+        session, info = join(args.graph, args.connect)
+    except DiscoveryError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    graph = info.graph if info is not None else args.graph
+    monitor = Monitor(session, graph, window_s=max(args.window, args.listen) if args.once else args.window)
+    title = f"handflow monitor — graph '{graph}'" if graph else "handflow monitor — all graphs"
+    try:
+        if args.once:
+            time.sleep(args.listen)
+            snap = monitor.snapshot()
+            if args.json:
+                print(json.dumps(snap))
+            else:
+                from rich.console import Console
+                Console().print(render(snap, title, graph))
+        else:
+            _live(monitor, title, graph)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        monitor.close()
+        session.close()
+    return 0
+
+
+def _live(monitor: Monitor, title: str, graph: str | None) -> None:
+    from rich.live import Live
+
+    with Live(render(monitor.snapshot(), title, graph), refresh_per_second=4, screen=False) as live:
+        while True:
+            time.sleep(0.5)
+            live.update(render(monitor.snapshot(), title, graph))

@@ -1,0 +1,197 @@
+"""``handflow replay FILE.mcap [--speed X] [--loop] [--topics GLOB ...] [--into GRAPH.yaml [--lockstep]]``."""
+from __future__ import annotations
+
+import argparse
+import logging
+import signal
+import sys
+import threading
+from pathlib import Path
+
+from .. import transport
+from ..discovery import DiscoveryError, join
+from ..graph import Graph, GraphError, load_graph
+from ..launcher import Launcher
+from ..recording import ReadReport, RecordingError, iter_recording
+from ..replay import (GraphWatcher, LockstepReplayer, ReplayError, ReplayPlan, ReplayStats, TimedReplayer,
+                      external_inputs)
+
+log = logging.getLogger("handflow.replay")
+
+DRAIN_TIMEOUT_S = 5.0
+
+
+def register(parser: argparse.ArgumentParser) -> None:
+    """Publish a recording with its original timing, into a running graph or one it launches (--into)."""
+    parser.add_argument("file", help="MCAP recording")
+    parser.add_argument("--speed", type=float, default=1.0, help="time scale: 2 = twice as fast (default 1)")
+    parser.add_argument("--loop", action="store_true", help="start over at the end until Ctrl-C")
+    parser.add_argument("--topics", nargs="+", metavar="GLOB", help="globs over the recorded node/port topics")
+    parser.add_argument("--into", metavar="GRAPH.yaml",
+                        help="launch this graph and feed it the recorded topics its nodes read but do not publish")
+    parser.add_argument("--lockstep", action="store_true",
+                        help="with --into: virtual time, each message fully processed before the next (deterministic)")
+    parser.add_argument("--graph", help="replay into this running graph (default: the recording's graph, if running)")
+    parser.add_argument("--connect", metavar="ENDPOINT", help="join this Zenoh endpoint instead of a run-file")
+    parser.add_argument("--ready-timeout", type=float, default=30.0, help="seconds to wait for the graph's nodes")
+    parser.add_argument("--step-timeout", type=float, default=10.0, help="lock-step: seconds one message may take to settle")
+    parser.set_defaults(func=run)
+
+
+def _recorded_graph(path: str) -> str | None:
+    """The recorded graph's name (metadata, else the first topic's key)."""
+    report = ReadReport(Path(path))
+    for rm in iter_recording(path, report=report):
+        meta = report.metadata.get("handflow.graph", {})
+        if meta.get("name"):
+            return meta["name"]
+        parts = transport.split_key(rm.topic)
+        return parts[0] if parts else None
+    return report.metadata.get("handflow.graph", {}).get("name")
+
+
+def _check_args(args: argparse.Namespace) -> str | None:
+    if not args.speed > 0:
+        return f"--speed must be > 0 (got {args.speed}); use 2 for twice as fast, 0.5 for half speed"
+    if args.lockstep and not args.into:
+        return "--lockstep needs --into GRAPH.yaml: the replayer launches the graph in lock-step mode to know its wiring"
+    if args.lockstep and args.loop:
+        return "--lockstep cannot --loop (a lock-step replay is a finite, deterministic run)"
+    if not Path(args.file).is_file():
+        return f"recording {args.file} not found; pass an .mcap file"
+    return None
+
+
+def run(args: argparse.Namespace) -> int:
+    problem = _check_args(args)
+    if problem:
+        print(f"error: {problem}", file=sys.stderr)
+        return 2
+    stop = threading.Event()
+    old = {s: signal.signal(s, lambda *_: stop.set()) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        recorded = _recorded_graph(args.file)
+        if args.into:
+            return _replay_into(args, recorded, stop)
+        return _replay_join(args, recorded, stop)
+    except (RecordingError, DiscoveryError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    except ReplayError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 1
+    finally:
+        for s, h in old.items():
+            signal.signal(s, h)
+
+
+def _print_stats(stats: ReplayStats, where: str) -> None:
+    if stats.report is not None and stats.report.recovered:
+        print(f"warning: {stats.report.describe()}", file=sys.stderr)
+    print(f"replayed {stats.total} message(s) on {len(stats.published)} topic(s) into {where}"
+          + (f" ({stats.loops} loops)" if stats.loops > 1 else ""))
+
+
+def _replay_join(args: argparse.Namespace, recorded: str | None, stop: threading.Event) -> int:
+    """Publish into an already running graph (found by name, or at --connect)."""
+    target = args.graph or recorded
+    session, info = join(None if args.connect else target, args.connect)
+    try:
+        graph = None
+        if info is not None and Path(info.graph_file).is_file():
+            try:
+                graph = load_graph(info.graph_file)
+            except GraphError:
+                graph = None
+        target = info.graph if info is not None else target
+        watcher = GraphWatcher(session, target)
+        if graph is not None:  # heartbeats prove the routes to its nodes exist
+            watcher.wait_alive(graph.nodes, args.ready_timeout)
+        else:
+            watcher.wait_for(lambda: bool(watcher.health), min(args.ready_timeout, 3.0))
+        plan = ReplayPlan(Path(args.file), args.topics, target)
+        stats = TimedReplayer(session, plan, speed=args.speed, loop=args.loop, stop=stop).run()
+        watcher.close()
+    finally:
+        session.close()
+    _print_stats(stats, f"graph '{target}'")
+    return 0
+
+
+def _replay_into(args: argparse.Namespace, recorded: str | None, stop: threading.Event) -> int:
+    """Launch ``--into`` (lock-step or not), feed it, let it drain, stop it."""
+    try:
+        graph = load_graph(args.into)
+    except GraphError as exc:
+        print(f"{exc}\n{args.into}: fix the graph file (see `handflow validate {args.into}`)", file=sys.stderr)
+        return 2
+    sources = external_inputs(graph)
+    if not sources:
+        print(f"error: graph '{graph.name}' has no inputs fed from outside; declare the recorded topics its nodes "
+              f"should read under 'external:' (e.g. glove/frames: GloveFrame) and point the inputs at them", file=sys.stderr)
+        return 2
+    plan = ReplayPlan(Path(args.file), args.topics, graph.name, sources)
+    launcher = Launcher(graph, lockstep=args.lockstep, log_level=logging.getLevelName(logging.getLogger().level))
+    result: dict[str, object] = {}
+    try:
+        launcher.start()
+        watcher = GraphWatcher(launcher.session, graph.name)
+        poll = launcher.poll
+        watcher.wait_alive(graph.nodes, args.ready_timeout, poll)
+        if args.lockstep:
+            replayer = LockstepReplayer(launcher.session, graph, graph.nodes, watcher,
+                                        step_timeout_s=args.step_timeout, stop=stop, poll=poll)
+            work = lambda: replayer.run(plan)  # noqa: E731
+        else:
+            timed = TimedReplayer(launcher.session, plan, speed=args.speed, loop=args.loop, stop=stop)
+            timed.pubs.prepare([transport.topic_key(graph.name, *s.split("/", 1)) for s in sources], args.ready_timeout)
+            work = timed.run
+        thread = threading.Thread(target=_capture, args=(work, result), name="replay", daemon=True)
+        thread.start()
+        while thread.is_alive():  # supervise the graph while the replay runs
+            launcher.poll()
+            thread.join(0.05)
+        if "error" in result:
+            raise result["error"]  # type: ignore[misc]
+        stats: ReplayStats = result["stats"]  # type: ignore[assignment]
+        if not args.lockstep and not stop.is_set():
+            _drain(graph, watcher, stats, launcher.poll)
+        watcher.close()
+    finally:
+        stop.set()
+        launcher.stop()
+        launcher.close()
+    _print_stats(stats, f"graph '{graph.name}'" + (" (lock-step)" if args.lockstep else ""))
+    if stats.total == 0:
+        print(f"warning: nothing replayed; the recording (graph '{recorded}') has none of the topics "
+              f"{', '.join(sorted(sources))} that graph '{graph.name}' reads from outside", file=sys.stderr)
+    return 0
+
+
+def _capture(work, result: dict[str, object]) -> None:
+    try:
+        result["stats"] = work()
+    except Exception as exc:  # noqa: BLE001 - re-raised on the main thread
+        result["error"] = exc
+
+
+def _drain(graph: Graph, watcher: GraphWatcher, stats: ReplayStats, poll) -> None:
+    """Timed replay: wait (bounded) until the heartbeats show every replayed message handled downstream."""
+    sent = {f"{p[1]}/{p[2]}": n for k, n in stats.published.items() if (p := transport.split_key(k))}
+
+    def drained() -> bool:
+        for nid, rn in graph.nodes.items():
+            counters = watcher.health.get(nid, {})
+            for port, src in rn.spec.inputs.items():
+                node, _, out = src.partition("/")
+                published = sent.get(src, 0) if node not in graph.nodes else watcher.health.get(node, {}).get(f"published.{out}", 0)
+                if counters.get(f"handled.{port}", 0) < published:
+                    return False
+        return True
+
+    with watcher.cond:
+        seen = dict(watcher.beats)
+    fresh = lambda: all(watcher.beats[n] >= seen.get(n, 0) + 2 for n in graph.nodes)  # noqa: E731 - counters newer than the replay
+    if not watcher.wait_for(lambda: fresh() and drained(), DRAIN_TIMEOUT_S, poll):
+        log.warning("the graph had not handled every replayed message %.0fs after the replay; stopping it anyway",
+                    DRAIN_TIMEOUT_S)

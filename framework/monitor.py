@@ -1,0 +1,204 @@
+"""Live view of a running graph: topics, rates, latency, sequence gaps, last values, node health.
+
+Issue 2 item 8, spec framework.md ("Sequence gaps are counted and visible in the monitor").
+:class:`Monitor` subscribes to ``handflow/<graph>/**`` (or ``handflow/**``) and keeps, per topic, a
+sliding window of arrival times and end-to-end latencies (arrival wall clock − header
+``stamp_ns``), the sequence gaps (a jump from seq n to n+k counts k−1 lost messages; a seq that goes
+*back* — a replay loop or a fresh graph — restarts the count without a gap; the runner keeps
+numbering across node restarts, so a restart is not a gap) and the last payload (decoded only when
+a snapshot is taken).  Node health comes from the ``_health`` heartbeats: alive if one arrived
+within :data:`ALIVE_S`; restarts are seen as a change of the heartbeat's pid.
+"""
+from __future__ import annotations
+
+import re
+import threading
+import time
+from collections import deque
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from . import transport
+from .messages import Array, Message, MessageError, Status, decode
+from .recording import peek_header
+
+ALIVE_S = 2.0          # a node is alive if its last heartbeat is younger than this
+WINDOW_S = 5.0         # rate and latency are computed over this sliding window
+
+
+@dataclass
+class TopicStats:
+    key: str
+    type_name: str = ""
+    count: int = 0
+    gaps: int = 0
+    last_seq: int = 0
+    last_data: bytes = b""
+    arrivals: deque = field(default_factory=deque)   # (monotonic s, latency ns)
+
+    def note(self, now_m: float, latency_ns: int, seq: int, window_s: float) -> None:
+        self.count += 1
+        if self.last_seq and seq > self.last_seq + 1:
+            self.gaps += seq - self.last_seq - 1
+        self.last_seq = seq
+        self.arrivals.append((now_m, latency_ns))
+        while self.arrivals and self.arrivals[0][0] < now_m - window_s:
+            self.arrivals.popleft()
+
+    def rate_hz(self) -> float:
+        if len(self.arrivals) < 2:
+            return 0.0
+        span = self.arrivals[-1][0] - self.arrivals[0][0]
+        return (len(self.arrivals) - 1) / span if span > 0 else 0.0
+
+    def latency_ms(self) -> float | None:
+        if not self.arrivals:
+            return None
+        return float(np.median([lat for _, lat in self.arrivals])) / 1e6
+
+
+@dataclass
+class NodeHealth:
+    graph: str
+    id: str
+    last_seen: float = 0.0   # monotonic s
+    pid: int | None = None
+    restarts: int = 0
+    counters: dict[str, float] = field(default_factory=dict)
+
+
+def summarize(msg: Message, max_values: int = 4) -> str:
+    """A one-line summary of a message's payload for the table."""
+    def arr(a: np.ndarray) -> str:
+        flat = np.asarray(a).reshape(-1)
+        head = ", ".join(f"{v:.3g}" if isinstance(v, float) else str(v) for v in flat[:max_values].tolist())
+        return f"[{head}{', …' if flat.size > max_values else ''}] ({flat.size})"
+    if isinstance(msg, Array):
+        return arr(msg.data)
+    if isinstance(msg, Status):
+        return f"{msg.state} {msg.text}".strip()
+    parts = []
+    for name, value in vars(msg).items():
+        if name == "header":
+            continue
+        if isinstance(value, np.ndarray):
+            parts.append(f"{name}={arr(value)}")
+        elif isinstance(value, bytes):
+            parts.append(f"{name}=<{len(value)} bytes>")
+        elif isinstance(value, list):
+            parts.append(f"{name}=[{len(value)}]")
+        else:
+            parts.append(f"{name}={value!r}")
+    return " ".join(parts)[:120]
+
+
+_PID = re.compile(r"pid (\d+)")
+
+
+class Monitor:
+    """Collects live statistics of one graph (or all graphs) on a Zenoh session."""
+
+    def __init__(self, session: Any, graph: str | None = None, window_s: float = WINDOW_S) -> None:
+        self.graph = graph
+        self.window_s = window_s
+        self.topics: dict[str, TopicStats] = {}
+        self.nodes: dict[tuple[str, str], NodeHealth] = {}
+        self._lock = threading.Lock()
+        key = f"{transport.PREFIX}/{graph}/**" if graph else f"{transport.PREFIX}/**"
+        self._sub = session.declare_subscriber(key, self._on_sample)
+
+    def _on_sample(self, sample: Any) -> None:
+        now_wall, now_m = time.time_ns(), time.monotonic()
+        key = str(sample.key_expr)
+        parts = transport.split_key(key)
+        if parts is None or parts[2] == "_progress":
+            return  # the lock-step clock and progress reports are runtime traffic, not data
+        data = sample.payload.to_bytes()
+        if parts[2] == "_health":
+            self._on_health(parts[0], parts[1], data, now_m)
+            return
+        try:
+            hdr = peek_header(data)
+        except MessageError:
+            return
+        with self._lock:
+            stats = self.topics.get(key)
+            if stats is None:
+                stats = self.topics[key] = TopicStats(key, hdr.type_name)
+            stats.note(now_m, now_wall - hdr.stamp_ns, hdr.seq, self.window_s)
+            stats.last_data = data
+
+    def _on_health(self, graph: str, node: str, data: bytes, now_m: float) -> None:
+        try:
+            status = decode(data)
+        except MessageError:
+            return
+        m = _PID.search(getattr(status, "text", ""))
+        pid = int(m.group(1)) if m else None
+        with self._lock:
+            h = self.nodes.get((graph, node))
+            if h is None:
+                h = self.nodes[(graph, node)] = NodeHealth(graph, node)
+            elif pid is not None and h.pid is not None and pid != h.pid:
+                h.restarts += 1
+            h.pid = pid if pid is not None else h.pid
+            h.last_seen = now_m
+            h.counters = dict(getattr(status, "counters", {}))
+
+    def snapshot(self) -> dict[str, Any]:
+        """``{"topics": [{"topic", "rate_hz", "latency_ms", "gaps", ...}], "nodes": [{"id", "alive", ...}]}``."""
+        now_m = time.monotonic()
+        with self._lock:
+            topics = list(self.topics.values())
+            nodes = list(self.nodes.values())
+            lasts = {t.key: t.last_data for t in topics}
+        out_topics = []
+        for t in sorted(topics, key=lambda t: t.key):
+            try:
+                last = summarize(decode(lasts[t.key]))
+            except MessageError as exc:
+                last = f"(undecodable: {exc})"
+            lat = t.latency_ms()
+            out_topics.append({"topic": t.key, "type": t.type_name, "rate_hz": round(t.rate_hz(), 2),
+                               "latency_ms": None if lat is None else round(lat, 3), "gaps": t.gaps,
+                               "count": t.count, "last": last})
+        out_nodes = []
+        for h in sorted(nodes, key=lambda h: (h.graph, h.id)):
+            c = h.counters
+            out_nodes.append({"id": h.id, "graph": h.graph, "alive": now_m - h.last_seen < ALIVE_S,
+                              "last_heartbeat_s": round(now_m - h.last_seen, 2), "pid": h.pid,
+                              "restarts_seen": h.restarts, "errors": int(c.get("errors", 0)),
+                              "input_gaps": int(sum(v for k, v in c.items() if k.startswith("gaps."))),
+                              "handled": int(sum(v for k, v in c.items() if k.startswith("handled."))),
+                              "published": int(sum(v for k, v in c.items() if k.startswith("published.")))})
+        return {"topics": out_topics, "nodes": out_nodes}
+
+    def close(self) -> None:
+        self._sub.undeclare()
+
+
+def render(snapshot: dict[str, Any], title: str = "handflow monitor", graph: str | None = None) -> Any:
+    """A rich renderable (two tables) of a snapshot; topics of ``graph`` are shown as ``node/port``."""
+    from rich.console import Group
+    from rich.table import Table
+
+    topics = Table(title=title, expand=True)
+    for col, kw in (("topic", {}), ("type", {}), ("rate Hz", {"justify": "right"}), ("latency ms", {"justify": "right"}),
+                    ("gaps", {"justify": "right"}), ("count", {"justify": "right"}), ("last value", {"overflow": "ellipsis"})):
+        topics.add_column(col, **kw)
+    for t in snapshot["topics"]:
+        lat = "-" if t["latency_ms"] is None else f"{t['latency_ms']:.2f}"
+        gaps = f"[red]{t['gaps']}[/red]" if t["gaps"] else "0"
+        name = t["topic"].removeprefix(f"{transport.PREFIX}/{graph}/") if graph else t["topic"]
+        topics.add_row(name, t["type"].removeprefix("handflow."), f"{t['rate_hz']:.1f}", lat, gaps,
+                       str(t["count"]), t["last"])
+    nodes = Table(title="nodes", expand=True)
+    for col in ("graph", "node", "alive", "pid", "restarts seen", "errors", "input gaps", "handled", "published"):
+        nodes.add_column(col)
+    for n in snapshot["nodes"]:
+        alive = "[green]yes[/green]" if n["alive"] else f"[red]no ({n['last_heartbeat_s']:.0f}s)[/red]"
+        nodes.add_row(n["graph"], n["id"], alive, str(n["pid"]), str(n["restarts_seen"]), str(n["errors"]),
+                      str(n["input_gaps"]), str(n["handled"]), str(n["published"]))
+    return Group(topics, nodes)

@@ -1,0 +1,69 @@
+"""Live view: a graph run with --foxglove advertises its topics to a real Foxglove WebSocket client."""
+from __future__ import annotations
+
+import json
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+from websockets.sync.client import connect
+
+from framework.transport import free_tcp_port
+
+pytestmark = pytest.mark.slow
+REPO = Path(__file__).resolve().parents[2]
+
+
+def advertised_topics(port: int, timeout: float = 20.0) -> set[str]:
+    deadline = time.time() + timeout
+    while True:
+        try:
+            ws = connect(f"ws://127.0.0.1:{port}", subprotocols=["foxglove.sdk.v1", "foxglove.websocket.v1"],
+                         open_timeout=2)
+            break
+        except OSError:
+            if time.time() > deadline:
+                raise
+            time.sleep(0.3)
+    topics: set[str] = set()
+    with ws:
+        while time.time() < deadline and not {"fx/source/out", "fx/sink/_health"} <= topics:
+            try:
+                frame = ws.recv(timeout=1)
+            except TimeoutError:
+                continue
+            if isinstance(frame, str):
+                msg = json.loads(frame)
+                if msg.get("op") == "advertise":
+                    topics |= {c["topic"] for c in msg["channels"]}
+    return topics
+
+
+def test_run_with_foxglove_streams_topics(tmp_path):
+    graph = tmp_path / "g.yaml"
+    graph.write_text("name: fx\nnodes:\n  - id: source\n    plugin: basic.signal\n    params: {rate_hz: 20}\n"
+                     "  - id: sink\n    plugin: basic.sink\n    inputs: {in: source/out}\n")
+    port = free_tcp_port()
+    proc = subprocess.Popen([sys.executable, "-m", "framework.cli", "run", str(graph), "--duration", "12",
+                             "--foxglove", str(port)], cwd=REPO, stderr=subprocess.PIPE, text=True)
+    try:
+        topics = advertised_topics(port)
+    finally:
+        proc.terminate()
+        _, err = proc.communicate(timeout=30)
+    assert {"fx/source/out", "fx/sink/_health"} <= topics, err
+    assert proc.returncode == 0
+
+
+def test_port_in_use_is_a_clear_error(tmp_path, run_handflow):
+    graph = tmp_path / "g.yaml"
+    graph.write_text("name: fx2\nnodes:\n  - id: source\n    plugin: basic.signal\n    params: {rate_hz: 5}\n")
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        s.listen()
+        proc = run_handflow("run", str(graph), "--duration", "2", "--foxglove", str(s.getsockname()[1]))
+    assert proc.returncode == 2
+    assert "in use" in proc.stderr and "--foxglove PORT" in proc.stderr

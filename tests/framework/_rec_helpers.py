@@ -1,0 +1,59 @@
+"""Shared helpers of the recording/replay/monitor tests: graphs with unique names, CLI processes."""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import time
+import uuid
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[2]
+
+
+def unique(prefix: str) -> str:
+    """A graph name no other test (or engineer) on this machine uses at the same time."""
+    return f"{prefix}_{uuid.uuid4().hex[:8]}"
+
+
+def write_graph(path: Path, name: str, body: str) -> Path:
+    path.write_text(f"name: {name}\n{body}")
+    return path
+
+
+def chain(path: Path, name: str, rate: float = 100) -> Path:
+    """source (seeded noise) → scale (×2) → sink: a live graph to record or monitor."""
+    return write_graph(path, name, f"""nodes:
+  - id: source
+    plugin: basic.signal
+    params: {{kind: noise, rate_hz: {rate}, width: 3, seed: 1}}
+  - id: scale
+    plugin: basic.transform
+    params: {{gain: 2.0}}
+    inputs: {{in: source/out}}
+  - id: sink
+    plugin: basic.sink
+    inputs: {{in: scale/out}}
+""")
+
+
+def start(*args: str, cwd: Path = REPO) -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, "-m", "framework.cli", *args], cwd=cwd, text=True,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+
+
+def handflow(*args: str, cwd: Path = REPO, timeout: float = 90) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "framework.cli", *args], cwd=cwd, capture_output=True, text=True,
+                          timeout=timeout)
+
+
+def wait_until(pred, timeout: float = 30.0, what: str = "condition") -> None:
+    deadline = time.monotonic() + timeout
+    while not pred():
+        if time.monotonic() > deadline:
+            raise AssertionError(f"timed out waiting for {what}")
+        time.sleep(0.1)
+
+
+def read_jsonl(path: Path) -> list[dict]:
+    return [json.loads(line) for line in path.read_text().splitlines()] if path.exists() else []

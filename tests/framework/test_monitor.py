@@ -1,0 +1,104 @@
+"""Monitor: gap and restart counting over real Zenoh sessions, and `monitor --once --json` on a live graph."""
+from __future__ import annotations
+
+import json
+import signal
+import time
+
+import numpy as np
+import pytest
+
+from framework import transport
+from framework.graph import ZenohSettings
+from framework.messages import Array, Header, Status, encode
+from framework.monitor import Monitor, summarize
+from framework.replay import wait_matching
+
+from _rec_helpers import chain, handflow, start, unique, wait_until
+
+
+@pytest.fixture(autouse=True)
+def private_run_dir(tmp_path, monkeypatch):
+    monkeypatch.setenv("HANDFLOW_RUN_DIR", str(tmp_path / "runs"))
+
+
+@pytest.fixture
+def sessions():
+    hub_ep = transport.hub_endpoint_for()
+    hub = transport.open_hub(ZenohSettings(), hub_ep)
+    peer = transport.open_node_session(ZenohSettings(), hub_ep)
+    yield hub, peer
+    peer.close()
+    hub.close()
+
+
+def _array(seq: int, stamp: int) -> bytes:
+    msg = Array(data=np.array([seq, 2.0 * seq]))
+    msg.header = Header("src", seq, stamp)
+    return encode(msg)
+
+
+def _status(pid: int) -> bytes:
+    msg = Status(counters={"errors": 1, "gaps.in": 3, "handled.in": 10, "published.out": 9}, text=f"pid {pid}")
+    msg.header = Header("node", 0, time.time_ns())
+    return encode(msg)
+
+
+def test_gaps_restarts_latency_and_health_from_real_zenoh_traffic(sessions):
+    hub, peer = sessions
+    mon = Monitor(peer, "g")
+    data = hub.declare_publisher("handflow/g/src/out")
+    health = hub.declare_publisher("handflow/g/node/_health")
+    assert wait_matching([data, health], 10)
+    for seq in (1, 2, 3, 7, 8, 2, 3):  # 3 lost after 3; the drop back to 2 is a replay loop, not a gap
+        data.put(_array(seq, time.time_ns() - 5_000_000))
+        time.sleep(0.005)
+    health.put(_status(100))
+    health.put(_status(100))
+    health.put(_status(101))  # a new pid: the node was restarted
+    wait_until(lambda: mon.snapshot()["nodes"] and mon.topics["handflow/g/src/out"].count == 7, 10, "all samples")
+    snap = mon.snapshot()
+    (topic,) = snap["topics"]
+    assert topic["topic"] == "handflow/g/src/out" and topic["gaps"] == 3 and topic["count"] == 7
+    assert topic["latency_ms"] >= 5.0 and topic["rate_hz"] > 0
+    assert topic["last"] == "[3, 6] (2)"
+    (node,) = snap["nodes"]
+    assert node["id"] == "node" and node["alive"] and node["restarts_seen"] == 1
+    assert (node["errors"], node["input_gaps"], node["handled"], node["published"]) == (1, 3, 10, 9)
+    mon.close()
+
+
+def test_summarize_payloads():
+    msg = Status(state="warn", text="low battery")
+    assert summarize(msg) == "warn low battery"
+    assert summarize(Array(data=np.arange(10.0))) == "[0, 1, 2, 3, …] (10)"
+
+
+def test_json_without_once_is_rejected():
+    proc = handflow("monitor", "--json")
+    assert proc.returncode == 2 and "--json needs --once" in proc.stderr
+
+
+@pytest.mark.slow
+def test_monitor_once_json_on_a_running_graph(tmp_path):
+    name = unique("mon")
+    graph = chain(tmp_path / "g.yaml", name, rate=50)
+    proc = start("run", str(graph))
+    try:
+        from framework.discovery import live_runs
+        wait_until(lambda: any(r.graph == name for r in live_runs()), what="the run-file")
+        time.sleep(1.0)  # nodes up and publishing
+        mon = handflow("monitor", "--graph", name, "--once", "--json", "--listen", "2")
+        assert mon.returncode == 0, mon.stderr
+        snap = json.loads(mon.stdout)
+        text = handflow("monitor", "--once", "--listen", "1")  # the only running graph is found by itself
+    finally:
+        proc.send_signal(signal.SIGINT)
+        proc.communicate(timeout=60)
+    topics = {t["topic"]: t for t in snap["topics"]}
+    assert set(topics) == {f"handflow/{name}/source/out", f"handflow/{name}/scale/out"}
+    for t in topics.values():
+        assert {"topic", "rate_hz", "latency_ms", "gaps"} <= set(t)
+        assert t["rate_hz"] == pytest.approx(50, rel=0.3) and t["gaps"] == 0 and t["latency_ms"] is not None
+    assert sorted((n["id"], n["alive"]) for n in snap["nodes"]) == [("scale", True), ("sink", True), ("source", True)]
+    assert text.returncode == 0 and "source/out" in text.stdout and "sink" in text.stdout

@@ -1,0 +1,94 @@
+"""Online UKR/CLM segmenter: per-sample latency, sweeps warm vs cold, label revisions per minute.
+
+4 candidate manifolds + background, sliding window 200, a stream "recorded" at 100 Hz (letters of
+the 4 classes one after another, so the stream holds transitions).  Every sample is processed
+exactly as the node does (projection onto the 4 manifolds + warm-started CLM).  Baseline in the
+same run: the same stream with cold starts only (``warm_start=False``).  BLAS is limited to one
+thread (one core); numba code is single-threaded.
+
+    python benchmarks/online_segmenter.py [--seconds 20] [--dataset letters.npz] [--json]
+"""
+from __future__ import annotations
+
+import os
+
+for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(var, "1")
+
+import argparse  # noqa: E402
+import json  # noqa: E402
+import sys  # noqa: E402
+import time  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+from plugins.segmenter import (LetterGenerator, OnlineCLMSegmenter, candidate_set, load_dataset,  # noqa: E402
+                               train_class_models)
+
+RATE_HZ = 100.0
+
+
+def make_stream(args):
+    if args.dataset:
+        ds = load_dataset(args.dataset)
+        ds = ds.restrict(ds.classes[:4])
+    else:
+        ds = LetterGenerator(n_classes=4, random_state=args.seed, noise=0.01).dataset((5, 5, 5))
+    cands = candidate_set(train_class_models(ds, n_steps=200, random_state=args.seed))
+    pool = ds.test + ds.validation
+    rng = np.random.default_rng(args.seed)
+    parts, n = [], int(args.seconds * RATE_HZ)
+    while sum(map(len, parts)) < n:
+        parts.append(pool[rng.integers(len(pool))].data)
+    return cands, np.vstack(parts)[:n]
+
+
+def run(cands, Y, warm: bool, seed: int):
+    seg = OnlineCLMSegmenter(cands, window=200, history=10, warm_start=warm, random_state=seed)
+    lat, sweeps, revisions, proj_t = [], [], 0, []
+    for y in Y:
+        t0 = time.perf_counter()
+        p = cands.project(y[None])
+        t1 = time.perf_counter()
+        up = seg.update_projected(p.latent_time[0], p.errors[0])
+        t2 = time.perf_counter()
+        lat.append(t2 - t0)
+        proj_t.append(t1 - t0)
+        sweeps.append(up.sweeps)
+        revisions += sum(e.kind == "revision" for e in up.events)
+    lat_ms = np.array(lat[50:]) * 1e3  # skip the JIT/warm-up start of the window
+    return {"latency_ms_median": float(np.median(lat_ms)), "latency_ms_p99": float(np.percentile(lat_ms, 99)),
+            "projection_ms_median": float(np.median(np.array(proj_t[50:]) * 1e3)),
+            "sweeps_median": float(np.median(sweeps[50:])),
+            "revisions_per_min": revisions / (len(Y) / RATE_HZ / 60.0)}
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seconds", type=float, default=20.0, help="stream length in seconds at 100 Hz")
+    ap.add_argument("--dataset", help="labelled dataset (first 4 classes); default synthetic letters")
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--json", action="store_true")
+    args = ap.parse_args(argv)
+    cands, Y = make_stream(args)
+    run(cands, Y[:60], True, args.seed)  # compile numba kernels outside the measurement
+    warm = run(cands, Y, True, args.seed)
+    cold = run(cands, Y, False, args.seed)
+    out = {"latency_ms_median": warm["latency_ms_median"], "latency_ms_p99": warm["latency_ms_p99"],
+           "sweeps_warm_median": warm["sweeps_median"], "sweeps_cold_median": cold["sweeps_median"],
+           "revisions_per_min": warm["revisions_per_min"],
+           "projection_ms_median": warm["projection_ms_median"],
+           "cold_latency_ms_median": cold["latency_ms_median"], "cold_latency_ms_p99": cold["latency_ms_p99"],
+           "latency_ratio_warm_vs_cold": warm["latency_ms_median"] / cold["latency_ms_median"],
+           "samples": int(len(Y)), "candidates": 4, "window": 200, "rate_hz": RATE_HZ,
+           "data": args.dataset or "synthetic letters", "goal_p99_ms": 10.0}
+    if args.json:
+        print(json.dumps(out, indent=1))
+    else:
+        for k, v in out.items():
+            print(f"{k:28s} {v:.3f}" if isinstance(v, float) else f"{k:28s} {v}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

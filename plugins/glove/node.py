@@ -1,0 +1,121 @@
+"""``glove.cyberglove``: CyberGlove II reader node (thin wrapper of :class:`~plugins.glove.reader.GloveReader`).
+
+The reader thread timestamps records on arrival (``ctx.now_ns``) and queues them; the node drains
+the queue in ``tick()`` (``rate_hz``, default 500 Hz) and publishes every record on ``frames``
+(stamp = arrival time) — all publishing happens on the node's thread.  ``status`` carries the link
+state (``ok`` streaming, ``warn`` connecting/stalled, ``error`` disconnected) with the counters,
+on every change and every ``status_period_s``.
+
+``port: emulator`` starts an embedded :class:`~plugins.glove.emulator.GloveEmulator` (source:
+the synthetic hand motion, or ``emulator.frames`` = a .npy/.csv/.mcap file of raw frames), so a
+graph runs without hardware and without a second command.
+"""
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from framework.messages import GloveFrame, Status
+from framework.plugin import Node
+
+from .emulator import Fault, GloveEmulator, array_source
+from .frames_io import load_frames
+from .reader import GloveReader, ReaderConfig
+from .synthetic import HandMotion, SyntheticGlove
+
+
+class FaultParams(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    kind: Literal["garbage", "drop_bytes", "truncate", "zero_value", "disconnect", "stall"]
+    at_record: int
+    size: int = 8
+    duration_s: float = 0.3
+
+
+class EmulatorParams(BaseModel):
+    """Options of the embedded emulator (``port: emulator``)."""
+
+    model_config = ConfigDict(extra="forbid")
+    frames: str | None = Field(None, description="raw frames file (.npy/.csv/.mcap) to loop; default: synthetic motion")
+    motion_period_s: float = 4.0
+    noise: float = 0.5
+    seed: int = 0
+    burst: int = Field(1, ge=1, description="RFCOMM-like: coalesce 1..burst records per write")
+    jitter_s: float = Field(0.0, ge=0, description="RFCOMM-like: each write up to this late")
+    faults: list[FaultParams] = Field(default_factory=list)
+
+
+def build_emulator(opts: EmulatorParams, resolve=lambda p: p) -> GloveEmulator:
+    """An emulator from options (used by the node and by ``handflow glove-emulator``)."""
+    if opts.frames:
+        source = array_source(load_frames(resolve(opts.frames)))
+    else:
+        source = SyntheticGlove(HandMotion(opts.motion_period_s, seed=opts.seed), noise=opts.noise, seed=opts.seed).source
+    faults = [Fault(f.kind, f.at_record, f.size, f.duration_s) for f in opts.faults]
+    return GloveEmulator(source, faults=faults, seed=opts.seed, burst=opts.burst, jitter_s=opts.jitter_s)
+
+
+class CyberGloveNode(Node):
+    """CyberGlove II reader: raw frames + link status (serial, /dev/rfcommN, bt://ADDR, or emulator)."""
+
+    class Params(BaseModel):
+        model_config = ConfigDict(extra="forbid")
+        port: str = Field("emulator", description="serial device, bt://AA:BB:CC:DD:EE:FF[/channel], or 'emulator'")
+        baudrate: int = 115200
+        glove_rate_hz: float = 100.0
+        rate_hz: float = 500.0
+        timestamp: bool = True
+        status_byte: bool = True
+        stall_timeout_s: float = 0.5
+        status_period_s: float = 1.0
+        emulator: EmulatorParams = Field(default_factory=EmulatorParams)
+
+    outputs = {"frames": GloveFrame, "status": Status}
+
+    def setup(self) -> None:
+        p = self.params
+        self.emulator = None
+        port = p.port
+        if port == "emulator":
+            self.emulator = build_emulator(p.emulator, self.ctx.resolve_path).start()
+            port = self.emulator.path
+        cfg = ReaderConfig(port, p.baudrate, p.glove_rate_hz, p.timestamp, p.status_byte, stall_timeout_s=p.stall_timeout_s)
+        self.reader = GloveReader(cfg, clock_ns=self.ctx.now_ns).start()
+        self._last_state = None
+        self._last_status_ns = None
+        self.published = 0
+
+    def _publish_pending(self) -> None:
+        for rec, arrival_ns in self.reader.drain():
+            self.ctx.publish("frames", GloveFrame(sensors=rec.values, device_time=rec.device_time, status=rec.status,
+                                                  arrival_ns=arrival_ns), stamp_ns=arrival_ns)
+            self.published += 1
+
+    def tick(self) -> None:
+        self._publish_pending()
+        state, _ = self.reader.snapshot()
+        now = self.ctx.now_ns()
+        due = self._last_status_ns is None or now - self._last_status_ns >= self.params.status_period_s * 1e9
+        if state != self._last_state or due:
+            self.ctx.publish("status", self.status())
+            self._last_state, self._last_status_ns = state, now
+
+    def status(self) -> Status:
+        state, counters = self.reader.snapshot()
+        counters["published"] = float(self.published)
+        level = {"streaming": "ok", "connecting": "warn", "stalled": "warn", "stopped": "warn"}.get(state, "error")
+        text = f"link {state} on {self.reader.cfg.port}"
+        if self.reader.last_error and state != "streaming":
+            text += f" (last error: {self.reader.last_error})"
+        return Status(state=level, counters=counters, text=text)
+
+    def safe_output(self) -> dict[str, Status]:
+        """The final link status and counters."""
+        return {"status": self.status()}
+
+    def teardown(self) -> None:
+        self.reader.stop()
+        self._publish_pending()  # what arrived before the reader stopped is not dropped
+        if self.emulator:
+            self.emulator.stop()

@@ -1,0 +1,103 @@
+"""Graph nodes of the mapping family (thin wrappers; the science lives in human.py / robot.py).
+
+- ``mapping.human_hand``: ``raw`` GloveFrame → ``joints`` JointState (24 human-model joints);
+  params ``profile`` and ``calibration`` (paths relative to the graph file; defaults ship in
+  configs/glove/).
+- ``mapping.shadow_hand`` / ``mapping.gifu_hand``: ``joints`` human JointState → ``joints`` robot
+  JointState.  Input joints are matched by name (any order); a message lacking a human joint is
+  rejected with a logged error naming it.
+
+Every output message carries the joint names and keeps the input's stamp.
+"""
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict
+
+from framework.messages import GloveFrame, JointState
+from framework.plugin import Node
+
+from .calibration import DEFAULT_CALIBRATION, DEFAULT_PROFILE, load_calibration, load_profile
+from .hands import HUMAN
+from .human import HumanHandMapping
+from .robot import GifuHandMapping, RobotHandMapping, ShadowHandMapping
+
+
+class HumanHandMappingNode(Node):
+    """Raw CyberGlove frames → 24 joints of the human hand model (spec glove.md 3.4)."""
+
+    class Params(BaseModel):
+        model_config = ConfigDict(extra="forbid")
+        profile: str = str(DEFAULT_PROFILE)
+        calibration: str = str(DEFAULT_CALIBRATION)
+        handedness: str = "right"
+
+    inputs = {"raw": GloveFrame}
+    outputs = {"joints": JointState}
+
+    def setup(self) -> None:
+        p = self.params
+        self.mapping = HumanHandMapping(load_profile(self.ctx.resolve_path(p.profile)),
+                                        load_calibration(self.ctx.resolve_path(p.calibration)))
+
+    def on_message(self, port: str, msg: GloveFrame) -> None:
+        q = self.mapping.map(msg.sensors)
+        self.ctx.publish("joints", JointState(names=HUMAN.names, positions=q, hand=HUMAN.name,
+                                              handedness=self.params.handedness), stamp_ns=msg.header.stamp_ns)
+
+
+class _RobotNode(Node, ABC):
+    inputs = {"joints": JointState}
+    outputs = {"joints": JointState}
+
+    @abstractmethod
+    def _make(self) -> RobotHandMapping:
+        """The robot mapping built from the params."""
+
+    def setup(self) -> None:
+        self.mapping = self._make()
+        self._order: tuple[list[str], np.ndarray] | None = None
+
+    def _human_vector(self, msg: JointState) -> np.ndarray | None:
+        if self._order is None or self._order[0] != msg.names:
+            index = {n: i for i, n in enumerate(msg.names)}
+            missing = [n for n in HUMAN.names if n not in index]
+            if missing:
+                self.ctx.log.error("input JointState lacks human-model joints %s; connect it to "
+                                   "mapping.human_hand", ", ".join(missing))
+                return None
+            self._order = (list(msg.names), np.array([index[n] for n in HUMAN.names]))
+        return msg.positions[self._order[1]]
+
+    def on_message(self, port: str, msg: JointState) -> None:
+        q = self._human_vector(msg)
+        if q is None:
+            return
+        model = self.mapping.model
+        self.ctx.publish("joints", JointState(names=model.names, positions=self.mapping.map(q), hand=model.name,
+                                              handedness=msg.handedness), stamp_ns=msg.header.stamp_ns)
+
+
+class ShadowHandMappingNode(_RobotNode):
+    """Human-model joints → ShadowHand-like 24 joints (analytic thumb base, spec glove.md 3.5)."""
+
+    class Params(BaseModel):
+        model_config = ConfigDict(extra="forbid")
+        theta0_at_singularity: float = 0.0
+
+    def _make(self) -> RobotHandMapping:
+        return ShadowHandMapping(self.params.theta0_at_singularity)
+
+
+class GifuHandMappingNode(_RobotNode):
+    """Human-model joints → Gifu-like hand (16 DOF; PIP/DIP merged)."""
+
+    class Params(BaseModel):
+        model_config = ConfigDict(extra="forbid")
+        merge: str = "mean"
+        theta0_at_singularity: float = 0.0
+
+    def _make(self) -> RobotHandMapping:
+        return GifuHandMapping(self.params.merge, self.params.theta0_at_singularity)

@@ -1,0 +1,104 @@
+"""Node ``simulator.pybullet``: the :class:`~plugins.simulator.simulation.Simulation` on the runtime.
+
+Input ``targets`` (JointState, any subset of the hand's joints; unknown names raise a clear error,
+joints not named keep their last target).  Every tick (``rate_hz``) the node steps the physics so
+that simulated time follows ``ctx.now_ns()`` (wall clock live, virtual time in lock-step replay),
+then publishes ``joints`` (collision-corrected JointState), ``contacts`` (Contacts) and ``scene``
+(Array with ``names``: the scene state plus ``sim_time`` and ``holding``); ``image`` (Image) at
+``camera_hz``.  Fail-safe (issue 6): when no targets arrived for ``hold_safe_after_s`` the node
+holds the last command, logs it once and reports ``holding = 1`` until targets resume.
+"""
+from __future__ import annotations
+
+from typing import Any
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from framework.messages import Array, Contacts, Image, JointState
+from framework.plugin import Node
+
+from .simulation import Simulation
+
+
+class SimulatorParams(BaseModel):
+    """Parameters of ``simulator.pybullet``."""
+
+    model_config = ConfigDict(extra="forbid")
+    hand: str = Field("shadow", description="hand model: human | shadow | gifu")
+    scene: str = Field("empty", description="scene: empty | cap | balls | grasp")
+    scene_options: dict[str, Any] = Field(default_factory=dict, description="scene fields, e.g. {radius: 0.02}")
+    physics_hz: float = Field(240.0, gt=0, description="fixed physics rate")
+    rate_hz: float = Field(60.0, gt=0, description="publish rate of joints/contacts/scene (tick rate)")
+    camera_hz: float = Field(10.0, ge=0, description="image rate; 0 disables the camera")
+    camera_width: int = Field(320, ge=8)
+    camera_height: int = Field(240, ge=8)
+    seed: int = 0
+    hold_safe_after_s: float = Field(0.5, ge=0, description="hold the last command after this long without targets; 0 = never")
+    max_catch_up_s: float = Field(0.25, gt=0, description="at most this much simulated time per tick; a longer stall is skipped")
+
+
+class PybulletSimulatorNode(Node):
+    """pybullet hand simulation: joint targets in; joints, contacts, scene state and camera images out."""
+
+    Params = SimulatorParams
+    inputs = {"targets": JointState}
+    outputs = {"joints": JointState, "contacts": Contacts, "scene": Array, "image": Image}
+
+    def setup(self) -> None:
+        prm = self.params
+        self.sim = Simulation(hand=prm.hand, scene=prm.scene, scene_options=prm.scene_options, seed=prm.seed,
+                              physics_hz=prm.physics_hz)
+        self.t0_ns: int | None = None
+        self.last_target_ns: int | None = None
+        self.last_image_ns: int | None = None
+        self.holding = False
+
+    def on_message(self, port: str, msg: JointState) -> None:
+        self.sim.set_targets(msg.names, msg.positions)
+        self.last_target_ns = self.ctx.now_ns()
+        if self.t0_ns is None:  # simulated time starts with the first event (message or tick)
+            self.t0_ns = self.last_target_ns
+        if self.holding:
+            self.ctx.log.info("targets resumed; leaving hold")
+            self.holding = False
+
+    def _advance(self, now: int) -> None:
+        """Step the physics until simulated time catches up with ``now`` (bounded per tick)."""
+        if self.t0_ns is None:
+            self.t0_ns = now - int(self.sim.time * 1e9)
+        due = int((now - self.t0_ns) * self.sim.physics_hz / 1e9 + 1e-4) - self.sim.steps  # tolerate ns rounding
+        limit = int(self.params.max_catch_up_s * self.sim.physics_hz)
+        if due > limit:
+            self.ctx.log.warning("simulation %d steps behind; skipping %.3f s", due, (due - limit) / self.sim.physics_hz)
+            self.t0_ns += int((due - limit) * 1e9 / self.sim.physics_hz)
+            due = limit
+        self.sim.step(max(due, 0))
+
+    def _check_hold(self, now: int) -> None:
+        hold = self.params.hold_safe_after_s
+        if hold <= 0 or self.holding:
+            return
+        since = self.last_target_ns if self.last_target_ns is not None else self.t0_ns
+        if since is not None and now - since > hold * 1e9:
+            self.holding = True
+            self.ctx.log.warning("no targets for %.2f s: holding the last command", (now - since) / 1e9)
+
+    def tick(self) -> None:
+        now = self.ctx.now_ns()
+        self._advance(now)
+        self._check_hold(now)
+        self.ctx.publish("joints", self.sim.joint_state())
+        self.ctx.publish("contacts", self.sim.contacts())
+        state = self.sim.scene_state()
+        state.update(sim_time=self.sim.time, holding=float(self.holding))
+        self.ctx.publish("scene", Array(data=list(state.values()), names=list(state)))
+        cam = self.params.camera_hz
+        if cam > 0 and (self.last_image_ns is None or now - self.last_image_ns >= 1e9 / cam - 1e3):  # 1 µs slack
+            self.last_image_ns = now
+            rgb = self.sim.render(self.params.camera_width, self.params.camera_height)
+            self.ctx.publish("image", Image.from_array(rgb, frame_id=f"{self.params.scene}_camera"))
+
+    def teardown(self) -> None:
+        sim = getattr(self, "sim", None)
+        if sim is not None:
+            sim.close()

@@ -1,0 +1,292 @@
+"""Manipulation scenes: bottle cap, Chinese health balls, grasp objects, empty (spec production.md §1, §4–5).
+
+A scene places the hand's base link (``hand_pose``), builds its bodies in a pybullet client, names
+them for contact reports, and reports its state (cap angle, ball or object poses) as a flat
+``{name: value}`` dict.  Positions are in metres, angles in radians.
+
+Hand placements (palm frame ``P`` as in :mod:`plugins.simulator.hand_geometry`, wrist at ``HAND_BASE``):
+
+- ``cap``, ``grasp``, ``empty``: palm facing down (palmar ``-y_P`` = world ``-z``), fingers along
+  world ``+x``, thumb towards world ``+y``;
+- ``balls``: palm facing up, fingers along world ``+x`` and tilted down by ``tilt_deg`` (thesis
+  5.6.1: hand on a robot arm, palm up, tilted), thumb towards world ``-y``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import pybullet as p
+from scipy.spatial.transform import Rotation
+
+from .camera import CameraSpec
+
+HAND_BASE = np.array([0.0, 0.0, 0.30])
+"""World position of the wrist centre (the hand base link's origin) in every scene."""
+
+PALM_DOWN = Rotation.from_matrix([[0, 0, 1], [1, 0, 0], [0, 1, 0]])
+"""Palm frame in the world for palm-down scenes (columns: x_P, y_P, z_P)."""
+
+PALM_UP = Rotation.from_matrix([[0, 0, 1], [-1, 0, 0], [0, -1, 0]])
+"""Palm frame in the world for palm-up scenes before the tilt."""
+
+BALL_COLOUR = (0.95, 0.75, 0.05, 1.0)
+"""Both health balls are the same yellow (identical balls, thesis 5.6.2)."""
+MARK_COLOURS = {"mark_a": (0.9, 0.05, 0.05, 1.0), "mark_b": (0.05, 0.7, 0.1, 1.0)}
+"""Reference marks near the wrist: red ``mark_a`` normalises to (−1, 0), green ``mark_b`` to (1, 0)."""
+
+
+@dataclass
+class Scene:
+    """Base class: no objects, hand palm-down in free space."""
+
+    name: str = "empty"
+    palm_thickness: float = 0.022  # set by the simulation from the hand's dimensions
+    bodies: dict[tuple[int, int], str] = field(default_factory=dict, init=False)
+
+    # -- placement ------------------------------------------------------------------------
+    def hand_rotation(self) -> Rotation:
+        return PALM_DOWN
+
+    def hand_pose(self) -> tuple[np.ndarray, np.ndarray]:
+        """World position and quaternion (x, y, z, w) of the hand base link."""
+        return HAND_BASE.copy(), self.hand_rotation().as_quat()
+
+    def palm_to_world(self, points) -> np.ndarray:
+        """Map points given in the (zero-wrist) palm frame to world coordinates."""
+        return HAND_BASE + self.hand_rotation().apply(np.atleast_2d(np.asarray(points, dtype=float)))
+
+    def camera(self) -> CameraSpec:
+        """Camera above the palm looking at it; scenes override where the action is elsewhere."""
+        centre = self.palm_to_world([0.0, -0.06, 0.08])[0]
+        up = self.hand_rotation().apply([0.0, 0.0, 1.0])
+        eye = self.palm_to_world([0.0, -0.35, 0.08])[0]
+        return CameraSpec(tuple(eye), tuple(centre), tuple(up))
+
+    def initial_posture(self) -> dict[str, float]:
+        """Joint targets (by name) the hand starts with; unnamed joints start at 0 (clipped to limits)."""
+        return {}
+
+    # -- contents ------------------------------------------------------------------------
+    def build(self, client: int, rng: np.random.Generator) -> None:
+        """Create the scene's bodies in ``client``."""
+
+    def body_name(self, body: int, link: int) -> str:
+        return self.bodies.get((body, link), self.bodies.get((body, -1), f"body{body}"))
+
+    def state(self, client: int) -> dict[str, float]:
+        return {}
+
+
+def _cylinder(client: int, radius: float, height: float, rgba, pos, mass: float = 0.0, collide: bool = True,
+              orn=(0, 0, 0, 1)) -> int:
+    col = p.createCollisionShape(p.GEOM_CYLINDER, radius=radius, height=height, physicsClientId=client) if collide else -1
+    vis = p.createVisualShape(p.GEOM_CYLINDER, radius=radius, length=height, rgbaColor=rgba, physicsClientId=client)
+    return p.createMultiBody(mass, col, vis, pos, orn, physicsClientId=client)
+
+
+def _prism(radius: float, height: float, sides: int = 32) -> list[list[float]]:
+    """Vertices of a convex regular prism (a cylinder's collision hull; Bullet's cylinder contacts jitter)."""
+    a = np.linspace(0, 2 * np.pi, sides, endpoint=False)
+    ring = np.c_[radius * np.cos(a), radius * np.sin(a)]
+    return [[x, y, z] for z in (-height / 2, height / 2) for x, y in ring]
+
+
+@dataclass
+class CapScene(Scene):
+    """Fixed bottle with a cap on a vertical revolute joint under the palm (spec production.md §1).
+
+    The cap turns against a constant friction torque (pybullet velocity motor with target 0 and
+    force ``friction_torque``, the usual way to model joint friction) plus viscous ``damping``
+    (N·m·s/rad, the thread's drag); ``cap_angle`` is the joint
+    angle (unwrapped, positive = counter-clockwise seen from above).  The cap axis lies under the
+    palm at ``centre_palm`` = (x_P, z_P); its top is ``top_below_palm`` below the palm surface.
+    """
+
+    name: str = "cap"
+    radius: float = 0.025
+    height: float = 0.02
+    friction_torque: float = 0.06
+    damping: float = 0.005
+    lateral_friction: float = 1.0
+    centre_palm: tuple[float, float] = (0.0, 0.085)
+    top_below_palm: float = 0.035
+
+    def __post_init__(self) -> None:
+        if not 0.01 <= self.radius <= 0.05:
+            raise ValueError(f"cap radius {self.radius} m is outside 0.01–0.05 m (the scenes use 0.015–0.035)")
+
+    def cap_top(self) -> np.ndarray:
+        x, z = self.centre_palm
+        return self.palm_to_world([x, -(self.palm_thickness / 2 + self.top_below_palm), z])[0]
+
+    def camera(self) -> CameraSpec:
+        top = self.cap_top()
+        return CameraSpec(tuple(top + [0.28, -0.22, 0.10]), tuple(top + [0.0, 0.0, 0.01]), (0.0, 0.0, 1.0))
+
+    def build(self, client: int, rng: np.random.Generator) -> None:
+        top = self.cap_top()
+        neck_h = 0.06
+        neck_r = self.radius  # flush with the cap: no rim a fingertip could hook under
+        neck_pos = top - [0, 0, self.height + neck_h / 2]
+        neck_col = p.createCollisionShape(p.GEOM_CYLINDER, radius=neck_r, height=neck_h, physicsClientId=client)
+        neck_vis = p.createVisualShape(p.GEOM_CYLINDER, radius=neck_r, length=neck_h, rgbaColor=(0.6, 0.8, 0.9, 1),
+                                       physicsClientId=client)
+        cap_col = p.createCollisionShape(p.GEOM_MESH, vertices=_prism(self.radius, self.height), physicsClientId=client)
+        cap_vis = p.createVisualShape(p.GEOM_CYLINDER, radius=self.radius, length=self.height,
+                                      rgbaColor=(0.1, 0.35, 0.9, 1), physicsClientId=client)
+        body = p.createMultiBody(
+            0.0, neck_col, neck_vis, neck_pos,
+            linkMasses=[0.03], linkCollisionShapeIndices=[cap_col], linkVisualShapeIndices=[cap_vis],
+            linkPositions=[[0, 0, neck_h / 2 + self.height / 2]], linkOrientations=[[0, 0, 0, 1]],
+            linkInertialFramePositions=[[0, 0, 0]], linkInertialFrameOrientations=[[0, 0, 0, 1]],
+            linkParentIndices=[0], linkJointTypes=[p.JOINT_REVOLUTE], linkJointAxis=[[0, 0, 1]],
+            physicsClientId=client)
+        p.changeDynamics(body, 0, lateralFriction=self.lateral_friction, jointDamping=self.damping, physicsClientId=client)
+        p.setJointMotorControl2(body, 0, p.VELOCITY_CONTROL, targetVelocity=0.0, force=self.friction_torque,
+                                physicsClientId=client)
+        self.bottle = body
+        self.bodies = {(body, -1): "bottle", (body, 0): "cap"}
+
+    def state(self, client: int) -> dict[str, float]:
+        angle, velocity, _, _ = p.getJointState(self.bottle, 0, physicsClientId=client)
+        return {"cap_angle": float(angle), "cap_velocity": float(velocity), "cap_radius": self.radius}
+
+
+@dataclass
+class BallsScene(Scene):
+    """Two equal health balls on the palm of a palm-up, tilted hand; two coloured marks near the wrist.
+
+    ``tilt_deg`` lowers the fingertips (the balls rest against the flexed fingers); the balls start
+    side by side at ``start_z`` along the palm (palm frame) with a seeded jitter of ``jitter`` m.
+    State: world position of each ball (``ball1_x`` …) and of the two marks.
+    """
+
+    name: str = "balls"
+    ball_radius: float = 0.02
+    ball_mass: float = 0.06
+    tilt_deg: float = 15.0
+    side_tilt_deg: float = 0.0
+    start_z: float = 0.07
+    jitter: float = 0.002
+    marks: dict[str, tuple[float, float]] = field(default_factory=lambda: {"mark_a": (0.03, 0.011),
+                                                                           "mark_b": (-0.03, 0.011)})
+
+    def hand_rotation(self) -> Rotation:
+        tilt = Rotation.from_euler("y", self.tilt_deg, degrees=True)
+        side = Rotation.from_euler("x", self.side_tilt_deg, degrees=True)
+        return side * tilt * PALM_UP
+
+    def camera(self) -> CameraSpec:
+        centre = self.palm_to_world([0.0, -self.palm_thickness / 2, 0.06])[0]
+        eye = self.palm_to_world([0.0, -0.30, 0.06])[0]
+        return CameraSpec(tuple(eye), tuple(centre), tuple(self.hand_rotation().apply([0.0, 0.0, 1.0])), fov_deg=40.0)
+
+    def initial_posture(self) -> dict[str, float]:
+        return {f"{f}_J{k}": 0.6 for f in ("FF", "MF", "RF", "LF") for k in (2, 3, 4)}
+
+    def build(self, client: int, rng: np.random.Generator) -> None:
+        surface = -self.palm_thickness / 2
+        self.mark_ids = {}
+        for name, (x, z) in self.marks.items():
+            pos = self.palm_to_world([x, surface - 0.0006, z])[0]
+            orn = (self.hand_rotation() * Rotation.from_euler("x", 90, degrees=True)).as_quat()
+            self.mark_ids[name] = _cylinder(client, 0.006, 0.001, MARK_COLOURS[name], pos, collide=False, orn=orn)
+        self.balls = []
+        for k, x in enumerate((0.022, -0.022)):
+            local = np.array([x, surface - self.ball_radius - 0.001, self.start_z])
+            local[[0, 2]] += rng.uniform(-self.jitter, self.jitter, 2)
+            pos = self.palm_to_world(local)[0]
+            col = p.createCollisionShape(p.GEOM_SPHERE, radius=self.ball_radius, physicsClientId=client)
+            vis = p.createVisualShape(p.GEOM_SPHERE, radius=self.ball_radius, rgbaColor=BALL_COLOUR, physicsClientId=client)
+            ball = p.createMultiBody(self.ball_mass, col, vis, pos, physicsClientId=client)
+            p.changeDynamics(ball, -1, lateralFriction=0.3, rollingFriction=0.0005, physicsClientId=client)
+            self.balls.append(ball)
+            self.bodies[(ball, -1)] = f"ball{k + 1}"
+
+    def ball_positions(self, client: int) -> np.ndarray:
+        """World positions of the two balls (2, 3)."""
+        return np.array([p.getBasePositionAndOrientation(b, physicsClientId=client)[0] for b in self.balls])
+
+    def mark_positions(self) -> np.ndarray:
+        """World positions of ``mark_a`` and ``mark_b`` (2, 3)."""
+        surface = -self.palm_thickness / 2
+        return self.palm_to_world([[x, surface, z] for x, z in self.marks.values()])
+
+    def state(self, client: int) -> dict[str, float]:
+        out: dict[str, float] = {}
+        for name, pos in zip(("ball1", "ball2", "mark_a", "mark_b"),
+                             np.vstack([self.ball_positions(client), self.mark_positions()])):
+            out.update({f"{name}_{axis}": float(v) for axis, v in zip("xyz", pos)})
+        return out
+
+
+GRASP_OBJECTS = {
+    "box": (p.GEOM_BOX, {"halfExtents": [0.02, 0.08, 0.02]}, 0.04),
+    "cylinder": (p.GEOM_CYLINDER, {"radius": 0.03, "height": 0.16}, 0.16),
+    "sphere": (p.GEOM_SPHERE, {"radius": 0.03}, 0.06),
+}
+"""Grasp objects of thesis chapter 4 (shape, pybullet dimensions, standing height): box 4×4×16 cm,
+cylinder r 3 cm h 16 cm, sphere r 3 cm."""
+
+
+@dataclass
+class GraspScene(Scene):
+    """One grasp object resting on a table under the palm-down hand (spec production.md §5).
+
+    ``position`` offsets the object from the point under the palm centre (world x, y in m) and
+    ``yaw_deg`` turns it about the vertical; the cylinder stands upright, the box lies with its long
+    axis along world ``y``.  State: object position and roll/pitch/yaw.
+    """
+
+    name: str = "grasp"
+    object: str = "box"
+    position: tuple[float, float] = (0.0, 0.0)
+    yaw_deg: float = 0.0
+    mass: float = 0.1
+    lateral_friction: float = 0.8
+    gap_below_palm: float = 0.03
+
+    def __post_init__(self) -> None:
+        if self.object not in GRASP_OBJECTS:
+            raise ValueError(f"unknown grasp object '{self.object}'; choose one of {', '.join(GRASP_OBJECTS)}")
+
+    def build(self, client: int, rng: np.random.Generator) -> None:
+        kind, dims, height = GRASP_OBJECTS[self.object]
+        centre = self.palm_to_world([0.0, 0.0, 0.06])[0]
+        table_z = HAND_BASE[2] - self.palm_thickness / 2 - self.gap_below_palm - height
+        table_col = p.createCollisionShape(p.GEOM_BOX, halfExtents=[0.3, 0.3, 0.01], physicsClientId=client)
+        table_vis = p.createVisualShape(p.GEOM_BOX, halfExtents=[0.3, 0.3, 0.01], rgbaColor=(0.8, 0.8, 0.8, 1),
+                                        physicsClientId=client)
+        table = p.createMultiBody(0.0, table_col, table_vis, [centre[0], centre[1], table_z - 0.01], physicsClientId=client)
+        col = p.createCollisionShape(kind, physicsClientId=client, **dims)
+        vis_dims = {("length" if k == "height" else k): v for k, v in dims.items()}  # visual API names it length
+        vis = p.createVisualShape(kind, rgbaColor=(0.85, 0.3, 0.1, 1), physicsClientId=client, **vis_dims)
+        pos = [centre[0] + self.position[0], centre[1] + self.position[1], table_z + height / 2]
+        orn = p.getQuaternionFromEuler([0, 0, np.deg2rad(self.yaw_deg)])
+        self.object_id = p.createMultiBody(self.mass, col, vis, pos, orn, physicsClientId=client)
+        p.changeDynamics(self.object_id, -1, lateralFriction=self.lateral_friction, physicsClientId=client)
+        self.bodies = {(table, -1): "table", (self.object_id, -1): self.object}
+
+    def state(self, client: int) -> dict[str, float]:
+        pos, orn = p.getBasePositionAndOrientation(self.object_id, physicsClientId=client)
+        rpy = p.getEulerFromQuaternion(orn)
+        return dict(zip(("object_x", "object_y", "object_z", "object_roll", "object_pitch", "object_yaw"),
+                        map(float, (*pos, *rpy))))
+
+
+SCENES: dict[str, type[Scene]] = {"empty": Scene, "cap": CapScene, "balls": BallsScene, "grasp": GraspScene}
+"""Scene classes by name; options are the dataclass fields (e.g. ``{"radius": 0.02}`` for ``cap``)."""
+
+
+def make_scene(name: str, options: dict | None = None) -> Scene:
+    """Build scene ``name`` with ``options``; unknown names or options raise ``ValueError`` naming the valid ones."""
+    if name not in SCENES:
+        raise ValueError(f"unknown scene '{name}'; choose one of {', '.join(SCENES)}")
+    cls = SCENES[name]
+    allowed = {f for f in cls.__dataclass_fields__ if f not in ("name", "bodies", "palm_thickness")}
+    unknown = set(options or {}) - allowed
+    if unknown:
+        raise ValueError(f"scene '{name}' has no option(s) {sorted(unknown)}; valid: {', '.join(sorted(allowed))}")
+    opts = {k: tuple(v) if isinstance(v, list) else v for k, v in (options or {}).items()}
+    return cls(**opts)

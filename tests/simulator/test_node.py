@@ -1,0 +1,53 @@
+"""The simulator.pybullet node driven by the in-process harness (lock-step virtual time)."""
+import pytest
+
+from framework.messages import JointState
+from framework.testing import NodeHarness
+from plugins.simulator.node import PybulletSimulatorNode
+
+
+@pytest.fixture
+def harness():
+    h = NodeHarness(PybulletSimulatorNode, {"hand": "shadow", "scene": "cap", "scene_options": {"radius": 0.02},
+                                            "rate_hz": 60, "camera_hz": 20, "camera_width": 64, "camera_height": 48,
+                                            "hold_safe_after_s": 0.1})
+    h.setup()
+    yield h
+    h.teardown()
+
+
+def test_physics_follows_virtual_time_and_all_ports_publish(harness):
+    harness.send("targets", JointState(names=["MFJ3"], positions=[0.6], hand="shadow"))
+    harness.tick(30)  # 0.5 s of virtual time at 60 Hz
+    assert harness.node.sim.steps == 120
+    joints = harness.published["joints"][-1]
+    assert dict(zip(joints.names, joints.positions))["MFJ3"] == pytest.approx(0.6, abs=0.05)
+    assert len(harness.published["contacts"]) == 30
+    scene = harness.published["scene"][-1]
+    assert "cap_angle" in scene.names and scene.data[scene.names.index("sim_time")] == pytest.approx(0.5)
+    images = harness.published["image"]
+    assert len(images) == 10 and images[0].to_array().shape == (48, 64, 3)
+
+
+def test_unknown_target_names_raise_a_clear_error(harness):
+    with pytest.raises(ValueError, match="no joint.*'wrist_pitch'"):
+        harness.send("targets", JointState(names=["wrist_pitch"], positions=[0.1]))
+
+
+def test_holds_the_last_command_when_targets_stop_and_resumes(harness):
+    harness.send("targets", JointState(names=["FFJ3"], positions=[0.7]))
+    harness.tick(3)
+    holding = lambda: harness.published["scene"][-1].data[harness.published["scene"][-1].names.index("holding")]
+    assert holding() == 0.0
+    harness.tick(12)  # 0.2 s without targets
+    assert holding() == 1.0
+    assert harness.node.sim.targets[harness.node.sim.index["FFJ3"]] == pytest.approx(0.7)
+    harness.send("targets", JointState(names=["FFJ3"], positions=[0.2]))
+    harness.tick(1)
+    assert holding() == 0.0
+
+
+def test_a_stalled_clock_is_not_caught_up_beyond_the_limit(harness):
+    harness.tick(1)
+    harness.tick(1, advance_ns=5_000_000_000)  # 5 s stall
+    assert harness.node.sim.steps <= 4 + int(0.25 * 240) + 1

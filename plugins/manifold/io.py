@@ -1,0 +1,96 @@
+"""Model files: one ``.npz`` of plain arrays + a JSON metadata string (spec ukr.md §8).
+
+Never pickled: files are read with ``np.load(..., allow_pickle=False)``, so loading a model
+cannot execute code.  Metadata: ``format``, ``format_version``, all hyper-parameters, the time
+dimension, the final objective, provenance (software version, time of creation, plus whatever
+the caller passes: source recording, topic, time ranges …).
+"""
+from __future__ import annotations
+
+import datetime as _dt
+import json
+from importlib import metadata as _md
+
+import numpy as np
+
+FORMAT = "handflow.structured_ukr"
+FORMAT_VERSION = 1
+_ARRAYS = ("Y", "latents", "sequence_ids", "train_variance", "history")
+
+
+def _software_version():
+    try:
+        return _md.version("handflow")
+    except _md.PackageNotFoundError:
+        return "unknown"
+
+
+def _json_params(model):
+    params = model.get_params()
+    params["latent"] = [dict(getattr(d, "__dict__", d)) for d in (params["latent"] or [])] or None
+    params["isomap_neighbors"] = [int(k) for k in params["isomap_neighbors"]]
+    if not isinstance(params["init"], str):
+        params["init"] = "given"
+    if not isinstance(params["random_state"], (int, type(None))):
+        params["random_state"] = None
+    return params
+
+
+def save_model(model, path, provenance=None):
+    """Write ``model`` (fitted) to ``path`` (.npz)."""
+    prov = {"software": "handflow", "software_version": _software_version(),
+            "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")}
+    prov.update(getattr(model, "provenance_", {}) or {})
+    prov.update(provenance or {})
+    meta = {"format": FORMAT, "format_version": FORMAT_VERSION, "params": _json_params(model),
+            "time_dim": model.time_dim_, "objective": float(model.objective_),
+            "interrupted": bool(model.interrupted_),
+            "n_evaluations": int(model.n_evaluations_), "init_info": _jsonable(model.init_info_),
+            "provenance": _jsonable(prov)}
+    ids = model.sequence_ids_
+    if ids.dtype == object:
+        ids = ids.astype(str)
+    with open(path, "wb") as fh:
+        np.savez(fh, Y=model.Y_, latents=model.latents_, sequence_ids=ids,
+                 train_variance=model.train_variance_, history=model.history_,
+                 metadata=np.array(json.dumps(meta)))
+
+
+def _jsonable(obj):
+    return json.loads(json.dumps(obj, default=lambda o: o.tolist() if hasattr(o, "tolist")
+                                 else str(o)))
+
+
+def load_model(cls, path):
+    """Read a model file; refuses other formats and unknown format versions.
+
+    The loaded estimator's ``init`` is its stored latents (refitting continues from them).
+    """
+    with np.load(path, allow_pickle=False) as f:
+        if "metadata" not in f.files:
+            raise ValueError(f"{path}: not a handflow Structured UKR model (no metadata)")
+        meta = json.loads(str(f["metadata"][()]))
+        if meta.get("format") != FORMAT:
+            raise ValueError(f"{path}: format {meta.get('format')!r} is not {FORMAT!r}")
+        if meta.get("format_version") != FORMAT_VERSION:
+            raise ValueError(f"{path}: model format version {meta.get('format_version')!r} is "
+                             f"not supported (this handflow reads version {FORMAT_VERSION}); "
+                             f"retrain the model with this version or use a matching handflow")
+        missing = [k for k in _ARRAYS if k not in f.files]
+        if missing:
+            raise ValueError(f"{path}: model file is missing arrays {missing}")
+        arrays = {k: f[k] for k in _ARRAYS}
+    params = dict(meta["params"])
+    params["isomap_neighbors"] = tuple(params["isomap_neighbors"])
+    params["init"] = arrays["latents"]
+    model = cls(**params)
+    kernel, time_dim = model._layout()
+    model._set_state(arrays["Y"], arrays["latents"], arrays["sequence_ids"], time_dim, kernel,
+                     arrays["train_variance"])
+    model.history_ = arrays["history"]
+    model.objective_ = meta["objective"]
+    model.interrupted_ = meta["interrupted"]
+    model.init_info_ = meta.get("init_info", {})
+    model.n_evaluations_ = meta["n_evaluations"]
+    model.provenance_ = meta["provenance"]
+    return model

@@ -1,0 +1,164 @@
+"""Commands ``grasp-experience``, ``grasp-som`` and ``evaluate grasping`` (docs/grasping.md)."""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+from threadpoolctl import threadpool_limits
+
+from .evaluation import FULL_GRID, OBJECTS, QUICK_GRID, evaluate_grasping
+from .experience import GraspDataset
+from .generation import generate_experience
+from .plots import plot_node_postures, plot_u_matrix
+from .som import load_som, save_som
+from .training import train_experience_soms, train_grasp_som
+
+DEFAULT_EXPERIENCE = Path(__file__).resolve().parents[2] / "configs" / "grasp" / "experience"
+"""Shipped experience (grasp dataset + SOMs), regenerated with ``handflow grasp-experience --train-soms``."""
+
+
+def _progress(msg: str) -> None:
+    print(f"[{time.strftime('%H:%M:%S')}] {msg}", file=sys.stderr, flush=True)
+
+
+def _objects(text: str) -> list[str]:
+    objs = [o.strip() for o in text.split(",") if o.strip()]
+    bad = [o for o in objs if o not in OBJECTS]
+    if bad or not objs:
+        raise ValueError(f"--objects takes a comma-separated subset of {','.join(OBJECTS)}, got {text!r}")
+    return objs
+
+
+def _pair(text: str, name: str) -> tuple[float, float]:
+    try:
+        a, b = (float(v) for v in text.split(","))
+    except ValueError:
+        raise ValueError(f"{name} takes 'start,end' (e.g. 0.95,0.05), got {text!r}") from None
+    return a, b
+
+
+# -- grasp-experience ---------------------------------------------------------------------------
+def register_generate(parser: argparse.ArgumentParser) -> None:
+    parser.description = ("Generate grasp experience in pybullet (randomised tactile grasps kept when they pass "
+                          "the disturbance test) and optionally train the SOM grasp manifolds.")
+    parser.add_argument("--objects", default=",".join(OBJECTS), help="comma-separated subset of box,cylinder,sphere")
+    parser.add_argument("--trials", type=int, default=400, help="grasp trials per object")
+    parser.add_argument("--local-trials", type=int, default=3, help="jittered retries around each stable grasp")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--out", default=str(DEFAULT_EXPERIENCE), help="output folder (gets grasps.npz)")
+    parser.add_argument("--train-soms", action="store_true", help="also write som_<object>.npz and som_shared.npz")
+    parser.add_argument("--size", type=int, default=25, help="lattice size of the object-specific SOMs")
+    parser.add_argument("--shared-size", type=int, default=30, help="lattice size of the shared SOM")
+    parser.add_argument("--epochs", type=int, default=300)
+    parser.set_defaults(func=run_generate)
+
+
+def run_generate(args) -> int:
+    try:
+        objects = _objects(args.objects)
+        if args.trials < 1 or args.local_trials < 0:
+            raise ValueError("--trials must be ≥ 1 and --local-trials ≥ 0")
+    except ValueError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    with threadpool_limits(1):
+        data = generate_experience(objects, args.trials, seed=args.seed, local_trials=args.local_trials,
+                                   progress=_progress)
+        data.save(out / "grasps.npz")
+        _progress(f"wrote {len(data)} stable grasps to {out / 'grasps.npz'}: {data.metadata['counts']}")
+        if args.train_soms:
+            try:
+                train_experience_soms(data, out, objects, args.size, args.shared_size, args.epochs, args.seed, _progress)
+            except ValueError as exc:
+                print(f"error: {exc}", file=sys.stderr)
+                return 1
+    return 0
+
+
+# -- grasp-som -------------------------------------------------------------------------------------
+def register_train_som(parser: argparse.ArgumentParser) -> None:
+    parser.description = "Train (or resume training of) a SOM grasp manifold on a grasp dataset; plot it."
+    parser.add_argument("data", help="grasp dataset (.npz from grasp-experience)")
+    parser.add_argument("--object", default="all", help="box | cylinder | sphere | all")
+    parser.add_argument("--out", required=True, help="SOM file to write (.npz)")
+    parser.add_argument("--resume", help="SOM file to continue training (thesis: 10 epochs, ε 0.1→0.05, σ 3→0.7)")
+    parser.add_argument("--rows", type=int, default=25)
+    parser.add_argument("--cols", type=int, default=25)
+    parser.add_argument("--epochs", type=int, default=None, help="default 300 (10 with --resume)")
+    parser.add_argument("--lr", default=None, help="start,end learning rate (default 0.95,0.05; 0.1,0.05 with --resume)")
+    parser.add_argument("--sigma", default=None, help="start,end neighbourhood width (default 6,0.7; 3,0.7 with --resume)")
+    parser.add_argument("--mode", default="online", choices=("online", "batch"))
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--umatrix", help="write the inter-node distance map (PNG)")
+    parser.add_argument("--nodes", help="write rendered node postures (PNG)")
+    parser.add_argument("--extract", type=int, default=10, help="nodes per side in the --nodes picture")
+    parser.set_defaults(func=run_train_som)
+
+
+def run_train_som(args) -> int:
+    try:
+        data = GraspDataset.load(args.data)
+        obj = None if args.object == "all" else args.object
+        part = data.select(obj)
+        if len(part) == 0:
+            raise ValueError(f"{args.data} has no grasps of '{args.object}'")
+        with threadpool_limits(1):
+            if args.resume:
+                som, meta = load_som(args.resume)
+                lr = _pair(args.lr, "--lr") if args.lr else (0.1, 0.05)
+                sigma = _pair(args.sigma, "--sigma") if args.sigma else (3.0, 0.7)
+                som.partial_fit(part.postures, epochs=args.epochs or 10, lr=lr, sigma=sigma)
+            else:
+                params = {"lr": _pair(args.lr, "--lr") if args.lr else (0.95, 0.05),
+                          "sigma": _pair(args.sigma, "--sigma") if args.sigma else (6.0, 0.7), "mode": args.mode}
+                som = train_grasp_som(data, obj, args.rows, args.cols, args.epochs or 300, args.seed, **params)
+    except (ValueError, OSError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    qe, te = som.quantization_error(part.postures), som.topographic_error(part.postures)
+    save_som(som, args.out, {"names": list(data.names), "object": args.object, "n_postures": len(part),
+                             "quantization_error": qe, "topographic_error": te, "data": str(args.data)})
+    _progress(f"wrote {args.out}: QE {qe:.4f} rad, topographic error {te:.3f} on {len(part)} grasps")
+    if args.umatrix:
+        plot_u_matrix(som, args.umatrix, hits=som.hits(part.postures), title=f"SOM grasp manifold ({args.object})")
+    if args.nodes:
+        plot_node_postures(som, data.names, args.nodes, extract=args.extract)
+    return 0
+
+
+# -- evaluate grasping -----------------------------------------------------------------------------
+def register_evaluate(parser: argparse.ArgumentParser) -> None:
+    parser.description = ("Grasp every object over a grid of poses with the object-specific SOM, without "
+                          "experience and with one shared SOM; report the shares of stable grasps.")
+    parser.add_argument("--quick", action="store_true", help="coarse grid (under 2 minutes), same keys")
+    parser.add_argument("--json", action="store_true", help="print the result as JSON on stdout")
+    parser.add_argument("--experience", default=str(DEFAULT_EXPERIENCE),
+                        help="folder with som_<object>.npz and som_shared.npz")
+    parser.add_argument("--objects", default=",".join(OBJECTS))
+    parser.set_defaults(func=run_evaluate)
+
+
+def run_evaluate(args) -> int:
+    try:
+        objects = _objects(args.objects)
+        with threadpool_limits(1):
+            result = evaluate_grasping(args.experience, QUICK_GRID if args.quick else FULL_GRID, objects,
+                                       progress=_progress)
+    except (ValueError, FileNotFoundError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    result["grid"] = "quick" if args.quick else "full"
+    if args.json:
+        print(json.dumps(result, indent=2))
+    else:
+        print(f"{'object':10s} {'experience':>11s} {'no_exp':>8s} {'shared':>8s} {'n':>5s}")
+        for key in [*objects, "overall"]:
+            r = result[key]
+            print(f"{key:10s} {r['experience']:11.1%} {r['no_experience']:8.1%} {r['shared_som']:8.1%} {r['n_valid']:5d}")
+        print(f"grasps per minute: {result['grasps_per_minute']:.1f}")
+    return 0

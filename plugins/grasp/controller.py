@@ -1,0 +1,285 @@
+"""The experience-based grasp controller, a plain class (spec production.md §5; thesis 4.1, Fig. 4.2).
+
+One :meth:`ExperienceGraspController.step` per control cycle maps the measured posture and the set
+of touching hand segments to joint targets:
+
+(A) pre-grasp: actuate ``pregrasp`` until it is reached (or a contact occurs);
+(B) no contact yet: approach the best match over *all* finger joints; once it is reached without a
+    contact, close further with the heuristic (D) and search the best match of the current posture
+    again, approaching it when it changed — repeated until the first contact;
+(C) per finger, by its contact state, re-matching with the PCP metric whenever the set of touching
+    segments changes:
+    - no contact → approach the best match's sub-target, once reached close with (D);
+    - only non-tip contacts → hold the joints up to the touching segment, close the more distal
+      ones with (D); no longer follows new best matches while it keeps a contact;
+    - tip contact → hold the whole finger (until the tip contact is lost);
+(D) closing heuristic (eq. 4.5, 4.6): closing joints advance at γ, the proximal one at λ·γ; a joint
+    stops once a more distal segment of its finger touches.
+
+Without an experience base the controller is the purely tactile baseline: (A) then (D)/(C) without
+sub-targets.  Documented choices (all in :class:`ControllerConfig`):
+
+- *hold* sets the held closing joints' targets to the measured angle (no push on a free object);
+- *grip*: once every finger is finished (:meth:`~ExperienceGraspController.finished`), the held
+  joints target ``squeeze`` beyond the measured angle — position-controlled joints press only with
+  a target offset (phase ``"grip"``, targets fixed from then on);
+- closing targets lead the measured angle by at most ``max_lead`` (bounded force when blocked);
+- sub-targets are approached at ``approach_speed``, not jumped to (a position step would swing
+  the finger at full motor speed into the object);
+- a (sub-)target is reached when every joint is within ``reach_tol`` or the finger stopped moving
+  (``still_tol`` per cycle) — joint couplings can make exact targets unreachable;
+- a lost contact still counts for ``release_cycles`` cycles (contact flicker would otherwise
+  trigger a new best-match search every cycle).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .experience import ExperienceBase
+from .hand_layout import Finger, HandLayout
+
+SHADOW_PREGRASP = {"THJ5": -0.4, "THJ4": 0.2, "THJ1": 0.3}
+"""Empirically chosen pre-grasp of the ShadowHand-like hand (thesis: one fixed pre-grasp for all runs),
+the best of a few candidates on the evaluation grid: fingers straight, thumb turned towards the
+fingers (THJ5 < 0 opposes in this model) and slightly abducted; unnamed joints 0."""
+
+APPROACH, CLOSE, WRAP, HOLD = "approach", "close", "wrap", "hold"
+"""Per-finger modes: moving to the sub-target, closing with the heuristic, non-tip contact, tip contact."""
+
+
+@dataclass(frozen=True)
+class ControllerConfig:
+    """Parameters of the controller (angles in rad, speeds in rad/s)."""
+
+    gamma: float = 1.0          # closing speed γ of the distal joints
+    lam: float = 1.0            # proximal joints close at λ·γ (λ > 1: marginal, λ ≈ 1: distinct flexion)
+    approach_speed: float = 1.0  # sub-targets are approached at most this fast per joint (rad/s)
+    control_hz: float = 60.0    # control cycles per second (dt of the closing heuristic)
+    reach_tol: float = 0.05     # a (sub-)target is reached within this error per joint …
+    still_tol: float = 0.002    # … or when no joint moved more than this in one cycle
+    squeeze: float = 0.1        # grip: held closing joints finally target the measured angle plus this
+    max_lead: float = 0.25      # closing targets lead the measured angle by at most this
+    release_cycles: int = 3     # a lost contact still counts for this many cycles (debounces flicker)
+    pregrasp: dict = field(default_factory=lambda: dict(SHADOW_PREGRASP))
+
+    def __post_init__(self) -> None:
+        for name in ("gamma", "lam", "approach_speed", "control_hz", "reach_tol", "still_tol", "max_lead"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"controller {name} must be positive, got {getattr(self, name)}")
+        if self.release_cycles < 0:
+            raise ValueError(f"controller release_cycles must be ≥ 0, got {self.release_cycles}")
+        if self.squeeze < 0:
+            raise ValueError(f"controller squeeze must be ≥ 0, got {self.squeeze}")
+
+
+class ExperienceGraspController:
+    """Phases A–D over the joints of ``layout``; ``experience=None`` gives the purely tactile baseline."""
+
+    def __init__(self, layout: HandLayout, lower, upper, experience: ExperienceBase | None = None,
+                 config: ControllerConfig = ControllerConfig()) -> None:
+        self.layout = layout
+        self.config = config
+        self.names = list(layout.names)
+        self.index = {n: k for k, n in enumerate(self.names)}
+        self.lower = np.asarray(lower, dtype=float)
+        self.upper = np.asarray(upper, dtype=float)
+        unknown = sorted(set(config.pregrasp) - set(self.names))
+        if unknown:
+            raise ValueError(f"pre-grasp names joints {unknown} the hand '{layout.hand}' does not have")
+        self.experience = experience
+        if experience is not None:
+            missing = [n for n in experience.names if n not in self.index]
+            if missing:
+                raise ValueError(f"experience joints {missing} are not joints of hand '{layout.hand}'; "
+                                 f"use experience recorded with that hand")
+            self.exp_cols = np.array([self.index[n] for n in experience.names])
+        self.fingers = layout.fingers
+        self.finger_cols = {f.name: np.array([self.index[j] for j in f.joints]) for f in self.fingers}
+        self.reset()
+
+    # -- state ---------------------------------------------------------------------------------
+    def reset(self) -> None:
+        """Start a new grasp at phase A."""
+        self.phase = "A"
+        pre = np.zeros(len(self.names))
+        for n, v in self.config.pregrasp.items():
+            pre[self.index[n]] = v
+        self.pregrasp = np.clip(pre, self.lower, self.upper)
+        self.targets = self.pregrasp.copy()
+        self.touched: frozenset[str] = frozenset()
+        self.last_seen: dict[str, int] = {}
+        self.mode = {f.name: APPROACH for f in self.fingers}
+        self.deepest = {f.name: -1 for f in self.fingers}  # chain position of the deepest touching segment (wrap)
+        self.match_index: int | None = None
+        self.subtarget: np.ndarray | None = None
+        self.n_matches = 0
+        self._new_sub = False
+        self.q_prev: np.ndarray | None = None
+
+    @property
+    def dt(self) -> float:
+        return 1.0 / self.config.control_hz
+
+    def _debounce(self, touched: frozenset[str]) -> frozenset[str]:
+        """A contact counts until it has been absent for ``release_cycles`` cycles (contact flicker)."""
+        for seg in touched:
+            self.last_seen[seg] = 0
+        for seg in list(self.last_seen):
+            if seg not in touched:
+                self.last_seen[seg] += 1
+                if self.last_seen[seg] > self.config.release_cycles:
+                    del self.last_seen[seg]
+        return frozenset(self.last_seen)
+
+    def hand_contacts(self, segments) -> frozenset[str]:
+        """The touching segments that belong to a finger (palm contacts specify no joint)."""
+        return frozenset(s for s in segments if self.layout.finger_of(s) is not None)
+
+    # -- the control cycle ---------------------------------------------------------------------
+    def step(self, q, touched_segments) -> np.ndarray:
+        """One control cycle: measured posture ``q`` (hand order), touching segment names → targets."""
+        q = np.asarray(q, dtype=float).reshape(-1)
+        if q.size != len(self.names):
+            raise ValueError(f"posture has {q.size} joints, hand '{self.layout.hand}' has {len(self.names)}")
+        touched = self._debounce(self.hand_contacts(touched_segments))
+        moved = np.inf if self.q_prev is None else np.abs(q - self.q_prev)
+        self.q_prev = q.copy()
+        if self.phase == "A":
+            if touched or self._reached(q, self.pregrasp, moved, np.arange(len(q))):
+                self.phase = "B"
+            else:
+                return self.targets.copy()
+        if self.phase == "B" and touched:
+            self.phase = "C"
+        if self.phase == "grip":
+            return self.targets.copy()
+        if self.phase == "B":
+            self._first_contact(q, moved)
+        else:
+            self._contact_control(q, touched, moved)
+            if self.finished(q):
+                self.grip(q)
+        self.touched = touched
+        self.targets = np.clip(self.targets, self.lower, self.upper)
+        return self.targets.copy()
+
+    def _first_contact(self, q: np.ndarray, moved) -> None:
+        """Phase B: approach the all-joint best match; close with (D) once it is reached."""
+        approaching = any(m == APPROACH for m in self.mode.values()) and self.match_index is not None
+        if self.experience is not None and not approaching:  # re-match only once the last match is reached
+            k, posture = self.experience.best_match(q[self.exp_cols])
+            if k != self.match_index:
+                self._set_match(k, posture)
+                self.mode = {f.name: APPROACH for f in self.fingers}
+        for f in self.fingers:
+            self._free_finger(f, q, moved)
+
+    def _contact_control(self, q: np.ndarray, touched: frozenset[str], moved) -> None:
+        """Phase C: re-match on contact changes, then control every finger by its contact state."""
+        if self.experience is not None and touched and touched != self.touched:
+            mask = self.layout.pcp_mask(touched, self.experience.names)
+            k, posture = self.experience.best_match(q[self.exp_cols], mask)
+            self._set_match(k, posture)
+        for f in self.fingers:
+            mine = frozenset(s for s in touched if s in f.segments)
+            if f.tip in mine:
+                if self.mode[f.name] != HOLD:
+                    self._hold(f, q, len(f.joints) - 1)
+                    self.mode[f.name] = HOLD
+            elif mine:
+                deepest = max(f.segments[s] for s in mine)
+                self.deepest[f.name] = deepest
+                if self.mode[f.name] != WRAP or mine != frozenset(s for s in self.touched if s in f.segments):
+                    self._hold(f, q, deepest)
+                    self.mode[f.name] = WRAP
+                self._close(f, q, mine)
+            else:
+                if self.mode[f.name] in (HOLD, WRAP) or self._new_sub:
+                    self.mode[f.name] = APPROACH
+                self._free_finger(f, q, moved)
+        self._new_sub = False
+
+    # -- building blocks -----------------------------------------------------------------------
+    def _set_match(self, k: int, posture: np.ndarray) -> None:
+        self.match_index = k
+        self.n_matches += 1
+        self.subtarget = self.targets.copy()
+        self.subtarget[self.exp_cols] = posture
+        self.subtarget = np.clip(self.subtarget, self.lower, self.upper)
+        self._new_sub = True
+
+    def _free_finger(self, f: Finger, q: np.ndarray, moved) -> None:
+        """A finger without contact: approach the sub-target at ``approach_speed``, then close with (D)."""
+        cols = self.finger_cols[f.name]
+        if self.mode[f.name] == APPROACH:
+            if self.subtarget is None:
+                self.mode[f.name] = CLOSE
+            else:
+                limit = self.config.approach_speed * self.dt
+                gap = self.subtarget[cols] - self.targets[cols]
+                self.targets[cols] += np.clip(gap, -limit, limit)
+                if np.max(np.abs(gap)) <= limit and self._reached(q, self.targets, moved, cols):
+                    self.mode[f.name] = CLOSE
+        if self.mode[f.name] == CLOSE:
+            self._close(f, q, frozenset())
+
+    def _reached(self, q, target, moved, cols) -> bool:
+        err = np.abs(np.clip(target[cols], self.lower[cols], self.upper[cols]) - q[cols])
+        still = np.max(moved[cols]) < self.config.still_tol if np.ndim(moved) else False
+        return bool(np.max(err) < self.config.reach_tol or still)
+
+    def _hold(self, f: Finger, q: np.ndarray, upto: int) -> None:
+        """Hold the closing joints of ``f`` up to chain position ``upto`` at the measured angle."""
+        for c in f.closing:
+            if c <= upto:
+                j = self.index[f.joints[c]]
+                self.targets[j] = q[j]
+
+    def grip(self, q) -> np.ndarray:
+        """Press: the touching fingers' closing joints target ``squeeze`` beyond ``q``.
+
+        Called by :meth:`step` once :meth:`finished`, or by a driver whose time is up.
+        """
+        q = np.asarray(q, dtype=float)
+        self.phase = "grip"
+        for f in self.fingers:
+            if self.mode[f.name] in (HOLD, WRAP):
+                cols = [self.index[f.joints[c]] for c in f.closing]
+                self.targets[cols] = q[cols] + self.config.squeeze
+        self.targets = np.clip(self.targets, self.lower, self.upper)
+        return self.targets.copy()
+
+    def _close(self, f: Finger, q: np.ndarray, touching: frozenset[str]) -> None:
+        """Phase D for finger ``f``: advance the closing joints not stopped by a more distal contact."""
+        cfg = self.config
+        deepest = max((f.segments[s] for s in touching), default=-1)
+        first = f.closing[0]
+        for c in f.closing:
+            if c <= deepest:
+                continue  # eq. 4.5: a more distal segment (or this one, held in phase C) touches
+            j = self.index[f.joints[c]]
+            speed = cfg.lam * cfg.gamma if c == first else cfg.gamma
+            ahead = self.targets[j] + speed * self.dt
+            self.targets[j] = min(ahead, max(self.targets[j], q[j] + cfg.max_lead))
+
+    # -- progress ------------------------------------------------------------------------------
+    def finished(self, q) -> bool:
+        """Every finger holds a tip contact or cannot close further (limits reached / blocked)."""
+        if self.phase == "grip":
+            return True
+        if self.phase != "C":
+            return False
+        q = np.asarray(q, dtype=float)
+        for f in self.fingers:
+            if self.mode[f.name] == HOLD:
+                continue
+            skip = self.deepest[f.name] if self.mode[f.name] == WRAP else -1
+            cols = [self.index[f.joints[c]] for c in f.closing if c > skip]
+            below_limit = self.targets[cols] < self.upper[cols] - 1e-6
+            not_blocked = self.targets[cols] - q[cols] < self.config.max_lead - 1e-3
+            free = below_limit & not_blocked
+            if free.any():
+                return False
+        return True

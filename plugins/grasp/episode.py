@@ -1,0 +1,172 @@
+"""One grasp trial in pybullet: build the scene, run the controller, test stability (spec §5).
+
+The simulator (:class:`plugins.simulator.simulation.Simulation`, scene ``grasp``) puts the object on
+a table under the palm-down hand.  Documented choice ``floating=True`` (default): as in the thesis
+(4.3: zero gravity, object hovering in front of the fixed palm, free to move) the table is removed and
+gravity switched off while grasping, so the fingers can close around the object; ``floating=False``
+grasps on the table under gravity.  The controller runs at ``control_hz`` on the measured posture and
+the segments touching the object (contacts with ``ignore_bodies``, the table by default, are not
+object contacts).  The grasp phase ends when the controller is finished for ``settle_s`` or after
+``grasp_s``; then the wrench-space quality is computed and the :class:`DisturbanceTest` runs with
+gravity on.
+"""
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+import pybullet as p
+
+from plugins.simulator.scenes import GRASP_OBJECTS, GraspScene
+from plugins.simulator.simulation import Simulation
+
+from .controller import ExperienceGraspController
+from .stability import DisturbanceTest, grasp_wrench_quality, object_contacts, random_directions, rotation_angle_deg
+
+
+@dataclass(frozen=True)
+class GraspPose:
+    """Object placement relative to the scene's default (m, m, m, deg): see :data:`.experience.POSE_FIELDS`."""
+
+    x: float = 0.0
+    y: float = 0.0
+    gap: float = 0.03
+    yaw_deg: float = 0.0
+
+    def as_array(self) -> np.ndarray:
+        return np.array([self.x, self.y, self.gap, self.yaw_deg])
+
+
+@dataclass
+class PregraspScene(GraspScene):
+    """The simulator's grasp scene with the hand starting in the pre-grasp posture (phase A done at t = 0)."""
+
+    pregrasp: dict = field(default_factory=dict)
+
+    def initial_posture(self) -> dict[str, float]:
+        return dict(self.pregrasp)
+
+
+CENTRED_POSE = GraspPose(x=0.06, y=0.0, gap=0.01)
+"""Object centre under the proximal finger segments, 1 cm below the palm: the middle of the reachable grasp region."""
+
+
+@dataclass(frozen=True)
+class EpisodeConfig:
+    """Timing of one trial and which bodies are not grasp contacts."""
+
+    physics_hz: float = 240.0
+    grasp_s: float = 3.0
+    settle_s: float = 0.25
+    floating: bool = True
+    ignore_bodies: tuple[str, ...] = ("table",)
+    test: DisturbanceTest = field(default_factory=DisturbanceTest)
+
+
+@dataclass
+class GraspResult:
+    """Outcome of one trial."""
+
+    object: str
+    pose: np.ndarray
+    stable: bool
+    valid: bool
+    posture: np.ndarray
+    touched: list[str]
+    quality: float
+    shift_m: float
+    turn_deg: float
+    grasp_time_s: float
+    n_matches: int
+
+    def summary(self) -> dict:
+        d = asdict(self)
+        d["pose"], d["posture"] = self.pose.tolist(), self.posture.tolist()
+        return d
+
+
+def object_radius(obj: str) -> float:
+    """Torque scale of an object for the wrench quality: its largest half-extent in the grasp region."""
+    dims = GRASP_OBJECTS[obj][1]
+    if "radius" in dims:
+        return float(dims["radius"])
+    return float(np.linalg.norm(dims["halfExtents"][:2]))
+
+
+def touched_segments(sim: Simulation, ignore) -> list[str]:
+    c = sim.contacts()
+    return sorted({s for s, b in zip(c.segments, c.bodies) if b not in ignore})
+
+
+def run_grasp(obj: str, pose: GraspPose, controller: ExperienceGraspController, config: EpisodeConfig = EpisodeConfig(),
+              seed: int = 0, hand: str = "shadow") -> GraspResult:
+    """Grasp ``obj`` at ``pose`` with ``controller`` and test the grasp's stability."""
+    scene = PregraspScene(object=obj, position=(pose.x, pose.y), yaw_deg=pose.yaw_deg, gap_below_palm=pose.gap,
+                          pregrasp=controller.config.pregrasp)
+    with Simulation(hand=hand, scene=scene, seed=seed, physics_hz=config.physics_hz) as sim:
+        if config.floating:
+            remove_table(sim, scene)
+            p.setGravity(0, 0, 0, physicsClientId=sim.client)
+        controller.reset()
+        p.performCollisionDetection(physicsClientId=sim.client)
+        if touched_segments(sim, config.ignore_bodies):  # thesis 4.3: initially colliding placements are ignored
+            q = sim.joint_positions()
+            return GraspResult(obj, pose.as_array(), False, False, q, [], 0.0, 0.0, 0.0, 0.0, 0)
+        per_cycle = max(1, int(round(config.physics_hz / controller.config.control_hz)))
+        cycles = int(config.grasp_s * controller.config.control_hz)
+        settle = max(1, int(config.settle_s * controller.config.control_hz))
+        done_for = 0
+        for k in range(cycles):
+            q = sim.joint_positions()
+            touched = touched_segments(sim, config.ignore_bodies)
+            targets = controller.step(q, touched)
+            sim.set_targets(controller.names, targets)
+            sim.step(per_cycle)
+            done_for = done_for + 1 if controller.finished(sim.joint_positions()) else 0
+            if done_for >= settle:
+                break
+        if controller.phase != "grip":
+            sim.set_targets(controller.names, controller.grip(sim.joint_positions()))
+            sim.step(int(config.settle_s * config.physics_hz))
+        grasp_time = sim.time
+        posture = sim.joint_positions()
+        touched = touched_segments(sim, config.ignore_bodies)
+        obj_id = scene.object_id
+        pts, nrm = object_contacts(sim.client, sim.hand_id, obj_id)
+        pos0, orn0 = p.getBasePositionAndOrientation(obj_id, physicsClientId=sim.client)
+        quality = grasp_wrench_quality(pts, nrm, pos0, object_radius(obj))
+        shift, turn, n_touch = disturb(sim, scene, config.test, np.random.default_rng(seed))
+        stable = (shift < config.test.max_shift_m and turn < config.test.max_turn_deg
+                  and n_touch >= config.test.min_contacts)
+        return GraspResult(obj, pose.as_array(), bool(stable), True, posture, touched, quality, shift, turn, grasp_time,
+                           controller.n_matches)
+
+
+def remove_table(sim: Simulation, scene: GraspScene) -> None:
+    for key, name in list(scene.bodies.items()):
+        if name == "table":
+            p.removeBody(key[0], physicsClientId=sim.client)
+            del scene.bodies[key]
+
+
+def disturb(sim: Simulation, scene: GraspScene, test: DisturbanceTest, rng: np.random.Generator) -> tuple[float, float, int]:
+    """Gravity on, table gone, hold, push the object randomly → (shift m, turn deg, touching segments)."""
+    client, obj_id = sim.client, scene.object_id
+    remove_table(sim, scene)
+    p.setGravity(0, 0, -9.81, physicsClientId=client)
+    pos0, orn0 = p.getBasePositionAndOrientation(obj_id, physicsClientId=client)
+    hz = sim.physics_hz
+    sim.step(int(test.hold_s * hz))
+    forces = random_directions(rng, test.n_pushes) * test.force_n
+    torques = random_directions(rng, test.n_pushes) * test.torque_nm
+    for f, t in zip(forces, torques):
+        for _ in range(int(test.push_s * hz)):
+            pos, _ = p.getBasePositionAndOrientation(obj_id, physicsClientId=client)
+            p.applyExternalForce(obj_id, -1, f.tolist(), pos, p.WORLD_FRAME, physicsClientId=client)
+            p.applyExternalTorque(obj_id, -1, t.tolist(), p.WORLD_FRAME, physicsClientId=client)
+            sim.step(1)
+        sim.step(int(test.rest_s * hz))
+    pos1, orn1 = p.getBasePositionAndOrientation(obj_id, physicsClientId=client)
+    shift = float(np.linalg.norm(np.subtract(pos1, pos0)))
+    n_touch = len({c[3] for c in p.getContactPoints(bodyA=sim.hand_id, bodyB=obj_id, physicsClientId=client)})
+    return shift, rotation_angle_deg(orn0, orn1), n_touch

@@ -1,0 +1,108 @@
+"""Grasp evaluation over a grid of object poses (spec production.md §5, issue 8 item 4; thesis 4.3).
+
+For each object and grid pose, three controllers grasp from the same pre-grasp with the same
+disturbance seed:
+
+- ``experience``: experience base = the object-specific SOM (thesis: object-specific 25×25 SOMs);
+- ``no_experience``: the purely tactile closing heuristic;
+- ``shared_som``: one SOM trained on the grasps of all objects (thesis: 30×30).
+
+A grasp counts when it passes the :class:`~.stability.DisturbanceTest`; placements where the hand
+already touches the object in the pre-grasp are skipped in every condition (thesis 4.3).  Rotations
+about the vertical are evaluated for the box only: the upright cylinder and the sphere are symmetric
+about it (thesis: symmetric rotations ignored).  Shares are pooled over all valid grasps of an object
+and, for ``overall``, of all objects.  Also reported: the share of force-closure grasps (wrench
+quality > 0) per condition and the grasps evaluated per minute of wall time.
+"""
+from __future__ import annotations
+
+import itertools
+import time
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from plugins.mapping.hands import HAND_MODELS
+
+from .controller import ControllerConfig, ExperienceGraspController
+from .episode import EpisodeConfig, GraspPose, run_grasp
+from .experience import ExperienceBase
+from .hand_layout import hand_layout
+
+OBJECTS = ("box", "cylinder", "sphere")
+CONDITIONS = ("experience", "no_experience", "shared_som")
+SYMMETRIC_ABOUT_VERTICAL = ("cylinder", "sphere")
+
+FULL_GRID = {"x": (0.045, 0.06, 0.075, 0.09), "y": (-0.012, 0.0, 0.012), "gap": (0.01, 0.02, 0.03),
+             "yaw_deg": (-30.0, 0.0, 30.0)}
+"""Full grid: offsets along the fingers / across the palm (m), gap below the palm (m), yaw (deg)."""
+QUICK_GRID = {"x": (0.05, 0.065, 0.08), "y": (0.0,), "gap": (0.01, 0.03), "yaw_deg": (-30.0, 30.0)}
+"""Coarse grid of ``--quick`` (under 2 minutes on the CI machine)."""
+
+
+def grid_poses(obj: str, grid: dict) -> list[GraspPose]:
+    yaws = (0.0,) if obj in SYMMETRIC_ABOUT_VERTICAL else grid["yaw_deg"]
+    return [GraspPose(x, y, gap, yaw) for x, y, gap, yaw in itertools.product(grid["x"], grid["y"], grid["gap"], yaws)]
+
+
+def experience_files(folder: Path) -> dict[str, Path]:
+    """The SOM files an evaluation needs: ``som_<object>.npz`` per object and ``som_shared.npz``."""
+    return {**{obj: folder / f"som_{obj}.npz" for obj in OBJECTS}, "shared": folder / "som_shared.npz"}
+
+
+def evaluate_grasping(experience_dir, grid: dict = FULL_GRID, objects=OBJECTS, hand: str = "shadow",
+                      config: ControllerConfig = ControllerConfig(), episode: EpisodeConfig = EpisodeConfig(),
+                      progress: Callable[[str], None] | None = None) -> dict:
+    """Run the grid for every object and condition; return the result dict (see module docstring)."""
+    files = experience_files(Path(experience_dir))
+    missing = [str(p) for key, p in files.items() if (key in objects or key == "shared") and not p.exists()]
+    if missing:
+        raise FileNotFoundError(f"experience files missing: {', '.join(missing)}; create them with "
+                                f"`handflow grasp-experience --out {experience_dir} --train-soms`")
+    layout = hand_layout(hand)
+    model = HAND_MODELS[hand]
+    shared = ExperienceBase.load(files["shared"])
+    counts = {obj: {c: [0, 0, 0] for c in CONDITIONS} for obj in objects}  # stable, force closure, valid
+    t0 = time.perf_counter()
+    n_run = 0
+    for obj in objects:
+        bases = {"experience": ExperienceBase.load(files[obj]), "no_experience": None, "shared_som": shared}
+        controllers = {c: ExperienceGraspController(layout, model.lower, model.upper, b, config) for c, b in bases.items()}
+        poses = grid_poses(obj, grid)
+        for k, pose in enumerate(poses):
+            for cond, ctl in controllers.items():
+                r = run_grasp(obj, pose, ctl, episode, seed=k, hand=hand)
+                n_run += 1
+                if r.valid:
+                    c = counts[obj][cond]
+                    c[0] += r.stable
+                    c[1] += r.quality > 0
+                    c[2] += 1
+            if progress is not None:
+                done = {c: counts[obj][c][0] for c in CONDITIONS}
+                progress(f"{obj}: pose {k + 1}/{len(poses)}, stable so far {done}")
+    minutes = (time.perf_counter() - t0) / 60.0
+    return summarise(counts, n_run, minutes)
+
+
+def summarise(counts: dict, n_run: int, minutes: float) -> dict:
+    """Shares per object and pooled ``overall`` from [stable, force closure, valid] counts."""
+    def share(a, n):
+        return float(a / n) if n else 0.0
+
+    out: dict = {}
+    pooled = {c: np.zeros(3) for c in CONDITIONS}
+    for obj, per in counts.items():
+        out[obj] = {c: share(per[c][0], per[c][2]) for c in CONDITIONS}
+        out[obj]["force_closure"] = {c: share(per[c][1], per[c][2]) for c in CONDITIONS}
+        out[obj]["n_valid"] = int(per[CONDITIONS[0]][2])
+        for c in CONDITIONS:
+            pooled[c] += per[c]
+    out["overall"] = {c: share(pooled[c][0], pooled[c][2]) for c in CONDITIONS}
+    out["overall"]["force_closure"] = {c: share(pooled[c][1], pooled[c][2]) for c in CONDITIONS}
+    out["overall"]["n_valid"] = int(pooled[CONDITIONS[0]][2])
+    out["experience_gain"] = out["overall"]["experience"] - out["overall"]["no_experience"]
+    out["grasps_evaluated"] = n_run
+    out["grasps_per_minute"] = float(n_run / minutes) if minutes > 0 else 0.0
+    return out

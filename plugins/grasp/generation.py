@@ -1,0 +1,118 @@
+"""Grasp experience generation in pybullet (spec production.md §5, issue 8 item 1).
+
+Documented method (the thesis pulled fingertips to the object with virtual springs from a few
+manually chosen start postures; any method that yields stable grasps is allowed): *randomised
+tactile grasping with a stability filter*.  Every trial draws
+
+- an object pose uniformly from the pose ranges (the evaluation grid's box, but continuous and
+  seeded differently, so experience never sees the evaluation poses exactly),
+- a random pre-grasp (thumb rotation/abduction/flexion, finger spread and flexion within
+  :data:`PREGRASP_RANGES`) and a random proximal/distal speed ratio λ from :data:`LAMBDA_RANGE`,
+
+runs the purely tactile controller (phases A, C, D without experience) and keeps the final posture
+of every grasp that passes the :class:`~.stability.DisturbanceTest`, with the object type, pose,
+touching segments and wrench quality.  Many different start postures give the variety of grasp
+postures the thesis obtained from its start postures.  Local exploration (like the thesis' springs
+around each start posture): after a stable grasp, ``local_trials`` more trials reuse its λ with the
+pose and pre-grasp jittered by :data:`LOCAL_JITTER` — successes cluster, so this raises the yield.
+"""
+from __future__ import annotations
+
+import sys
+from dataclasses import replace
+from typing import Callable
+
+import numpy as np
+
+from plugins.mapping.hands import HAND_MODELS
+
+from .controller import ControllerConfig, ExperienceGraspController
+from .episode import EpisodeConfig, GraspPose, run_grasp
+from .experience import GraspDataset
+from .hand_layout import hand_layout
+
+PREGRASP_RANGES = {
+    "THJ5": (-1.0, 0.0), "THJ4": (0.0, 1.0), "THJ2": (-0.2, 0.4), "THJ1": (0.0, 0.5),
+    **{f"{f}J4": (-0.15, 0.15) for f in ("FF", "MF", "RF", "LF")},
+    **{f"{f}J3": (0.0, 0.5) for f in ("FF", "MF", "RF", "LF")},
+    **{f"{f}J2": (0.0, 0.4) for f in ("FF", "MF", "RF", "LF")},
+}
+"""Uniform ranges (rad) of the random pre-grasp of the ShadowHand-like hand; other joints 0."""
+
+LAMBDA_RANGE = (0.7, 2.0)
+"""Uniform range of the proximal/distal closing-speed ratio λ of the generating controller."""
+
+POSE_RANGES = {"x": (0.045, 0.085), "y": (-0.015, 0.015), "gap": (0.008, 0.035), "yaw_deg": (-35.0, 35.0)}
+"""Object pose ranges (see :class:`~.episode.GraspPose`) covering the evaluation grid."""
+
+
+LOCAL_JITTER = {"x": 0.006, "y": 0.006, "gap": 0.004, "yaw_deg": 8.0, "pregrasp": 0.08}
+"""Standard deviations of the local exploration around a stable grasp (m, m, m, deg, rad)."""
+MAX_LOCAL_DEPTH = 2
+"""Neighbours of neighbours are explored, no further (keeps the search from staying in one cluster)."""
+
+
+def random_pose(rng: np.random.Generator, ranges: dict = POSE_RANGES) -> GraspPose:
+    return GraspPose(**{k: float(rng.uniform(*ranges[k])) for k in ("x", "y", "gap", "yaw_deg")})
+
+
+def random_pregrasp(rng: np.random.Generator, ranges: dict = PREGRASP_RANGES) -> dict[str, float]:
+    return {name: float(rng.uniform(lo, hi)) for name, (lo, hi) in ranges.items()}
+
+
+def _clip_pose(pose: dict) -> GraspPose:
+    return GraspPose(**{k: float(np.clip(v, *POSE_RANGES[k])) for k, v in pose.items()})
+
+
+def _jitter(rng: np.random.Generator, pose: GraspPose, pregrasp: dict) -> tuple[GraspPose, dict]:
+    near = _clip_pose({k: getattr(pose, k) + rng.normal(0.0, LOCAL_JITTER[k]) for k in POSE_RANGES})
+    sd = LOCAL_JITTER["pregrasp"]
+    pre = {n: float(np.clip(v + rng.normal(0.0, sd), *PREGRASP_RANGES[n])) for n, v in pregrasp.items()}
+    return near, pre
+
+
+def generate_experience(objects, n_trials: int, seed: int = 0, hand: str = "shadow", local_trials: int = 3,
+                        base: ControllerConfig = ControllerConfig(), episode: EpisodeConfig = EpisodeConfig(),
+                        progress: Callable[[str], None] | None = None) -> GraspDataset:
+    """Run ``n_trials`` randomised grasps per object and return the stable ones as a dataset."""
+    if n_trials < 1:
+        raise ValueError(f"n_trials must be ≥ 1, got {n_trials}")
+    layout = hand_layout(hand)
+    model = HAND_MODELS[hand]
+    names = layout.finger_joints
+    cols = [layout.names.index(n) for n in names]
+    rng = np.random.default_rng(seed)
+    postures, objs, poses, contacts, quality = [], [], [], [], []
+    counts = {}
+    for obj in objects:
+        kept = valid = 0
+        queue: list[tuple[GraspPose, dict, float, int]] = []
+        for t in range(n_trials):
+            if queue:
+                pose, pregrasp, lam, depth = queue.pop(0)
+            else:
+                pose, pregrasp, lam, depth = random_pose(rng), random_pregrasp(rng), float(rng.uniform(*LAMBDA_RANGE)), 0
+            config = replace(base, pregrasp=pregrasp, lam=lam)
+            controller = ExperienceGraspController(layout, model.lower, model.upper, None, config)
+            result = run_grasp(obj, pose, controller, episode, seed=int(rng.integers(2**31)), hand=hand)
+            valid += result.valid
+            if result.valid and result.stable:
+                kept += 1
+                if depth < MAX_LOCAL_DEPTH:
+                    queue.extend((*_jitter(rng, pose, pregrasp), lam, depth + 1) for _ in range(local_trials))
+                postures.append(result.posture[cols])
+                objs.append(obj)
+                poses.append(result.pose)
+                contacts.append(result.touched)
+                quality.append(result.quality)
+            if progress is not None and (t + 1) % 20 == 0:
+                progress(f"{obj}: {t + 1}/{n_trials} trials, {kept} stable grasps kept")
+        counts[obj] = {"trials": n_trials, "valid": valid, "stable": kept}
+    meta = {"hand": hand, "method": "randomised tactile grasping + disturbance test", "seed": seed,
+            "counts": counts, "pose_ranges": {k: list(v) for k, v in POSE_RANGES.items()}}
+    return GraspDataset(names, np.array(postures).reshape(-1, len(names)), objs, np.array(poses).reshape(-1, 4),
+                        contacts, quality, meta)
+
+
+def stderr_progress(text: str) -> None:
+    print(text, file=sys.stderr, flush=True)

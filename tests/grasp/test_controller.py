@@ -1,0 +1,135 @@
+"""The grasp controller's phases on scripted contact sequences (spec production.md §5, thesis 4.1)."""
+import numpy as np
+import pytest
+
+from plugins.grasp.controller import HOLD, WRAP, ControllerConfig, ExperienceGraspController
+from plugins.grasp.experience import ExperienceBase
+from plugins.grasp.hand_layout import hand_layout
+from plugins.mapping.hands import HAND_MODELS
+
+MODEL = HAND_MODELS["shadow"]
+LAYOUT = hand_layout("shadow")
+CFG = ControllerConfig(gamma=1.2, lam=1.5, control_hz=60.0, pregrasp={"THJ5": -0.4, "THJ4": 0.2})
+
+
+def make(experience=None, config=CFG):
+    return ExperienceGraspController(LAYOUT, MODEL.lower, MODEL.upper, experience, config)
+
+
+def col(name):
+    return LAYOUT.names.index(name)
+
+
+def run(ctl, contacts_per_cycle, q=None):
+    """Kinematic plant: the hand reaches every target exactly; returns the targets per cycle."""
+    q = ctl.pregrasp.copy() if q is None else q
+    out = []
+    for touched in contacts_per_cycle:
+        q = ctl.step(q, touched)
+        out.append(q.copy())
+    return np.array(out)
+
+
+def test_closing_heuristic_speeds_and_phase_sequence():
+    ctl = make()
+    t = run(ctl, [[]] * 5)
+    assert ctl.phase == "B"
+    dt = 1 / 60
+    step = np.diff(t[1:], axis=0)[-1]
+    assert step[col("FFJ3")] == pytest.approx(1.5 * 1.2 * dt)    # proximal: λ·γ
+    assert step[col("FFJ2")] == pytest.approx(1.2 * dt)          # distal: γ
+    assert step[col("THJ4")] == pytest.approx(1.5 * 1.2 * dt)    # thumb proximal closing joint
+    for fixed in ("FFJ4", "THJ5", "THJ3", "LFJ5", "WRJ1"):       # spread/rotation joints do not close
+        assert step[col(fixed)] == 0.0
+
+
+def test_finger_holds_once_its_tip_touches():
+    ctl = make()
+    t = run(ctl, [[]] * 5 + [["FF_distal"]] * 10)
+    assert ctl.phase == "C" and ctl.mode["FF"] == HOLD
+    ff = [col(n) for n in ("FFJ3", "FFJ2", "FFJ1")]
+    mf = [col(n) for n in ("MFJ3", "MFJ2", "MFJ1")]
+    np.testing.assert_allclose(t[6:, ff], t[5:6, ff].repeat(9, 0))  # frozen at the contact posture
+    assert np.all(np.diff(t[5:, mf], axis=0) > 0)                   # the other fingers keep closing
+
+
+def test_non_tip_contact_holds_proximal_and_closes_distal_joints():
+    ctl = make()
+    t = run(ctl, [[]] * 5 + [["FF_middle"]] * 6)
+    assert ctl.mode["FF"] == WRAP
+    d = np.diff(t[6:], axis=0)
+    assert np.all(d[:, col("FFJ3")] == 0) and np.all(d[:, col("FFJ2")] == 0)
+    assert np.all(d[:, col("FFJ1")] == pytest.approx(1.2 / 60))
+
+
+def test_tip_contact_lost_resumes_closing_but_a_flicker_does_not():
+    ctl = make()
+    t = run(ctl, [[]] * 5 + [["MF_distal"]] * 3 + [[]] * 2 + [["MF_distal"]])
+    assert ctl.mode["MF"] == HOLD                               # 2 cycles without contact: debounced
+    assert t[-1, col("MFJ3")] == t[5, col("MFJ3")]
+    t = run(ctl, [[]] * (CFG.release_cycles + 3), q=t[-1])
+    assert ctl.mode["MF"] != HOLD                               # really lost: the finger closes again
+    assert t[-1, col("MFJ3")] > t[-3, col("MFJ3")]
+
+
+def experience_base():
+    """Three grasps: A and B agree with the hand on the index finger, B also on the thumb."""
+    names = LAYOUT.finger_joints
+    base = np.zeros((3, len(names)))
+    ix = {n: k for k, n in enumerate(names)}
+    base[:, ix["MFJ3"]] = (0.9, 0.3, 0.6)                      # what the sub-targets tell the middle finger
+    base[:, ix["THJ2"]] = (0.5, 0.0, 0.5)
+    base[2, ix["FFJ3"]] = 3.0                                 # posture 2 disagrees on the index finger
+    return ExperienceBase(base, names, "database")
+
+
+def test_rematches_exactly_when_contacts_change_and_pcp_ignores_untouched_fingers():
+    ctl = make(experience_base())
+    q = np.zeros(len(LAYOUT.names))                           # hand open: matches care about FF/TH only
+    ctl.step(q, ["FF_proximal"])                              # a contact ends phase A at once
+    assert ctl.phase == "C" and ctl.n_matches == 1
+    assert ctl.match_index in (0, 1)                          # PCP over FFJ4, FFJ3 only: posture 2 is out
+    first = ctl.match_index
+    ctl.step(q, ["FF_proximal"])
+    assert ctl.n_matches == 1                                 # same contacts: no new search
+    ctl.step(q, ["FF_proximal", "TH_proximal"])               # thumb joints THJ5..THJ2 now specified (all 0)
+    assert ctl.n_matches == 2 and ctl.match_index == 1 and first == 0
+    # the untouched middle finger heads for the new best match's sub-target (MFJ3 = 0.3)
+    for _ in range(40):
+        ctl.step(q, ["FF_proximal", "TH_proximal"])
+    assert ctl.targets[col("MFJ3")] == pytest.approx(0.3) and ctl.n_matches == 2
+
+
+def test_phase_b_approaches_the_best_match_over_all_joints():
+    names = LAYOUT.finger_joints
+    posture = np.zeros(len(names))
+    posture[names.index("MFJ3")] = 0.3
+    posture[names.index("THJ5")] = -0.2
+    ctl = make(ExperienceBase(posture[None], names), ControllerConfig(pregrasp=CFG.pregrasp, approach_speed=0.6))
+    t = ctl.step(ctl.pregrasp.copy(), [])                     # pre-grasp reached: A → B, best match chosen
+    assert ctl.phase == "B" and ctl.n_matches == 1
+    mf = [t[col("MFJ3")]]
+    for _ in range(40):                                       # kinematic plant: q follows the targets
+        t = ctl.step(t, [])
+        mf.append(t[col("MFJ3")])
+    np.testing.assert_allclose(mf[:29], np.arange(1, 30) * 0.01)   # rate-limited approach to 0.3, no jump
+    assert t[col("THJ5")] == pytest.approx(-0.2)              # a joint the heuristic never moves: from the match
+    assert mf[-1] > 0.3                                       # reached, then closed by the heuristic
+
+
+def test_grip_presses_held_fingers_when_finished():
+    ctl = make(config=ControllerConfig(pregrasp={}, squeeze=0.1))
+    q = ctl.pregrasp.copy()
+    touching = ["TH_distal", "FF_distal", "MF_distal", "RF_distal", "LF_distal"]
+    q = ctl.step(q, [])
+    out = ctl.step(q, touching)
+    assert ctl.phase == "grip" and ctl.finished(q)
+    for name in ("FFJ3", "FFJ2", "THJ4", "THJ1"):
+        assert out[col(name)] == pytest.approx(q[col(name)] + 0.1)    # pressed into the object
+    np.testing.assert_array_equal(ctl.step(q, []), out)                 # and kept from then on
+
+
+def test_refuses_experience_from_another_hand():
+    gifu = ExperienceBase(np.zeros((2, 2)), ["FF_J2", "FF_J3"], "database")
+    with pytest.raises(ValueError, match="not joints of hand 'shadow'"):
+        make(gifu)

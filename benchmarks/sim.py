@@ -6,8 +6,14 @@
 - ``tracker_fps``: BallTracker.update on a 320×240 rendered frame; baseline ``inrange_fps``: one
   bare ``cv2.inRange`` on the same (already HSV) image;
 - ``tracker_err_median`` / ``tracker_err_p95``: error vs projected ground truth in normalised units
-  (marks 2 apart) over random unoccluded ball placements.
-Every figure is the median of ``--repeats`` timed runs in this process.
+  (marks 2 apart) over random unoccluded ball placements;
+- ``swaps_per_min``: the scripted open-loop ball motion (``BallSwapMotion``) in the ``balls`` scene,
+  ``--swap-seconds`` of simulated time, median over seeds 0–2 (ground-truth swap counter);
+- ``cap_flick_<r>cm`` / ``cap_turn_<r>cm``: cap rotation (rad, mean |·| per cycle over six cycles)
+  in the non-turning phases (A open-back, D open) vs in close + rotate, with the demonstrator's
+  release (fingertips uncurl first); baseline ``cap_flick_<r>cm_baseline``: the whole hand opens at
+  once over phase D (the previous demonstrator).
+Timing figures are the median of ``--repeats`` timed runs in this process.
 """
 from __future__ import annotations
 
@@ -20,6 +26,10 @@ import cv2
 import numpy as np
 import pybullet as p
 
+from plugins.demo.ball_swap import BallSwapMotion
+from plugins.demo.cap_turning import CapTurningDemonstrator
+from plugins.mapping.hands import GIFU, SHADOW
+from plugins.simulator.metrics import count_swaps
 from plugins.simulator.simulation import Simulation
 from plugins.tracker.blobs import BALL_HSV, BallTracker, normalise_points
 
@@ -67,10 +77,49 @@ def tracker_accuracy(sim: Simulation, n: int, seed: int = 0) -> np.ndarray:
     return np.asarray(errors)
 
 
+def swaps_per_min(seconds: float, seed: int) -> float:
+    motion = BallSwapMotion()
+    n = int(motion.period_s * 240)
+    with Simulation("gifu", "balls", seed=seed) as sim:
+        sim.set_targets(GIFU.names, motion.targets(0.0)[0])
+        sim.step(120)
+        pts = []
+        for s in range(int(seconds * 240)):
+            sim.set_targets(GIFU.names, motion.targets((s % n) / n)[0])
+            sim.step(1)
+            if s % 8 == 0:
+                pts.append(sim.scene.palm_plane_positions(sim.client))
+    pts = np.array(pts)
+    return 60.0 * count_swaps(pts[:, 0], pts[:, 1]) / seconds
+
+
+def cap_rotation(demo: CapTurningDemonstrator, radius: float, cycles: int = 6, steps: int = 400) -> tuple[float, float]:
+    """(mean |rotation| in the open phases, mean rotation in close + rotate) per cycle, rad."""
+    rng = np.random.default_rng(0)
+    flick, turn = [], []
+    with Simulation("shadow", "cap", {"radius": radius}, seed=0) as sim:
+        sim.set_targets(SHADOW.names, demo.targets(np.zeros(1), radius, demo.variation(rng))[0])
+        sim.step(60)
+        for _ in range(cycles):
+            var = demo.variation(rng)
+            phase = np.arange(steps) / steps
+            targets, names = demo.targets(phase, radius, var), demo.phase_names(phase, var)
+            done = {"turn": 0.0, "open": 0.0}
+            for q, name in zip(targets, names):
+                before = sim.scene_state()["cap_angle"]
+                sim.set_targets(SHADOW.names, q)
+                sim.step(1)
+                done["turn" if name in ("close", "rotate") else "open"] += sim.scene_state()["cap_angle"] - before
+            flick.append(abs(done["open"]))
+            turn.append(done["turn"])
+    return float(np.mean(flick)), float(np.mean(turn))
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--json", action="store_true", help="print one JSON object")
     ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--swap-seconds", type=float, default=30.0, help="simulated seconds per swap run")
     args = ap.parse_args()
     out: dict[str, float] = {}
     out["physics_rtf"] = physics_rtf("cap", 480, args.repeats)
@@ -88,6 +137,12 @@ def main() -> int:
         err = tracker_accuracy(sim, 40)
     out["tracker_err_median"] = float(np.median(err))
     out["tracker_err_p95"] = float(np.percentile(err, 95))
+    out["swaps_per_min"] = float(np.median([swaps_per_min(args.swap_seconds, seed) for seed in range(3)]))
+    at_once = CapTurningDemonstrator(release_joints=tuple(SHADOW.names), release_fraction=0.99)
+    for radius in (0.015, 0.02, 0.025, 0.03, 0.035):
+        key = f"{radius * 100:.1f}cm"
+        out[f"cap_flick_{key}"], out[f"cap_turn_{key}"] = cap_rotation(CapTurningDemonstrator(), radius)
+        out[f"cap_flick_{key}_baseline"], out[f"cap_turn_{key}_baseline"] = cap_rotation(at_once, radius)
     out["ratio_physics_cap_vs_empty"] = out["physics_rtf"] / out["physics_rtf_empty"]
     out["ratio_camera_640_vs_320"] = out["camera_fps_640"] / out["camera_fps_320"]
     out["ratio_tracker_vs_inrange"] = out["tracker_fps"] / out["inrange_fps"]

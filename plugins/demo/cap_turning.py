@@ -42,7 +42,8 @@ class CapTurningDemonstrator:
     (finger flexion per joint, calibrated so the targets lie slightly inside the cap for every
     radius, hence the collision correction); the sweep of the rotation phase uses the finger spread
     joints (±``sweep`` rad, index/middle and ring/little in opposite joint signs so all fingertips
-    move towards the thumb) and the wrist yaw; phase fractions ``fractions`` ± ``timing_jitter``.
+    move towards the thumb) and the wrist yaw; phase fractions ``fractions`` ± ``timing_jitter``;
+    phase D releases the cap before opening (:meth:`released`, ``release_fraction`` of phase D).
     """
 
     closure_small: float = 1.45
@@ -54,6 +55,15 @@ class CapTurningDemonstrator:
     timing_jitter: float = 0.15
     amplitude_jitter: float = 0.08
     offset_jitter: float = 0.03
+    release_fraction: float = 0.5
+    release_joints: tuple[str, ...] = tuple(f"{f}J{k}" for f in FINGERS for k in (2, 1))
+
+    def __post_init__(self) -> None:
+        if not 0.0 < self.release_fraction < 1.0:
+            raise ValueError(f"release_fraction must lie strictly between 0 and 1, got {self.release_fraction}")
+        unknown = [n for n in self.release_joints if n not in SHADOW.names]
+        if unknown:
+            raise ValueError(f"release_joints {unknown} are not ShadowHand-like joints; use names of plugins.mapping.hands.SHADOW")
 
     def closure(self, radius: float) -> float:
         """Commanded flexion (rad) of MCP, middle and distal joints when closing on a cap of ``radius``."""
@@ -85,20 +95,39 @@ class CapTurningDemonstrator:
             postures.append([q[n] for n in SHADOW.names])
         return SHADOW.clip(np.asarray(postures) + var.offsets)
 
+    def released(self, keys: np.ndarray) -> np.ndarray:
+        """The release posture inside phase D: the closed-front grip with ``release_joints`` already open.
+
+        Documented choice against the release flick (measured in docs/bench_sections/sim.md): the
+        hand first uncurls the middle and distal finger joints, so the fingertips leave the cap
+        while the MCP joints, the thumb and the wrist hold still, and only then opens the rest.
+        Opening everything at once (or the thumb first) releases the contacts one by one and the
+        last squeezing fingertip spins the cap.
+        """
+        q = keys[2].copy()
+        idx = [SHADOW.index(n) for n in self.release_joints]
+        q[idx] = keys[3][idx]
+        return q
+
     def targets(self, phase: np.ndarray, radius: float, var: CycleVariation) -> np.ndarray:
         """Targets (n, 24) at cycle phases in [0, 1): eased interpolation through the key postures.
 
         Phase A moves from the open-front posture (end of the previous cycle) to open-back, B closes,
-        C rotates, D opens.
+        C rotates, D opens in two eased halves: the first ``release_fraction`` of D lifts the fingers
+        off the cap (:meth:`released`), the rest uncurls them.
         """
         keys = self.key_postures(radius, var)
-        start = np.vstack([keys[3], keys[0], keys[1], keys[2]])  # phase k goes start[k] → keys[k]
+        release = self.released(keys)
         bounds = np.concatenate([[0.0], np.cumsum(var.fractions)])
+        split = bounds[3] + self.release_fraction * (bounds[4] - bounds[3])
+        bounds = np.insert(bounds, 4, split)
+        start = np.vstack([keys[3], keys[0], keys[1], keys[2], release])  # segment k goes start[k] → end[k]
+        end = np.vstack([keys[0], keys[1], keys[2], release, keys[3]])
         phase = np.clip(np.asarray(phase, dtype=float), 0.0, 1.0 - 1e-12)
-        k = np.clip(np.searchsorted(bounds, phase, side="right") - 1, 0, 3)
+        k = np.clip(np.searchsorted(bounds, phase, side="right") - 1, 0, 4)
         s = (phase - bounds[k]) / (bounds[k + 1] - bounds[k])
         w = (0.5 - 0.5 * np.cos(np.pi * s))[:, None]
-        return start[k] * (1 - w) + keys[k] * w
+        return start[k] * (1 - w) + end[k] * w
 
     def phase_names(self, phase: np.ndarray, var: CycleVariation) -> list[str]:
         """Name of the phase (``open_back`` | ``close`` | ``rotate`` | ``open``) at each cycle phase."""

@@ -20,7 +20,8 @@ def register_demo_record(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--sequences", type=int, default=None,
                         help="sequences per radius (cap only; default: 5–9 drawn from the seed)")
     parser.add_argument("--with-targets", action="store_true", help="also record the commanded targets (cap only)")
-    parser.add_argument("--cycles", type=int, default=4, help="swap cycles (balls only)")
+    parser.add_argument("--cycles", type=int, default=4,
+                        help="swap cycles = ball periods, two hand cycles each (balls only)")
     parser.set_defaults(func=run)
 
 
@@ -43,7 +44,8 @@ def run(args: argparse.Namespace) -> int:
             print(f"\nwrote {s.postures} postures in {sum(s.sequences.values())} sequences to {s.path}", file=sys.stderr)
         else:
             b = record_balls(args.out, args.cycles, args.seed, progress=_progress)
-            print(f"\nwrote {b.frames} frames, {b.observations} observations (d = 20) to {b.path}", file=sys.stderr)
+            print(f"\nwrote {b.frames} frames, {b.observations} observations (d = 20), {b.swaps} swaps to {b.path}",
+                  file=sys.stderr)
     except (ValueError, RecordingError) as exc:
         print(f"\ndemo-record: {exc}", file=sys.stderr)
         return 2

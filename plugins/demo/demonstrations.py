@@ -17,10 +17,13 @@ Cap turning (``record_cap``) — topics (graph name ``demo_cap``):
 
 Ball swapping (``record_balls``) — topics (graph ``demo_balls``): ``sim/joints`` (JointState,
 ``gifu``, 20 joints), ``tracker/balls`` and ``tracker/marks`` (Points2D from the colour-blob
-tracker on rendered images), ``sim/scene`` (ground-truth ball positions), and
-``demo/observation`` — Array of d = 20 (the 16 independent Gifu joints, then p1 and p2, the two
-tracked balls in track-id order); written only when both balls and both marks were seen (a frame
-with a lost blob has no observation — nothing is invented).
+tracker on rendered images), ``sim/scene`` (ground-truth ball positions), ``demo/label`` (Array
+``[swap_cycle, hand_cycle, hand_phase]`` per frame; a swap cycle = one ball period = two hand
+cycles) and ``demo/observation`` — Array of d = 20 (the 16 independent Gifu joints, then p1 and
+p2, the two tracked balls in track-id order); written only when both balls and both marks were
+seen (a frame with a lost blob has no observation — nothing is invented).
+
+Read them back with :mod:`plugins.demo.loaders`.
 """
 from __future__ import annotations
 
@@ -33,6 +36,7 @@ import numpy as np
 from framework.messages import Array, JointState, Points2D
 from framework.recording import McapWriter
 from plugins.mapping.hands import GIFU, SHADOW
+from plugins.simulator.metrics import count_swaps
 from plugins.simulator.simulation import Simulation
 from plugins.tracker.blobs import BallTracker
 
@@ -46,6 +50,8 @@ BALLS_PREFIX = "handflow/demo_balls"
 GIFU_DOF = [n for n in GIFU.names if n not in GIFU.coupled]
 """The 16 independent Gifu joints (coupled DIPs dropped) in the observation vector."""
 OBSERVATION_NAMES = GIFU_DOF + ["p1_x", "p1_y", "p2_x", "p2_y"]
+BALL_LABEL_NAMES = ["swap_cycle", "hand_cycle", "hand_phase"]
+"""Label Array of every ball frame: swap cycle (ball period), hand cycle, hand phase in (0, 1]."""
 
 Progress = Callable[[str], None]
 
@@ -124,12 +130,17 @@ class BallsRecordingSummary:
     path: Path
     frames: int
     observations: int
+    swaps: int
 
 
 def record_balls(path: str | Path, cycles: int = 4, seed: int = 0, motion: BallSwapMotion | None = None,
-                 rate_hz: float = 20.0, width: int = 240, height: int = 180, physics_hz: float = 240.0,
-                 progress: Progress | None = None) -> BallsRecordingSummary:
-    """Ball-swapping demonstrations: ``cycles`` open-loop cycles, camera + tracker at ``rate_hz``."""
+                 rate_hz: float = 25.0, width: int = 240, height: int = 180, physics_hz: float = 240.0,
+                 scene_options: dict | None = None, progress: Progress | None = None) -> BallsRecordingSummary:
+    """Ball-swapping demonstrations: ``cycles`` swap cycles (ball periods = 2 hand cycles each), camera + tracker at ``rate_hz``.
+
+    Returns the number of frames, of d = 20 observations and of swaps done (ground truth,
+    :func:`plugins.simulator.metrics.count_swaps`).
+    """
     if cycles < 1:
         raise ValueError(f"cycles must be at least 1, got {cycles}")
     if not 1.0 <= rate_hz <= physics_hz:
@@ -140,15 +151,18 @@ def record_balls(path: str | Path, cycles: int = 4, seed: int = 0, motion: BallS
     tracker = BallTracker()
     dof = [GIFU.index(n) for n in GIFU_DOF]
     frames = observations = 0
-    with McapWriter(path, flush_interval_s=None) as w, Simulation("gifu", "balls", seed=seed, physics_hz=physics_hz) as sim:
+    truth = []
+    with McapWriter(path, flush_interval_s=None) as w, \
+            Simulation("gifu", "balls", scene_options, seed=seed, physics_hz=physics_hz) as sim:
         w.add_metadata("handflow.demo", {
             "task": "ball_swapping", "hand": "gifu", "seed": seed, "cycles": cycles, "rate_hz": rate_hz,
+            "hand_period_s": motion.period_s, "hand_cycles_per_swap_cycle": 2,
             "image_size": f"{width}x{height}", "observation_topic": f"{BALLS_PREFIX}/demo/observation",
-            "observation_names": ",".join(OBSERVATION_NAMES)})
+            "label_topic": f"{BALLS_PREFIX}/demo/label", "observation_names": ",".join(OBSERVATION_NAMES)})
         sim.set_targets(GIFU.names, motion.targets(0.0)[0])
         sim.step(int(0.5 * physics_hz))
         start = sim.steps
-        for c in range(cycles):
+        for hand_cycle in range(2 * cycles):
             for i in range(n_steps):
                 sim.set_targets(GIFU.names, motion.targets(i / n_steps)[0])
                 sim.step(1)
@@ -157,16 +171,20 @@ def record_balls(path: str | Path, cycles: int = 4, seed: int = 0, motion: BallS
                 t = _ns(sim.steps - start, physics_hz)
                 js = sim.joint_state()
                 res = tracker.update(sim.render(width, height))
+                truth.append(sim.scene.palm_plane_positions(sim.client))
                 w.write(f"{BALLS_PREFIX}/sim/joints", JointState(names=js.names, positions=js.positions, hand="gifu"), t, t)
                 w.write(f"{BALLS_PREFIX}/tracker/balls", Points2D(points=res.balls, valid=res.balls_valid, ids=res.ids), t, t)
                 w.write(f"{BALLS_PREFIX}/tracker/marks", Points2D(points=res.marks_px, valid=res.marks_valid, ids=[0, 1]), t, t)
                 state = sim.scene_state()
                 w.write(f"{BALLS_PREFIX}/sim/scene", Array(data=list(state.values()), names=list(state)), t, t)
+                w.write(f"{BALLS_PREFIX}/demo/label", Array(data=[hand_cycle // 2, hand_cycle, (i + 1) / n_steps],
+                                                          names=BALL_LABEL_NAMES), t, t)
                 frames += 1
                 if res.balls_valid.all():
                     obs = np.concatenate([js.positions[dof], res.balls.reshape(-1)])
                     w.write(f"{BALLS_PREFIX}/demo/observation", Array(data=obs, names=OBSERVATION_NAMES), t, t)
                     observations += 1
             if progress:
-                progress(f"balls: cycle {c + 1}/{cycles} ({observations} observations)")
-    return BallsRecordingSummary(Path(path), frames, observations)
+                progress(f"balls: hand cycle {hand_cycle + 1}/{2 * cycles} ({observations} observations)")
+    truth_arr = np.array(truth)
+    return BallsRecordingSummary(Path(path), frames, observations, count_swaps(truth_arr[:, 0], truth_arr[:, 1]))

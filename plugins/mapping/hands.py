@@ -11,8 +11,12 @@ inside of the hand*:
   (flexion), negative is hyper-extension;
 - finger spread joints: index and middle positive towards the little finger, ring and little
   positive towards the thumb (so closing the spread of the hand is positive for every finger);
-- thumb abduction α: positive moves the thumb towards the index finger (adduction); thumb roll β:
-  positive rolls the thumb pad towards the palm (opposition);
+- thumb abduction α is the exception: as in the spec's equations (glove.md "Second mapping",
+  thumb direction ``(sin α cos β, cos α, sin α sin β)`` in the thumb frame, ``cos α`` = component
+  along the fingers) it is the angle between the thumb and the along-the-fingers axis, so a larger
+  α moves the thumb *away* from the index finger (abduction; α = 0 would lay it along the index
+  finger); thumb roll β turns that direction out of the palm plane: positive moves the thumb
+  palmar (opposition), β = 0 keeps it in the palm plane;
 - wrist yaw: positive = radial deviation (towards the thumb);
 - robot hands use the same conventions, so joints that correspond copy over unchanged.
 

@@ -26,7 +26,7 @@ class SimulatorParams(BaseModel):
     model_config = ConfigDict(extra="forbid")
     hand: str = Field("shadow", description="hand model: human | shadow | gifu")
     scene: str = Field("empty", description="scene: empty | cap | balls | grasp")
-    scene_options: dict[str, Any] = Field(default_factory=dict, description="scene fields, e.g. {radius: 0.02}")
+    scene_options: dict[str, Any] = Field(default_factory=dict, description="scene fields, e.g. {radius: 0.02} (cap) or {pushes: [[20, 0.3]]} (balls)")
     physics_hz: float = Field(240.0, gt=0, description="fixed physics rate")
     rate_hz: float = Field(60.0, gt=0, description="publish rate of joints/contacts/scene (tick rate)")
     camera_hz: float = Field(10.0, ge=0, description="image rate; 0 disables the camera")

@@ -71,6 +71,9 @@ class Scene:
     def build(self, client: int, rng: np.random.Generator) -> None:
         """Create the scene's bodies in ``client``."""
 
+    def before_step(self, client: int, t: float) -> None:
+        """Called by :meth:`Simulation.step` before every physics step at simulated time ``t`` (s); no-op here."""
+
     def body_name(self, body: int, link: int) -> str:
         return self.bodies.get((body, link), self.bodies.get((body, -1), f"body{body}"))
 
@@ -155,22 +158,55 @@ class CapScene(Scene):
 
 @dataclass
 class BallsScene(Scene):
-    """Two equal health balls on the palm of a palm-up, tilted hand; two coloured marks near the wrist.
+    """Two equal health balls in a cupped palm of a palm-up, tilted hand; two coloured marks near the wrist.
 
-    ``tilt_deg`` lowers the fingertips (the balls rest against the flexed fingers); the balls start
-    side by side at ``start_z`` along the palm (palm frame) with a seeded jitter of ``jitter`` m.
-    State: world position of each ball (``ball1_x`` …) and of the two marks.
+    Documented choices (docs/simulator.md "Ball swapping"), all fields swappable:
+
+    - **cupped palm**: a low static rim (``rim_height``) on the palm surface around ``cup_centre``
+      (x_P, z_P) with inner radius ``2·ball_radius + cup_gap``, open over ``rim_opening_deg``
+      (angles from ``+z_P`` towards ``+x_P``) at the finger end where the curled fingers close the cup.  Two balls in it always lie nearly
+      diametrically, so their only free motion is circling around each other (Baoding balls) and
+      a tangential push on one ball turns the pair;
+    - ``tilt_deg`` lowers the fingertips (the balls lean on the fingers), ``side_tilt_deg > 0`` the
+      thumb side; ball ``lateral_friction`` / ``rolling_friction`` / ``restitution``;
+    - the balls start across the palm (ball 1 on the thumb side) with a seeded jitter of ``jitter`` m;
+    - ``pushes`` — disturbances ``[(time_s, speed_m_s), …]`` fired by :meth:`before_step` at the
+      first physics step at or after ``time_s``: the ball moving faster in the palm plane is set
+      to ``speed`` against its direction of travel (both at rest: ball 1 along palm ``−z``,
+      towards the wrist).
+
+    State: world position of each ball (``ball1_x`` …) and of the two marks, and ``pushes_done``.
     """
 
     name: str = "balls"
-    ball_radius: float = 0.02
-    ball_mass: float = 0.06
+    ball_radius: float = 0.018
+    ball_mass: float = 0.05
+    lateral_friction: float = 0.6
+    rolling_friction: float = 0.0002
+    restitution: float = 0.1
     tilt_deg: float = 15.0
     side_tilt_deg: float = 0.0
-    start_z: float = 0.07
+    cup_centre: tuple[float, float] = (0.0, 0.068)
+    cup_gap: float = 0.001
+    rim_height: float = 0.012
+    rim_opening_deg: tuple[float, float] = (-50.0, 50.0)
     jitter: float = 0.002
+    pushes: tuple[tuple[float, float], ...] = ()
     marks: dict[str, tuple[float, float]] = field(default_factory=lambda: {"mark_a": (0.03, 0.011),
                                                                            "mark_b": (-0.03, 0.011)})
+
+    def __post_init__(self) -> None:
+        if not 0.01 <= self.ball_radius <= 0.03:
+            raise ValueError(f"ball_radius {self.ball_radius} m is outside 0.01–0.03 m")
+        try:
+            self.pushes = tuple((float(t), float(v)) for t, v in self.pushes)
+        except (TypeError, ValueError):
+            raise ValueError(f"pushes must be a list of [time_s, speed_m_s] pairs, got {self.pushes!r}") from None
+        bad = [pv for pv in self.pushes if pv[0] < 0 or pv[1] < 0]
+        if bad:
+            raise ValueError(f"pushes need time_s >= 0 and speed_m_s >= 0, got {bad}")
+        self.pushes = tuple(sorted(self.pushes))
+        self.pushes_done = 0
 
     def hand_rotation(self) -> Rotation:
         tilt = Rotation.from_euler("y", self.tilt_deg, degrees=True)
@@ -185,6 +221,34 @@ class BallsScene(Scene):
     def initial_posture(self) -> dict[str, float]:
         return {f"{f}_J{k}": 0.6 for f in ("FF", "MF", "RF", "LF") for k in (2, 3, 4)}
 
+    @property
+    def cup_radius(self) -> float:
+        """Inner radius of the rim (m)."""
+        return 2 * self.ball_radius + self.cup_gap
+
+    def _build_rim(self, client: int, surface: float) -> int:
+        """Static rim of box segments on the palm surface, open at the finger end (``+z_P``)."""
+        thickness, n = 0.004, 16  # pybullet allows at most 16 shapes per compound shape
+        radius = self.cup_radius + thickness / 2
+        start, end = np.deg2rad(self.rim_opening_deg)
+        angles = np.linspace(end, start + 2 * np.pi, n)  # angle from +z_P towards +x_P, around the closed part
+        seg = radius * (angles[1] - angles[0]) * 1.05
+        cx, cz = self.cup_centre
+        rot = self.hand_rotation()
+        shapes = dict(shapeTypes=[p.GEOM_BOX] * n, halfExtents=[[seg / 2, self.rim_height / 2, thickness / 2]] * n)
+        frames = dict(
+            collisionFramePositions=[list(rot.apply([cx + radius * np.sin(a), surface - self.rim_height / 2,
+                                                     cz + radius * np.cos(a)])) for a in angles],
+            collisionFrameOrientations=[list((rot * Rotation.from_euler("y", a)).as_quat()) for a in angles])
+        col = p.createCollisionShapeArray(**shapes, **frames, physicsClientId=client)
+        vis = p.createVisualShapeArray(**shapes, rgbaColors=[[0.4, 0.42, 0.46, 1]] * n,
+                                       visualFramePositions=frames["collisionFramePositions"],
+                                       visualFrameOrientations=frames["collisionFrameOrientations"],
+                                       physicsClientId=client)
+        rim = p.createMultiBody(0.0, col, vis, list(HAND_BASE), physicsClientId=client)
+        p.changeDynamics(rim, -1, lateralFriction=0.2, restitution=self.restitution, physicsClientId=client)
+        return rim
+
     def build(self, client: int, rng: np.random.Generator) -> None:
         surface = -self.palm_thickness / 2
         self.mark_ids = {}
@@ -192,21 +256,62 @@ class BallsScene(Scene):
             pos = self.palm_to_world([x, surface - 0.0006, z])[0]
             orn = (self.hand_rotation() * Rotation.from_euler("x", 90, degrees=True)).as_quat()
             self.mark_ids[name] = _cylinder(client, 0.006, 0.001, MARK_COLOURS[name], pos, collide=False, orn=orn)
+        self.rim = self._build_rim(client, surface)
+        self.bodies = {(self.rim, -1): "rim"}
         self.balls = []
-        for k, x in enumerate((0.022, -0.022)):
-            local = np.array([x, surface - self.ball_radius - 0.001, self.start_z])
+        cx, cz = self.cup_centre
+        for k, side in enumerate((1.0, -1.0)):
+            local = np.array([cx + side * (self.ball_radius + self.cup_gap / 2), surface - self.ball_radius - 0.001, cz])
             local[[0, 2]] += rng.uniform(-self.jitter, self.jitter, 2)
             pos = self.palm_to_world(local)[0]
             col = p.createCollisionShape(p.GEOM_SPHERE, radius=self.ball_radius, physicsClientId=client)
             vis = p.createVisualShape(p.GEOM_SPHERE, radius=self.ball_radius, rgbaColor=BALL_COLOUR, physicsClientId=client)
             ball = p.createMultiBody(self.ball_mass, col, vis, pos, physicsClientId=client)
-            p.changeDynamics(ball, -1, lateralFriction=0.3, rollingFriction=0.0005, physicsClientId=client)
+            p.changeDynamics(ball, -1, lateralFriction=self.lateral_friction, rollingFriction=self.rolling_friction,
+                             restitution=self.restitution, physicsClientId=client)
             self.balls.append(ball)
             self.bodies[(ball, -1)] = f"ball{k + 1}"
+        self.pushes_done = 0
+
+    # -- disturbance ---------------------------------------------------------------------
+    def push(self, client: int, ball_index: int, velocity_world) -> None:
+        """Set ball ``ball_index`` (0 or 1) to the linear velocity ``velocity_world`` (m/s, world frame)."""
+        if ball_index not in (0, 1):
+            raise ValueError(f"ball_index must be 0 or 1, got {ball_index}")
+        p.resetBaseVelocity(self.balls[ball_index], linearVelocity=[float(v) for v in velocity_world],
+                            physicsClientId=client)
+
+    def palm_plane_velocities(self, client: int) -> np.ndarray:
+        """Ball velocities (2, 3) in the world with the palm-normal component removed."""
+        normal = self.hand_rotation().apply([0.0, 1.0, 0.0])
+        v = np.array([p.getBaseVelocity(b, physicsClientId=client)[0] for b in self.balls])
+        return v - np.outer(v @ normal, normal)
+
+    def before_step(self, client: int, t: float) -> None:
+        """Fire every due push (see the class docstring)."""
+        while self.pushes_done < len(self.pushes) and t >= self.pushes[self.pushes_done][0] - 1e-9:
+            speed = self.pushes[self.pushes_done][1]
+            v = self.palm_plane_velocities(client)
+            norms = np.linalg.norm(v, axis=1)
+            k = int(np.argmax(norms))
+            if norms[k] > 1e-3:
+                direction = -v[k] / norms[k]
+            else:
+                k, direction = 0, self.hand_rotation().apply([0.0, 0.0, -1.0])
+            self.push(client, k, speed * direction)
+            self.pushes_done += 1
 
     def ball_positions(self, client: int) -> np.ndarray:
         """World positions of the two balls (2, 3)."""
         return np.array([p.getBasePositionAndOrientation(b, physicsClientId=client)[0] for b in self.balls])
+
+    def to_palm(self, points) -> np.ndarray:
+        """World points (n, 3) in the palm frame (inverse of :meth:`palm_to_world`)."""
+        return self.hand_rotation().inv().apply(np.atleast_2d(np.asarray(points, dtype=float)) - HAND_BASE)
+
+    def palm_plane_positions(self, client: int) -> np.ndarray:
+        """Ball centres (2, 2) in the palm plane, ``(x_P, z_P)`` (m): the input of :mod:`plugins.simulator.metrics`."""
+        return self.to_palm(self.ball_positions(client))[:, [0, 2]]
 
     def mark_positions(self) -> np.ndarray:
         """World positions of ``mark_a`` and ``mark_b`` (2, 3)."""
@@ -218,6 +323,7 @@ class BallsScene(Scene):
         for name, pos in zip(("ball1", "ball2", "mark_a", "mark_b"),
                              np.vstack([self.ball_positions(client), self.mark_positions()])):
             out.update({f"{name}_{axis}": float(v) for axis, v in zip("xyz", pos)})
+        out["pushes_done"] = float(self.pushes_done)
         return out
 
 

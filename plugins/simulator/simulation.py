@@ -125,10 +125,15 @@ class Simulation:
             velocityGains=[self.gains.velocity_gain] * len(self.names), physicsClientId=self.client)
 
     def step(self, n: int = 1) -> None:
-        """Advance the physics by ``n`` fixed steps of ``1 / physics_hz`` seconds."""
+        """Advance the physics by ``n`` fixed steps of ``1 / physics_hz`` seconds.
+
+        Before each step the scene's :meth:`~plugins.simulator.scenes.Scene.before_step` hook runs
+        at the current simulated time (e.g. the ball scene's scheduled pushes).
+        """
         for _ in range(int(n)):
+            self.scene.before_step(self.client, self.time)
             p.stepSimulation(physicsClientId=self.client)
-        self.steps += int(n)
+            self.steps += 1
 
     @property
     def time(self) -> float:

@@ -28,6 +28,19 @@ def test_urdf_cache_reuses_the_generated_file(tmp_path):
     assert len(list(tmp_path.iterdir())) == 1
 
 
+def test_urdf_cache_is_keyed_on_content_so_changed_limits_regenerate(tmp_path, monkeypatch):
+    """Changing a limit in the mapping table (e.g. th_abduction 20°…100°) must not reuse a stale URDF."""
+    import dataclasses
+
+    from plugins.simulator import hand_geometry
+    human = HAND_MODELS["human"]
+    before = write_urdf("human", tmp_path)
+    joints = tuple(dataclasses.replace(j, upper=j.upper - 0.1) if j.name == "th_abduction" else j for j in human.joints)
+    monkeypatch.setitem(hand_geometry.HAND_MODELS, "human", dataclasses.replace(human, joints=joints))
+    after = write_urdf("human", tmp_path)
+    assert after != before and f'upper="{human.joints[human.index("th_abduction")].upper - 0.1:.6f}"' in after.read_text()
+
+
 def _axis_z(sim, link):
     ids = {v: k for k, v in sim.link_names.items()}
     orn = p.getLinkState(sim.hand_id, ids[link], computeForwardKinematics=True, physicsClientId=sim.client)[5]

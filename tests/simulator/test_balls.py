@@ -1,0 +1,101 @@
+"""Ball scene: the open-loop motion really swaps the balls; scheduled pushes; the scene hook."""
+import numpy as np
+import pytest
+
+from framework.testing import NodeHarness
+from plugins.demo.ball_swap import BallSwapMotion, keyframes
+from plugins.mapping.hands import GIFU
+from plugins.simulator.metrics import count_swaps
+from plugins.simulator.node import PybulletSimulatorNode
+from plugins.simulator.scenes import BallsScene, Scene
+from plugins.simulator.simulation import Simulation
+
+
+def _swap_run(seconds: float, seed: int, options=None):
+    motion = BallSwapMotion()
+    n = int(motion.period_s * 240)
+    with Simulation("gifu", "balls", options, seed=seed) as sim:
+        sim.set_targets(GIFU.names, motion.targets(0.0)[0])
+        sim.step(120)
+        pts = []
+        for s in range(int(seconds * 240)):
+            sim.set_targets(GIFU.names, motion.targets((s % n) / n)[0])
+            sim.step(1)
+            if s % 8 == 0:
+                pts.append(sim.scene.palm_plane_positions(sim.client))
+        return np.array(pts), sim.scene_state()
+
+
+@pytest.mark.parametrize("seed", [0, 3])
+def test_open_loop_motion_swaps_the_balls_in_the_cupped_palm(seed):
+    pts, _ = _swap_run(8.0, seed, {"jitter": 0.004})
+    assert count_swaps(pts[:, 0], pts[:, 1]) >= 3  # four hand cycles: one swap per cycle
+    centre = np.array(BallsScene().cup_centre)
+    assert np.linalg.norm(pts - centre, axis=2).max() < 0.035  # both balls stay in the palm
+
+
+def test_without_the_raking_fingers_nothing_swaps():
+    still = BallSwapMotion(rake_mcp=((0.0, 0.1),), rake_pip=((0.0, 1.4),))
+    np.testing.assert_allclose(still.targets([0.1, 0.6]), still.targets([0.3, 0.9]))
+    motion = BallSwapMotion()
+    assert not np.allclose(motion.targets(0.0), motion.targets(0.35))
+
+
+def test_keyframes_interpolate_periodically_and_reject_bad_keys():
+    keys = ((0.0, 0.0), (0.5, 1.0))
+    np.testing.assert_allclose(keyframes([0.0, 0.25, 0.5, 0.75, 1.0, 1.5], keys), [0, 0.5, 1, 0.5, 0, 1], atol=1e-12)
+    with pytest.raises(ValueError, match="increasing phases"):
+        keyframes(0.1, ((0.5, 0.0), (0.2, 1.0)))
+
+
+def test_a_push_fires_once_against_the_ball_motion_and_is_reported():
+    with Simulation("gifu", "balls", {"pushes": [[1.0, 0.3]]}, seed=0) as sim:
+        sim.step(240)  # the balls settle; the step starting at t = 1.0 s is the first one at or after the push time
+        assert sim.scene_state()["pushes_done"] == 0
+        sim.step(1)
+        v = sim.scene.palm_plane_velocities(sim.client)
+        assert sim.scene_state()["pushes_done"] == 1
+        sim.step(100)
+        assert sim.scene_state()["pushes_done"] == 1
+    # balls at rest: ball 1 is pushed along palm -z (towards the wrist) at about the set speed
+    along = sim.scene.hand_rotation().apply([0.0, 0.0, -1.0])
+    assert v[0] @ along == pytest.approx(0.3, abs=0.05)
+
+
+def test_push_sets_a_ball_velocity_and_checks_the_index():
+    with Simulation("gifu", "balls", seed=0) as sim:
+        sim.scene.push(sim.client, 1, [0.0, 0.2, 0.0])
+        assert sim.scene.palm_plane_velocities(sim.client)[1] @ [0, 1, 0] > 0.1
+        with pytest.raises(ValueError, match="ball_index"):
+            sim.scene.push(sim.client, 2, [0, 0, 0])
+
+
+def test_bad_pushes_are_rejected_with_the_expected_form():
+    with pytest.raises(ValueError, match=r"\[time_s, speed_m_s\]"):
+        BallsScene(pushes=[[1.0]])
+    with pytest.raises(ValueError, match=">= 0"):
+        BallsScene(pushes=[[-1.0, 0.2]])
+
+
+def test_simulation_calls_the_scene_hook_before_every_step():
+    times = []
+
+    class Recording(Scene):
+        def before_step(self, client, t):
+            times.append(t)
+
+    scene = Recording()
+    with Simulation("gifu", scene, physics_hz=100) as sim:
+        sim.step(3)
+    assert times == pytest.approx([0.0, 0.01, 0.02])
+
+
+def test_node_scene_options_schedule_pushes():
+    h = NodeHarness(PybulletSimulatorNode, {"hand": "gifu", "scene": "balls", "camera_hz": 0, "rate_hz": 20,
+                                            "scene_options": {"pushes": [[0.1, 0.2]]}}).setup()
+    try:
+        h.tick(5)
+        scene = h.published["scene"][-1]
+        assert scene.data[scene.names.index("pushes_done")] == 1
+    finally:
+        h.teardown()

@@ -166,6 +166,9 @@ def _fail(code, msg):
 
 def run_train(args: argparse.Namespace) -> int:
     """Run ``train``; returns the exit code."""
+    from .controllers.training import manipulation_mode, run_manipulation_training
+    if manipulation_mode(args.config):       # `mode: construction | learning` (docs/manipulation.md)
+        return run_manipulation_training(args)
     try:
         cfg = load_config(args.config)
         if args.steps is not None and args.steps < 0:

@@ -1,0 +1,145 @@
+"""Feedback-initialised open-loop control of the bottle cap (spec production.md §4; thesis 5.5).
+
+:class:`GraspByNavigation` (5.5.2, preferred): start at a fixed latent point on the max-radius
+border at a time where the fingers touch the cap, navigate towards decreasing radius (the hand
+closes) until all ``required`` fingers have contact, freeze that radius, then navigate along time
+(turning, repeated cycles).  :func:`latent_from_grasp` is the 5.5.1 variant: the radius comes
+from projecting a grasp posture onto the manifold.
+
+Documented choices (both swappable through the constructor):
+- ``contact_time``: by default :func:`closure_time` — the middle of the closed phase on the
+  max-radius border (the thesis picks it "by visual inspection or by analysing the finger
+  contacts"; in the demonstrations thumb, index and middle finger touch the cap throughout the
+  closed phase, while at its end — where the closure peaks — the sweep has moved the index
+  finger away);
+- which radius border is "max radius": :func:`open_side` — the border where the hand is more
+  open (the learned manifold's radius axis has no fixed orientation).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from plugins.mapping.hands import HAND_MODELS
+
+from .latent_time import LatentClock
+from .manifold_file import ManipulationManifold
+
+APPROACH, CLOSING, TURNING = "approach", "closing", "turning"
+
+
+def _other_dim(manifold: ManipulationManifold) -> int:
+    dims = [d for d in range(manifold.q) if d != manifold.time_dim]
+    if len(dims) != 1:
+        raise ValueError(f"feedback-initialised control needs a 2D (time, radius) manifold; this "
+                         f"one has latent dimensions {manifold.latent_names}")
+    return dims[0]
+
+
+def flexion(manifold: ManipulationManifold, X) -> np.ndarray:
+    """Closure measure of f(X) (M,): the summed finger and thumb flexion angles (joints whose
+    description in the hand table says "flexion", without the wrist; positive closes)."""
+    joints = HAND_MODELS[manifold.hand].joints
+    flex = {j.name for j in joints if "flexion" in j.description and "wrist" not in j.description}
+    cols = [k for k, n in enumerate(manifold.joint_names) if n in flex]
+    return np.atleast_2d(manifold.posture(X))[:, cols].sum(axis=1)
+
+
+def open_side(manifold: ManipulationManifold, n_grid: int = 64) -> float:
+    """Latent radius value of the border where the hand is more open (mean over time)."""
+    t, r = manifold.time_dim, _other_dim(manifold)
+    times = np.linspace(*manifold.range(t), n_grid)
+    means = []
+    for border in manifold.range(r):
+        X = np.zeros((n_grid, manifold.q))
+        X[:, t], X[:, r] = times, border
+        means.append(flexion(manifold, X).mean())
+    return manifold.range(r)[int(np.argmin(means))]
+
+
+def closure_time(manifold: ManipulationManifold, radius: float, fraction: float = 0.9,
+                 n_grid: int = 200) -> float:
+    """Latent time in the middle of the closed phase at latent ``radius``: the centre of the
+    contiguous time interval around the maximal closure where the closure stays at least
+    ``fraction`` of its maximum."""
+    t, r = manifold.time_dim, _other_dim(manifold)
+    X = np.zeros((n_grid, manifold.q))
+    X[:, t] = np.linspace(*manifold.range(t), n_grid)
+    X[:, r] = radius
+    flex = flexion(manifold, X)
+    peak = int(np.argmax(flex))
+    high = flex >= fraction * flex[peak]
+    lo = peak - int(np.argmin(high[peak::-1])) + 1 if not high[:peak + 1].all() else 0
+    hi = peak + int(np.argmin(high[peak:])) - 1 if not high[peak:].all() else n_grid - 1
+    return float(X[(lo + hi) // 2, t])
+
+
+class GraspByNavigation:
+    """State machine approach → closing → turning; ``update(touching)`` returns the next latent.
+
+    Parameters: ``delta`` latent time per step while turning (in the demonstrations' direction);
+    ``radius_step`` latent radius per step while closing; ``required`` finger names that must all touch before turning;
+    ``approach_steps`` steps holding the start posture first (lets the hand get there).
+    If the closing reaches the small-radius border without the required contacts the radius is
+    frozen there and ``grasp_complete`` stays False.
+    """
+
+    def __init__(self, manifold: ManipulationManifold, delta: float, radius_step: float,
+                 required=("TH", "FF", "MF"), approach_steps: int = 30,
+                 contact_time: float | None = None, start_radius: float | None = None) -> None:
+        self.manifold = manifold
+        self.t_dim, self.r_dim = manifold.time_dim, _other_dim(manifold)
+        self.delta = float(delta) * manifold.time_sign
+        self.required = frozenset(required)
+        lo, hi = manifold.range(self.r_dim)
+        r0 = open_side(manifold) if start_radius is None else float(start_radius)
+        self.r_end = lo if abs(r0 - hi) <= abs(r0 - lo) else hi
+        self.radius_step = abs(float(radius_step)) * np.sign(self.r_end - r0)
+        t0 = closure_time(manifold, r0) if contact_time is None else float(contact_time)
+        self.clock = LatentClock(*manifold.range(self.t_dim), manifold.periodic, start=t0)
+        self.x = np.zeros(manifold.q)
+        self.x[self.t_dim], self.x[self.r_dim] = self.clock.value, r0
+        self.state = APPROACH
+        self.approach_left = int(approach_steps)
+        self.grasp_complete = False
+
+    @property
+    def radius(self) -> float:
+        return float(self.x[self.r_dim])
+
+    @property
+    def cycles(self) -> int:
+        return self.clock.cycles
+
+    def start_turning(self, complete: bool) -> None:
+        self.state, self.grasp_complete = TURNING, complete
+
+    def update(self, touching) -> np.ndarray:
+        """One control step given the set of fingers currently touching the object."""
+        if self.state == APPROACH:
+            self.approach_left -= 1
+            if self.approach_left <= 0:
+                self.state = CLOSING
+        elif self.state == CLOSING:
+            if self.required <= set(touching):
+                self.start_turning(True)
+            else:
+                r = self.radius + self.radius_step
+                if (r - self.r_end) * np.sign(self.radius_step) >= 0:
+                    r = self.r_end
+                    self.start_turning(False)
+                self.x[self.r_dim] = r
+        else:
+            self.x[self.t_dim] = self.clock.advance(self.delta)
+        return self.x.copy()
+
+
+def touching_fingers(contacts, fingers=("TH", "FF", "MF"), body: str = "cap") -> set[str]:
+    """Which of ``fingers`` (segment-name prefixes) touch ``body`` in a Contacts message."""
+    return {f for f in fingers for seg, b in zip(contacts.segments, contacts.bodies)
+            if b == body and seg.startswith(f)}
+
+
+def latent_from_grasp(manifold: ManipulationManifold, joints: dict[str, float]) -> np.ndarray:
+    """5.5.1: project a grasp posture (joint name → rad) onto the manifold; its radius coordinate
+    parameterises the turning that starts from the projected latent."""
+    return manifold.project_posture(joints)

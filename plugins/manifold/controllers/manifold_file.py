@@ -1,0 +1,132 @@
+"""A manipulation manifold on disk: a Structured UKR model plus what the controllers need to
+drive a hand with it (spec production.md §2–4): the name of every observation dimension, the
+hand model, the latent dimension names and how the manifold was made.
+
+Stored inside the UKR model file's provenance under the key ``manipulation`` (no second file,
+nothing executable).  Observation names are joint names of the hand model and, for the
+ball-swapping manifold, :data:`BALL_NAMES`.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from plugins.mapping.hands import HAND_MODELS
+
+from ..model import StructuredUKR
+from ..validation import InvalidInputError, parse_latent
+
+BALL_NAMES = ("p1_x", "p1_y", "p2_x", "p2_y")
+"""Observation names of the two normalised ball positions (p1, p2) of the ball-swap manifold."""
+
+
+@dataclass
+class ManipulationManifold:
+    """``model`` with named observation dimensions; ``kind`` is constructed | learned | ball_swap."""
+
+    model: StructuredUKR
+    names: list[str]
+    hand: str
+    latent_names: list[str]
+    kind: str
+
+    def __post_init__(self) -> None:
+        if self.hand not in HAND_MODELS:
+            raise InvalidInputError(f"unknown hand {self.hand!r}; use one of {', '.join(HAND_MODELS)}")
+        if len(self.names) != self.model.n_features_in_:
+            raise InvalidInputError(f"{len(self.names)} observation names for a model with "
+                                    f"{self.model.n_features_in_} dimensions")
+        hand_joints = set(HAND_MODELS[self.hand].names)
+        unknown = [n for n in self.names if n not in hand_joints and n not in BALL_NAMES]
+        if unknown:
+            raise InvalidInputError(f"observation names {unknown} are neither joints of hand "
+                                    f"'{self.hand}' nor ball coordinates {BALL_NAMES}")
+        self.joint_index = np.array([i for i, n in enumerate(self.names) if n in hand_joints])
+        self.joint_names = [self.names[i] for i in self.joint_index]
+        self.ball_index = np.array([self.names.index(n) for n in BALL_NAMES if n in self.names])
+        if self.ball_index.size not in (0, 4):
+            raise InvalidInputError(f"a ball manifold needs all of {BALL_NAMES}")
+        self.periodic_dims = parse_latent(self.model.latent)[0].periodic
+
+    # -- latent layout ---------------------------------------------------------------------------
+    @property
+    def q(self) -> int:
+        return self.model.latents_.shape[1]
+
+    @property
+    def time_dim(self) -> int:
+        if self.model.time_dim_ is None:
+            raise InvalidInputError("the manifold has no time dimension; controllers need one")
+        return int(self.model.time_dim_)
+
+    @property
+    def periodic(self) -> bool:
+        """Whether the time axis wraps (period π) — learned manifolds; constructed ones reset."""
+        return bool(self.periodic_dims[self.time_dim])
+
+    @property
+    def time_sign(self) -> float:
+        """+1 or −1: the direction of latent time along the demonstrations (a learned time axis
+        may run backwards); controllers advance their time by ``time_sign · delta``."""
+        t = self.model.latents_[:, self.time_dim]
+        ids = self.model.sequence_ids_
+        d = np.diff(t)[ids[1:] == ids[:-1]]
+        if self.periodic:
+            d = np.mod(d + np.pi / 2, np.pi) - np.pi / 2
+        return 1.0 if d.sum() >= 0 else -1.0
+
+    def range(self, dim: int) -> tuple[float, float]:
+        """Latent interval of dimension ``dim``: ``[0, π)`` if periodic, else the training span."""
+        if self.periodic_dims[dim]:
+            return 0.0, float(np.pi)
+        col = self.model.latents_[:, dim]
+        return float(col.min()), float(col.max())
+
+    # -- mappings --------------------------------------------------------------------------------
+    def observation(self, X) -> np.ndarray:
+        """f(x) for latents (M, q) or (q,)."""
+        return self.model.inverse_transform(X)
+
+    def posture(self, X) -> np.ndarray:
+        """Joint part of f(x): (M, n_joints) or (n_joints,)."""
+        return self.observation(X)[..., self.joint_index]
+
+    def project_posture(self, joints: dict[str, float]) -> np.ndarray:
+        """Latent of a (partial) hand posture given by joint name (masked projection, §7)."""
+        y = np.zeros(len(self.names))
+        mask = np.zeros(len(self.names))
+        for name, value in joints.items():
+            if name in self.names:
+                y[self.names.index(name)] = value
+                mask[self.names.index(name)] = 1.0
+        if not mask.any():
+            raise InvalidInputError(f"none of the posture's joints {sorted(joints)} is a "
+                                    f"dimension of this manifold ({', '.join(self.joint_names)})")
+        return self.model.transform(y, mask)
+
+    # -- persistence -----------------------------------------------------------------------------
+    def save(self, path, provenance: dict | None = None) -> None:
+        meta = {"names": list(self.names), "hand": self.hand,
+                "latent_names": list(self.latent_names), "kind": self.kind}
+        self.model.save(path, provenance={**(provenance or {}), "manipulation": meta})
+
+    @classmethod
+    def load(cls, path) -> "ManipulationManifold":
+        """Read a manifold written by :meth:`save`; a plain UKR file gets a clear error."""
+        path = Path(path)
+        if not path.is_file():
+            raise InvalidInputError(f"manifold file {path} not found; train it first (see "
+                                    f"docs/manipulation.md)")
+        try:
+            model = StructuredUKR.load(path)
+        except ValueError as exc:
+            raise InvalidInputError(str(exc)) from None
+        meta = (model.provenance_ or {}).get("manipulation")
+        if not isinstance(meta, dict):
+            raise InvalidInputError(f"{path} is a UKR model without manipulation metadata "
+                                    f"(observation names, hand); build it with "
+                                    f"`handflow train configs/train/cap_*.yaml`")
+        return cls(model, list(meta["names"]), meta["hand"], list(meta["latent_names"]),
+                   meta["kind"])

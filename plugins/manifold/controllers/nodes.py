@@ -1,0 +1,180 @@
+"""Graph nodes of the manifold controllers (thin wrappers; spec production.md §4, issue 6).
+
+``manifold.open_loop`` (:class:`OpenLoopNode`), ``manifold.feedback_init``
+(:class:`FeedbackInitNode`), ``manifold.closed_loop`` (:class:`ClosedLoopNode`).  Each reads the
+manifold file named in its params (relative to the graph file), publishes joint targets on
+``targets`` (JointState of the manifold's hand) and its latent position on ``latent``.
+
+Fail-safe (declared): when the controller's observations go stale (nothing on its input for
+``stale_after_s``) it publishes the open hand (:func:`~.safety.open_hand`) instead of continuing
+blind, until observations resume; at shutdown the runtime publishes :meth:`safe_output` (the
+open hand).  The open-loop controller has no observations, so only the shutdown case applies.
+"""
+from __future__ import annotations
+
+from typing import Literal, Optional
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from framework.messages import Contacts, JointState, LatentState, Points2D
+from framework.plugin import Node
+
+from .closed_loop import MASKS, ClosedLoopController
+from .feedback_init import GraspByNavigation, latent_from_grasp, touching_fingers
+from .manifold_file import ManipulationManifold
+from .open_loop import OpenLoopController
+from .safety import open_hand
+
+
+class _ControllerParams(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    manifold: str = Field(description="manifold file (.npz, from `handflow train`), relative to the graph")
+    rate_hz: float = Field(30.0, gt=0, description="control rate (one command per tick)")
+    delta: float = Field(0.02, gt=0, description="latent time step per control tick (speed)")
+    safe_posture: dict[str, float] = Field(default_factory=dict,
+                                           description="joint overrides of the open-hand fail-safe posture")
+
+
+class _ManifoldController(Node):
+    """Shared plumbing: load the manifold, publish targets/latent, the fail-safe posture."""
+
+    outputs = {"targets": JointState, "latent": LatentState}
+
+    def setup(self) -> None:
+        self.manifold = ManipulationManifold.load(self.ctx.resolve_path(self.params.manifold))
+        self.last_input_ns: Optional[int] = None
+        self.last_x = None
+        self.stale = False
+
+    def safe_output(self):
+        return {"targets": open_hand(self.manifold.hand, self.params.safe_posture)} \
+            if hasattr(self, "manifold") else {}
+
+    def publish_command(self, x, joints, error: float = 0.0) -> None:
+        self.last_x = x
+        self.ctx.publish("targets", JointState(names=self.manifold.joint_names, positions=joints,
+                                               hand=self.manifold.hand))
+        self.ctx.publish("latent", LatentState(manifold=self.manifold.kind, coords=x, error=error))
+
+    def input_seen(self) -> None:
+        self.last_input_ns = self.ctx.now_ns()
+        if self.stale:
+            self.ctx.log.info("observations resumed")
+            self.stale = False
+
+    def check_stale(self) -> bool:
+        """True (and the open hand published) when observations are older than ``stale_after_s``."""
+        now = self.ctx.now_ns()
+        if self.last_input_ns is None:
+            self.last_input_ns = now          # the grace period starts with the first tick
+        if now - self.last_input_ns <= self.params.stale_after_s * 1e9:
+            return False
+        if not self.stale:
+            self.ctx.log.warning("no observation for %.2f s: publishing the open hand",
+                                 (now - self.last_input_ns) / 1e9)
+            self.stale = True
+        self.ctx.publish("targets", open_hand(self.manifold.hand, self.params.safe_posture))
+        return True
+
+
+class OpenLoopParams(_ControllerParams):
+    latent: list[float] = Field(description="start latent (one value per latent dimension); its "
+                                            "non-time coordinates stay fixed (e.g. the radius)")
+
+
+class OpenLoopNode(_ManifoldController):
+    """Open-loop latent navigation: fixed latent parameter, time advances by delta per tick."""
+
+    Params = OpenLoopParams
+
+    def setup(self) -> None:
+        super().setup()
+        self.controller = OpenLoopController(self.manifold, self.params.latent, self.params.delta)
+
+    def tick(self) -> None:
+        self.publish_command(*self.controller.step())
+
+
+class FeedbackInitParams(_ControllerParams):
+    init: Literal["navigation", "grasp"] = Field(
+        "navigation", description="navigation: grasp by closing along the radius (5.5.2); grasp: "
+                                  "project the posture on input 'grasp' (5.5.1)")
+    radius_step: float = Field(0.01, gt=0, description="latent radius per tick while closing")
+    required_fingers: list[str] = Field(default_factory=lambda: ["TH", "FF", "MF"],
+                                        description="segment-name prefixes that must touch")
+    contact_body: str = Field("cap", description="body name in the contacts that counts")
+    contact_time: Optional[float] = Field(None, description="latent start time; default: the "
+                                                            "time of maximal closure")
+    approach_s: float = Field(1.0, ge=0, description="hold the start posture this long first")
+    stale_after_s: float = Field(0.5, gt=0, description="fail-safe: no contacts message for this long")
+
+
+class FeedbackInitNode(_ManifoldController):
+    """Feedback-initialised open loop (bottle cap): grasp by navigation or by posture projection, then turn."""
+
+    Params = FeedbackInitParams
+    inputs = {"contacts": Contacts, "grasp": JointState}
+
+    def setup(self) -> None:
+        super().setup()
+        prm = self.params
+        self.controller = GraspByNavigation(self.manifold, prm.delta, prm.radius_step,
+                                            required=prm.required_fingers,
+                                            approach_steps=int(round(prm.approach_s * prm.rate_hz)),
+                                            contact_time=prm.contact_time)
+        self.touching: set[str] = set()
+        self.waiting_for_grasp = prm.init == "grasp"
+
+    def on_message(self, port: str, msg) -> None:
+        if port == "contacts":
+            self.input_seen()
+            self.touching = touching_fingers(msg, self.params.required_fingers,
+                                             self.params.contact_body)
+        elif self.waiting_for_grasp:
+            x = latent_from_grasp(self.manifold, dict(zip(msg.names, msg.positions.tolist())))
+            self.controller.x[:] = x
+            self.controller.clock.value = float(x[self.manifold.time_dim])
+            self.controller.start_turning(True)
+            self.waiting_for_grasp = False
+            self.ctx.log.info("grasp posture projected: latent %s", x.round(4).tolist())
+
+    def tick(self) -> None:
+        if self.check_stale() or self.waiting_for_grasp:
+            return
+        x = self.controller.update(self.touching)
+        self.publish_command(x, self.manifold.posture(x))
+
+
+class ClosedLoopParams(_ControllerParams):
+    k: int = Field(5, ge=1, description="planned steps per observation (horizon k·delta)")
+    mask: Literal[MASKS] = Field("ball1", description="partial projection on ball-1 dims (thesis) or both balls")
+    prior_weight: float = Field(100.0, ge=0, description="pull of the phase estimate towards the last "
+                                                         "command (0 = the thesis' pure projection)")
+    stale_after_s: float = Field(0.5, gt=0, description="fail-safe: no ball observation for this long")
+
+
+class ClosedLoopNode(_ManifoldController):
+    """Closed-loop ball swapping: project observed balls, plan k steps of delta, actuate in order."""
+
+    Params = ClosedLoopParams
+    inputs = {"balls": Points2D}
+
+    def setup(self) -> None:
+        super().setup()
+        self.controller = ClosedLoopController(self.manifold, self.params.k, self.params.delta,
+                                               self.params.mask, self.params.prior_weight)
+        self.plan: list = []
+
+    def on_message(self, port: str, msg: Points2D) -> None:
+        result = self.controller.update(msg.points, msg.valid, self.last_x)
+        if result is None:
+            return
+        self.input_seen()
+        est, X, targets = result
+        self.plan = [(x, q, est.error) for x, q in zip(X, targets)]
+        self.publish_command(*self.plan.pop(0))
+
+    def tick(self) -> None:
+        if self.check_stale() or not self.plan:
+            return
+        self.publish_command(*self.plan.pop(0))

@@ -1,0 +1,38 @@
+import pytest
+from synthetic import BALL_JOINTS, CAP_NAMES, ball_sequences, cap_sequences
+
+from plugins.manifold import StructuredUKR
+from plugins.manifold.construction import ManifoldConstruction
+from plugins.manifold.controllers import BALL_NAMES, ManipulationManifold
+
+
+@pytest.fixture(scope="session")
+def construction():
+    seqs, radii, phases = cap_sequences()
+    return ManifoldConstruction(n_steps=60).fit(seqs, radii), seqs, radii, phases
+
+
+@pytest.fixture(scope="session")
+def cap_manifold(construction):
+    return ManipulationManifold(construction[0].model_, CAP_NAMES, "shadow", ["time", "radius_cm"],
+                                "constructed")
+
+
+@pytest.fixture(scope="session")
+def ball_manifold():
+    seqs = ball_sequences()
+    model = StructuredUKR(latent=[{"kernel": "periodic", "beta": 30, "time": True}],
+                          lambda_pvar=0.0, n_steps=100, isomap_neighbors=(10,),
+                          random_state=0).fit(seqs)
+    return ManipulationManifold(model, BALL_JOINTS + list(BALL_NAMES), "gifu", ["time"],
+                                "ball_swap")
+
+
+@pytest.fixture
+def manifold_file(tmp_path):
+    """Save a manifold and return its path."""
+    def save(manifold, name="m.npz"):
+        path = tmp_path / name
+        manifold.save(path)
+        return path
+    return save

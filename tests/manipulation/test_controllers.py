@@ -1,0 +1,152 @@
+"""Plain controller classes (production.md §4) on synthetic manifolds."""
+import numpy as np
+import pytest
+from synthetic import posture
+
+from plugins.manifold.controllers import ClosedLoopController, GraspByNavigation, OpenLoopController
+from plugins.manifold.controllers.feedback_init import CLOSING, TURNING, flexion, open_side
+from plugins.manifold.controllers.latent_time import LatentClock
+
+
+def test_open_loop_output_is_f_along_the_commanded_path_and_resets_on_a_constructed_axis(cap_manifold):
+    lo, hi = cap_manifold.range(0)
+    delta = (hi - lo) / 20.5
+    ctl = OpenLoopController(cap_manifold, [lo, 2.25], delta)
+    xs, qs = zip(*[ctl.step() for _ in range(30)])
+    xs, qs = np.array(xs), np.array(qs)
+    assert np.allclose(xs[:, 1], 2.25)
+    assert np.allclose(qs, cap_manifold.posture(xs))
+    assert np.all(xs[:, 0] <= hi) and xs[20, 0] == lo      # jumped back after passing the end
+    assert np.allclose(np.diff(xs[:20, 0]), delta)
+    assert ctl.cycles == 1
+
+
+def test_open_loop_wraps_smoothly_on_a_periodic_axis(ball_manifold):
+    sign = ball_manifold.time_sign
+    ctl = OpenLoopController(ball_manifold, [3.0 if sign > 0 else 0.1], 0.1)
+    xs = np.array([ctl.step()[0][0] for _ in range(10)])
+    steps = np.mod(sign * np.diff(xs), np.pi)
+    assert np.allclose(steps, 0.1) and abs(ctl.cycles) == 1 and np.all((xs >= 0) & (xs < np.pi))
+
+
+def test_time_runs_in_the_direction_of_the_demonstrations(ball_manifold):
+    from plugins.manifold.controllers import ManipulationManifold
+    model, sign = ball_manifold.model, ball_manifold.time_sign
+    mirrored = type(model).from_latents(model.Y_, np.pi - model.latents_, model.sequence_ids_,
+                                        latent=model.latent, lambda_pvar=0.0)
+    flipped = ManipulationManifold(mirrored, ball_manifold.names, "gifu", ["time"], "ball_swap")
+    assert flipped.time_sign == -sign
+    x0 = 1.0
+    ctl = OpenLoopController(flipped, [np.pi - x0], 0.05)   # same posture as x0 on the original
+    for _ in range(3):
+        ctl.step()
+    reached = flipped.observation(ctl.x)
+    forward = ball_manifold.observation(np.array([x0 + 0.15 * sign]))
+    backward = ball_manifold.observation(np.array([x0 - 0.15 * sign]))
+    assert np.linalg.norm(reached - forward) < 0.1 * np.linalg.norm(reached - backward)
+
+
+def test_open_loop_rejects_a_start_of_the_wrong_size(cap_manifold):
+    with pytest.raises(ValueError, match="2 coordinates"):
+        OpenLoopController(cap_manifold, [0.5], 0.01)
+
+
+def test_latent_clock_reset_and_lookahead():
+    clock = LatentClock(0.0, 1.0, periodic=False, start=0.9)
+    assert np.allclose(clock.ahead([0.05, 0.2]), [0.95, 0.1])
+    assert clock.advance(0.2) == 0.0 and clock.cycles == 1
+
+
+def _touching_model(manifold, true_radius):
+    """Fingers touch when the commanded closure reaches the closure of the true radius."""
+    def touching(x):
+        ref = np.array([x[0], true_radius])
+        return {"TH", "FF", "MF"} if flexion(manifold, x) >= flexion(manifold, ref) - 1e-9 else set()
+    return touching
+
+
+@pytest.mark.parametrize("true_radius", [1.75, 2.5, 3.25])
+def test_grasp_by_navigation_finds_the_radius_then_turns(cap_manifold, true_radius):
+    assert open_side(cap_manifold) == pytest.approx(3.5)       # the more open border
+    ctl = GraspByNavigation(cap_manifold, delta=0.02, radius_step=0.01, approach_steps=3)
+    touching = _touching_model(cap_manifold, true_radius)
+    x = ctl.x.copy()
+    assert x[1] == pytest.approx(3.5)
+    for _ in range(400):
+        x = ctl.update(touching(x))
+        if ctl.state == TURNING:
+            break
+    assert ctl.grasp_complete and abs(ctl.radius - true_radius) < 0.05
+    t_before = x[0]
+    x = ctl.update(set())                                        # contacts no longer matter
+    assert x[1] == ctl.radius and x[0] == pytest.approx(t_before + 0.02)
+
+
+def test_grasp_by_navigation_stops_at_the_border_without_contact(cap_manifold):
+    ctl = GraspByNavigation(cap_manifold, delta=0.02, radius_step=0.2, approach_steps=0)
+    for _ in range(30):
+        ctl.update(set())
+    assert ctl.state == TURNING and not ctl.grasp_complete and ctl.radius == pytest.approx(1.5)
+
+
+def test_grasp_by_navigation_starts_in_the_closed_phase(cap_manifold):
+    ctl = GraspByNavigation(cap_manifold, delta=0.02, radius_step=0.01)
+    assert ctl.state != CLOSING
+    lo, hi = cap_manifold.range(0)
+    grid = np.c_[np.linspace(lo, hi, 200), np.full(200, 3.5)]
+    assert flexion(cap_manifold, ctl.x) >= 0.9 * flexion(cap_manifold, grid).max()
+
+
+def test_posture_projection_recovers_the_radius(cap_manifold):
+    from plugins.manifold.controllers.feedback_init import latent_from_grasp
+    y = posture([0.45], 2.5)[0]
+    x = latent_from_grasp(cap_manifold, dict(zip(cap_manifold.names, y)))
+    assert abs(x[1] - 2.5) < 0.2
+
+
+def _circ(a, b, period):
+    d = np.mod(a - b, period)
+    return np.minimum(d, period - d)
+
+
+def test_closed_loop_phase_estimate_uses_the_better_ball_assignment(ball_manifold):
+    ctl = ClosedLoopController(ball_manifold, k=4, delta=0.05)
+    model = ball_manifold.model
+    swapped = []
+    for x, o in zip(model.latents_[::7], model.Y_[::7]):
+        for pts in (o[4:].reshape(2, 2), o[4:].reshape(2, 2)[::-1]):   # both orders
+            est = ctl.estimate(pts, [True, True])
+            swapped.append(est.swapped)
+            # identical balls: phases x and x + π/2 show the same observation
+            assert _circ(est.x[0], x[0], np.pi / 2) < 0.08
+            assert np.allclose(ball_manifold.posture(est.x), o[:4], atol=0.1)
+    assert any(swapped) and not all(swapped)
+
+
+def test_closed_loop_prior_resolves_ambiguity_towards_the_last_command(ball_manifold):
+    x, o = ball_manifold.model.latents_[3], ball_manifold.model.Y_[3]
+    pts = o[4:].reshape(2, 2)
+    pure = ClosedLoopController(ball_manifold, prior_weight=0.0).estimate(pts, [True, True])
+    other = np.mod(pure.x + np.pi / 2, np.pi)        # the same ball picture, other hand stroke
+    near = ClosedLoopController(ball_manifold, prior_weight=100.0).estimate(pts, [True, True],
+                                                                          prior=other + 0.05)
+    assert _circ(near.x[0], other[0], np.pi) < 0.1 < _circ(near.x[0], pure.x[0], np.pi)
+    far = ClosedLoopController(ball_manifold, prior_weight=100.0).estimate(pts, [True, True],
+                                                                         prior=pure.x)
+    assert _circ(far.x[0], pure.x[0], np.pi) < 0.03
+
+
+def test_closed_loop_plans_k_steps_ahead(ball_manifold):
+    ctl = ClosedLoopController(ball_manifold, k=4, delta=0.05)
+    X, targets = ctl.plan(np.array([3.1]))
+    step = 0.05 * ball_manifold.time_sign
+    assert np.allclose(X[:, 0], np.mod(3.1 + step * np.arange(1, 5), np.pi))
+    assert np.allclose(targets, ball_manifold.posture(X))
+
+
+def test_closed_loop_with_one_or_no_visible_ball(ball_manifold):
+    ctl = ClosedLoopController(ball_manifold, k=2, delta=0.05)
+    x, o = ball_manifold.model.latents_[5], ball_manifold.model.Y_[5]
+    est = ctl.estimate(np.array([o[4:6], [np.nan, np.nan]]), [True, False])
+    assert _circ(est.x[0], x[0], np.pi / 2) < 0.1
+    assert ctl.update(np.full((2, 2), np.nan), [False, False]) is None

@@ -43,8 +43,9 @@ def make_stream(args):
     return cands, np.vstack(parts)[:n]
 
 
-def run(cands, Y, warm: bool, seed: int):
-    seg = OnlineCLMSegmenter(cands, window=200, history=10, warm_start=warm, random_state=seed)
+def run(cands, Y, warm: bool, seed: int, cold_every: int | None = 10):
+    seg = OnlineCLMSegmenter(cands, window=200, history=10, warm_start=warm, cold_every=cold_every,
+                             random_state=seed)
     lat, sweeps, revisions, proj_t = [], [], 0, []
     for y in Y:
         t0 = time.perf_counter()
@@ -68,11 +69,13 @@ def main(argv=None) -> int:
     ap.add_argument("--seconds", type=float, default=20.0, help="stream length in seconds at 100 Hz")
     ap.add_argument("--dataset", help="labelled dataset (first 4 classes); default synthetic letters")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--cold-every", type=int, default=10,
+                    help="energy check against a cold solve every N warm updates (0 = never)")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args(argv)
     cands, Y = make_stream(args)
     run(cands, Y[:60], True, args.seed)  # compile numba kernels outside the measurement
-    warm = run(cands, Y, True, args.seed)
+    warm = run(cands, Y, True, args.seed, args.cold_every or None)
     cold = run(cands, Y, False, args.seed)
     out = {"latency_ms_median": warm["latency_ms_median"], "latency_ms_p99": warm["latency_ms_p99"],
            "sweeps_warm_median": warm["sweeps_median"], "sweeps_cold_median": cold["sweeps_median"],
@@ -80,7 +83,7 @@ def main(argv=None) -> int:
            "projection_ms_median": warm["projection_ms_median"],
            "cold_latency_ms_median": cold["latency_ms_median"], "cold_latency_ms_p99": cold["latency_ms_p99"],
            "latency_ratio_warm_vs_cold": warm["latency_ms_median"] / cold["latency_ms_median"],
-           "samples": int(len(Y)), "candidates": 4, "window": 200, "rate_hz": RATE_HZ,
+           "cold_every": args.cold_every, "samples": int(len(Y)), "candidates": 4, "window": 200, "rate_hz": RATE_HZ,
            "data": args.dataset or "synthetic letters", "goal_p99_ms": 10.0}
     if args.json:
         print(json.dumps(out, indent=1))

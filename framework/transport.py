@@ -54,10 +54,25 @@ def _config(mode: str, listen: list[str], connect: list[str], multicast: bool) -
     return conf
 
 
+class EndpointInUse(OSError):
+    """A ``zenoh.listen`` endpoint whose address is taken by another program."""
+
+
 def open_hub(settings: ZenohSettings, hub_endpoint: str) -> zenoh.Session:
-    """The launcher's session: listens on ``hub_endpoint`` plus the graph's endpoints."""
-    return zenoh.open(_config(settings.mode, [hub_endpoint, *settings.listen], list(settings.connect),
-                              settings.multicast_scouting))
+    """The launcher's session: listens on ``hub_endpoint`` plus the graph's endpoints.
+
+    A listen endpoint already in use raises :class:`EndpointInUse` saying what to change.
+    """
+    try:
+        return zenoh.open(_config(settings.mode, [hub_endpoint, *settings.listen], list(settings.connect),
+                                  settings.multicast_scouting))
+    except zenoh.ZError as exc:
+        busy = [ep for ep in settings.listen if ep.split("/", 1)[-1] in str(exc)]
+        if "in use" not in str(exc).lower() or not busy:
+            raise
+        raise EndpointInUse(f"cannot listen on {busy[0]}: the address is already in use (another `handflow run` of "
+                            f"this graph, or another program); stop that program or choose a free port in the "
+                            f"graph's 'zenoh: {{listen: [...]}}'") from None
 
 
 def open_node_session(settings: ZenohSettings, hub_endpoint: str) -> zenoh.Session:

@@ -8,6 +8,7 @@ import sys
 from ..foxglove_bridge import PortInUse, start_bridge
 from ..graph import FoxgloveSettings, GraphError, load_graph
 from ..launcher import run_graph
+from ..transport import EndpointInUse
 
 
 def register(parser: argparse.ArgumentParser) -> None:
@@ -49,7 +50,7 @@ def run(args: argparse.Namespace) -> int:
     except ValueError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    except PortInUse as exc:
+    except (PortInUse, EndpointInUse) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     finally:

@@ -12,6 +12,8 @@ graph runs without hardware and without a second command.
 """
 from __future__ import annotations
 
+import glob
+from pathlib import Path
 from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field
@@ -56,6 +58,23 @@ def build_emulator(opts: EmulatorParams, resolve=lambda p: p) -> GloveEmulator:
     return GloveEmulator(source, faults=faults, seed=opts.seed, burst=opts.burst, jitter_s=opts.jitter_s)
 
 
+def serial_ports() -> list[str]:
+    """Serial devices on this machine (pyserial's list plus Bluetooth ``/dev/rfcomm*`` bindings)."""
+    from serial.tools import list_ports
+
+    return sorted({p.device for p in list_ports.comports()} | set(glob.glob("/dev/rfcomm*")))
+
+
+def missing_device_message(port: str) -> str | None:
+    """What to do when ``port`` names a serial device that does not exist (None if it exists or is not a path)."""
+    if port == "emulator" or port.startswith("bt://") or Path(port).exists():
+        return None
+    found = ", ".join(serial_ports()) or "none"
+    return (f"glove device {port} not found (serial ports on this machine: {found}); plug the glove in or pair it "
+            f"(Bluetooth: /dev/rfcommN), set 'port' to its device, or use 'port: emulator' to run without "
+            f"hardware; retrying in the background")
+
+
 class CyberGloveNode(Node):
     """CyberGlove II reader: raw frames + link status (serial, /dev/rfcommN, bt://ADDR, or emulator)."""
 
@@ -80,6 +99,8 @@ class CyberGloveNode(Node):
         if port == "emulator":
             self.emulator = build_emulator(p.emulator, self.ctx.resolve_path).start()
             port = self.emulator.path
+        elif (problem := missing_device_message(port)) is not None:
+            self.ctx.log.error(problem)
         cfg = ReaderConfig(port, p.baudrate, p.glove_rate_hz, p.timestamp, p.status_byte, stall_timeout_s=p.stall_timeout_s)
         self.reader = GloveReader(cfg, clock_ns=self.ctx.now_ns).start()
         self._last_state = None

@@ -40,7 +40,7 @@ import numpy as np
 from .experience import ExperienceBase
 from .hand_layout import Finger, HandLayout
 
-SHADOW_PREGRASP = {"THJ5": -0.4, "THJ4": 0.2, "THJ1": 0.3}
+SHADOW_PREGRASP = {"THJ5": -0.2, "THJ4": 0.2, "THJ1": 0.3}
 """Empirically chosen pre-grasp of the ShadowHand-like hand (thesis: one fixed pre-grasp for all runs),
 the best of a few candidates on the evaluation grid: fingers straight, thumb turned towards the
 fingers (THJ5 < 0 opposes in this model) and slightly abducted; unnamed joints 0."""

@@ -37,17 +37,7 @@ class GraspPose:
         return np.array([self.x, self.y, self.gap, self.yaw_deg])
 
 
-@dataclass
-class PregraspScene(GraspScene):
-    """The simulator's grasp scene with the hand starting in the pre-grasp posture (phase A done at t = 0)."""
-
-    pregrasp: dict = field(default_factory=dict)
-
-    def initial_posture(self) -> dict[str, float]:
-        return dict(self.pregrasp)
-
-
-CENTRED_POSE = GraspPose(x=0.06, y=0.0, gap=0.01)
+CENTRED_POSE = GraspPose(x=0.035, y=0.0, gap=0.01)
 """Object centre under the proximal finger segments, 1 cm below the palm: the middle of the reachable grasp region."""
 
 
@@ -101,8 +91,8 @@ def touched_segments(sim: Simulation, ignore) -> list[str]:
 def run_grasp(obj: str, pose: GraspPose, controller: ExperienceGraspController, config: EpisodeConfig = EpisodeConfig(),
               seed: int = 0, hand: str = "shadow") -> GraspResult:
     """Grasp ``obj`` at ``pose`` with ``controller`` and test the grasp's stability."""
-    scene = PregraspScene(object=obj, position=(pose.x, pose.y), yaw_deg=pose.yaw_deg, gap_below_palm=pose.gap,
-                          pregrasp=controller.config.pregrasp)
+    scene = GraspScene(object=obj, position=(pose.x, pose.y), yaw_deg=pose.yaw_deg, gap_below_palm=pose.gap,
+                       start_posture=dict(controller.config.pregrasp))
     with Simulation(hand=hand, scene=scene, seed=seed, physics_hz=config.physics_hz) as sim:
         if config.floating:
             remove_table(sim, scene)

@@ -9,8 +9,8 @@ disturbance seed:
 
 A grasp counts when it passes the :class:`~.stability.DisturbanceTest`; placements where the hand
 already touches the object in the pre-grasp are skipped in every condition (thesis 4.3).  Rotations
-about the vertical are evaluated for the box only: the upright cylinder and the sphere are symmetric
-about it (thesis: symmetric rotations ignored).  Shares are pooled over all valid grasps of an object
+about the vertical are evaluated for the box and the lying cylinder; the sphere is symmetric (thesis:
+symmetric rotations ignored).  Shares are pooled over all valid grasps of an object
 and, for ``overall``, of all objects.  Also reported: the share of force-closure grasps (wrench
 quality > 0) per condition and the grasps evaluated per minute of wall time.
 """
@@ -32,12 +32,13 @@ from .hand_layout import hand_layout
 
 OBJECTS = ("box", "cylinder", "sphere")
 CONDITIONS = ("experience", "no_experience", "shared_som")
-SYMMETRIC_ABOUT_VERTICAL = ("cylinder", "sphere")
+SYMMETRIC_ABOUT_VERTICAL = ("sphere",)
 
-FULL_GRID = {"x": (0.045, 0.06, 0.075, 0.09), "y": (-0.012, 0.0, 0.012), "gap": (0.01, 0.02, 0.03),
+FULL_GRID = {"x": (0.02, 0.03, 0.04, 0.05), "y": (-0.012, 0.0, 0.012), "gap": (0.005, 0.015, 0.025),
              "yaw_deg": (-30.0, 0.0, 30.0)}
-"""Full grid: offsets along the fingers / across the palm (m), gap below the palm (m), yaw (deg)."""
-QUICK_GRID = {"x": (0.05, 0.065, 0.08), "y": (0.0,), "gap": (0.01, 0.03), "yaw_deg": (-30.0, 30.0)}
+"""Full grid: offsets along the fingers / across the palm (m), gap below the palm (m), yaw (deg).
+The object centre lies 8–11 cm from the wrist, under the knuckles and proximal finger segments."""
+QUICK_GRID = {"x": (0.02, 0.035, 0.05), "y": (0.0,), "gap": (0.005, 0.02), "yaw_deg": (-30.0, 30.0)}
 """Coarse grid of ``--quick`` (under 2 minutes on the CI machine)."""
 
 

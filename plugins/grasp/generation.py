@@ -32,7 +32,7 @@ from .experience import GraspDataset
 from .hand_layout import hand_layout
 
 PREGRASP_RANGES = {
-    "THJ5": (-1.0, 0.0), "THJ4": (0.0, 1.0), "THJ2": (-0.2, 0.4), "THJ1": (0.0, 0.5),
+    "THJ5": (-0.6, 0.2), "THJ4": (0.0, 0.6), "THJ2": (-0.2, 0.4), "THJ1": (0.0, 0.5),
     **{f"{f}J4": (-0.15, 0.15) for f in ("FF", "MF", "RF", "LF")},
     **{f"{f}J3": (0.0, 0.5) for f in ("FF", "MF", "RF", "LF")},
     **{f"{f}J2": (0.0, 0.4) for f in ("FF", "MF", "RF", "LF")},
@@ -42,7 +42,7 @@ PREGRASP_RANGES = {
 LAMBDA_RANGE = (0.7, 2.0)
 """Uniform range of the proximal/distal closing-speed ratio λ of the generating controller."""
 
-POSE_RANGES = {"x": (0.045, 0.085), "y": (-0.015, 0.015), "gap": (0.008, 0.035), "yaw_deg": (-35.0, 35.0)}
+POSE_RANGES = {"x": (0.015, 0.055), "y": (-0.015, 0.015), "gap": (0.003, 0.03), "yaw_deg": (-35.0, 35.0)}
 """Object pose ranges (see :class:`~.episode.GraspPose`) covering the evaluation grid."""
 
 

@@ -329,11 +329,11 @@ class BallsScene(Scene):
 
 GRASP_OBJECTS = {
     "box": (p.GEOM_BOX, {"halfExtents": [0.02, 0.08, 0.02]}, 0.04),
-    "cylinder": (p.GEOM_CYLINDER, {"radius": 0.03, "height": 0.16}, 0.16),
+    "cylinder": (p.GEOM_CYLINDER, {"radius": 0.03, "height": 0.16}, 0.06),
     "sphere": (p.GEOM_SPHERE, {"radius": 0.03}, 0.06),
 }
-"""Grasp objects of thesis chapter 4 (shape, pybullet dimensions, standing height): box 4×4×16 cm,
-cylinder r 3 cm h 16 cm, sphere r 3 cm."""
+"""Grasp objects of thesis chapter 4 (shape, pybullet dimensions, height as placed): box 4×4×16 cm,
+cylinder r 3 cm h 16 cm (lying, axis along world y), sphere r 3 cm."""
 
 
 @dataclass
@@ -341,8 +341,11 @@ class GraspScene(Scene):
     """One grasp object resting on a table under the palm-down hand (spec production.md §5).
 
     ``position`` offsets the object from the point under the palm centre (world x, y in m) and
-    ``yaw_deg`` turns it about the vertical; the cylinder stands upright, the box lies with its long
-    axis along world ``y``.  State: object position and roll/pitch/yaw.
+    ``yaw_deg`` turns it about the vertical.  Box and cylinder lie with their long axis along world
+    ``y`` = the palm's ``x`` (across the fingers): thesis 4.3 ignores rotations about that axis for
+    the cylinder, so that is its axis.  ``start_posture`` (joint name → rad) is where the hand starts,
+    e.g. a grasp controller's pre-grasp.  The camera looks at the object from the little-finger side,
+    slightly above the palm.  State: object position and roll/pitch/yaw.
     """
 
     name: str = "grasp"
@@ -352,25 +355,41 @@ class GraspScene(Scene):
     mass: float = 0.1
     lateral_friction: float = 0.8
     gap_below_palm: float = 0.03
+    start_posture: dict[str, float] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         if self.object not in GRASP_OBJECTS:
             raise ValueError(f"unknown grasp object '{self.object}'; choose one of {', '.join(GRASP_OBJECTS)}")
 
+    def initial_posture(self) -> dict[str, float]:
+        return dict(self.start_posture)
+
+    def object_start(self) -> np.ndarray:
+        """World position of the object's centre before the simulation starts."""
+        height = GRASP_OBJECTS[self.object][2]
+        centre = self.palm_to_world([0.0, 0.0, 0.06])[0]
+        z = HAND_BASE[2] - self.palm_thickness / 2 - self.gap_below_palm - height / 2
+        return np.array([centre[0] + self.position[0], centre[1] + self.position[1], z])
+
+    def camera(self) -> CameraSpec:
+        at = self.object_start() + [0.0, 0.0, 0.02]
+        return CameraSpec(tuple(at + [0.0, -0.32, 0.08]), tuple(at), (0.0, 0.0, 1.0), fov_deg=45.0)
+
     def build(self, client: int, rng: np.random.Generator) -> None:
         kind, dims, height = GRASP_OBJECTS[self.object]
-        centre = self.palm_to_world([0.0, 0.0, 0.06])[0]
-        table_z = HAND_BASE[2] - self.palm_thickness / 2 - self.gap_below_palm - height
+        pos = self.object_start()
+        table_z = pos[2] - height / 2
         table_col = p.createCollisionShape(p.GEOM_BOX, halfExtents=[0.3, 0.3, 0.01], physicsClientId=client)
         table_vis = p.createVisualShape(p.GEOM_BOX, halfExtents=[0.3, 0.3, 0.01], rgbaColor=(0.8, 0.8, 0.8, 1),
                                         physicsClientId=client)
-        table = p.createMultiBody(0.0, table_col, table_vis, [centre[0], centre[1], table_z - 0.01], physicsClientId=client)
+        table = p.createMultiBody(0.0, table_col, table_vis, [pos[0] - self.position[0], pos[1] - self.position[1],
+                                                              table_z - 0.01], physicsClientId=client)
         col = p.createCollisionShape(kind, physicsClientId=client, **dims)
         vis_dims = {("length" if k == "height" else k): v for k, v in dims.items()}  # visual API names it length
         vis = p.createVisualShape(kind, rgbaColor=(0.85, 0.3, 0.1, 1), physicsClientId=client, **vis_dims)
-        pos = [centre[0] + self.position[0], centre[1] + self.position[1], table_z + height / 2]
-        orn = p.getQuaternionFromEuler([0, 0, np.deg2rad(self.yaw_deg)])
-        self.object_id = p.createMultiBody(self.mass, col, vis, pos, orn, physicsClientId=client)
+        lying = Rotation.from_euler("x", 90, degrees=True) if self.object == "cylinder" else Rotation.identity()
+        orn = (Rotation.from_euler("z", self.yaw_deg, degrees=True) * lying).as_quat()
+        self.object_id = p.createMultiBody(self.mass, col, vis, pos.tolist(), orn, physicsClientId=client)
         p.changeDynamics(self.object_id, -1, lateralFriction=self.lateral_friction, physicsClientId=client)
         self.bodies = {(table, -1): "table", (self.object_id, -1): self.object}
 

@@ -6,10 +6,11 @@ import pybullet as p
 import pytest
 
 from plugins.grasp.controller import HOLD, ExperienceGraspController
-from plugins.grasp.episode import CENTRED_POSE, PregraspScene, remove_table, run_grasp, touched_segments
+from plugins.grasp.episode import CENTRED_POSE, remove_table, run_grasp, touched_segments
 from plugins.grasp.experience import ExperienceBase
 from plugins.grasp.hand_layout import hand_layout
 from plugins.mapping.hands import HAND_MODELS
+from plugins.simulator.scenes import GraspScene
 from plugins.simulator.simulation import Simulation
 
 MODEL = HAND_MODELS["shadow"]
@@ -21,8 +22,8 @@ SHIPPED_SOM = Path(__file__).resolve().parents[2] / "configs" / "grasp" / "exper
 def test_held_fingers_keep_their_targets_on_real_contacts():
     ctl = ExperienceGraspController(LAYOUT, MODEL.lower, MODEL.upper)
     pose = CENTRED_POSE
-    scene = PregraspScene(object="cylinder", position=(pose.x, pose.y), gap_below_palm=pose.gap,
-                          pregrasp=ctl.config.pregrasp)
+    scene = GraspScene(object="cylinder", position=(pose.x, pose.y), gap_below_palm=pose.gap,
+                       start_posture=ctl.config.pregrasp)
     held_at: dict[str, np.ndarray] = {}
     with Simulation(scene=scene) as sim:
         remove_table(sim, scene)

@@ -1,0 +1,161 @@
+"""Candidate motion models and their projections (spec recognition.md, preamble).
+
+A *candidate model* is anything with ``project(Y) -> (latent_time, errors)``: the latent time
+``x̂_{t,dt}`` of every observation on that model's periodic time axis (period π) and the
+normalised self-reconstruction error ``e_t``.  :class:`UKRCandidate` adapts one trained
+:class:`plugins.manifold.StructuredUKR`; :class:`CandidateSet` holds one model per class and
+projects a sequence onto all of them at once, giving a :class:`Projection` that the
+recognisers consume (projections are computed once and re-used across parameter settings).
+"""
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+
+INDEX_FILE = "classes.json"
+TRAIN_HINT = "train them with `handflow train-classes DATASET --out DIR`"
+
+
+class ModelsMissingError(FileNotFoundError):
+    """No usable trained candidate models; the message says how to train them."""
+
+
+@runtime_checkable
+class CandidateModel(Protocol):
+    """What a recogniser needs from one candidate."""
+
+    def project(self, Y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(N, d) observations → latent time (N,) in [0, π) and normalised errors e_t (N,)."""
+
+
+@dataclass
+class Projection:
+    """Projections of N observations onto M candidates: ``latent_time`` and ``errors`` (N, M)."""
+
+    latent_time: np.ndarray
+    errors: np.ndarray
+    classes: list[str]
+
+    def __len__(self) -> int:
+        return self.latent_time.shape[0]
+
+    def take(self, index) -> "Projection":
+        """Rows ``index`` (slice, index array) — projection is pointwise, so this equals projecting
+        the same sub-sampled / cut / reordered observations."""
+        return Projection(self.latent_time[index], self.errors[index], list(self.classes))
+
+    def without(self, label: str) -> "Projection":
+        """The same projection with candidate ``label`` left out."""
+        keep = [i for i, c in enumerate(self.classes) if c != label]
+        return Projection(self.latent_time[:, keep], self.errors[:, keep], [self.classes[i] for i in keep])
+
+    @staticmethod
+    def concatenate(parts: list["Projection"]) -> "Projection":
+        return Projection(np.vstack([p.latent_time for p in parts]), np.vstack([p.errors for p in parts]),
+                          list(parts[0].classes))
+
+
+class UKRCandidate:
+    """Adapter: a trained structured UKR manifold as a :class:`CandidateModel`.
+
+    ``e_t = (y_t − ŷ_t)ᵀ Σ⁻¹ (y_t − ŷ_t)`` with ``ŷ_t = f(g(y_t))`` and Σ the diagonal of the
+    training-data variances (the estimator's ``reconstruction_error``).
+
+    The sequence-order penalty of UKR is symmetric in direction, so a trained latent time axis may
+    run against the chronological order.  Documented choice: ``direction`` is the sign of the mean
+    ``sin(2 Δx)`` over consecutive training latents (period π), and latent times are multiplied by
+    it, so forward motion always means increasing latent time.
+    """
+
+    def __init__(self, model) -> None:
+        self.model = model
+        self.time_dim = int(getattr(model, "time_dim_", 0) or 0)
+        self.direction = training_direction(model.latents_[:, self.time_dim], model.sequence_ids_)
+
+    def project(self, Y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        Y = np.asarray(Y, dtype=float)
+        X = self.model.transform(Y)
+        residual = Y - self.model.inverse_transform(X)
+        errors = np.sum(residual * residual / self.model.train_variance_, axis=1)
+        return np.mod(self.direction * X[:, self.time_dim], np.pi), errors
+
+
+def training_direction(latent_time: np.ndarray, sequence_ids: np.ndarray) -> float:
+    """+1 if latent time increases along the training sequences (mean ``sin(2Δ)`` ≥ 0), else −1."""
+    lt = np.asarray(latent_time, dtype=float)
+    ids = np.asarray(sequence_ids)
+    same = ids[1:] == ids[:-1]
+    steps = np.sin(2.0 * (lt[1:] - lt[:-1]))[same]
+    return 1.0 if steps.size == 0 or steps.mean() >= 0 else -1.0
+
+
+class CandidateSet:
+    """One candidate model per class label (labels keep the given order)."""
+
+    def __init__(self, models: dict[str, CandidateModel]) -> None:
+        if not models:
+            raise ModelsMissingError(f"no candidate models given; {TRAIN_HINT}")
+        for name, m in models.items():
+            if not isinstance(m, CandidateModel):
+                raise TypeError(f"candidate {name!r} has no project(Y) method")
+        self.models = dict(models)
+
+    @property
+    def classes(self) -> list[str]:
+        return list(self.models)
+
+    def __len__(self) -> int:
+        return len(self.models)
+
+    def project(self, Y: np.ndarray) -> Projection:
+        """Project (N, d) observations onto every candidate."""
+        Y = np.atleast_2d(np.asarray(Y, dtype=float))
+        if not np.isfinite(Y).all():
+            raise ValueError("observations hold NaN/inf; drop or repair those rows before recognition")
+        lt = np.empty((Y.shape[0], len(self)))
+        e = np.empty_like(lt)
+        for j, m in enumerate(self.models.values()):
+            lt[:, j], e[:, j] = m.project(Y)
+        return Projection(lt, e, self.classes)
+
+    def without(self, label: str) -> "CandidateSet":
+        return CandidateSet({k: v for k, v in self.models.items() if k != label})
+
+
+def _load_ukr(path: Path):
+    from plugins.manifold import StructuredUKR
+
+    return StructuredUKR.load(path)
+
+
+def model_files(source: str | Path | list[str | Path]) -> dict[str, Path]:
+    """Resolve a folder written by ``train-classes`` (or a list of model files) to label → file.
+
+    A folder must hold ``classes.json`` (``{"classes": {label: file}}``); a model file's label is
+    its file-name stem.
+    """
+    if isinstance(source, (str, Path)):
+        folder = Path(source).expanduser()
+        if folder.is_dir():
+            index = folder / INDEX_FILE
+            if not index.exists():
+                raise ModelsMissingError(f"{folder} holds no {INDEX_FILE}; {TRAIN_HINT}")
+            entries = json.loads(index.read_text())["classes"]
+            files = {label: folder / name for label, name in entries.items()}
+        else:
+            files = {folder.stem: folder}
+    else:
+        files = {Path(p).stem: Path(p).expanduser() for p in source}
+    missing = [str(p) for p in files.values() if not p.exists()]
+    if missing or not files:
+        raise ModelsMissingError(f"model file(s) {missing or [str(source)]} not found; {TRAIN_HINT}")
+    return files
+
+
+def load_candidates(source: str | Path | list[str | Path], loader=_load_ukr) -> CandidateSet:
+    """Load trained candidate manifolds (see :func:`model_files`) as a :class:`CandidateSet`."""
+    return CandidateSet({label: UKRCandidate(loader(path)) for label, path in model_files(source).items()})

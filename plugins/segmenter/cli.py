@@ -1,0 +1,151 @@
+"""Commands ``handflow train-classes`` and ``handflow evaluate segmentation`` (docs/segmentation.md)."""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+from .candidates import ModelsMissingError, load_candidates
+from .datasets import DatasetError, load_dataset
+from .evaluation import EXPERIMENTS, METHODS, Evaluator, Protocol
+from .training import candidate_set, save_class_models, train_class_models
+
+
+def _progress(msg: str) -> None:
+    print(f"[{time.strftime('%H:%M:%S')}] {msg}", file=sys.stderr, flush=True)
+
+
+def _add_dataset_args(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("dataset", help="folder with train/validation/test sub-folders of <label>_*.csv, "
+                                        "or an .npz (see docs/segmentation.md)")
+    parser.add_argument("--classes", help="comma-separated subset of class labels to use")
+    parser.add_argument("--keep-pen-lift", action="store_true",
+                        help="keep the pen-lift tail marked in an .npz's metadata (default: cut it)")
+    parser.add_argument("--beta", default="auto", help="periodic UKR bandwidth, or 'auto' = 12·mean_length/45")
+    parser.add_argument("--steps", type=int, default=300, help="UKR optimisation steps per class")
+    parser.add_argument("--seed", type=int, default=0)
+
+
+def _dataset(args):
+    ds = load_dataset(args.dataset, trim_pen_lift=not args.keep_pen_lift)
+    return ds.restrict(args.classes.split(",")) if args.classes else ds
+
+
+def _beta(args):
+    if args.beta == "auto":
+        return "auto"
+    try:
+        return float(args.beta)
+    except ValueError:
+        raise DatasetError(f"--beta must be a number or 'auto', got {args.beta!r}") from None
+
+
+# -- train-classes ------------------------------------------------------------------------------
+def register_train_classes(parser: argparse.ArgumentParser) -> None:
+    parser.description = "Train one structured UKR manifold (1D periodic time) per class of a labelled dataset."
+    _add_dataset_args(parser)
+    parser.add_argument("--out", required=True, help="output folder (gets <label>.npz and classes.json)")
+    parser.set_defaults(func=run_train_classes)
+
+
+def run_train_classes(args) -> int:
+    try:
+        ds = _dataset(args)
+        models = train_class_models(ds, beta=_beta(args), n_steps=args.steps, random_state=args.seed,
+                                    progress=_progress)
+    except (DatasetError, ValueError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    out = save_class_models(models, args.out, provenance={"dataset": ds.source, "split": "train",
+                                                           "steps": args.steps, "beta": str(args.beta)})
+    _progress(f"wrote {len(models)} models to {out}")
+    return 0
+
+
+# -- evaluate segmentation ----------------------------------------------------------------------
+def register_evaluate(parser: argparse.ArgumentParser) -> None:
+    parser.description = ("Run the thesis recognition/segmentation protocol (spec recognition.md §D) for "
+                          "ukr_only, ukr_clm and the dtw_1nn / hmm baselines: validation picks parameters, "
+                          "test reports.")
+    _add_dataset_args(parser)
+    parser.add_argument("--models", help="folder written by train-classes (default: train on the train split)")
+    parser.add_argument("--json", action="store_true", help="print the full result as JSON on stdout")
+    parser.add_argument("--plots", help="folder for figures (labelled trajectories, compatibilities, summary)")
+    parser.add_argument("--quick", action="store_true", help="reduced protocol (N^th 1,2; H 10; 2 CLM runs; 6 pairs)")
+    parser.add_argument("--methods", default=",".join(METHODS), help=f"subset of {','.join(METHODS)}")
+    parser.set_defaults(func=run_evaluate)
+
+
+def run_evaluate(args) -> int:
+    t0 = time.perf_counter()
+    try:
+        methods = tuple(m for m in args.methods.split(",") if m)
+        unknown = sorted(set(methods) - set(METHODS))
+        if unknown:
+            raise DatasetError(f"unknown method(s) {unknown}; choose from {list(METHODS)}")
+        ds = _dataset(args)
+        if args.models:
+            candidates = load_candidates(args.models)
+        else:
+            _progress(f"training one manifold per class ({len(ds.classes)} classes)")
+            candidates = candidate_set(train_class_models(ds, beta=_beta(args), n_steps=args.steps,
+                                                          random_state=args.seed, progress=_progress))
+        evaluator = Evaluator(ds, candidates, Protocol.quick() if args.quick else Protocol(),
+                              random_state=args.seed, progress=_progress)
+    except (DatasetError, ModelsMissingError, ValueError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    result = evaluator.evaluate(methods)
+    result["parameters"].update(steps=args.steps, beta=str(args.beta), quick=bool(args.quick), seed=args.seed)
+    result["runtime_s"] = round(time.perf_counter() - t0, 2)
+    if args.plots:
+        write_plots(evaluator, result, Path(args.plots))
+    if args.json:
+        print(json.dumps(result, indent=1))
+    else:
+        print(format_table(result))
+    return 0
+
+
+def format_table(result: dict) -> str:
+    """Plain-text summary: share ≥ 85 % / share perfect / mean correct per method and experiment."""
+    lines = [f"{'method':10s} " + " ".join(f"{e:>22s}" for e in EXPERIMENTS),
+             f"{'':10s} " + " ".join(f"{'>=85% perfect mean':>22s}" for _ in EXPERIMENTS)]
+    for m, exps in result["methods"].items():
+        cells = []
+        for e in EXPERIMENTS:
+            r = exps[e]
+            cells.append("—".rjust(22) if r["mean_correct"] is None else
+                         f"{r['share_ge_85']:6.2f} {r['share_perfect']:7.2f} {r['mean_correct']:6.2f}".rjust(22))
+        lines.append(f"{m:10s} " + " ".join(cells))
+    return "\n".join(lines)
+
+
+def write_plots(ev: Evaluator, result: dict, folder: Path) -> None:
+    """Thesis-like figures for the first test case of every experiment (middle H, every point)."""
+    from .plots import plot_compatibilities, plot_labelled_trajectory, plot_summary
+    from .ukr_only import UKROnlyRecognizer
+
+    H = ev.protocol.histories[len(ev.protocol.histories) // 2]
+    for exp in EXPERIMENTS:
+        case = next((c for c in ev.cases["test"] if c.experiment == exp and c.history == H and c.nth == 1), None)
+        if case is None:
+            continue
+        Y = ev.sequence("test", case)
+        for method in ("ukr_only", "ukr_clm"):
+            params = result["parameters"]["selected"].get(method)
+            if params is None:
+                continue
+            labels = ev.predict(method, params, "test", case)
+            plot_labelled_trajectory(Y, labels, ev.classes, folder / f"{exp}_{method}.png",
+                                     f"{method}: {exp} {case.name} H={H}", truth=case.truth)
+        if "ukr_only" in result["parameters"]["selected"]:
+            proj = ev.projection("test", case)
+            rec = UKROnlyRecognizer(ev.candidates.without(case.left_out) if case.left_out else ev.candidates,
+                                    history=H, **result["parameters"]["selected"]["ukr_only"])
+            plot_compatibilities(rec.compatibilities_projected(proj), proj.classes,
+                                 folder / f"{exp}_compatibilities.png", f"UKR-only C(t): {exp} {case.name}")
+    plot_summary(result, folder / "summary.png")
+    _progress(f"plots written to {folder}")

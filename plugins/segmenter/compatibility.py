@@ -1,0 +1,177 @@
+"""Compatibility formulas of the manifold recognisers (spec recognition.md §A and §B).
+
+All functions are vectorised over observations (axis 0) and candidates (axis 1).  Every
+documented choice of the spec is a named, swappable function held in a registry:
+
+* :data:`ORDER_RATINGS` — the directed order rating ``H`` (``"cos"`` = ``cos(mod_π δ)``,
+  ``"sign"`` = ``sgn(cos(mod_π δ))``).
+* :data:`PAIR_ERRORS` — the error ``ē_ij`` a CLM pair compatibility uses (``"mean"``: mean of
+  ``e_k`` over ``k = i…j``, our reading of the illegible thesis formula 6.15; ``"endpoints"``:
+  mean of ``e_i`` and ``e_j``).
+* history weights: ``h = 1…H`` with the current observation as ``h = 1`` (lag ``h − 1``),
+  :func:`history_compatibility`.
+"""
+from __future__ import annotations
+
+from typing import Callable
+
+import numpy as np
+
+OrderRating = Callable[[np.ndarray], np.ndarray]
+PairError = Callable[[np.ndarray, int], np.ndarray]
+
+
+def order_rating_cos(delta: np.ndarray) -> np.ndarray:
+    """``H(δ) = cos(mod_π(δ))``: ≈ +1 small forward step, 0 at π/2, → −1 small backward step."""
+    return np.cos(np.mod(delta, np.pi))
+
+
+def order_rating_sign(delta: np.ndarray) -> np.ndarray:
+    """``H_s(δ) = sgn(cos(mod_π(δ)))``: the sampling-rate insensitive step variant."""
+    return np.sign(np.cos(np.mod(delta, np.pi)))
+
+
+ORDER_RATINGS: dict[str, OrderRating] = {"cos": order_rating_cos, "sign": order_rating_sign}
+
+
+def order_rating(name: str) -> OrderRating:
+    """Look up an order rating by name, with an error listing the valid names."""
+    try:
+        return ORDER_RATINGS[name]
+    except KeyError:
+        raise ValueError(f"order rating must be one of {sorted(ORDER_RATINGS)}, got {name!r}") from None
+
+
+def reconstruction_compatibility(errors: np.ndarray) -> np.ndarray:
+    """``C_rec = −1 + 2·exp(−e)`` ∈ [−1, 1] from normalised self-reconstruction errors ``e ≥ 0``."""
+    return -1.0 + 2.0 * np.exp(-np.asarray(errors, dtype=float))
+
+
+def order_compatibility(latent_time: np.ndarray, rating: OrderRating = order_rating_cos) -> np.ndarray:
+    """``C_ord(t) = H(x̂_t − x̂_{t−1})`` per observation and candidate.
+
+    The first observation has no predecessor; it gets the neutral value 0 (our choice).
+    """
+    lt = np.asarray(latent_time, dtype=float)
+    out = np.zeros_like(lt)
+    out[1:] = rating(lt[1:] - lt[:-1])
+    return out
+
+
+def local_compatibility(latent_time: np.ndarray, errors: np.ndarray,
+                        rating: OrderRating = order_rating_cos) -> np.ndarray:
+    """``C_local = ½ (C_rec + C_ord)`` (spec §A)."""
+    return 0.5 * (reconstruction_compatibility(errors) + order_compatibility(latent_time, rating))
+
+
+def history_weights(history: int, gamma: float) -> np.ndarray:
+    """Weights ``γ^h``, ``h = 1…H``; entry ``h − 1`` weighs the observation at lag ``h − 1``."""
+    if history < 1:
+        raise ValueError(f"history length H must be >= 1, got {history}")
+    if not 0.0 <= gamma <= 1.0:
+        raise ValueError(f"discount gamma must lie in [0, 1], got {gamma}")
+    return gamma ** np.arange(1, history + 1, dtype=float)
+
+
+def history_compatibility(c_local: np.ndarray, history: int, gamma: float) -> np.ndarray:
+    """``C_his(t) = Σ_h γ^h C_local(t − h + 1) / Σ_h γ^h`` over the H most recent observations.
+
+    Documented choice (spec §A): ``h = 1…H`` with the current observation as ``h = 1``.  At the
+    start of a stream only the observations that exist are summed (and normalised).
+    """
+    c = np.asarray(c_local, dtype=float)
+    w = history_weights(history, gamma)
+    num = np.zeros_like(c)
+    den = np.zeros(c.shape[0])
+    for lag, wh in enumerate(w[: c.shape[0]]):
+        num[lag:] += wh * c[: c.shape[0] - lag]
+        den[lag:] += wh
+    den = np.where(den > 0, den, 1.0)
+    return num / den.reshape((-1,) + (1,) * (c.ndim - 1))
+
+
+def overall_compatibility(c_rec: np.ndarray, c_his: np.ndarray, lam: float) -> np.ndarray:
+    """``C = λ C_rec + (1 − λ) C_his`` ∈ [−1, 1]."""
+    if not 0.0 <= lam <= 1.0:
+        raise ValueError(f"lambda must lie in [0, 1], got {lam}")
+    return lam * c_rec + (1.0 - lam) * c_his
+
+
+# --------------------------------------------------------------------------------------------
+# CLM pair compatibilities, stored as bands: band[m, i, k − 1] = f^m(i, i + k), k = 1…B
+# --------------------------------------------------------------------------------------------
+def pair_error_mean(errors: np.ndarray, width: int) -> np.ndarray:
+    """``ē_ij`` = mean of ``e_k`` over ``k = i…j`` (``j = i + 1…i + width``); NaN past the end.
+
+    ``errors`` is (N, M); returns (M, N, width).
+    """
+    e = np.asarray(errors, dtype=float)
+    n, m = e.shape
+    cs = np.vstack([np.zeros((1, m)), np.cumsum(e, axis=0)])  # cs[t] = Σ_{k<t} e_k
+    out = np.full((m, n, width), np.nan)
+    for k in range(1, width + 1):
+        if k < n:
+            out[:, : n - k, k - 1] = ((cs[k + 1:] - cs[: n - k]) / (k + 1)).T
+    return out
+
+
+def pair_error_endpoints(errors: np.ndarray, width: int) -> np.ndarray:
+    """``ē_ij = ½ (e_i + e_j)``: the cheaper alternative to :func:`pair_error_mean`."""
+    e = np.asarray(errors, dtype=float)
+    n, m = e.shape
+    out = np.full((m, n, width), np.nan)
+    for k in range(1, width + 1):
+        if k < n:
+            out[:, : n - k, k - 1] = (0.5 * (e[: n - k] + e[k:])).T
+    return out
+
+
+PAIR_ERRORS: dict[str, PairError] = {"mean": pair_error_mean, "endpoints": pair_error_endpoints}
+
+
+def pair_error(name: str) -> PairError:
+    try:
+        return PAIR_ERRORS[name]
+    except KeyError:
+        raise ValueError(f"pair error must be one of {sorted(PAIR_ERRORS)}, got {name!r}") from None
+
+
+def candidate_band(latent_time: np.ndarray, errors: np.ndarray, width: int,
+                   rating: OrderRating = order_rating_sign,
+                   mean_error: PairError = pair_error_mean) -> np.ndarray:
+    """Banded CLM compatibilities ``f^m_ij = ½ (c_loc_ij + c_sre_ij)`` for ``0 < j − i ≤ width``.
+
+    ``latent_time`` and ``errors`` are (N, M); returns (M, N, width) with
+    ``band[m, i, k − 1] = f^m(i, i + k)`` and 0 where ``i + k ≥ N``.  The matrix is symmetric
+    with a zero diagonal (spec §B), so the band holds all of it.
+    """
+    lt = np.asarray(latent_time, dtype=float)
+    n, m = lt.shape
+    loc = np.zeros((m, n, width))
+    for k in range(1, min(width, n - 1) + 1):
+        loc[:, : n - k, k - 1] = rating(lt[k:] - lt[: n - k]).T
+    ebar = mean_error(errors, width)
+    sre = reconstruction_compatibility(np.nan_to_num(ebar, nan=np.inf))
+    band = 0.5 * (loc + sre)
+    valid = np.isfinite(ebar)
+    return np.where(valid, band, 0.0)
+
+
+def background_band(n: int, width: int, strength: float, radius: int) -> tuple[np.ndarray, float]:
+    """Background layer ``f^bg_ij = λ_bg (1 − |i − j| / K_bg)`` for ``|i − j| < K_bg`` (spec §B).
+
+    Returns the (N, width) band of off-diagonal entries and the diagonal (self-excitation λ_bg).
+    """
+    if radius < 1:
+        raise ValueError(f"background radius K_bg must be >= 1, got {radius}")
+    k = np.arange(1, width + 1, dtype=float)
+    row = np.where(k < radius, strength * (1.0 - k / radius), 0.0)
+    band = np.tile(row, (n, 1))
+    for kk in range(1, width + 1):  # no partner past the end of the sequence
+        band[max(n - kk, 0):, kk - 1] = 0.0
+    return band, float(strength)
+
+
+def thesis_background_strength(n: int) -> float:
+    """``λ_bg = 1 − 10/N`` (thesis 6.3.4, defined for N > 10; we use N = 11 below that)."""
+    return 1.0 - 10.0 / max(int(n), 11)

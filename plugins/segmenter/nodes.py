@@ -1,0 +1,125 @@
+"""Runtime nodes ``segmenter.online_clm`` and ``segmenter.ukr_only`` (thin wrappers, docs/segmentation.md).
+
+Both take observations on one of two ports — ``joints`` (JointState; positions, optionally
+re-ordered by the ``joints`` parameter) or ``array`` (Array; flattened) — and publish a
+:class:`Label` per observation on ``labels`` and :class:`SegmentEvent` s on ``events``
+(``start``/``end`` when the newest label changes; the CLM node also ``revision`` when later
+evidence changes an earlier label).  Output stamps are the observation's stamp.
+"""
+from __future__ import annotations
+
+from typing import Literal
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field
+
+from framework.messages import Array, JointState, Label, Message, SegmentEvent
+from framework.plugin import Node
+
+from .candidates import CandidateSet, load_candidates
+from .online import OnlineCLMSegmenter, SegmentChange, SegmentTracker
+from .ukr_only import UKROnlyRecognizer
+
+UNKNOWN = "unknown"
+
+
+class RecognizerParams(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    models: str | list[str] = Field(description="folder written by `handflow train-classes`, or model files")
+    history: int = Field(10, ge=1, description="H: history length / CLM neighbourhood")
+    joints: list[str] = Field(default_factory=list, description="joint names to use, in model column order "
+                                                               "(empty: all positions as they come)")
+
+
+class _RecognizerNode(Node):
+    """Shared input handling, model loading and message building; subclasses define ``recognise``."""
+
+    inputs = {"joints": JointState, "array": Array}
+    outputs = {"labels": Label, "events": SegmentEvent}
+
+    def load_models(self) -> CandidateSet:
+        src = self.params.models
+        paths = [self.ctx.resolve_path(p) for p in src] if isinstance(src, list) else self.ctx.resolve_path(src)
+        return load_candidates(paths)
+
+    def observation(self, port: str, msg: Message) -> np.ndarray:
+        if port == "array":
+            return np.asarray(msg.values, dtype=float).reshape(-1)
+        if not self.params.joints:
+            return np.asarray(msg.positions, dtype=float)
+        pos = dict(zip(msg.names, msg.positions))
+        missing = [j for j in self.params.joints if j not in pos]
+        if missing:
+            raise ValueError(f"JointState lacks joints {missing}; fix the node's 'joints' parameter")
+        return np.array([pos[j] for j in self.params.joints])
+
+    def name(self, label: int) -> str:
+        return UNKNOWN if label < 0 else self.classes[label]
+
+    def publish_events(self, events: list[SegmentChange], stamp: int) -> None:
+        for ev in events:
+            self.ctx.publish("events", SegmentEvent(
+                kind=ev.kind, label=self.name(ev.label), start_index=ev.start, end_index=ev.end,
+                previous_label="" if ev.previous is None else self.name(ev.previous)), stamp_ns=stamp)
+
+    def on_message(self, port: str, msg: Message) -> None:
+        try:
+            y = self.observation(port, msg)
+            self.recognise(y, msg.header.stamp_ns)
+        except ValueError as exc:
+            self.dropped += 1
+            self.ctx.log.error("observation %d dropped: %s", self.dropped, exc)
+
+
+class OnlineCLMNode(_RecognizerNode):
+    """Online warm-started UKR/CLM segmentation over a sliding window (spec recognition.md §C)."""
+
+    class Params(RecognizerParams):
+        window: int = Field(200, ge=2, description="observations in the sliding window")
+        background_factor: float = Field(1.0, gt=0, description="multiplies λ_bg (3 = strong background)")
+        background: float | None = Field(None, description="λ_bg; null = 1 − 10/N")
+        order_rating: Literal["sign", "cos"] = "sign"
+        warm_temperature: float = Field(0.05, ge=0, description="warm-start temperature / λ_max")
+        max_sweeps: int = Field(1000, ge=1)
+        seed: int | None = 0
+
+    def setup(self) -> None:
+        p = self.params
+        self.segmenter = OnlineCLMSegmenter(
+            self.load_models(), window=p.window, history=p.history, background=p.background,
+            background_factor=p.background_factor, order_rating=p.order_rating,
+            warm_temperature=p.warm_temperature, max_sweeps=p.max_sweeps, random_state=p.seed)
+        self.classes = self.segmenter.classes_
+        self.dropped = 0
+
+    def recognise(self, y: np.ndarray, stamp: int) -> None:
+        up = self.segmenter.update(y)
+        self.ctx.publish("labels", Label(label=self.name(up.label), index=up.index, classes=self.classes,
+                                         scores=up.scores), stamp_ns=stamp)
+        self.publish_events(up.events, stamp)
+
+
+class UKROnlyNode(_RecognizerNode):
+    """UKR-only recogniser (spec recognition.md §A): scores are the overall compatibilities C(t)."""
+
+    class Params(RecognizerParams):
+        lam: float = Field(0.3, ge=0, le=1, description="λ: weight of C_rec")
+        gamma: float = Field(0.9, ge=0, le=1, description="γ: history discount")
+        order_rating: Literal["cos", "sign"] = "cos"
+        threshold: float | None = Field(None, description="reject when max C < threshold")
+
+    def setup(self) -> None:
+        p = self.params
+        self.recognizer = UKROnlyRecognizer(self.load_models(), lam=p.lam, gamma=p.gamma, history=p.history,
+                                            order_rating=p.order_rating, threshold=p.threshold)
+        self.classes = self.recognizer.classes_
+        self.segments = SegmentTracker()
+        self.index = 0
+        self.dropped = 0
+
+    def recognise(self, y: np.ndarray, stamp: int) -> None:
+        label, C = self.recognizer.update(y)
+        self.ctx.publish("labels", Label(label=self.name(label), index=self.index, classes=self.classes,
+                                         scores=C), stamp_ns=stamp)
+        self.publish_events(self.segments.update(self.index, label), stamp)
+        self.index += 1

@@ -1,0 +1,218 @@
+"""Online / incremental UKR/CLM segmentation (spec recognition.md §C).
+
+:class:`OnlineCLMSegmenter` keeps a sliding window of the last ``window`` observations.  Each new
+observation is projected onto the candidates once; only the compatibilities that involve it (one
+new band row per layer) are computed, the others shift with the window.  The CLM is then re-run
+**warm**: kept neurons start from their previous activities (biased towards their previous
+winner) plus small random values on every layer (so the start is not unique), the new column
+starts small and random, and the temperature starts at ``warm_temperature · λ_max`` instead of
+``λ_max``.  When later evidence changes the label of an earlier observation in the window, a
+revision is reported.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .candidates import CandidateSet
+from .clm_segmenter import REJECTED, CLMSegmenter
+from .compatibility import background_band, candidate_band, order_rating, pair_error
+
+
+@dataclass
+class SegmentChange:
+    """A segment ``start``/``end`` or a label ``revision`` over global indices ``start…end``."""
+
+    kind: str
+    label: int
+    start: int
+    end: int
+    previous: int | None = None
+
+
+class SegmentTracker:
+    """Start/end events whenever the label of the newest observation changes.
+
+    Segments follow the on-line decisions; later revisions of earlier labels are reported
+    separately (``revision`` events) and do not move already reported boundaries.
+    """
+
+    def __init__(self) -> None:
+        self.current: tuple[int, int] | None = None  # (label, start index) of the running segment
+
+    def update(self, index: int, label: int) -> list[SegmentChange]:
+        if self.current is not None and self.current[0] == label:
+            return []
+        events = []
+        if self.current is not None:
+            events.append(SegmentChange("end", self.current[0], self.current[1], index - 1))
+        self.current = (label, index)
+        events.append(SegmentChange("start", label, index, index))
+        return events
+
+
+@dataclass
+class OnlineUpdate:
+    """Result of one :meth:`OnlineCLMSegmenter.update`."""
+
+    index: int
+    label: int
+    scores: np.ndarray
+    sweeps: int
+    converged: bool
+    events: list[SegmentChange] = field(default_factory=list)
+
+
+class OnlineCLMSegmenter(CLMSegmenter):
+    """Sliding-window warm-started CLM segmentation of a stream.
+
+    Takes the parameters of :class:`CLMSegmenter` (with ``spectral="gershgorin"`` by default) plus:
+
+    window : number of most recent observations the CLM sees (thesis-free choice; 200 = 2 s at 100 Hz).
+    warm_start : re-use the previous solution (False = every update solves cold, for comparison).
+    warm_temperature : start temperature of a warm run as a fraction of λ_max.
+    warm_bias : strength of the bias towards the previous winner (times the mean winning activity).
+    fresh : the most recent observations that start unbiased; ``None`` = 2H.
+    cold_every : every this many warm updates also solve cold and keep the solution of lower
+        energy (the warm dynamics can stay in the local minimum of a running segment that
+        swallows the next motion; ``None`` = never).
+    """
+
+    def __init__(self, candidates: CandidateSet, window: int = 200, warm_start: bool = True,
+                 warm_temperature: float = 0.05, warm_bias: float = 1.0, fresh: int | None = None,
+                 cold_every: int | None = 10, **clm_params) -> None:
+        clm_params.setdefault("spectral", "gershgorin")
+        super().__init__(candidates, **clm_params)
+        if window < 2:
+            raise ValueError(f"window must hold at least 2 observations, got {window}")
+        self.window = window
+        self.warm_start = warm_start
+        self.warm_temperature = warm_temperature
+        self.warm_bias = warm_bias
+        self.fresh = 2 * self.history if fresh is None else int(fresh)
+        self.cold_every = cold_every
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the stream."""
+        m = len(self.candidates)
+        radius = self.history if self.background_radius is None else int(self.background_radius)
+        self._width = max(self.history, radius - 1)
+        self._latent = np.zeros((self.window, m))
+        self._errors = np.zeros((self.window, m))
+        self._band = np.zeros((m, self.window, self._width))
+        self._x: np.ndarray | None = None
+        self._labels = np.zeros(0, dtype=int)
+        self.n = 0          # observations in the window
+        self.seen = 0       # observations consumed in total
+        self.segments = SegmentTracker()
+        self.since_cold = 0
+
+    @property
+    def window_start(self) -> int:
+        """Global index of the oldest observation in the window."""
+        return self.seen - self.n
+
+    @property
+    def window_labels(self) -> np.ndarray:
+        """Current labels of the observations in the window (oldest first)."""
+        return self._labels.copy()
+
+    def update(self, y: np.ndarray) -> OnlineUpdate:
+        """Consume one observation (d,) and re-segment the window."""
+        proj = self.candidates.project(np.asarray(y, dtype=float).reshape(1, -1))
+        return self.update_projected(proj.latent_time[0], proj.errors[0])
+
+    def _append(self, latent_time: np.ndarray, errors: np.ndarray) -> None:
+        if self.n == self.window:  # slide: drop the oldest observation everywhere
+            self._latent[:-1] = self._latent[1:]
+            self._errors[:-1] = self._errors[1:]
+            self._band[:, :-1] = self._band[:, 1:]
+            self._band[:, -1] = 0.0
+            if self._x is not None:
+                self._x = self._x[:, 1:]
+            self._labels = self._labels[1:]
+        else:
+            self.n += 1
+        j = self.n - 1
+        self._latent[j], self._errors[j] = latent_time, errors
+        lo = max(0, j - self._width)
+        recent = candidate_band(self._latent[lo: j + 1], self._errors[lo: j + 1], self._width,
+                                order_rating(self.order_rating), pair_error(self.pair_error))
+        for k in range(1, j - lo + 1):  # pair (j − k, j) sits in row j − k, column k − 1
+            self._band[:, j - k, k - 1] = recent[:, j - k - lo, k - 1] if k <= self.history else 0.0
+        self.seen += 1
+
+    def layers(self) -> tuple[np.ndarray, np.ndarray]:
+        """Bands and diagonals of all layers over the current window (background last)."""
+        n = self.n
+        bg, bg_diag = background_band(n, self._width, self.background_strength(n),
+                                      self.history if self.background_radius is None else int(self.background_radius))
+        band = np.concatenate([self._band[:, :n], bg[None]], axis=0)
+        return band, np.r_[np.zeros(len(self.candidates)), bg_diag]
+
+    def update_projected(self, latent_time: np.ndarray, errors: np.ndarray) -> OnlineUpdate:
+        """:meth:`update` for an observation already projected onto all candidates."""
+        self._append(np.asarray(latent_time, dtype=float), np.asarray(errors, dtype=float))
+        band, diag = self.layers()
+        solver = self.solver_
+        lam = solver.spectral_scale(band, diag)
+        warm = self.warm_start and self._x is not None
+        result = None
+        if warm:
+            x0 = solver.initial_activities((band.shape[0], self.n))
+            x0[:, :-1] += self.warm_bias * self._warm_template()
+            result = solver.solve(band, diag, x0=x0, temperature=self.warm_temperature * max(lam, 0.0),
+                                  lambda_max=lam)
+            self.since_cold += 1
+        if not warm or (self.cold_every and self.since_cold >= self.cold_every):
+            cold = solver.solve(band, diag, lambda_max=lam)
+            self.since_cold = 0
+            if result is None or cold.energy < result.energy:
+                result = cold
+        self._store(result)
+        self._x = result.activities
+        events = self._revisions(self.labels_[:-1])
+        self._labels = self.labels_.copy()
+        newest = int(self._labels[-1])
+        events += self.segments.update(self.seen - 1, newest)
+        return OnlineUpdate(index=self.seen - 1, label=newest, scores=result.activities[:-1, -1].copy(),
+                            sweeps=result.sweeps, converged=result.converged, events=events)
+
+    def _warm_template(self) -> np.ndarray:
+        """Bias towards each kept observation's previous winner, scaled by the mean winning activity.
+
+        Documented choices: only observations previously assigned to a *candidate* layer are
+        biased — rejected (background) ones restart like new neurons, so a new motion first
+        rejected for lack of support can still form its group later; and the ``fresh`` most recent
+        observations are never biased, so a running segment cannot simply swallow the start of the
+        next motion.
+        """
+        prev = self._x
+        cols = np.arange(prev.shape[1])
+        winners = prev.argmax(axis=0)
+        top = prev[winners, cols]
+        scale = float(top[top > 0].mean()) if (top > 0).any() else 0.0
+        out = np.zeros_like(prev)
+        keep = (top > 0) & (winners < prev.shape[0] - 1) & (cols < prev.shape[1] - self.fresh)
+        out[winners[keep], cols[keep]] = scale
+        return out
+
+    def _revisions(self, new: np.ndarray) -> list[SegmentChange]:
+        """Runs of earlier observations whose label changed, one event per (old → new) run."""
+        old = self._labels
+        events: list[SegmentChange] = []
+        changed = np.flatnonzero(old != new)
+        base = self.window_start
+        for i in changed.tolist():
+            last = events[-1] if events else None
+            if (last is not None and last.end == base + i - 1 and last.label == new[i]
+                    and last.previous == old[i]):
+                last.end = base + i
+            else:
+                events.append(SegmentChange("revision", int(new[i]), base + i, base + i, int(old[i])))
+        return events
+
+
+__all__ = ["OnlineCLMSegmenter", "OnlineUpdate", "SegmentChange", "SegmentTracker", "REJECTED"]

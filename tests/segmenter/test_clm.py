@@ -1,0 +1,86 @@
+import numpy as np
+import pytest
+
+from plugins.segmenter.clm import CompetitiveLayerModel, clm_energy, largest_eigenvalue
+from plugins.segmenter.compatibility import background_band
+
+
+def random_layers(n=40, width=5, layers=3, seed=0):
+    rng = np.random.default_rng(seed)
+    band = rng.uniform(-1, 1, size=(layers, n, width))
+    for k in range(1, width + 1):
+        band[:, n - k:, k - 1] = 0.0
+    bg, d = background_band(n, width, 0.5, width)
+    return np.concatenate([band, bg[None]]), np.r_[np.zeros(layers), d]
+
+
+def dense(band_row, diag):
+    n, width = band_row.shape
+    A = np.eye(n) * diag
+    for k in range(1, width + 1):
+        idx = np.arange(n - k)
+        A[idx, idx + k] = A[idx + k, idx] = band_row[: n - k, k - 1]
+    return A
+
+
+def test_largest_eigenvalue_matches_dense():
+    band, diag = random_layers()
+    for a in range(band.shape[0]):
+        assert largest_eigenvalue(band[a], diag[a]) == pytest.approx(np.linalg.eigvalsh(dense(band[a], diag[a]))[-1])
+
+
+def test_energy_matches_dense_formula():
+    band, diag = random_layers(n=12, width=3)
+    x = np.random.default_rng(1).uniform(0, 1, size=(band.shape[0], 12))
+    J, I, T = 2.0, 7.0, 0.3
+    lateral = sum(x[a] @ dense(band[a], diag[a]) @ x[a] for a in range(band.shape[0]))
+    expected = -J * x.sum() + 0.5 * I * np.sum(x.sum(axis=0) ** 2) - 0.5 * lateral + 0.5 * T * np.sum(x * x)
+    assert clm_energy(x, band, diag, J, I, T) == pytest.approx(expected)
+
+
+def test_energy_never_increases_over_sweeps_at_fixed_temperature():
+    band, diag = random_layers()
+    I, T = 12.0, 1.5
+    clm = CompetitiveLayerModel(inhibition=I, eta=1.0, max_sweeps=1, random_state=3)
+    x = clm.initial_activities((band.shape[0], band.shape[1]))
+    energies = [clm_energy(x, band, diag, 2.0, I, T)]
+    for _ in range(30):
+        x = clm.solve(band, diag, x0=x, temperature=T).activities
+        energies.append(clm_energy(x, band, diag, 2.0, I, T))
+    assert np.all(np.diff(energies) <= 1e-9 * np.abs(energies[:-1]).max())
+    assert energies[-1] < energies[0]
+
+
+def test_solver_converges_to_one_active_layer_per_observation():
+    band, diag = random_layers(n=60)
+    res = CompetitiveLayerModel(random_state=0).solve(band, diag)
+    assert res.converged
+    assert np.all((res.activities > 0).sum(axis=0) == 1)
+    assert np.all(res.winners >= 0)
+
+
+def test_solver_is_deterministic_given_a_seed():
+    band, diag = random_layers()
+    a = CompetitiveLayerModel(random_state=7).solve(band, diag)
+    b = CompetitiveLayerModel(random_state=7).solve(band, diag)
+    np.testing.assert_array_equal(a.activities, b.activities)
+    assert a.sweeps == b.sweeps
+
+
+def test_solver_rejects_bad_compatibilities():
+    band, diag = random_layers()
+    band[0, 0, 0] = np.nan
+    with pytest.raises(ValueError, match="NaN"):
+        CompetitiveLayerModel().solve(band, diag)
+    with pytest.raises(ValueError, match="one diagonal value per layer"):
+        CompetitiveLayerModel().solve(band[:, :, :], diag[:2])
+
+
+def test_gershgorin_bound_is_above_the_largest_eigenvalue():
+    from plugins.segmenter.clm import gershgorin_bound
+
+    band, diag = random_layers()
+    exact = max(largest_eigenvalue(band[a], diag[a]) for a in range(band.shape[0]))
+    bound = gershgorin_bound(band, diag)
+    dense_rows = max(np.abs(dense(band[a], diag[a])).sum(axis=1).max() for a in range(band.shape[0]))
+    assert exact <= bound == pytest.approx(dense_rows)

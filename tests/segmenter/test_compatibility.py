@@ -1,0 +1,58 @@
+import numpy as np
+import pytest
+
+from plugins.segmenter.compatibility import (background_band, candidate_band, history_compatibility,
+                                             order_rating_cos, order_rating_sign, pair_error_mean,
+                                             reconstruction_compatibility, thesis_background_strength)
+
+
+def test_forward_step_is_plus_one_backward_minus_one():
+    assert order_rating_cos(np.array(0.01)) == pytest.approx(1.0, abs=1e-3)
+    assert order_rating_cos(np.array(-0.01)) == pytest.approx(-1.0, abs=1e-3)
+    assert order_rating_cos(np.array(np.pi / 2)) == pytest.approx(0.0, abs=1e-12)
+    assert order_rating_sign(np.array([0.3, -0.3])).tolist() == [1.0, -1.0]
+
+
+def test_wrap_around_forward_step_counts_as_forward():
+    # from just below π to just above 0 is a small forward step on the period-π time axis
+    delta = np.array(0.02) - np.array(np.pi - 0.02)
+    assert order_rating_cos(delta) == pytest.approx(np.cos(0.04))
+    assert order_rating_sign(delta) == 1.0
+    assert order_rating_sign(np.array(np.pi - 0.02) - np.array(0.02)) == -1.0
+
+
+def test_reconstruction_compatibility_range():
+    c = reconstruction_compatibility(np.array([0.0, np.log(2), 1e6]))
+    np.testing.assert_allclose(c, [1.0, 0.0, -1.0], atol=1e-12)
+
+
+def test_history_counts_current_observation_as_h1():
+    c = np.array([[1.0], [0.0], [0.0]])
+    his = history_compatibility(c, history=2, gamma=0.5)
+    # t=0: only itself; t=1: (0.5·0 + 0.25·1)/0.75; t=2: lag 2 is outside H=2
+    np.testing.assert_allclose(his[:, 0], [1.0, 1 / 3, 0.0])
+
+
+def test_candidate_band_on_a_handmade_sequence():
+    lt = np.array([[0.0, 0.3], [0.1, 0.2], [0.2, 0.1]])  # candidate 0 forward, candidate 1 backward
+    e = np.array([[0.0, 0.0], [0.0, 0.0], [np.log(2) * 3, 0.0]])
+    band = candidate_band(lt, e, width=2)
+    assert band[0, 0, 0] == pytest.approx(1.0)                     # forward, perfect fit
+    assert band[1, 0, 0] == pytest.approx(0.0)                     # backward: ½(−1 + 1)
+    # pair (0, 2): mean error over 0…2 is log 2 → c_sre = 0 → f = ½(1 + 0)
+    assert band[0, 0, 1] == pytest.approx(0.5)
+    assert band[0, 2].tolist() == [0.0, 0.0]                       # no partner past the end
+
+
+def test_pair_error_mean_uses_the_whole_neighbourhood():
+    e = np.array([[1.0], [2.0], [6.0]])
+    out = pair_error_mean(e, 2)
+    assert out[0, 0, 1] == pytest.approx(3.0) and out[0, 1, 0] == pytest.approx(4.0)
+
+
+def test_background_band_decays_and_self_excites():
+    band, diag = background_band(5, 3, strength=0.8, radius=3)
+    assert diag == 0.8
+    np.testing.assert_allclose(band[0], [0.8 * 2 / 3, 0.8 / 3, 0.0])
+    assert band[4].tolist() == [0.0, 0.0, 0.0]
+    assert thesis_background_strength(100) == pytest.approx(0.9)

@@ -1,0 +1,59 @@
+import pytest
+
+from framework.messages import Array, JointState
+from framework.testing import NodeHarness
+from plugins.segmenter import save_class_models
+from plugins.segmenter.candidates import ModelsMissingError
+from plugins.segmenter.nodes import OnlineCLMNode, UKROnlyNode
+
+
+@pytest.fixture(scope="module")
+def model_dir(tmp_path_factory, ukr_models):
+    return save_class_models(ukr_models, tmp_path_factory.mktemp("models"))
+
+
+def test_online_clm_node_labels_a_stream(model_dir, two_letters):
+    Y, truth = two_letters
+    h = NodeHarness(OnlineCLMNode, {"models": str(model_dir), "window": 200, "history": 10}).setup()
+    for i, y in enumerate(Y):
+        h.send("array", Array(data=y), stamp_ns=i * 10_000_000)
+    labels = h.published["labels"]
+    assert len(labels) == len(Y)
+    assert labels[5].classes == ["A", "B", "C", "D"] and labels[5].scores.size == 4
+    assert labels[-1].label == "B" and labels[-1].index == len(Y) - 1
+    assert labels[-1].header.stamp_ns == (len(Y) - 1) * 10_000_000
+    kinds = {e.kind for e in h.published["events"]}
+    assert {"start", "end"} <= kinds
+    assert any(e.kind == "start" and e.label == "B" for e in h.published["events"])
+
+
+def test_ukr_only_node_takes_joint_states_in_model_order(model_dir, two_letters):
+    Y, _ = two_letters
+    h = NodeHarness(UKROnlyNode, {"models": str(model_dir), "joints": ["x", "y"]}).setup()
+    for y in Y[:60]:
+        h.send("joints", JointState(names=["y", "x", "z"], positions=[y[1], y[0], 0.0]))
+    assert [m.label for m in h.published["labels"][-10:]] == ["A"] * 10
+    h.send("joints", JointState(names=["x"], positions=[0.0]))      # lacks 'y': dropped, logged
+    assert len(h.published["labels"]) == 60 and h.node.dropped == 1
+
+
+def test_missing_models_fail_setup_with_the_training_hint(tmp_path):
+    with pytest.raises(ModelsMissingError, match="train-classes"):
+        NodeHarness(OnlineCLMNode, {"models": str(tmp_path / "none")}).setup()
+
+
+def test_unknown_parameter_is_refused():
+    with pytest.raises(Exception, match="extra"):
+        NodeHarness(OnlineCLMNode, {"models": "m", "windw": 3})
+
+
+def test_published_messages_survive_the_json_codec(model_dir, two_letters):
+    from framework.messages import decode, encode
+
+    Y, _ = two_letters
+    h = NodeHarness(OnlineCLMNode, {"models": str(model_dir)}).setup()
+    for y in Y:
+        h.send("array", Array(data=y))
+    for msgs in h.published.values():
+        for m in msgs:
+            assert encode(decode(encode(m))) == encode(m)

@@ -1,0 +1,60 @@
+import numpy as np
+
+from plugins.segmenter import CLMSegmenter, OnlineCLMSegmenter
+
+
+def stream(seg, proj):
+    return [seg.update_projected(proj.latent_time[i], proj.errors[i]) for i in range(len(proj))]
+
+
+def test_online_equals_batch_on_the_same_window(candidates, synthetic):
+    parts = [next(t.data for t in synthetic.test if t.label == c) for c in "ABCA"]
+    Y = np.vstack(parts)
+    proj = candidates.project(Y)
+    online = OnlineCLMSegmenter(candidates, window=200, history=10, random_state=0)
+    stream(online, proj)
+    assert online.n == 200 and online.window_start == len(Y) - 200
+    batch = CLMSegmenter(candidates, history=10, spectral="gershgorin", random_state=5).fit_predict_projected(
+        proj.take(slice(online.window_start, None)))
+    assert np.mean(online.window_labels == batch) >= 0.98
+
+
+def test_incremental_bands_equal_batch_bands(candidates, two_letters):
+    Y, _ = two_letters
+    proj = candidates.project(Y)
+    online = OnlineCLMSegmenter(candidates, window=50, history=7, random_state=0)
+    stream(online, proj)
+    batch = CLMSegmenter(candidates, history=7)
+    band, diag = batch.layer_compatibilities(proj.take(slice(online.window_start, None)))
+    ob, od = online.layers()
+    np.testing.assert_allclose(ob, band, atol=1e-12)
+    np.testing.assert_allclose(od, diag)
+
+
+def test_warm_start_needs_fewer_sweeps_than_cold_on_a_continuing_motion(candidates, synthetic):
+    Y = np.vstack([t.data for t in synthetic.test + synthetic.validation if t.label == "A"])
+    proj = candidates.project(Y)
+    sweeps = {}
+    for warm in (True, False):
+        seg = OnlineCLMSegmenter(candidates, window=200, history=10, warm_start=warm, cold_every=None,
+                                 random_state=0)
+        ups = stream(seg, proj)
+        sweeps[warm] = np.median([u.sweeps for u in ups[20:]])
+        assert np.mean(seg.window_labels == 0) > 0.95
+    assert sweeps[True] < sweeps[False]
+
+
+def test_events_report_segments_and_revisions(candidates, two_letters):
+    Y, truth = two_letters
+    proj = candidates.project(Y)
+    seg = OnlineCLMSegmenter(candidates, window=200, history=10, random_state=0)
+    events = [e for u in stream(seg, proj) for e in u.events]
+    starts = [e for e in events if e.kind == "start"]
+    assert starts[0].start == 0
+    assert any(e.label == 1 for e in starts)                  # the second letter was announced
+    b_start = next(e.start for e in starts if e.label == 1)
+    assert abs(b_start - int(np.argmax(truth == 1))) <= 15
+    for e in events:
+        if e.kind == "revision":
+            assert e.previous != e.label and e.start <= e.end
+    assert np.mean(seg.window_labels == truth) > 0.9

@@ -1,0 +1,70 @@
+import numpy as np
+import pytest
+
+from plugins.segmenter import CLMSegmenter, UKROnlyRecognizer
+from plugins.segmenter.candidates import training_direction
+
+
+def test_candidate_time_runs_forward_along_its_own_class(candidates, synthetic):
+    a = next(t.data for t in synthetic.test if t.label == "A")
+    proj = candidates.project(a)
+    steps = np.sin(2 * np.diff(proj.latent_time[:, 0]))
+    assert np.mean(steps > 0) > 0.9
+    assert np.median(proj.errors[:, 0]) < np.median(proj.errors[:, 1:])
+
+
+def test_training_direction_detects_a_reversed_time_axis():
+    t = np.linspace(0, 3, 30)
+    assert training_direction(t, np.zeros(30)) == 1.0
+    assert training_direction(-t, np.zeros(30)) == -1.0
+
+
+def test_ukr_only_stream_equals_batch(candidates, two_letters):
+    Y, truth = two_letters
+    rec = UKROnlyRecognizer(candidates, history=10, threshold=-0.5)
+    batch = rec.predict(Y)
+    C_batch = rec.compatibilities_projected(candidates.project(Y))
+    rec.reset()
+    stream = [rec.update(y) for y in Y]
+    np.testing.assert_array_equal([s[0] for s in stream], batch)
+    # single-point and batch projections agree to the projection tolerance
+    np.testing.assert_allclose(np.array([s[1] for s in stream]), C_batch, atol=1e-6)
+    assert np.mean(batch == truth) > 0.8
+
+
+def test_ukr_only_validates_parameters(candidates):
+    with pytest.raises(ValueError, match="order rating"):
+        UKROnlyRecognizer(candidates, order_rating="tan")
+    with pytest.raises(ValueError, match="lambda"):
+        UKROnlyRecognizer(candidates, lam=2.0)
+
+
+def test_clm_segments_two_concatenated_letters(candidates, two_letters):
+    Y, truth = two_letters
+    seg = CLMSegmenter(candidates, history=10, random_state=0)
+    labels = seg.fit_predict(Y)
+    assert seg.converged_ and 1 <= seg.n_sweeps_ < 1000
+    assert np.isfinite(seg.energy_) and seg.energy_ < 0
+    assert np.mean(labels == truth) > 0.9
+
+
+def test_strong_background_rejects_a_reversed_letter(candidates, synthetic):
+    a = next(t.data for t in synthetic.test if t.label == "A")
+    weak = CLMSegmenter(candidates, history=10, background_factor=1.0, random_state=0)
+    assert np.mean(weak.fit_predict(a) == 0) > 0.9          # the forward letter is accepted …
+    strong = CLMSegmenter(candidates, history=10, background_factor=3.0, random_state=0)
+    assert np.mean(strong.fit_predict(a[::-1]) == -1) > 0.9  # … its reversal is rejected
+
+
+def test_clm_is_reproducible_with_a_seed(candidates, two_letters):
+    Y, _ = two_letters
+    a = CLMSegmenter(candidates, random_state=4).fit_predict(Y)
+    b = CLMSegmenter(candidates, random_state=4).fit_predict(Y)
+    np.testing.assert_array_equal(a, b)
+
+
+def test_nan_observations_get_a_clear_error(candidates, two_letters):
+    Y = two_letters[0].copy()
+    Y[3, 0] = np.nan
+    with pytest.raises(ValueError, match="NaN"):
+        CLMSegmenter(candidates).fit_predict(Y)

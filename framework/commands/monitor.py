@@ -1,4 +1,4 @@
-"""``handflow monitor [--graph NAME] [--connect EP] [--once [--json]] [--window S]``."""
+"""``handflow monitor [--graph NAME] [--connect EP] [--once [--json]] [--window S] [--foxglove [PORT]]``."""
 from __future__ import annotations
 
 import argparse
@@ -7,6 +7,7 @@ import sys
 import time
 
 from ..discovery import DiscoveryError, join
+from ..foxglove_bridge import PortInUse, start_bridge
 from ..monitor import WINDOW_S, Monitor, render
 
 
@@ -18,6 +19,8 @@ def register(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--json", action="store_true", help="with --once: print the snapshot as JSON")
     parser.add_argument("--listen", type=float, default=2.0, help="listening window of --once in seconds (default 2)")
     parser.add_argument("--window", type=float, default=WINDOW_S, help="sliding window for rates and latency (s)")
+    parser.add_argument("--foxglove", nargs="?", const=8765, type=int, metavar="PORT",
+                        help="also stream every topic live to Foxglove on ws://127.0.0.1:PORT (default 8765)")
     parser.set_defaults(func=run)
 
 
@@ -31,6 +34,15 @@ def run(args: argparse.Namespace) -> int:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     graph = info.graph if info is not None else args.graph
+    bridge = None
+    if args.foxglove is not None:
+        try:
+            bridge = start_bridge(session, graph or "*", "127.0.0.1", args.foxglove)
+        except PortInUse as exc:
+            session.close()
+            print(f"error: {exc}", file=sys.stderr)
+            return 2
+        print(f"Foxglove live view on ws://127.0.0.1:{bridge.port}", file=sys.stderr)
     monitor = Monitor(session, graph, window_s=max(args.window, args.listen) if args.once else args.window)
     title = f"handflow monitor — graph '{graph}'" if graph else "handflow monitor — all graphs"
     try:
@@ -48,6 +60,8 @@ def run(args: argparse.Namespace) -> int:
         pass
     finally:
         monitor.close()
+        if bridge is not None:
+            bridge.close()
         session.close()
     return 0
 

@@ -12,7 +12,7 @@ from .. import transport
 from ..discovery import DiscoveryError, join
 from ..graph import Graph, GraphError, load_graph
 from ..launcher import Launcher
-from ..recording import ReadReport, RecordingError, iter_recording
+from ..recording import GraphRecorder, ReadReport, RecordingError, iter_recording
 from ..replay import (GraphWatcher, LockstepReplayer, ReplayError, ReplayPlan, ReplayStats, TimedReplayer,
                       external_inputs)
 
@@ -31,6 +31,8 @@ def register(parser: argparse.ArgumentParser) -> None:
                         help="launch this graph and feed it the recorded topics its nodes read but do not publish")
     parser.add_argument("--lockstep", action="store_true",
                         help="with --into: virtual time, each message fully processed before the next (deterministic)")
+    parser.add_argument("--record", metavar="FILE.mcap",
+                        help="with --into: record the launched graph's topics (and the replayed inputs) to MCAP")
     parser.add_argument("--graph", help="replay into this running graph (default: the recording's graph, if running)")
     parser.add_argument("--connect", metavar="ENDPOINT", help="join this Zenoh endpoint instead of a run-file")
     parser.add_argument("--ready-timeout", type=float, default=30.0, help="seconds to wait for the graph's nodes")
@@ -53,6 +55,8 @@ def _recorded_graph(path: str) -> str | None:
 def _check_args(args: argparse.Namespace) -> str | None:
     if not args.speed > 0:
         return f"--speed must be > 0 (got {args.speed}); use 2 for twice as fast, 0.5 for half speed"
+    if args.record and not args.into:
+        return "--record needs --into GRAPH.yaml (to record a running graph use `handflow record`)"
     if args.lockstep and not args.into:
         return "--lockstep needs --into GRAPH.yaml: the replayer launches the graph in lock-step mode to know its wiring"
     if args.lockstep and args.loop:
@@ -132,6 +136,10 @@ def _replay_into(args: argparse.Namespace, recorded: str | None, stop: threading
         return 2
     plan = ReplayPlan(Path(args.file), args.topics, graph.name, sources)
     launcher = Launcher(graph, lockstep=args.lockstep, log_level=logging.getLevelName(logging.getLogger().level))
+    recorder = None
+    if args.record:
+        recorder = GraphRecorder.for_graph(graph, args.record)
+        recorder.attach(launcher.session)
     result: dict[str, object] = {}
     try:
         launcher.start()
@@ -160,6 +168,8 @@ def _replay_into(args: argparse.Namespace, recorded: str | None, stop: threading
     finally:
         stop.set()
         launcher.stop()
+        if recorder is not None:
+            recorder.close()
         launcher.close()
     _print_stats(stats, f"graph '{graph.name}'" + (" (lock-step)" if args.lockstep else ""))
     if stats.total == 0:

@@ -17,7 +17,8 @@ pytestmark = pytest.mark.slow
 REPO = Path(__file__).resolve().parents[2]
 
 
-def advertised_topics(port: int, timeout: float = 20.0) -> set[str]:
+def advertised_topics(port: int, graph: str, timeout: float = 20.0) -> set[str]:
+    """Topics a real Foxglove WebSocket client sees advertised, once the graph's source and sink showed up."""
     deadline = time.time() + timeout
     while True:
         try:
@@ -30,7 +31,7 @@ def advertised_topics(port: int, timeout: float = 20.0) -> set[str]:
             time.sleep(0.3)
     topics: set[str] = set()
     with ws:
-        while time.time() < deadline and not {"fx/source/out", "fx/sink/_health"} <= topics:
+        while time.time() < deadline and not {f"{graph}/source/out", f"{graph}/sink/_health"} <= topics:
             try:
                 frame = ws.recv(timeout=1)
             except TimeoutError:
@@ -50,7 +51,7 @@ def test_run_with_foxglove_streams_topics(tmp_path):
     proc = subprocess.Popen([sys.executable, "-m", "framework.cli", "run", str(graph), "--duration", "12",
                              "--foxglove", str(port)], cwd=REPO, stderr=subprocess.PIPE, text=True)
     try:
-        topics = advertised_topics(port)
+        topics = advertised_topics(port, "fx")
     finally:
         proc.terminate()
         _, err = proc.communicate(timeout=30)
@@ -67,3 +68,25 @@ def test_port_in_use_is_a_clear_error(tmp_path, run_handflow):
         proc = run_handflow("run", str(graph), "--duration", "2", "--foxglove", str(s.getsockname()[1]))
     assert proc.returncode == 2
     assert "in use" in proc.stderr and "--foxglove PORT" in proc.stderr
+
+
+def test_monitor_foxglove_joins_a_running_graph(tmp_path):
+    graph = tmp_path / "g.yaml"
+    graph.write_text("name: fxm\nnodes:\n  - id: source\n    plugin: basic.signal\n    params: {rate_hz: 20}\n"
+                     "  - id: sink\n    plugin: basic.sink\n    inputs: {in: source/out}\n")
+    env = dict(__import__("os").environ, HANDFLOW_RUN_DIR=str(tmp_path / "runs"))
+    run = subprocess.Popen([sys.executable, "-m", "framework.cli", "run", str(graph), "--duration", "20"], cwd=REPO,
+                           stderr=subprocess.DEVNULL, env=env)
+    port = free_tcp_port()
+    time.sleep(2)
+    mon = subprocess.Popen([sys.executable, "-m", "framework.cli", "monitor", "--graph", "fxm", "--once", "--listen", "12",
+                            "--foxglove", str(port)], cwd=REPO, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                           text=True, env=env)
+    try:
+        topics = advertised_topics(port, "fxm")
+    finally:
+        mon.terminate()
+        run.terminate()
+        mon.wait(timeout=30)
+        run.wait(timeout=30)
+    assert {"fxm/source/out", "fxm/sink/_health"} <= topics

@@ -44,13 +44,14 @@ def recording(tmp_path):
 
 def _args(**kw) -> argparse.Namespace:
     base = dict(file="x.mcap", speed=1.0, loop=False, topics=None, into=None, lockstep=False, graph=None,
-                connect=None, ready_timeout=30.0, step_timeout=10.0)
+                connect=None, ready_timeout=30.0, step_timeout=10.0, record=None)
     return argparse.Namespace(**{**base, **kw})
 
 
 @pytest.mark.parametrize("kw, message", [
     ({"speed": 0.0}, "--speed must be > 0"),
     ({"lockstep": True}, "--lockstep needs --into"),
+    ({"record": "out.mcap"}, "--record needs --into"),
     ({"file": "/nonexistent/x.mcap"}, "not found"),
 ])
 def test_bad_arguments_exit_2_with_what_to_change(kw, message, recording, capsys):
@@ -120,11 +121,11 @@ def test_replay_into_a_sink_reproduces_the_recorded_values(tmp_path, recording):
     np.testing.assert_allclose([r["msg"]["data"] for r in scaled], [3 * m.data + 1 for m in recorded])
 
 
-def _lockstep_outputs(tmp_path, recording) -> dict[str, list[dict]]:
+def _lockstep_outputs(tmp_path, recording, *extra: str) -> dict[str, list[dict]]:
     graph = _into_graph(tmp_path, with_ticker=True)
     for f in ("raw", "scaled", "ticks"):
         (tmp_path / f"{f}.jsonl").unlink(missing_ok=True)
-    proc = handflow("replay", str(recording), "--into", str(graph), "--lockstep")
+    proc = handflow("replay", str(recording), "--into", str(graph), "--lockstep", *extra)
     assert proc.returncode == 0, proc.stderr
     assert "(lock-step)" in proc.stdout
     return {f: [r["msg"] for r in read_jsonl(tmp_path / f"{f}.jsonl")] for f in ("raw", "scaled", "ticks")}
@@ -132,7 +133,7 @@ def _lockstep_outputs(tmp_path, recording) -> dict[str, list[dict]]:
 
 @pytest.mark.slow
 def test_lockstep_replay_is_identical_whatever_the_load(tmp_path, recording):
-    quiet = _lockstep_outputs(tmp_path, recording)
+    quiet = _lockstep_outputs(tmp_path, recording, "--record", str(tmp_path / "replayed.mcap"))
     burner = subprocess.Popen([sys.executable, "-c", "while True: pass"])
     try:
         loaded = _lockstep_outputs(tmp_path, recording)
@@ -145,3 +146,7 @@ def test_lockstep_replay_is_identical_whatever_the_load(tmp_path, recording):
     stamps = [m["header"]["stamp_ns"] for m in quiet["ticks"]]
     assert stamps == [T0 + k * 20_000_000 for k in range(1, 30)]
     assert [m["header"]["stamp_ns"] for m in quiet["scaled"]] == [T0 + i * 10_000_000 for i in range(N)]
+    # --record kept the replayed graph's outputs: the same messages the sink wrote
+    from framework.recording import read_messages
+    recorded_scaled = [m.to_dict() for t, m, _ in read_messages(tmp_path / "replayed.mcap") if t.endswith("/scale/out")]
+    assert recorded_scaled == quiet["scaled"]

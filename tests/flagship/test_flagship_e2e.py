@@ -10,7 +10,7 @@ import yaml
 from framework.recording import read_messages
 from plugins.demo.gestures import GestureScript
 
-from conftest import REPO, handflow
+from tests.conftest import REPO, handflow
 
 pytestmark = pytest.mark.slow
 

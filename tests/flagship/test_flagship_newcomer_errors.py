@@ -14,7 +14,7 @@ from plugins.glove.node import CyberGloveNode, serial_ports
 from plugins.segmenter.candidates import ModelsMissingError
 from plugins.segmenter.nodes import OnlineCLMNode
 
-from conftest import REPO, handflow
+from tests.conftest import REPO, handflow
 
 GUI_MODULES = ("tkinter", "PyQt5", "PyQt6", "PySide2", "PySide6", "gi", "wx")
 

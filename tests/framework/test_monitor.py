@@ -14,7 +14,7 @@ from framework.messages import Array, Header, Status, encode
 from framework.monitor import Monitor, summarize
 from framework.replay import wait_matching
 
-from _rec_helpers import chain, handflow, start, unique, wait_until
+from tests.framework._rec_helpers import chain, handflow, start, unique, wait_until
 
 
 @pytest.fixture(autouse=True)

@@ -12,7 +12,7 @@ import yaml
 
 from framework.discovery import live_runs
 
-from _rec_helpers import REPO, wait_until
+from tests.framework._rec_helpers import REPO, wait_until
 
 pytestmark = pytest.mark.slow
 

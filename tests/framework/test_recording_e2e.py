@@ -9,7 +9,7 @@ import pytest
 from framework.discovery import live_runs
 from framework.recording import read_report
 
-from _rec_helpers import chain, handflow, start, unique, wait_until
+from tests.framework._rec_helpers import chain, handflow, start, unique, wait_until
 
 pytestmark = pytest.mark.slow
 

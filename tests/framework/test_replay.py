@@ -14,7 +14,7 @@ from framework.messages import Array, Header
 from framework.recording import McapWriter
 from framework.replay import external_inputs, remap_key
 
-from _rec_helpers import handflow, read_jsonl, unique, write_graph
+from tests.framework._rec_helpers import handflow, read_jsonl, unique, write_graph
 
 T0 = 1_700_000_000_000_000_000
 N = 60

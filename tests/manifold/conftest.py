@@ -1,5 +1,5 @@
 import pytest
-from ukr_helpers import CYL_LATENT, RING_LATENT, closed_curves
+from tests.manifold.ukr_helpers import CYL_LATENT, RING_LATENT, closed_curves
 
 from plugins.manifold import StructuredUKR, toy
 

@@ -6,7 +6,7 @@ from plugins.manifold import InvalidInputError, LatentDim, StructuredUKR, toy
 from plugins.manifold.kernels import Kernel, ProductKernel
 from plugins.manifold.objective import Objective, SequenceLayout
 
-from ukr_helpers import CYL_LATENT, RING_LATENT, closed_curves
+from tests.manifold.ukr_helpers import CYL_LATENT, RING_LATENT, closed_curves
 
 
 def circdist(a, b):

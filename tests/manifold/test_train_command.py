@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import yaml
 from mcap.writer import Writer
-from ukr_helpers import closed_curves
+from tests.manifold.ukr_helpers import closed_curves
 
 from plugins.manifold import StructuredUKR, toy
 from plugins.manifold.cli import register_train

@@ -37,8 +37,8 @@ class GraspPose:
         return np.array([self.x, self.y, self.gap, self.yaw_deg])
 
 
-CENTRED_POSE = GraspPose(x=0.035, y=0.0, gap=0.01)
-"""Object centre under the proximal finger segments, 1 cm below the palm: the middle of the reachable grasp region."""
+CENTRED_POSE = GraspPose(x=0.035, y=0.0, gap=0.005, yaw_deg=-30.0)
+"""Reference pose of the tests: the lying cylinder under the knuckles, turned 30° towards the thumb."""
 
 
 @dataclass(frozen=True)

@@ -173,9 +173,15 @@ class BallsScene(Scene):
     - ``pushes`` — disturbances ``[(time_s, speed_m_s), …]`` fired by :meth:`before_step` at the
       first physics step at or after ``time_s``: the ball moving faster in the palm plane is set
       to ``speed`` against its direction of travel (both at rest: ball 1 along palm ``−z``,
-      towards the wrist).
+      towards the wrist);
+    - ``turns`` — disturbances ``[(time_s, angle_deg), …]``: at the first physics step at or after
+      ``time_s`` the ball pair is turned by ``angle_deg`` about the cup centre in the palm plane
+      (positive: counter-clockwise in the ``(x_P, z_P)`` plane, i.e. *back* against the clockwise
+      swapping of :mod:`plugins.demo.ball_swap`) and both balls are stopped — a ball pushed back
+      along its circular path by a finger, applied kinematically so it is exactly repeatable.
 
-    State: world position of each ball (``ball1_x`` …) and of the two marks, and ``pushes_done``.
+    State: world position of each ball (``ball1_x`` …) and of the two marks, ``pushes_done`` and
+    ``turns_done``.
     """
 
     name: str = "balls"
@@ -192,6 +198,7 @@ class BallsScene(Scene):
     rim_opening_deg: tuple[float, float] = (-50.0, 50.0)
     jitter: float = 0.002
     pushes: tuple[tuple[float, float], ...] = ()
+    turns: tuple[tuple[float, float], ...] = ()
     marks: dict[str, tuple[float, float]] = field(default_factory=lambda: {"mark_a": (0.03, 0.011),
                                                                            "mark_b": (-0.03, 0.011)})
 
@@ -206,7 +213,15 @@ class BallsScene(Scene):
         if bad:
             raise ValueError(f"pushes need time_s >= 0 and speed_m_s >= 0, got {bad}")
         self.pushes = tuple(sorted(self.pushes))
-        self.pushes_done = 0
+        try:
+            self.turns = tuple((float(t), float(a)) for t, a in self.turns)
+        except (TypeError, ValueError):
+            raise ValueError(f"turns must be a list of [time_s, angle_deg] pairs, got {self.turns!r}") from None
+        bad = [ta for ta in self.turns if ta[0] < 0 or not -180 <= ta[1] <= 180]
+        if bad:
+            raise ValueError(f"turns need time_s >= 0 and -180 <= angle_deg <= 180, got {bad}")
+        self.turns = tuple(sorted(self.turns))
+        self.pushes_done = self.turns_done = 0
 
     def hand_rotation(self) -> Rotation:
         tilt = Rotation.from_euler("y", self.tilt_deg, degrees=True)
@@ -271,7 +286,7 @@ class BallsScene(Scene):
                              restitution=self.restitution, physicsClientId=client)
             self.balls.append(ball)
             self.bodies[(ball, -1)] = f"ball{k + 1}"
-        self.pushes_done = 0
+        self.pushes_done = self.turns_done = 0
 
     # -- disturbance ---------------------------------------------------------------------
     def push(self, client: int, ball_index: int, velocity_world) -> None:
@@ -287,8 +302,23 @@ class BallsScene(Scene):
         v = np.array([p.getBaseVelocity(b, physicsClientId=client)[0] for b in self.balls])
         return v - np.outer(v @ normal, normal)
 
+    def turn_pair(self, client: int, angle_deg: float) -> None:
+        """Turn the ball pair by ``angle_deg`` (counter-clockwise in ``(x_P, z_P)``) about the cup centre; stop both balls."""
+        local = self.to_palm(self.ball_positions(client))
+        centre = np.array(self.cup_centre)
+        rel = local[:, [0, 2]] - centre
+        a = np.deg2rad(angle_deg)
+        rot = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
+        local[:, [0, 2]] = rel @ rot.T + centre
+        for ball, pos in zip(self.balls, self.palm_to_world(local)):
+            p.resetBasePositionAndOrientation(ball, pos.tolist(), [0, 0, 0, 1], physicsClientId=client)
+            p.resetBaseVelocity(ball, [0, 0, 0], [0, 0, 0], physicsClientId=client)
+
     def before_step(self, client: int, t: float) -> None:
-        """Fire every due push (see the class docstring)."""
+        """Fire every due push and turn (see the class docstring)."""
+        while self.turns_done < len(self.turns) and t >= self.turns[self.turns_done][0] - 1e-9:
+            self.turn_pair(client, self.turns[self.turns_done][1])
+            self.turns_done += 1
         while self.pushes_done < len(self.pushes) and t >= self.pushes[self.pushes_done][0] - 1e-9:
             speed = self.pushes[self.pushes_done][1]
             v = self.palm_plane_velocities(client)
@@ -324,6 +354,7 @@ class BallsScene(Scene):
                              np.vstack([self.ball_positions(client), self.mark_positions()])):
             out.update({f"{name}_{axis}": float(v) for axis, v in zip("xyz", pos)})
         out["pushes_done"] = float(self.pushes_done)
+        out["turns_done"] = float(self.turns_done)
         return out
 
 

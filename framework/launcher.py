@@ -131,7 +131,9 @@ class Launcher:
             try:
                 u.proc.wait(timeout=max(0.1, deadline - time.monotonic()))
             except subprocess.TimeoutExpired:
-                log.error("%s did not stop within %.0fs; killing it", u.name, STOP_GRACE_S)
+                log.error("%s did not stop within %.0fs; its threads' stacks follow, then it is killed", u.name, STOP_GRACE_S)
+                u.proc.send_signal(signal.SIGUSR1)
+                time.sleep(0.5)
                 u.proc.kill()
                 u.proc.wait()
             u.exit_codes.append(u.proc.returncode)

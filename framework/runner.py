@@ -16,6 +16,7 @@ after every event, so the replayer can release the next message only when the gr
 from __future__ import annotations
 
 import argparse
+import faulthandler
 import heapq
 import json
 import logging
@@ -294,6 +295,7 @@ def main(argv: list[str] | None = None) -> int:
 
     signal.signal(signal.SIGTERM, _stop)
     signal.signal(signal.SIGINT, _stop)
+    faulthandler.register(signal.SIGUSR1, all_threads=True)  # the launcher asks for stacks before a kill
     code = 0
     try:
         rt.run()

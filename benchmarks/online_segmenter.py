@@ -46,7 +46,7 @@ def make_stream(args):
 def run(cands, Y, warm: bool, seed: int, cold_every: int | None = 10):
     seg = OnlineCLMSegmenter(cands, window=200, history=10, warm_start=warm, cold_every=cold_every,
                              random_state=seed)
-    lat, sweeps, revisions, proj_t = [], [], 0, []
+    lat, sweeps, revisions, proj_t, clm_t = [], [], 0, [], []
     for y in Y:
         t0 = time.perf_counter()
         p = cands.project(y[None])
@@ -55,11 +55,15 @@ def run(cands, Y, warm: bool, seed: int, cold_every: int | None = 10):
         t2 = time.perf_counter()
         lat.append(t2 - t0)
         proj_t.append(t1 - t0)
+        clm_t.append(t2 - t1)
         sweeps.append(up.sweeps)
         revisions += sum(e.kind == "revision" for e in up.events)
     lat_ms = np.array(lat[50:]) * 1e3  # skip the JIT/warm-up start of the window
     return {"latency_ms_median": float(np.median(lat_ms)), "latency_ms_p99": float(np.percentile(lat_ms, 99)),
             "projection_ms_median": float(np.median(np.array(proj_t[50:]) * 1e3)),
+            "projection_ms_p99": float(np.percentile(np.array(proj_t[50:]) * 1e3, 99)),
+            "clm_ms_median": float(np.median(np.array(clm_t[50:]) * 1e3)),
+            "clm_ms_p99": float(np.percentile(np.array(clm_t[50:]) * 1e3, 99)),
             "sweeps_median": float(np.median(sweeps[50:])),
             "revisions_per_min": revisions / (len(Y) / RATE_HZ / 60.0)}
 
@@ -80,9 +84,12 @@ def main(argv=None) -> int:
     out = {"latency_ms_median": warm["latency_ms_median"], "latency_ms_p99": warm["latency_ms_p99"],
            "sweeps_warm_median": warm["sweeps_median"], "sweeps_cold_median": cold["sweeps_median"],
            "revisions_per_min": warm["revisions_per_min"],
-           "projection_ms_median": warm["projection_ms_median"],
+           "projection_ms_median": warm["projection_ms_median"], "projection_ms_p99": warm["projection_ms_p99"],
+           "clm_ms_median": warm["clm_ms_median"], "clm_ms_p99": warm["clm_ms_p99"],
+           "cold_clm_ms_median": cold["clm_ms_median"], "cold_clm_ms_p99": cold["clm_ms_p99"],
            "cold_latency_ms_median": cold["latency_ms_median"], "cold_latency_ms_p99": cold["latency_ms_p99"],
            "latency_ratio_warm_vs_cold": warm["latency_ms_median"] / cold["latency_ms_median"],
+           "clm_ratio_warm_vs_cold": warm["clm_ms_median"] / cold["clm_ms_median"],
            "cold_every": args.cold_every, "samples": int(len(Y)), "candidates": 4, "window": 200, "rate_hz": RATE_HZ,
            "data": args.dataset or "synthetic letters", "goal_p99_ms": 10.0}
     if args.json:

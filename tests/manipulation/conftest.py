@@ -36,3 +36,13 @@ def manifold_file(tmp_path):
         manifold.save(path)
         return path
     return save
+
+
+@pytest.fixture(scope="session")
+def ball_manifold_file():
+    """The project's ball-swap manifold (configs/models, built on first use)."""
+    from pathlib import Path
+
+    from plugins.manifold.controllers.cli import ensure_manifold
+    return ensure_manifold("balls", Path(__file__).resolve().parents[2] / "configs" / "models",
+                           say=lambda line: None)

@@ -82,11 +82,29 @@ def test_grasp_by_navigation_finds_the_radius_then_turns(cap_manifold, true_radi
     assert x[1] == ctl.radius and x[0] == pytest.approx(t_before + 0.02)
 
 
-def test_grasp_by_navigation_stops_at_the_border_without_contact(cap_manifold):
-    ctl = GraspByNavigation(cap_manifold, delta=0.02, radius_step=0.2, approach_steps=0)
+@pytest.mark.parametrize("overshoot, limit", [(0.0, 1.5), (0.25, 1.0)])
+def test_grasp_by_navigation_stops_at_its_limit_without_contact(cap_manifold, overshoot, limit):
+    ctl = GraspByNavigation(cap_manifold, delta=0.02, radius_step=0.2, approach_steps=0,
+                            overshoot=overshoot)
     for _ in range(30):
         ctl.update(set())
-    assert ctl.state == TURNING and not ctl.grasp_complete and ctl.radius == pytest.approx(1.5)
+    assert ctl.state == TURNING and not ctl.grasp_complete and ctl.radius == pytest.approx(limit)
+
+
+def test_postures_beyond_the_radius_border_continue_the_trend(cap_manifold):
+    lo, hi = cap_manifold.range(1)
+    t = 0.4
+    X = np.array([[t, lo - 0.3], [t, lo], [t, lo + 0.5], [t, hi], [t, hi - 0.5], [t, hi + 0.2],
+                  [t, 2.5]])
+    plain = cap_manifold.posture(X)
+    ext = cap_manifold.posture(X, extrapolate=True)
+    assert np.allclose(ext[1:5], plain[1:5]) and np.allclose(ext[6], plain[6])  # inside: f
+    low, high = (plain[1] - plain[2]) / 0.5, (plain[3] - plain[4]) / 0.5      # secants, 0.5 cm
+    assert np.allclose(ext[0], plain[1] + 0.3 * low) and np.allclose(ext[5], plain[3] + 0.2 * high)
+    # kernel regression flattens out beyond the border; the extrapolation keeps the trend
+    assert np.linalg.norm(plain[0] - plain[1]) < 0.5 * np.linalg.norm(ext[0] - ext[1])
+    ctl = GraspByNavigation(cap_manifold, delta=0.02, radius_step=0.01)
+    assert np.allclose(ctl.posture(X[0]), ext[0])
 
 
 def test_grasp_by_navigation_starts_in_the_closed_phase(cap_manifold):
@@ -123,17 +141,37 @@ def test_closed_loop_phase_estimate_uses_the_better_ball_assignment(ball_manifol
     assert any(swapped) and not all(swapped)
 
 
-def test_closed_loop_prior_resolves_ambiguity_towards_the_last_command(ball_manifold):
-    x, o = ball_manifold.model.latents_[3], ball_manifold.model.Y_[3]
-    pts = o[4:].reshape(2, 2)
-    pure = ClosedLoopController(ball_manifold, prior_weight=0.0).estimate(pts, [True, True])
-    other = np.mod(pure.x + np.pi / 2, np.pi)        # the same ball picture, other hand stroke
-    near = ClosedLoopController(ball_manifold, prior_weight=100.0).estimate(pts, [True, True],
-                                                                          prior=other + 0.05)
-    assert _circ(near.x[0], other[0], np.pi) < 0.1 < _circ(near.x[0], pure.x[0], np.pi)
-    far = ClosedLoopController(ball_manifold, prior_weight=100.0).estimate(pts, [True, True],
-                                                                         prior=pure.x)
-    assert _circ(far.x[0], pure.x[0], np.pi) < 0.03
+def _balls_at(manifold, x):
+    return manifold.observation(np.array([x]))[4:].reshape(2, 2)
+
+
+def test_closed_loop_keeps_the_commanded_phase_while_the_balls_agree(ball_manifold):
+    ctl = ClosedLoopController(ball_manifold, tolerance=0.05, lag=0.3)
+    est = ctl.estimate(_balls_at(ball_manifold, 1.0), [True, True], prior=np.array([1.2]))
+    assert est.x[0] == pytest.approx(1.2)                    # within the lag: the motion goes on
+    pure = ClosedLoopController(ball_manifold, tolerance=0.0).estimate(
+        _balls_at(ball_manifold, 1.0), [True, True], prior=np.array([1.2]))
+    assert _circ(pure.x[0], 1.0, np.pi / 2) < 0.03            # thesis: the projection alone
+
+
+def test_closed_loop_jumps_back_to_the_phase_of_a_pushed_back_ball(ball_manifold):
+    ctl = ClosedLoopController(ball_manifold, tolerance=0.02, lag=0.3)
+    back = 1.0 - 0.6 * ball_manifold.time_sign               # the balls are 0.6 behind the hand
+    est = ctl.estimate(_balls_at(ball_manifold, back), [True, True], prior=np.array([1.0]))
+    assert _circ(est.x[0], back, np.pi / 2) < 0.1 and _circ(est.x[0], 1.0, np.pi) > 0.4
+
+
+def test_closed_loop_keeps_the_commanded_phase_when_the_balls_are_off_the_manifold(ball_manifold):
+    far = np.array([[3.0, 3.0], [-3.0, 3.0]])
+    loose = ClosedLoopController(ball_manifold, tolerance=0.05, lag=0.1, max_error=0.5)
+    assert loose.estimate(far, [True, True], prior=np.array([1.0])).x[0] == pytest.approx(1.0)
+    strict = ClosedLoopController(ball_manifold, tolerance=0.05, lag=0.1)   # no max_error
+    assert strict.estimate(far, [True, True], prior=np.array([1.0])).x[0] != pytest.approx(1.0)
+
+
+def test_closed_loop_rejects_negative_tolerances(ball_manifold):
+    with pytest.raises(ValueError, match="tolerance and lag"):
+        ClosedLoopController(ball_manifold, tolerance=-0.1)
 
 
 def test_closed_loop_plans_k_steps_ahead(ball_manifold):

@@ -2,8 +2,6 @@
 load the project's manifolds; slow: each graph runs a few seconds with ``handflow run``."""
 from __future__ import annotations
 
-import os
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -11,7 +9,6 @@ import pytest
 import yaml
 
 from framework.recording import read_messages
-from framework.registry import plugin_entries
 from framework.testing import NodeHarness
 from plugins.manifold.controllers import nodes
 from plugins.manifold.controllers.cli import ensure_manifold
@@ -43,25 +40,12 @@ def test_graph_controller_params_load_the_project_manifold(graph, project_models
     assert h.node.manifold.model.n_features_in_ == len(h.node.manifold.names)
 
 
-def _env(tmp_path):
-    """Register the controller nodes for subprocesses if pyproject does not (yet) declare them."""
-    if set(NODES) <= set(plugin_entries()):
-        return None
-    dist = tmp_path / "handflow_manipulation-0.dist-info"
-    dist.mkdir()
-    (dist / "METADATA").write_text("Metadata-Version: 2.1\nName: handflow-manipulation\nVersion: 0\n")
-    (dist / "entry_points.txt").write_text("[handflow.plugins]\n" + "".join(
-        f"{name} = plugins.manifold.controllers.nodes:{cls}\n" for name, cls in NODES.items()))
-    return dict(os.environ, PYTHONPATH=os.pathsep.join([str(tmp_path), *sys.path]))
-
-
 @pytest.mark.slow
 def test_cap_turning_graph_closes_on_the_cap(tmp_path, run_handflow, project_models):
-    env = _env(tmp_path)
     rec = tmp_path / "cap.mcap"
-    run_handflow("validate", "configs/cap_turning.yaml", env=env, check=True)
+    run_handflow("validate", "configs/cap_turning.yaml", check=True)
     run_handflow("run", "configs/cap_turning.yaml", "--duration", "10", "--record", str(rec),
-                 env=env, check=True, timeout=180)
+                 check=True, timeout=180)
     latents = [m.coords for t, m, _ in read_messages(rec) if t.endswith("controller/latent")]
     touched = {b for t, m, _ in read_messages(rec) if t.endswith("sim/contacts") for b in m.bodies}
     radii = np.array([x[1] for x in latents])
@@ -72,11 +56,10 @@ def test_cap_turning_graph_closes_on_the_cap(tmp_path, run_handflow, project_mod
 
 @pytest.mark.slow
 def test_ball_swap_graph_runs_closed_loop(tmp_path, run_handflow, project_models):
-    env = _env(tmp_path)
     rec = tmp_path / "balls.mcap"
-    run_handflow("validate", "configs/ball_swap.yaml", env=env, check=True)
+    run_handflow("validate", "configs/ball_swap.yaml", check=True)
     run_handflow("run", "configs/ball_swap.yaml", "--duration", "10", "--record", str(rec),
-                 env=env, check=True, timeout=180)
+                 check=True, timeout=180)
     topics = [t for t, _, _ in read_messages(rec)]
     assert sum(t.endswith("tracker/balls") for t in topics) >= 3     # camera → tracker
     targets = [m for t, m, _ in read_messages(rec) if t.endswith("controller/targets")]

@@ -89,7 +89,7 @@ def test_closed_loop_phase_follows_a_replayed_recording_of_its_training_data(bal
             w.write("handflow/test/tracker/balls", Points2D(points=pts, valid=[True, True], ids=[0, 1]),
                     i * 50_000_000)
     h = NodeHarness(ClosedLoopNode, {"manifold": str(path), "k": 3, "delta": 0.05, "rate_hz": 20,
-                                     "prior_weight": 0.0}).setup()
+                                     "tolerance": 0.0}).setup()
     errors = []
     for (topic, msg, t), x in zip(read_messages(rec), model.latents_):
         h.send("balls", msg, stamp_ns=t)

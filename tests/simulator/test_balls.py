@@ -99,3 +99,27 @@ def test_node_scene_options_schedule_pushes():
         assert scene.data[scene.names.index("pushes_done")] == 1
     finally:
         h.teardown()
+
+
+def test_a_turn_rotates_the_ball_pair_back_once_and_stops_the_balls():
+    from plugins.simulator.metrics import pair_rotation
+    with Simulation("gifu", "balls", {"turns": [[0.5, 90.0]]}, seed=0) as sim:
+        sim.step(119)
+        before = sim.scene.palm_plane_positions(sim.client)
+        centre = np.array(sim.scene.cup_centre)
+        sim.step(2)                                   # the step starting at t = 0.5 s turns the pair
+        after = sim.scene.palm_plane_positions(sim.client)
+        assert sim.scene_state()["turns_done"] == 1
+        sim.step(240)
+        assert sim.scene_state()["turns_done"] == 1
+    turned = pair_rotation(np.array([before[0], after[0]]), np.array([before[1], after[1]]))[1]
+    assert turned == pytest.approx(np.pi / 2, abs=0.05)            # counter-clockwise = back
+    np.testing.assert_allclose(np.linalg.norm(after - centre, axis=1),
+                               np.linalg.norm(before - centre, axis=1), atol=2e-3)
+
+
+def test_bad_turns_are_rejected_with_the_expected_form():
+    with pytest.raises(ValueError, match=r"\[time_s, angle_deg\]"):
+        BallsScene(turns=[[1.0]])
+    with pytest.raises(ValueError, match="-180 <= angle_deg <= 180"):
+        BallsScene(turns=[[1.0, 270.0]])

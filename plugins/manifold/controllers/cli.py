@@ -108,10 +108,12 @@ def _print_table(result: dict) -> None:
         w = result["cap_turning_learned"][r]
         print(f"  {r:>9}  {v['deg_per_cycle']:9.1f}  {v['found_radius']:8.2f} | "
               f"{w['deg_per_cycle']:9.1f}  {w['found_radius']:12.2f}")
-    print("ball swapping (swaps/min)")
+    print("ball swapping (swaps/min; recoveries of the turn-backs | of the pushes)")
     for name, v in result["ball_swap"].items():
-        print(f"  {name:<11} calm {v['swaps_per_min']:6.2f}  disturbed "
-              f"{v['swaps_per_min_disturbed']:6.2f}  recoveries {v['recoveries']}/{v['pushes']}")
+        print(f"  {name:<18} calm {v['swaps_per_min']:6.2f}  turned back "
+              f"{v['swaps_per_min_disturbed']:6.2f}  pushed {v['swaps_per_min_disturbed_pushed']:6.2f}"
+              f"  recoveries {v['recoveries']}/{v['disturbances']} | "
+              f"{v['recoveries_pushed']}/{v['disturbances']}")
     print(f"learned radius: Spearman {result['radius_spearman']}, separation "
           f"{result['radius_separation']}")
     print(f"control-loop latency ms (median, p99): {result['loop_latency_ms']}")

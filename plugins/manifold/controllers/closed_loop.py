@@ -9,13 +9,22 @@
    gives the phase ``x̂``.  Documented choice: the projection is the exact minimum over a dense
    grid of ``grid_size`` latent phases (f precomputed; the time axis is 1D), which is also what
    makes it cheap on the control path;
-   extension (``prior_weight`` w > 0, off = the thesis): both the projection and the choice of
-   assignment add ``w · d(x, x_prior)²`` (d = periodic distance) to the error, where ``x_prior``
-   is the latent of the last command.  Ball positions do not change while the fingers move
-   without touching the balls, so the phase is ambiguous along such stretches; the pure
-   projection then keeps returning the start of the stretch and a short plan (k·Δ smaller than
-   the stretch) stalls; the prior keeps the estimate moving with the commands as long as the
-   balls agree, and a pushed-back ball still pulls it back;
+   extension (``tolerance`` τ > 0; τ = 0 is the thesis' pure projection): **phase continuity
+   gated by the balls**.  Every grid phase whose ball reconstruction error (both balls, either
+   assignment) is within τ of the best one is *consistent* with the observation.  If a
+   consistent phase lies within ``lag`` (latent units) of ``prior``, the latent of the last
+   command, the estimate is ``prior`` itself and the motion goes on unchanged; otherwise the
+   estimate jumps to the consistent phase nearest to ``prior``.
+   Why: the balls rest while the fingers travel part of each stroke, so over such stretches the
+   ball picture is the same for many phases, and the balls trail the commanded fingers by the
+   hand's tracking lag (≈ 0.2 latent at one ball period in 4 s) and by how the balls happen to
+   respond; the pure projection then returns the start of the stretch every time and a plan
+   with k·Δ shorter than the stretch stalls.  A ball pushed back by more than ``lag`` is
+   inconsistent with the commanded phase, and the hand repeats the motion from the phase that
+   matches the balls.  If even the best phase explains the balls worse than ``max_error``
+   (default ∞), the balls are off the manifold (e.g. the resting start configuration) and carry
+   no phase information: the commanded phase is kept.  Otherwise the prior never outweighs the
+   balls, it only breaks their ties;
 3. plan ``x̂ + lΔ``, l = 1…k, along the time dimension;
 4. map the plan with f; the hand-posture part is the command sequence;
 5. the caller actuates it in order and observes again.
@@ -48,7 +57,8 @@ class ClosedLoopController:
     """``update(points, valid)`` → planned latents (k, q) and joint targets (k, n_joints)."""
 
     def __init__(self, manifold: ManipulationManifold, k: int = 5, delta: float = 0.05,
-                 mask: str = "ball1", prior_weight: float = 0.0, grid_size: int = 512) -> None:
+                 mask: str = "ball1", tolerance: float = 0.0, lag: float = 0.5,
+                 max_error: float = np.inf, grid_size: int = 512) -> None:
         if manifold.ball_index.size != 4:
             raise ValueError("closed-loop ball control needs a manifold with ball dimensions "
                              "(p1_x, p1_y, p2_x, p2_y)")
@@ -59,13 +69,13 @@ class ClosedLoopController:
         if manifold.q != 1:
             raise ValueError(f"closed-loop control needs a 1D (phase) manifold, got "
                              f"{manifold.latent_names}")
-        if not prior_weight >= 0:
-            raise ValueError(f"prior_weight must be >= 0, got {prior_weight}")
+        if not (tolerance >= 0 and lag >= 0):
+            raise ValueError(f"tolerance and lag must be >= 0, got {tolerance} and {lag}")
         self.manifold, self.k, self.mask = manifold, int(k), mask
         self.delta = float(delta) * manifold.time_sign      # the demonstrations' direction
         self.slot1, self.slot2 = manifold.ball_index[:2], manifold.ball_index[2:]
         self.clock = LatentClock(*manifold.range(manifold.time_dim), manifold.periodic)
-        self.prior_weight = float(prior_weight)
+        self.tolerance, self.lag, self.max_error = float(tolerance), float(lag), float(max_error)
         lo, hi = manifold.range(0)
         self.grid = np.linspace(lo, hi, int(grid_size), endpoint=not manifold.periodic)
         self.grid_obs = manifold.observation(self.grid[:, None])
@@ -97,27 +107,32 @@ class ClosedLoopController:
             Y.append(y), W.append(w), scored.append(s), swapped.append(sw)
         return np.array(Y), np.array(W), np.array(scored), swapped
 
-    def _prior_cost(self, x, prior):
-        if prior is None or self.prior_weight == 0:
-            return np.zeros_like(x)
-        d = np.abs(x - float(np.ravel(prior)[0]))
+    def _distance(self, prior) -> np.ndarray:
+        """Periodic (or plain) distance of every grid phase to the latent ``prior``."""
+        d = np.abs(self.grid - float(np.ravel(prior)[self.manifold.time_dim]))
         if self.manifold.periodic:
             span = self.clock.hi - self.clock.lo
             d = np.minimum(np.mod(d, span), span - np.mod(d, span))
-        return self.prior_weight * d * d
+        return d
 
     def estimate(self, points, valid, prior=None) -> PhaseEstimate | None:
         """Phase estimate from observed ball positions (n, 2) with validity flags (n,);
-        ``prior``: latent of the last command (used when ``prior_weight > 0``)."""
+        ``prior``: latent of the last command (used when ``tolerance > 0``)."""
         cand = self._candidates(points, valid)
         if cand is None:
             return None
         Y, W, S, swapped = cand
-        R = Y[:, None, :] - self.grid_obs[None, :, :]                 # (c, grid, d)
-        penalty = self._prior_cost(self.grid, prior)
-        idx = np.argmin(np.einsum("cgd,cd->cg", R * R, W) + penalty, axis=1)
-        err = np.einsum("cd,cd->c", R[np.arange(len(Y)), idx] ** 2, S)
-        best = int(np.argmin(err + penalty[idx]))
+        R2 = (Y[:, None, :] - self.grid_obs[None, :, :]) ** 2                  # (c, grid, d)
+        if self.tolerance > 0 and prior is not None:
+            err = np.einsum("cgd,cd->cg", R2, S)                               # both balls
+            dist = np.where(err <= err.min() + self.tolerance, self._distance(prior)[None, :], np.inf)
+            c, g = np.unravel_index(int(np.argmin(dist)), dist.shape)
+            keep = dist[c, g] <= self.lag or err.min() > self.max_error
+            x = np.ravel(prior)[:1].astype(float) if keep else self.grid[g][None]
+            return PhaseEstimate(x, float(err[c, g]), swapped[c])
+        idx = np.argmin(np.einsum("cgd,cd->cg", R2, W), axis=1)
+        err = np.einsum("cd,cd->c", R2[np.arange(len(Y)), idx], S)
+        best = int(np.argmin(err))
         return PhaseEstimate(self.grid[idx[best]][None], float(err[best]), swapped[best])
 
     def plan(self, x) -> tuple[np.ndarray, np.ndarray]:

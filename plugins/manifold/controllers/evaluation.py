@@ -5,13 +5,18 @@ The plain controller classes drive the plain :class:`~plugins.simulator.simulati
 
 - Cap turning: :class:`GraspByNavigation` per cap radius; cap rotation per motion cycle (deg,
   positive = the demonstrations' turning direction) and the radius it found.
-- Ball swapping: open loop vs closed loop on the same manifold, without and with pushes.
+- Ball swapping: open loop vs closed loop on the same manifold, calm and under two disturbances
+  of the balls scene: ``turns`` (the thesis' scenario: the ball pair is turned back against its
+  travel by ``turn_deg`` — a ball pushed back along its path — at times that fall at the same
+  hand phase of the open loop) and ``pushes`` (a velocity kick against the travel).
   Observations come from the camera + colour-blob tracker (``camera=True``) or, documented
   choice for ``--quick``, from the ideal tracker (:func:`ideal_balls`: ground-truth positions
-  projected with the same camera and normalised to the marks).  Pushes are the balls scene's
-  ``pushes`` option; swaps are counted on the ground-truth palm-plane positions with
-  :mod:`plugins.simulator.metrics` (net half-turns of the ball pair); a push "is recovered" when
-  the next swap completes within ``recovery_window_s`` after it.
+  projected with the same camera and normalised to the marks).  Swaps are counted on the
+  ground-truth palm-plane positions with :mod:`plugins.simulator.metrics` (net half-turns of the
+  ball pair).  **Recovery** (documented definition, :func:`recoveries`): a disturbance at ``t``
+  is recovered when, within ``recovery_within_s`` (10 s) after it, there is a window of
+  ``recovery_window_s`` (4 s) in which the pair progresses at least ``recovery_fraction`` (50 %)
+  of the same controller's calm swap rate.
 - Control-loop latency: observation → command through :class:`~.nodes.ClosedLoopNode` code.
 """
 from __future__ import annotations
@@ -23,7 +28,7 @@ import numpy as np
 
 from framework.messages import Points2D
 from framework.testing import NodeHarness
-from plugins.simulator.metrics import swap_times, swaps_per_minute
+from plugins.simulator.metrics import swap_progress, swaps_per_minute
 from plugins.simulator.simulation import Simulation
 from plugins.tracker.blobs import BallTracker, normalise_points
 
@@ -69,14 +74,14 @@ def cap_turning(manifold: ManipulationManifold, radius_cm: float, settings: CapS
         max_grasp = int((settings.approach_s + settings.max_closing_s) * settings.control_hz)
         for _ in range(max_grasp):
             x = ctl.update(touching_fingers(sim.contacts()))
-            sim.set_targets(manifold.joint_names, manifold.posture(x))
+            sim.set_targets(manifold.joint_names, ctl.posture(x))
             sim.step(per_control)
             if ctl.state == TURNING:
                 break
         start = sim.scene_state()["cap_angle"]
         for _ in range(turning_steps):
             x = ctl.update(())
-            sim.set_targets(manifold.joint_names, manifold.posture(x))
+            sim.set_targets(manifold.joint_names, ctl.posture(x))
             sim.step(per_control)
         turned = sim.scene_state()["cap_angle"] - start
     return {"deg_per_cycle": float(np.degrees(turned) / settings.cycles),
@@ -95,8 +100,9 @@ def ideal_balls(sim: Simulation, width: int = 240, height: int = 180) -> np.ndar
 
 @dataclass
 class BallSettings:
-    """Ball-swap run settings (closed loop: ``k`` steps of ``delta``; both: ``period_s`` per
-    latent period at the control rate)."""
+    """Ball-swap run settings (closed loop: ``k`` steps of ``delta``, ``mask`` and ``tolerance`` of
+    :class:`ClosedLoopController`; both: ``period_s`` per latent period at the control rate;
+    disturbances: ``push_times_s`` at ``push_speed`` m/s, ``turn_times_s`` by ``turn_deg``)."""
 
     duration_s: float = 120.0
     period_s: float = 4.0
@@ -109,25 +115,31 @@ class BallSettings:
     height: int = 180
     push_times_s: tuple[float, ...] = ()
     push_speed: float = 0.3
-    recovery_window_s: float = 8.0
+    turn_times_s: tuple[float, ...] = ()
+    turn_deg: float = 90.0
     seed: int = 0
     mask: str = "ball1"
-    prior_weight: float = 100.0
+    tolerance: float = 0.05
+    lag: float = 0.5
+    max_error: float = 0.1
 
 
 def ball_swap(manifold: ManipulationManifold, closed_loop: bool, settings: BallSettings) -> dict:
-    """One run; returns swaps_per_min, swaps, recoveries, pushes."""
+    """One run; returns swaps_per_min, times (s) and swap progress (signed swaps, see
+    :func:`plugins.simulator.metrics.swap_progress`) per control step."""
     t_lo, t_hi = manifold.range(manifold.time_dim)
     delta = (t_hi - t_lo) / (settings.period_s * settings.control_hz)
     per_control = int(round(settings.physics_hz / settings.control_hz))
     per_camera = max(int(round(settings.control_hz / settings.camera_hz)), 1)
     tracker = BallTracker()
-    pushes = [[t, settings.push_speed] for t in settings.push_times_s]
-    with Simulation("gifu", "balls", {"pushes": pushes}, seed=settings.seed,
+    options = {"pushes": [[t, settings.push_speed] for t in settings.push_times_s],
+               "turns": [[t, settings.turn_deg] for t in settings.turn_times_s]}
+    with Simulation("gifu", "balls", options, seed=settings.seed,
                     physics_hz=settings.physics_hz) as sim:
         open_ctl = OpenLoopController(manifold, [t_lo], delta)
         closed = ClosedLoopController(manifold, settings.k, delta, settings.mask,
-                                      settings.prior_weight)
+                                      settings.tolerance, settings.lag,
+                                      settings.max_error)
         plan: list = []
         last = None
         positions, times = [], []
@@ -135,10 +147,10 @@ def ball_swap(manifold: ManipulationManifold, closed_loop: bool, settings: BallS
             if closed_loop and step % per_camera == 0:
                 if settings.camera:
                     res = tracker.update(sim.render(settings.width, settings.height))
-                    out = closed.update(res.balls, res.balls_valid, last)
+                    balls, valid = res.balls, res.balls_valid
                 else:
-                    out = closed.update(ideal_balls(sim, settings.width, settings.height),
-                                        [True, True], last)
+                    balls, valid = ideal_balls(sim, settings.width, settings.height), [True, True]
+                out = closed.update(balls, valid, last)
                 if out is not None:
                     plan = list(zip(out[1], out[2]))
             if closed_loop:
@@ -151,11 +163,25 @@ def ball_swap(manifold: ManipulationManifold, closed_loop: bool, settings: BallS
             positions.append(sim.scene.palm_plane_positions(sim.client))
             times.append(sim.time)
     P, times = np.asarray(positions), np.asarray(times)
-    done = swap_times(times, P[:, 0], P[:, 1])
-    recovered = sum(int(np.any((done > t) & (done <= t + settings.recovery_window_s)))
-                    for t in settings.push_times_s)
-    return {"swaps_per_min": swaps_per_minute(times, P[:, 0], P[:, 1]), "swaps": int(done.size),
-            "recoveries": recovered, "pushes": len(settings.push_times_s)}
+    return {"swaps_per_min": swaps_per_minute(times, P[:, 0], P[:, 1]), "times": times,
+            "progress": swap_progress(P[:, 0], P[:, 1])}
+
+
+def recoveries(times, progress, disturbances_s, calm_swaps_per_min: float, within_s: float = 10.0,
+               window_s: float = 4.0, fraction: float = 0.5, direction: float = 1.0) -> int:
+    """How many disturbances were recovered: within ``within_s`` after the disturbance some
+    ``window_s`` window shows swap progress (in ``direction``, ±1) of at least ``fraction`` of the
+    calm rate.  A calm rate of 0 (a controller that never swaps) recovers nothing."""
+    t, prog = np.asarray(times, dtype=float), direction * np.asarray(progress, dtype=float)
+    need = fraction * abs(calm_swaps_per_min) / 60.0 * window_s
+    if need <= 0:
+        return 0
+    count = 0
+    for td in disturbances_s:
+        starts = t[(t >= td) & (t <= td + within_s - window_s)]
+        gain = np.interp(starts + window_s, t, prog) - np.interp(starts, t, prog)
+        count += int(np.any(gain >= need))
+    return count
 
 
 def loop_latency_ms(manifold_path, n: int = 200, k: int = 5, seed: int = 0) -> list[float]:
@@ -176,17 +202,53 @@ def loop_latency_ms(manifold_path, n: int = 200, k: int = 5, seed: int = 0) -> l
 
 @dataclass
 class EvalPlan:
-    """What ``handflow evaluate manipulation`` runs (``quick()`` is the < 2 min variant)."""
+    """What ``handflow evaluate manipulation`` runs (``quick()`` is the < 2 min variant).
+
+    Disturbances every ``disturb_every_s`` starting at ``first_disturbance_s``: with a 2 s hand
+    cycle (period_s = 4 s per ball period = two hand cycles) every disturbance falls at the same
+    open-loop hand phase, a quarter into the cycle (the rake stroke)."""
 
     radii_cm: tuple[float, ...] = TRAINING_RADII_CM + INTERMEDIATE_RADII_CM
     cap: CapSettings = field(default_factory=CapSettings)
     balls: BallSettings = field(default_factory=BallSettings)
-    push_every_s: float = 15.0
+    first_disturbance_s: float = 10.5
+    disturb_every_s: float = 15.0
 
     @classmethod
     def quick(cls) -> "EvalPlan":
         return cls(cap=CapSettings(cycles=1),
-                   balls=BallSettings(duration_s=30.0, camera=False), push_every_s=10.0)
+                   balls=BallSettings(duration_s=30.0, camera=False), disturb_every_s=12.0)
+
+    def disturbances(self) -> tuple[float, ...]:
+        end = self.balls.duration_s - 1e-9
+        return tuple(np.arange(self.first_disturbance_s, end, self.disturb_every_s).tolist())
+
+
+BALL_CONTROLLERS = {"open_loop": (False, None), "closed_loop": (True, None),
+                    "closed_loop_thesis": (True, 0.0)}
+"""Evaluation name → (closed loop?, tolerance override: None = the plan's, 0 = pure projection)."""
+
+
+def ball_swap_report(manifold: ManipulationManifold, plan: EvalPlan, progress=lambda line: None) -> dict:
+    """Per controller: calm rate, rate and recoveries under turn-backs (``swaps_per_min_disturbed``,
+    ``recoveries``, the thesis scenario) and under pushes (``…_pushed``)."""
+    times = plan.disturbances()
+    out = {}
+    for name, (closed, tolerance) in BALL_CONTROLLERS.items():
+        base = BallSettings(**{**plan.balls.__dict__,
+                               "tolerance": plan.balls.tolerance if tolerance is None else tolerance})
+        calm = ball_swap(manifold, closed, base)
+        direction = 1.0 if calm["progress"][-1] >= 0 else -1.0
+        row = {"swaps_per_min": calm["swaps_per_min"]}
+        for key, field_name in (("", "turn_times_s"), ("_pushed", "push_times_s")):
+            run = ball_swap(manifold, closed, BallSettings(**{**base.__dict__, field_name: times}))
+            row[f"swaps_per_min_disturbed{key}"] = run["swaps_per_min"]
+            row[f"recoveries{key}"] = recoveries(run["times"], run["progress"], times,
+                                                 calm["swaps_per_min"], direction=direction)
+        row["disturbances"] = len(times)
+        out[name] = row
+        progress(f"ball swap {name}: {row}")
+    return out
 
 
 def evaluate(constructed: ManipulationManifold, learned: ManipulationManifold,
@@ -200,20 +262,7 @@ def evaluate(constructed: ManipulationManifold, learned: ManipulationManifold,
             res = cap[key][f"{r:g}"] = cap_turning(manifold, r, plan.cap)
             progress(f"{key} r={r:g} cm: {res['deg_per_cycle']:.1f} deg/cycle, found radius "
                      f"{res['found_radius']:.2f}")
-    pushes = tuple(np.arange(plan.push_every_s, plan.balls.duration_s - 1e-9, plan.push_every_s))
-    swap = {}
-    for name, closed, prior in (("open_loop", False, plan.balls.prior_weight),
-                                ("closed_loop", True, plan.balls.prior_weight),
-                                ("closed_loop_no_prior", True, 0.0)):
-        settings = BallSettings(**{**plan.balls.__dict__, "prior_weight": prior})
-        calm = ball_swap(balls, closed, settings)
-        disturbed = ball_swap(balls, closed, BallSettings(**{**settings.__dict__,
-                                                             "push_times_s": pushes}))
-        swap[name] = {"swaps_per_min": calm["swaps_per_min"],
-                      "swaps_per_min_disturbed": disturbed["swaps_per_min"],
-                      "recoveries": disturbed["recoveries"], "pushes": disturbed["pushes"]}
-        progress(f"ball swap {name}: {swap[name]}")
     report = learned.model.provenance_
-    return {**cap, "ball_swap": swap,
+    return {**cap, "ball_swap": ball_swap_report(balls, plan, progress),
             "radius_spearman": report.get("spearman"), "radius_separation": report.get("separation"),
             "loop_latency_ms": loop_latency_ms(ball_path, k=plan.balls.k)}

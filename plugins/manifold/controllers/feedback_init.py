@@ -13,7 +13,12 @@ Documented choices (both swappable through the constructor):
   closed phase, while at its end — where the closure peaks — the sweep has moved the index
   finger away);
 - which radius border is "max radius": :func:`open_side` — the border where the hand is more
-  open (the learned manifold's radius axis has no fixed orientation).
+  open (the learned manifold's radius axis has no fixed orientation);
+- closing past the small-radius border (``overshoot``, default 0.25 of the radius range = 0.5 cm
+  on the constructed manifold): a cap smaller than the smallest training radius needs a hand
+  more closed than any demonstration, so the navigation goes on beyond the border and the
+  postures there are extrapolated linearly (``ManipulationManifold.posture(extrapolate=True)``);
+  ``overshoot=0`` stops at the border (the thesis' manifold has no postures beyond it).
 """
 from __future__ import annotations
 
@@ -79,20 +84,26 @@ class GraspByNavigation:
     Parameters: ``delta`` latent time per step while turning (in the demonstrations' direction);
     ``radius_step`` latent radius per step while closing; ``required`` finger names that must all touch before turning;
     ``approach_steps`` steps holding the start posture first (lets the hand get there).
-    If the closing reaches the small-radius border without the required contacts the radius is
-    frozen there and ``grasp_complete`` stays False.
+    ``overshoot`` latent radius beyond the small-radius border the closing may go (fraction of
+    the radius range; postures there are extrapolated, see :meth:`posture`).  If the closing
+    reaches that limit without the required contacts the radius is frozen there and
+    ``grasp_complete`` stays False.
     """
 
     def __init__(self, manifold: ManipulationManifold, delta: float, radius_step: float,
                  required=("TH", "FF", "MF"), approach_steps: int = 30,
-                 contact_time: float | None = None, start_radius: float | None = None) -> None:
+                 contact_time: float | None = None, start_radius: float | None = None,
+                 overshoot: float = 0.25) -> None:
         self.manifold = manifold
         self.t_dim, self.r_dim = manifold.time_dim, _other_dim(manifold)
         self.delta = float(delta) * manifold.time_sign
         self.required = frozenset(required)
         lo, hi = manifold.range(self.r_dim)
         r0 = open_side(manifold) if start_radius is None else float(start_radius)
-        self.r_end = lo if abs(r0 - hi) <= abs(r0 - lo) else hi
+        if not overshoot >= 0:
+            raise ValueError(f"overshoot must be >= 0, got {overshoot}")
+        self.r_end = lo - overshoot * (hi - lo) if abs(r0 - hi) <= abs(r0 - lo) \
+            else hi + overshoot * (hi - lo)
         self.radius_step = abs(float(radius_step)) * np.sign(self.r_end - r0)
         t0 = closure_time(manifold, r0) if contact_time is None else float(contact_time)
         self.clock = LatentClock(*manifold.range(self.t_dim), manifold.periodic, start=t0)
@@ -109,6 +120,10 @@ class GraspByNavigation:
     @property
     def cycles(self) -> int:
         return self.clock.cycles
+
+    def posture(self, x) -> np.ndarray:
+        """Joint targets of latent ``x`` (extrapolated beyond the radius border)."""
+        return self.manifold.posture(x, extrapolate=True)
 
     def start_turning(self, complete: bool) -> None:
         self.state, self.grasp_complete = TURNING, complete

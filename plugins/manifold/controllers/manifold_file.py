@@ -85,13 +85,39 @@ class ManipulationManifold:
         return float(col.min()), float(col.max())
 
     # -- mappings --------------------------------------------------------------------------------
-    def observation(self, X) -> np.ndarray:
-        """f(x) for latents (M, q) or (q,)."""
-        return self.model.inverse_transform(X)
+    def observation(self, X, extrapolate: bool = False, span: float = 0.25) -> np.ndarray:
+        """f(x) for latents (M, q) or (q,).
 
-    def posture(self, X) -> np.ndarray:
-        """Joint part of f(x): (M, n_joints) or (n_joints,)."""
-        return self.observation(X)[..., self.joint_index]
+        ``extrapolate``: beyond the training span of a non-periodic dimension, continue f
+        linearly with the secant slope over the last ``span`` (fraction of the span) inside the
+        border (documented choice: kernel regression flattens out at the border, so its own
+        derivative there would not extend the trend; 0.25 = one radius spacing on the constructed
+        cap manifold).  Without it, f saturates at the border value."""
+        X = np.asarray(X, dtype=float)
+        Y = self.model.inverse_transform(X)
+        if not extrapolate:
+            return Y
+        X2 = np.atleast_2d(X)
+        Y2 = np.atleast_2d(Y).copy()
+        for dim in range(self.q):
+            if self.periodic_dims[dim]:
+                continue
+            lo, hi = self.range(dim)
+            h = span * (hi - lo)
+            for border, inward in ((lo, h), (hi, -h)):
+                out = (X2[:, dim] - border) * np.sign(inward) < 0
+                if not out.any():
+                    continue
+                at, near = X2[out].copy(), X2[out].copy()
+                at[:, dim], near[:, dim] = border, border + inward
+                f_at = np.atleast_2d(self.model.inverse_transform(at))
+                slope = (f_at - np.atleast_2d(self.model.inverse_transform(near))) / -inward
+                Y2[out] = f_at + slope * (X2[out, dim] - border)[:, None]
+        return Y2.reshape(Y.shape)
+
+    def posture(self, X, extrapolate: bool = False) -> np.ndarray:
+        """Joint part of f(x): (M, n_joints) or (n_joints,) (``extrapolate``: see :meth:`observation`)."""
+        return self.observation(X, extrapolate)[..., self.joint_index]
 
     def project_posture(self, joints: dict[str, float]) -> np.ndarray:
         """Latent of a (partial) hand posture given by joint name (masked projection, §7)."""

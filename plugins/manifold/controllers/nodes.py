@@ -106,6 +106,8 @@ class FeedbackInitParams(_ControllerParams):
     contact_time: Optional[float] = Field(None, description="latent start time; default: the "
                                                             "time of maximal closure")
     approach_s: float = Field(1.0, ge=0, description="hold the start posture this long first")
+    overshoot: float = Field(0.25, ge=0, description="closing may go this fraction of the radius range "
+                                                     "past the small-radius border (extrapolated postures)")
     stale_after_s: float = Field(0.5, gt=0, description="fail-safe: no contacts message for this long")
 
 
@@ -121,7 +123,7 @@ class FeedbackInitNode(_ManifoldController):
         self.controller = GraspByNavigation(self.manifold, prm.delta, prm.radius_step,
                                             required=prm.required_fingers,
                                             approach_steps=int(round(prm.approach_s * prm.rate_hz)),
-                                            contact_time=prm.contact_time)
+                                            contact_time=prm.contact_time, overshoot=prm.overshoot)
         self.touching: set[str] = set()
         self.waiting_for_grasp = prm.init == "grasp"
 
@@ -142,14 +144,18 @@ class FeedbackInitNode(_ManifoldController):
         if self.check_stale() or self.waiting_for_grasp:
             return
         x = self.controller.update(self.touching)
-        self.publish_command(x, self.manifold.posture(x))
+        self.publish_command(x, self.controller.posture(x))
 
 
 class ClosedLoopParams(_ControllerParams):
     k: int = Field(5, ge=1, description="planned steps per observation (horizon k·delta)")
     mask: Literal[MASKS] = Field("ball1", description="partial projection on ball-1 dims (thesis) or both balls")
-    prior_weight: float = Field(100.0, ge=0, description="pull of the phase estimate towards the last "
-                                                         "command (0 = the thesis' pure projection)")
+    tolerance: float = Field(0.05, ge=0, description="ball error above the best that still counts as "
+                                                     "consistent (0 = the thesis' pure projection)")
+    lag: float = Field(0.5, ge=0, description="keep the commanded phase while a consistent phase lies "
+                                              "within this latent distance")
+    max_error: float = Field(0.1, gt=0, description="ball error above which the balls are off the "
+                                                    "manifold and the commanded phase is kept")
     stale_after_s: float = Field(0.5, gt=0, description="fail-safe: no ball observation for this long")
 
 
@@ -161,8 +167,9 @@ class ClosedLoopNode(_ManifoldController):
 
     def setup(self) -> None:
         super().setup()
-        self.controller = ClosedLoopController(self.manifold, self.params.k, self.params.delta,
-                                               self.params.mask, self.params.prior_weight)
+        prm = self.params
+        self.controller = ClosedLoopController(self.manifold, prm.k, prm.delta, prm.mask,
+                                               prm.tolerance, prm.lag, prm.max_error)
         self.plan: list = []
 
     def on_message(self, port: str, msg: Points2D) -> None:

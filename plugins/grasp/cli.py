@@ -32,6 +32,22 @@ def _objects(text: str) -> list[str]:
     return objs
 
 
+def _trials(text: str, objects: list[str]) -> int | dict[str, int]:
+    """``--trials``: one count for every object (``250``) or per object (``box=250,cylinder=900``)."""
+    try:
+        if "=" not in text:
+            return int(text)
+        per = {k.strip(): int(v) for k, v in (item.split("=") for item in text.split(",") if item.strip())}
+    except ValueError:
+        raise ValueError(f"--trials takes a count (250) or object=count pairs (box=250,cylinder=900), got {text!r}") from None
+    missing = [o for o in objects if o not in per]
+    unknown = [o for o in per if o not in objects]
+    if missing or unknown:
+        raise ValueError(f"--trials {text!r}: give a count for exactly the objects {','.join(objects)} "
+                         f"(missing {missing}, not generated {unknown})")
+    return per
+
+
 def _pair(text: str, name: str) -> tuple[float, float]:
     try:
         a, b = (float(v) for v in text.split(","))
@@ -45,7 +61,8 @@ def register_generate(parser: argparse.ArgumentParser) -> None:
     parser.description = ("Generate grasp experience in pybullet (randomised tactile grasps kept when they pass "
                           "the disturbance test) and optionally train the SOM grasp manifolds.")
     parser.add_argument("--objects", default=",".join(OBJECTS), help="comma-separated subset of box,cylinder,sphere")
-    parser.add_argument("--trials", type=int, default=400, help="grasp trials per object")
+    parser.add_argument("--trials", default="400", help="grasp trials per object: a count, or object=count pairs "
+                        "(e.g. box=250,cylinder=900,sphere=200) to balance the experience")
     parser.add_argument("--local-trials", type=int, default=3, help="jittered retries around each stable grasp")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--out", default=str(DEFAULT_EXPERIENCE), help="output folder (gets grasps.npz)")
@@ -59,7 +76,8 @@ def register_generate(parser: argparse.ArgumentParser) -> None:
 def run_generate(args) -> int:
     try:
         objects = _objects(args.objects)
-        if args.trials < 1 or args.local_trials < 0:
+        trials = _trials(str(args.trials), objects)
+        if min(trials.values() if isinstance(trials, dict) else [trials]) < 1 or args.local_trials < 0:
             raise ValueError("--trials must be ≥ 1 and --local-trials ≥ 0")
     except ValueError as exc:
         print(f"error: {exc}", file=sys.stderr)
@@ -67,7 +85,7 @@ def run_generate(args) -> int:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     with threadpool_limits(1):
-        data = generate_experience(objects, args.trials, seed=args.seed, local_trials=args.local_trials,
+        data = generate_experience(objects, trials, seed=args.seed, local_trials=args.local_trials,
                                    progress=_progress)
         data.save(out / "grasps.npz")
         _progress(f"wrote {len(data)} stable grasps to {out / 'grasps.npz'}: {data.metadata['counts']}")

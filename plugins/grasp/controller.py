@@ -4,11 +4,11 @@ One :meth:`ExperienceGraspController.step` per control cycle maps the measured p
 of touching hand segments to joint targets:
 
 (A) pre-grasp: actuate ``pregrasp`` until it is reached (or a contact occurs);
-(B) no contact yet: approach the best match over *all* finger joints; once it is reached without a
-    contact, close further with the heuristic (D) and search the best match of the current posture
-    again, approaching it when it changed — repeated until the first contact;
+(B) no contact yet: approach the best match (as a target shape, see :data:`STEER_MODES`); once it is
+    reached without a contact, close further with the heuristic (D) and search the best match of the
+    current posture again, approaching it when it changed — repeated until the first contact;
 (C) per finger, by its contact state, re-matching with the PCP metric whenever the set of touching
-    segments changes:
+    segments changes and the new set has persisted ``rematch_cycles`` cycles:
     - no contact → approach the best match's sub-target, once reached close with (D);
     - only non-tip contacts → hold the joints up to the touching segment, close the more distal
       ones with (D); no longer follows new best matches while it keeps a contact;
@@ -28,8 +28,10 @@ sub-targets.  Documented choices (all in :class:`ControllerConfig`):
   the finger at full motor speed into the object);
 - a (sub-)target is reached when every joint is within ``reach_tol`` or the finger stopped moving
   (``still_tol`` per cycle) — joint couplings can make exact targets unreachable;
-- a lost contact still counts for ``release_cycles`` cycles (contact flicker would otherwise
-  trigger a new best-match search every cycle).
+- a lost contact still counts for ``release_cycles`` cycles, and a changed contact set must persist
+  ``rematch_cycles`` cycles before it triggers a best-match search (contact flicker would otherwise
+  re-match and re-steer the free fingers every cycle);
+- ``steer``: which joints a best match moves, and in which direction (:data:`STEER_MODES`).
 """
 from __future__ import annotations
 
@@ -44,6 +46,20 @@ SHADOW_PREGRASP = {"THJ5": -0.2, "THJ4": 0.2, "THJ1": 0.3}
 """Empirically chosen pre-grasp of the ShadowHand-like hand (thesis: one fixed pre-grasp for all runs),
 the best of a few candidates on the evaluation grid: fingers straight, thumb turned towards the
 fingers (THJ5 < 0 opposes in this model) and slightly abducted; unnamed joints 0."""
+
+STEER_MODES = ("closing", "blend", "staged", "all")
+"""How a best match steers the free fingers (documented choice ``ControllerConfig.steer``):
+
+- ``closing`` (default): the match is a target shape for the *closing* joints only, approached only where
+  it flexes further than the current targets (a match never opens a joint the heuristic closed);
+  spread/rotation joints keep the pre-grasp, so they never swing into a floating object;
+- ``blend``: like ``closing``, but the heuristic never waits for the match: each closing joint advances by
+  the larger of the heuristic step and the (``approach_speed``-limited) step towards the match (before
+  the first contact the best match is then searched every cycle);
+- ``staged``: ``closing`` before the first contact (phase B), from then on the match also sets the
+  spread/rotation joints;
+- ``all``: the literal thesis rule — every joint of the match, opening ones included.
+"""
 
 APPROACH, CLOSE, WRAP, HOLD = "approach", "close", "wrap", "hold"
 """Per-finger modes: moving to the sub-target, closing with the heuristic, non-tip contact, tip contact."""
@@ -60,6 +76,8 @@ class ControllerConfig:
     reach_tol: float = 0.05     # a (sub-)target is reached within this error per joint …
     still_tol: float = 0.002    # … or when no joint moved more than this in one cycle
     squeeze: float = 0.1        # grip: held closing joints finally target the measured angle plus this
+    steer: str = "closing"      # how a best match steers the free fingers, one of STEER_MODES
+    rematch_cycles: int = 3     # a changed contact set must persist this many cycles before a re-match
     max_lead: float = 0.25      # closing targets lead the measured angle by at most this
     release_cycles: int = 3     # a lost contact still counts for this many cycles (debounces flicker)
     pregrasp: dict = field(default_factory=lambda: dict(SHADOW_PREGRASP))
@@ -72,6 +90,10 @@ class ControllerConfig:
             raise ValueError(f"controller release_cycles must be ≥ 0, got {self.release_cycles}")
         if self.squeeze < 0:
             raise ValueError(f"controller squeeze must be ≥ 0, got {self.squeeze}")
+        if self.steer not in STEER_MODES:
+            raise ValueError(f"controller steer must be one of {STEER_MODES}, got {self.steer!r}")
+        if self.rematch_cycles < 0:
+            raise ValueError(f"controller rematch_cycles must be ≥ 0, got {self.rematch_cycles}")
 
 
 class ExperienceGraspController:
@@ -97,6 +119,8 @@ class ExperienceGraspController:
             self.exp_cols = np.array([self.index[n] for n in experience.names])
         self.fingers = layout.fingers
         self.finger_cols = {f.name: np.array([self.index[j] for j in f.joints]) for f in self.fingers}
+        self.closing_mask = np.zeros(len(self.names), dtype=bool)
+        self.closing_mask[[self.index[f.joints[c]] for f in self.fingers for c in f.closing]] = True
         self.reset()
 
     # -- state ---------------------------------------------------------------------------------
@@ -109,6 +133,8 @@ class ExperienceGraspController:
         self.pregrasp = np.clip(pre, self.lower, self.upper)
         self.targets = self.pregrasp.copy()
         self.touched: frozenset[str] = frozenset()
+        self.matched_touch: frozenset[str] = frozenset()  # the contact set the current best match was searched for
+        self.unchanged_for = 0                            # cycles the contact set has stayed the same
         self.last_seen: dict[str, int] = {}
         self.mode = {f.name: APPROACH for f in self.fingers}
         self.deepest = {f.name: -1 for f in self.fingers}  # chain position of the deepest touching segment (wrap)
@@ -178,10 +204,13 @@ class ExperienceGraspController:
 
     def _contact_control(self, q: np.ndarray, touched: frozenset[str], moved) -> None:
         """Phase C: re-match on contact changes, then control every finger by its contact state."""
-        if self.experience is not None and touched and touched != self.touched:
+        self.unchanged_for = self.unchanged_for + 1 if touched == self.touched else 0
+        settled = self.unchanged_for >= self.config.rematch_cycles
+        if self.experience is not None and touched and touched != self.matched_touch and settled:
             mask = self.layout.pcp_mask(touched, self.experience.names)
             k, posture = self.experience.best_match(q[self.exp_cols], mask)
             self._set_match(k, posture)
+            self.matched_touch = touched
         for f in self.fingers:
             mine = frozenset(s for s in touched if s in f.segments)
             if f.tip in mine:
@@ -203,22 +232,38 @@ class ExperienceGraspController:
 
     # -- building blocks -----------------------------------------------------------------------
     def _set_match(self, k: int, posture: np.ndarray) -> None:
+        """The best match becomes the sub-target, restricted by ``config.steer`` (see :data:`STEER_MODES`)."""
         self.match_index = k
         self.n_matches += 1
-        self.subtarget = self.targets.copy()
-        self.subtarget[self.exp_cols] = posture
-        self.subtarget = np.clip(self.subtarget, self.lower, self.upper)
+        sub = self.targets.copy()
+        sub[self.exp_cols] = posture
+        if self.config.steer != "all":
+            sub = np.where(self.closing_mask, np.maximum(sub, self.targets), sub)
+            if self.config.steer in ("closing", "blend") or (self.phase == "B" and self.config.steer == "staged"):
+                sub = np.where(self.closing_mask, sub, self.targets)
+        self.subtarget = np.clip(sub, self.lower, self.upper)
         self._new_sub = True
 
     def _free_finger(self, f: Finger, q: np.ndarray, moved) -> None:
         """A finger without contact: approach the sub-target at ``approach_speed``, then close with (D)."""
         cols = self.finger_cols[f.name]
+        if self.config.steer == "blend" and self.subtarget is not None:
+            before = self.targets[cols].copy()
+            self.mode[f.name] = CLOSE
+            self._close(f, q, frozenset())
+            limit = self.config.approach_speed * self.dt
+            pull = before + np.clip(self.subtarget[cols] - before, 0.0, limit)
+            pull = np.minimum(pull, np.maximum(before, q[cols] + self.config.max_lead))
+            self.targets[cols] = np.where(self.closing_mask[cols], np.maximum(self.targets[cols], pull), self.targets[cols])
+            return
         if self.mode[f.name] == APPROACH:
             if self.subtarget is None:
                 self.mode[f.name] = CLOSE
             else:
                 limit = self.config.approach_speed * self.dt
                 gap = self.subtarget[cols] - self.targets[cols]
+                if self.config.steer != "all":  # the heuristic may have closed past the match: never open
+                    gap = np.where(self.closing_mask[cols], np.maximum(gap, 0.0), gap)
                 self.targets[cols] += np.clip(gap, -limit, limit)
                 if np.max(np.abs(gap)) <= limit and self._reached(q, self.targets, moved, cols):
                     self.mode[f.name] = CLOSE

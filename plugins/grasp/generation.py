@@ -71,12 +71,18 @@ def _jitter(rng: np.random.Generator, pose: GraspPose, pregrasp: dict) -> tuple[
     return near, pre
 
 
-def generate_experience(objects, n_trials: int, seed: int = 0, hand: str = "shadow", local_trials: int = 3,
+def generate_experience(objects, n_trials: int | dict[str, int], seed: int = 0, hand: str = "shadow", local_trials: int = 3,
                         base: ControllerConfig = ControllerConfig(), episode: EpisodeConfig = EpisodeConfig(),
                         progress: Callable[[str], None] | None = None) -> GraspDataset:
-    """Run ``n_trials`` randomised grasps per object and return the stable ones as a dataset."""
-    if n_trials < 1:
-        raise ValueError(f"n_trials must be ≥ 1, got {n_trials}")
+    """Run ``n_trials`` randomised grasps per object and return the stable ones as a dataset.
+
+    ``n_trials`` may be a dict ``{object: trials}`` to balance the experience: objects with a low yield
+    of stable grasps (the lying cylinder) need more trials for a comparable number of grasps.
+    """
+    trials = n_trials if isinstance(n_trials, dict) else {obj: n_trials for obj in objects}
+    bad = {obj: trials.get(obj) for obj in objects if not isinstance(trials.get(obj), int) or trials[obj] < 1}
+    if bad:
+        raise ValueError(f"every object needs ≥ 1 trials, got {bad}")
     layout = hand_layout(hand)
     model = HAND_MODELS[hand]
     names = layout.finger_joints
@@ -87,7 +93,7 @@ def generate_experience(objects, n_trials: int, seed: int = 0, hand: str = "shad
     for obj in objects:
         kept = valid = 0
         queue: list[tuple[GraspPose, dict, float, int]] = []
-        for t in range(n_trials):
+        for t in range(trials[obj]):
             if queue:
                 pose, pregrasp, lam, depth = queue.pop(0)
             else:
@@ -106,8 +112,8 @@ def generate_experience(objects, n_trials: int, seed: int = 0, hand: str = "shad
                 contacts.append(result.touched)
                 quality.append(result.quality)
             if progress is not None and (t + 1) % 20 == 0:
-                progress(f"{obj}: {t + 1}/{n_trials} trials, {kept} stable grasps kept")
-        counts[obj] = {"trials": n_trials, "valid": valid, "stable": kept}
+                progress(f"{obj}: {t + 1}/{trials[obj]} trials, {kept} stable grasps kept")
+        counts[obj] = {"trials": trials[obj], "valid": valid, "stable": kept}
     meta = {"hand": hand, "method": "randomised tactile grasping + disturbance test", "seed": seed,
             "counts": counts, "pose_ranges": {k: list(v) for k, v in POSE_RANGES.items()}}
     return GraspDataset(names, np.array(postures).reshape(-1, len(names)), objs, np.array(poses).reshape(-1, 4),

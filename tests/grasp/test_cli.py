@@ -55,6 +55,10 @@ def test_bad_input_exits_2_with_advice(tmp_path, grasps, capsys):
     assert "start,end" in capsys.readouterr().err
     assert call(cli.register_generate, ["--objects", "teapot", "--out", str(tmp_path)]) == 2
     assert "box,cylinder,sphere" in capsys.readouterr().err
+    assert call(cli.register_generate, ["--objects", "box,cylinder", "--trials", "box=5", "--out", str(tmp_path)]) == 2
+    assert "missing ['cylinder']" in capsys.readouterr().err
+    assert call(cli.register_generate, ["--trials", "box=many", "--out", str(tmp_path)]) == 2
+    assert "object=count" in capsys.readouterr().err
     assert call(cli.register_evaluate, ["--quick", "--experience", str(tmp_path / "nothing")]) == 2
     err = capsys.readouterr().err
     assert "som_box.npz" in err and "grasp-experience" in err
@@ -62,7 +66,8 @@ def test_bad_input_exits_2_with_advice(tmp_path, grasps, capsys):
 
 def test_generate_writes_a_dataset_and_soms(tmp_path, capsys):
     out = tmp_path / "exp"
-    assert call(cli.register_generate, ["--objects", "sphere", "--trials", "6", "--out", str(out), "--seed", "3"]) == 0
+    assert call(cli.register_generate, ["--objects", "sphere", "--trials", "sphere=6", "--out", str(out),
+                                        "--seed", "3"]) == 0
     data = GraspDataset.load(out / "grasps.npz")
     assert data.metadata["counts"]["sphere"]["trials"] == 6 and data.names == tuple(NAMES)
     assert set(data.objects) <= {"sphere"}

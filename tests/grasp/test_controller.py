@@ -84,7 +84,7 @@ def experience_base():
 
 
 def test_rematches_exactly_when_contacts_change_and_pcp_ignores_untouched_fingers():
-    ctl = make(experience_base())
+    ctl = make(experience_base(), ControllerConfig(gamma=1.2, lam=1.5, pregrasp=CFG.pregrasp, rematch_cycles=0))
     q = np.zeros(len(LAYOUT.names))                           # hand open: matches care about FF/TH only
     ctl.step(q, ["FF_proximal"])                              # a contact ends phase A at once
     assert ctl.phase == "C" and ctl.n_matches == 1
@@ -100,12 +100,29 @@ def test_rematches_exactly_when_contacts_change_and_pcp_ignores_untouched_finger
     assert ctl.targets[col("MFJ3")] == pytest.approx(0.3) and ctl.n_matches == 2
 
 
+def test_rematch_waits_until_a_changed_contact_set_has_persisted():
+    ctl = make(experience_base(), ControllerConfig(pregrasp=CFG.pregrasp, rematch_cycles=3, release_cycles=0))
+    q = np.zeros(len(LAYOUT.names))
+    for _ in range(3):
+        ctl.step(q, ["FF_proximal"])
+    assert ctl.n_matches == 0                                 # a new contact set: not yet settled
+    ctl.step(q, ["FF_proximal"])
+    assert ctl.n_matches == 1
+    for touched in (["FF_proximal", "TH_proximal"], ["FF_proximal"]) * 3:   # the thumb contact flickers
+        ctl.step(q, touched)
+    assert ctl.n_matches == 1
+    for _ in range(4):                                        # … until it stays
+        ctl.step(q, ["FF_proximal", "TH_proximal"])
+    assert ctl.n_matches == 2
+
+
 def test_phase_b_approaches_the_best_match_over_all_joints():
     names = LAYOUT.finger_joints
     posture = np.zeros(len(names))
     posture[names.index("MFJ3")] = 0.3
     posture[names.index("THJ5")] = -0.2
-    ctl = make(ExperienceBase(posture[None], names), ControllerConfig(pregrasp=CFG.pregrasp, approach_speed=0.6))
+    ctl = make(ExperienceBase(posture[None], names),
+               ControllerConfig(pregrasp=CFG.pregrasp, approach_speed=0.6, steer="all"))
     t = ctl.step(ctl.pregrasp.copy(), [])                     # pre-grasp reached: A → B, best match chosen
     assert ctl.phase == "B" and ctl.n_matches == 1
     mf = [t[col("MFJ3")]]
@@ -133,3 +150,36 @@ def test_refuses_experience_from_another_hand():
     gifu = ExperienceBase(np.zeros((2, 2)), ["FF_J2", "FF_J3"], "database")
     with pytest.raises(ValueError, match="not joints of hand 'shadow'"):
         make(gifu)
+
+
+def test_closing_steer_never_opens_and_keeps_spread_and_rotation_joints():
+    names = LAYOUT.finger_joints
+    posture = np.zeros(len(names))
+    posture[names.index("MFJ3")] = 0.3                       # flexes further: approached
+    posture[names.index("THJ5")] = -1.0                      # rotation: not steered by the match
+    posture[names.index("FFJ4")] = 0.3                       # spread: not steered by the match
+    pre = {"THJ5": -0.2, "FFJ2": 0.4}                        # FFJ2 pre-flexed beyond the match (0): never opened
+    ctl = make(ExperienceBase(posture[None], names), ControllerConfig(pregrasp=pre, approach_speed=0.6))
+    t = ctl.step(ctl.pregrasp.copy(), [])
+    for _ in range(40):
+        t = ctl.step(t, [])
+        assert t[col("FFJ2")] >= 0.4 and t[col("THJ5")] == pytest.approx(-0.2) and t[col("FFJ4")] == 0.0
+    assert t[col("MFJ3")] > 0.3                               # reached the match, then closed further
+
+
+def test_blend_steer_closes_at_least_as_fast_as_the_heuristic_and_faster_towards_the_match():
+    names = LAYOUT.finger_joints
+    posture = np.zeros(len(names))
+    posture[names.index("MFJ2")] = 1.0
+    cfg = ControllerConfig(pregrasp={}, approach_speed=3.0, steer="blend")
+    blend, plain = make(ExperienceBase(posture[None], names), cfg), make(config=cfg)
+    tb = tp = blend.pregrasp.copy()
+    for _ in range(10):
+        tb, tp = blend.step(tb, []), plain.step(tp, [])
+    assert np.all(tb[blend.closing_mask] >= tp[plain.closing_mask] - 1e-12)
+    assert tb[col("MFJ2")] > tp[col("MFJ2")] + 0.1            # pulled towards the match at approach_speed
+
+
+def test_unknown_steer_mode_is_refused():
+    with pytest.raises(ValueError, match="steer must be one of"):
+        ControllerConfig(steer="sideways")

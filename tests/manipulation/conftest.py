@@ -1,5 +1,5 @@
 import pytest
-from synthetic import BALL_JOINTS, CAP_NAMES, ball_sequences, cap_sequences
+from tests.manipulation.synthetic import BALL_JOINTS, CAP_NAMES, ball_sequences, cap_sequences
 
 from plugins.manifold import StructuredUKR
 from plugins.manifold.construction import ManifoldConstruction

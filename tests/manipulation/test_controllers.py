@@ -1,7 +1,7 @@
 """Plain controller classes (production.md §4) on synthetic manifolds."""
 import numpy as np
 import pytest
-from synthetic import posture
+from tests.manipulation.synthetic import posture
 
 from plugins.manifold.controllers import ClosedLoopController, GraspByNavigation, OpenLoopController
 from plugins.manifold.controllers.feedback_init import CLOSING, TURNING, flexion, open_side

@@ -65,7 +65,7 @@ def test_feedback_init_node_closes_until_contact_then_turns_and_fails_safe(cap_m
 
 
 def test_feedback_init_node_grasp_variant_projects_the_posture(cap_manifold, manifold_file):
-    from synthetic import posture
+    from tests.manipulation.synthetic import posture
     path = manifold_file(cap_manifold)
     h = NodeHarness(FeedbackInitNode, {"manifold": str(path), "init": "grasp", "rate_hz": 20}).setup()
     h.send("contacts", _contacts())

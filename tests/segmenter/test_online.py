@@ -58,3 +58,36 @@ def test_events_report_segments_and_revisions(candidates, two_letters):
         if e.kind == "revision":
             assert e.previous != e.label and e.start <= e.end
     assert np.mean(seg.window_labels == truth) > 0.9
+
+
+def test_segment_tracker_moves_boundaries_on_revision():
+    from plugins.segmenter.online import SegmentTracker
+
+    tr = SegmentTracker()
+    for i, lab in enumerate([0, 0, 0, 0, 1, 1, 1]):
+        tr.update(i, lab)
+    moved = tr.revise(2, 3, 1)          # the B segment really started at 2
+    assert [(e.kind, e.label, e.start, e.end) for e in moved] == [("end", 0, 0, 1), ("start", 1, 2, 2)]
+    assert tr.current == (1, 2)
+    moved = tr.revise(4, 4, -1)         # a rejected point inside the B segment splits it
+    assert [(e.kind, e.label, e.start, e.end) for e in moved] == [
+        ("end", 1, 2, 3), ("start", -1, 4, 4), ("end", -1, 4, 4), ("start", 1, 5, 5)]
+    assert tr.current == (1, 5)
+
+
+def test_revisions_need_confirmation_and_are_mostly_right(candidates, two_letters):
+    Y, truth = two_letters
+    proj = candidates.project(Y)
+    counts = {}
+    for confirm in (1, 5):
+        seg = OnlineCLMSegmenter(candidates, window=200, history=10, confirm=confirm, edge=0 if confirm == 1 else None,
+                                 random_state=0)
+        revs = [e for u in stream(seg, proj) for e in u.events if e.kind == "revision"]
+        counts[confirm] = len(revs)
+        if confirm == 5:
+            right = sum(int(np.sum(truth[e.start: e.end + 1] == e.label)) for e in revs)
+            wrong = sum(int(np.sum(truth[e.start: e.end + 1] == e.previous)) for e in revs)
+            assert right > 2 * wrong
+            # every published label equals the current one unless its change is still unconfirmed
+            assert np.mean(seg.published_labels == seg.window_labels) > 0.95
+    assert counts[5] < counts[1]

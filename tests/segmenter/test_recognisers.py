@@ -68,3 +68,18 @@ def test_nan_observations_get_a_clear_error(candidates, two_letters):
     Y[3, 0] = np.nan
     with pytest.raises(ValueError, match="NaN"):
         CLMSegmenter(candidates).fit_predict(Y)
+
+
+def test_training_rejects_an_unknown_init(synthetic):
+    from plugins.segmenter import train_class_models
+
+    with pytest.raises(ValueError, match="init must be one of"):
+        train_class_models(synthetic, n_steps=0, init="tsne")
+
+
+def test_equidistant_init_spreads_each_class_over_the_period(ukr_models):
+    for model in ukr_models.values():
+        lt = np.mod(model.latents_[:, 0], np.pi)
+        # the trained time axis still covers most of the period (no collapse onto a short arc)
+        occupied = np.unique(np.floor(lt / (np.pi / 8))).size
+        assert occupied >= 6

@@ -164,6 +164,14 @@ def _fail(code, msg):
     return code
 
 
+def check_train_args(args: argparse.Namespace) -> None:
+    """The ``--steps`` / ``--out`` checks shared by every training mode."""
+    if args.steps is not None and args.steps < 0:
+        raise InvalidInputError(f"--steps must be >= 0, got {args.steps}")
+    if not args.out.parent.is_dir():
+        raise InvalidInputError(f"--out: directory {args.out.parent} does not exist")
+
+
 def run_train(args: argparse.Namespace) -> int:
     """Run ``train``; returns the exit code."""
     from .controllers.training import manipulation_mode, run_manipulation_training
@@ -171,10 +179,7 @@ def run_train(args: argparse.Namespace) -> int:
         return run_manipulation_training(args)
     try:
         cfg = load_config(args.config)
-        if args.steps is not None and args.steps < 0:
-            raise InvalidInputError(f"--steps must be >= 0, got {args.steps}")
-        if not args.out.parent.is_dir():
-            raise InvalidInputError(f"--out: directory {args.out.parent} does not exist")
+        check_train_args(args)
         sequences, names = load_data(cfg.data)
         model = build_model(cfg, args.steps)
         with _Progress(model.n_steps, args.quiet) as progress:

@@ -28,7 +28,7 @@ import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 from scipy.stats import spearmanr
 
-from ..cli import ModelConfig, TrainingConfig, _Progress
+from ..cli import ModelConfig, TrainingConfig, _Progress, check_train_args
 from ..construction import ManifoldConstruction
 from ..model import StructuredUKR
 from ..validation import InvalidInputError
@@ -174,10 +174,7 @@ def run_manipulation_training(args: argparse.Namespace) -> int:
     """``handflow train CONFIG --out FILE`` for the modes of :data:`MODES`."""
     try:
         cfg = load_config(args.config)
-        if args.steps is not None and args.steps < 0:
-            raise InvalidInputError(f"--steps must be >= 0, got {args.steps}")
-        if not args.out.parent.is_dir():
-            raise InvalidInputError(f"--out: directory {args.out.parent} does not exist")
+        check_train_args(args)
         steps = args.steps if args.steps is not None else (
             cfg.construction.n_steps if cfg.mode == "construction" else cfg.training.n_steps)
         with _Progress(steps, args.quiet) as progress:

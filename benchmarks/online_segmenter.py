@@ -2,8 +2,11 @@
 
 4 candidate manifolds + background, sliding window 200, a stream "recorded" at 100 Hz (letters of
 the 4 classes one after another, so the stream holds transitions).  Every sample is processed
-exactly as the node does (projection onto the 4 manifolds + warm-started CLM).  Baseline in the
-same run: the same stream with cold starts only (``warm_start=False``).  BLAS is limited to one
+exactly as the node does (batched projection onto the 4 manifolds + warm-started CLM).  Baselines
+in the same run: the same stream with cold starts only (``warm_start=False``); the per-model
+projection (one ``StructuredUKR.transform`` per candidate, the path before the batched
+projector); and revisions counted the old way (every change of an earlier label, ``confirm=1``,
+``edge=0``).  BLAS is limited to one
 thread (one core); numba code is single-threaded.
 
     python benchmarks/online_segmenter.py [--seconds 20] [--dataset letters.npz] [--json]
@@ -37,16 +40,32 @@ def make_stream(args):
     cands = candidate_set(train_class_models(ds, n_steps=200, random_state=args.seed))
     pool = ds.test + ds.validation
     rng = np.random.default_rng(args.seed)
-    parts, n = [], int(args.seconds * RATE_HZ)
+    parts, truth, n = [], [], int(args.seconds * RATE_HZ)
     while sum(map(len, parts)) < n:
-        parts.append(pool[rng.integers(len(pool))].data)
-    return cands, np.vstack(parts)[:n]
+        t = pool[rng.integers(len(pool))]
+        parts.append(t.data)
+        truth.append(np.full(len(t.data), cands.classes.index(t.label)))
+    return cands, np.vstack(parts)[:n], np.concatenate(truth)[:n]
 
 
-def run(cands, Y, warm: bool, seed: int, cold_every: int | None = 10):
+def per_model_projection_ms(cands, Y):
+    """Baseline: single-point projection with one ``transform`` per candidate (median, p99 in ms)."""
+    t = []
+    for y in Y:
+        t0 = time.perf_counter()
+        for m in cands.models.values():
+            m.project(y[None])
+        t.append(time.perf_counter() - t0)
+    t = np.array(t[50:]) * 1e3
+    return float(np.median(t)), float(np.percentile(t, 99))
+
+
+def run(cands, Y, truth, warm: bool, seed: int, cold_every: int | None = 10, confirm: int = 5, edge=None):
     seg = OnlineCLMSegmenter(cands, window=200, history=10, warm_start=warm, cold_every=cold_every,
-                             random_state=seed)
+                             confirm=confirm, edge=edge, random_state=seed)
     lat, sweeps, revisions, proj_t, clm_t = [], [], 0, [], []
+    to_truth = from_truth = 0
+    exit_labels = []  # published label of each observation as it leaves the window
     for y in Y:
         t0 = time.perf_counter()
         p = cands.project(y[None])
@@ -57,7 +76,13 @@ def run(cands, Y, warm: bool, seed: int, cold_every: int | None = 10):
         proj_t.append(t1 - t0)
         clm_t.append(t2 - t1)
         sweeps.append(up.sweeps)
-        revisions += sum(e.kind == "revision" for e in up.events)
+        for e in up.events:
+            if e.kind == "revision":
+                revisions += 1
+                to_truth += int(np.sum(truth[e.start: e.end + 1] == e.label))
+                from_truth += int(np.sum(truth[e.start: e.end + 1] == e.previous))
+        if seg.n == seg.window:
+            exit_labels.append(seg.published_labels[0])
     lat_ms = np.array(lat[50:]) * 1e3  # skip the JIT/warm-up start of the window
     return {"latency_ms_median": float(np.median(lat_ms)), "latency_ms_p99": float(np.percentile(lat_ms, 99)),
             "projection_ms_median": float(np.median(np.array(proj_t[50:]) * 1e3)),
@@ -65,7 +90,10 @@ def run(cands, Y, warm: bool, seed: int, cold_every: int | None = 10):
             "clm_ms_median": float(np.median(np.array(clm_t[50:]) * 1e3)),
             "clm_ms_p99": float(np.percentile(np.array(clm_t[50:]) * 1e3, 99)),
             "sweeps_median": float(np.median(sweeps[50:])),
-            "revisions_per_min": revisions / (len(Y) / RATE_HZ / 60.0)}
+            "revisions_per_min": revisions / (len(Y) / RATE_HZ / 60.0),
+            "revised_points_to_truth": to_truth, "revised_points_from_truth": from_truth,
+            "published_accuracy_at_exit": (float(np.mean(np.array(exit_labels) == truth[: len(exit_labels)]))
+                                           if exit_labels else None)}
 
 
 def main(argv=None) -> int:
@@ -77,13 +105,22 @@ def main(argv=None) -> int:
                     help="energy check against a cold solve every N warm updates (0 = never)")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args(argv)
-    cands, Y = make_stream(args)
-    run(cands, Y[:60], True, args.seed)  # compile numba kernels outside the measurement
-    warm = run(cands, Y, True, args.seed, args.cold_every or None)
-    cold = run(cands, Y, False, args.seed)
+    cands, Y, truth = make_stream(args)
+    run(cands, Y[:60], truth, True, args.seed)  # compile numba kernels outside the measurement
+    warm = run(cands, Y, truth, True, args.seed, args.cold_every or None)
+    cold = run(cands, Y, truth, False, args.seed)
+    every_change = run(cands, Y, truth, True, args.seed, args.cold_every or None, confirm=1, edge=0)
+    base_med, base_p99 = per_model_projection_ms(cands, Y[:500])
     out = {"latency_ms_median": warm["latency_ms_median"], "latency_ms_p99": warm["latency_ms_p99"],
            "sweeps_warm_median": warm["sweeps_median"], "sweeps_cold_median": cold["sweeps_median"],
            "revisions_per_min": warm["revisions_per_min"],
+           "revisions_per_min_every_change": every_change["revisions_per_min"],
+           **{f"{k}": warm[k] for k in ("revised_points_to_truth", "revised_points_from_truth",
+                                        "published_accuracy_at_exit")},
+           **{f"{k}_every_change": every_change[k] for k in ("revised_points_to_truth", "revised_points_from_truth",
+                                                             "published_accuracy_at_exit")},
+           "per_model_projection_ms_median": base_med, "per_model_projection_ms_p99": base_p99,
+           "projection_speedup_median": base_med / warm["projection_ms_median"],
            "projection_ms_median": warm["projection_ms_median"], "projection_ms_p99": warm["projection_ms_p99"],
            "clm_ms_median": warm["clm_ms_median"], "clm_ms_p99": warm["clm_ms_p99"],
            "cold_clm_ms_median": cold["clm_ms_median"], "cold_clm_ms_p99": cold["clm_ms_p99"],

@@ -179,6 +179,12 @@ class StructuredUKR(BaseEstimator):
             self.n_steps = steps
 
     # -- mapping and projection ----------------------------------------------------------------
+    @property
+    def kernel_(self):
+        """The fitted latent :class:`~plugins.manifold.kernels.ProductKernel` (one kernel per dimension)."""
+        self._check_fitted()
+        return self._manifold.kernel
+
     def _check_fitted(self):
         if not hasattr(self, "latents_"):
             raise RuntimeError("this StructuredUKR is not fitted yet; call fit() or load()")

@@ -6,6 +6,8 @@ normalised self-reconstruction error ``e_t``.  :class:`UKRCandidate` adapts one 
 :class:`plugins.manifold.StructuredUKR`; :class:`CandidateSet` holds one model per class and
 projects a sequence onto all of them at once, giving a :class:`Projection` that the
 recognisers consume (projections are computed once and re-used across parameter settings).
+When every candidate is a 1D periodic UKR manifold, :class:`CandidateSet` projects onto all of
+them in one batched call (:mod:`.fast_projection`) instead of one ``transform`` per model.
 """
 from __future__ import annotations
 
@@ -76,11 +78,21 @@ class UKRCandidate:
         self.time_dim = int(getattr(model, "time_dim_", 0) or 0)
         self.direction = training_direction(model.latents_[:, self.time_dim], model.sequence_ids_)
 
+    @property
+    def periodic_1d(self) -> bool:
+        """True for a model with one periodic latent (time) dimension: batched projection applies."""
+        periodic = np.asarray(getattr(self.model, "periodic_", [False]))
+        return periodic.shape == (1,) and bool(periodic[0])
+
+    def normalised_errors(self, Y: np.ndarray, reconstruction: np.ndarray) -> np.ndarray:
+        """``e_t`` of observations Y (N, d) given their reconstructions ``f(g(y))``."""
+        residual = Y - reconstruction
+        return np.sum(residual * residual / self.model.train_variance_, axis=1)
+
     def project(self, Y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         Y = np.asarray(Y, dtype=float)
         X = self.model.transform(Y)
-        residual = Y - self.model.inverse_transform(X)
-        errors = np.sum(residual * residual / self.model.train_variance_, axis=1)
+        errors = self.normalised_errors(Y, self.model.inverse_transform(X))
         return np.mod(self.direction * X[:, self.time_dim], np.pi), errors
 
 
@@ -103,6 +115,21 @@ class CandidateSet:
             if not isinstance(m, CandidateModel):
                 raise TypeError(f"candidate {name!r} has no project(Y) method")
         self.models = dict(models)
+        self._batched = None
+
+    def _batched_projector(self):
+        """The batched projector over all candidates, or None when some are not 1D periodic UKR."""
+        if self._batched is None:
+            ukr = [m for m in self.models.values() if isinstance(m, UKRCandidate) and m.periodic_1d]
+            if len(ukr) != len(self.models):
+                self._batched = False
+            else:
+                from .fast_projection import BatchedPeriodicProjector
+
+                self._batched = BatchedPeriodicProjector(
+                    [m.model.latents_[:, 0] for m in ukr], [m.model.Y_ for m in ukr],
+                    [m.model.kernel_.kernels[0].beta for m in ukr])
+        return self._batched or None
 
     @property
     def classes(self) -> list[str]:
@@ -118,6 +145,13 @@ class CandidateSet:
             raise ValueError("observations hold NaN/inf; drop or repair those rows before recognition")
         lt = np.empty((Y.shape[0], len(self)))
         e = np.empty_like(lt)
+        batched = self._batched_projector()
+        if batched is not None:
+            X, F = batched.project(Y)
+            for j, m in enumerate(self.models.values()):
+                lt[:, j] = np.mod(m.direction * X[:, j], np.pi)
+                e[:, j] = m.normalised_errors(Y, F[:, j])
+            return Projection(lt, e, self.classes)
         for j, m in enumerate(self.models.values()):
             lt[:, j], e[:, j] = m.project(Y)
         return Projection(lt, e, self.classes)

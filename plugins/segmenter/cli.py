@@ -10,7 +10,7 @@ from pathlib import Path
 from .candidates import ModelsMissingError, load_candidates
 from .datasets import DatasetError, load_dataset
 from .evaluation import EXPERIMENTS, METHODS, Evaluator, Protocol
-from .training import candidate_set, save_class_models, train_class_models
+from .training import INITS, candidate_set, save_class_models, train_class_models
 
 
 def _progress(msg: str) -> None:
@@ -25,6 +25,8 @@ def _add_dataset_args(parser: argparse.ArgumentParser) -> None:
                         help="keep the pen-lift tail marked in an .npz's metadata (default: cut it)")
     parser.add_argument("--beta", default="auto", help="periodic UKR bandwidth, or 'auto' = 12·mean_length/45")
     parser.add_argument("--steps", type=int, default=300, help="UKR optimisation steps per class")
+    parser.add_argument("--init", choices=INITS, default="equidistant",
+                        help="latent init of the class manifolds (equidistant over the period, or isomap)")
     parser.add_argument("--seed", type=int, default=0)
 
 
@@ -53,13 +55,14 @@ def register_train_classes(parser: argparse.ArgumentParser) -> None:
 def run_train_classes(args) -> int:
     try:
         ds = _dataset(args)
-        models = train_class_models(ds, beta=_beta(args), n_steps=args.steps, random_state=args.seed,
-                                    progress=_progress)
+        models = train_class_models(ds, beta=_beta(args), n_steps=args.steps, init=args.init,
+                                    random_state=args.seed, progress=_progress)
     except (DatasetError, ValueError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     out = save_class_models(models, args.out, provenance={"dataset": ds.source, "split": "train",
-                                                           "steps": args.steps, "beta": str(args.beta)})
+                                                           "steps": args.steps, "beta": str(args.beta),
+                                                           "init": args.init})
     _progress(f"wrote {len(models)} models to {out}")
     return 0
 
@@ -91,14 +94,15 @@ def run_evaluate(args) -> int:
         else:
             _progress(f"training one manifold per class ({len(ds.classes)} classes)")
             candidates = candidate_set(train_class_models(ds, beta=_beta(args), n_steps=args.steps,
-                                                          random_state=args.seed, progress=_progress))
+                                                          init=args.init, random_state=args.seed, progress=_progress))
         evaluator = Evaluator(ds, candidates, Protocol.quick() if args.quick else Protocol(),
                               random_state=args.seed, progress=_progress)
     except (DatasetError, ModelsMissingError, ValueError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     result = evaluator.evaluate(methods)
-    result["parameters"].update(steps=args.steps, beta=str(args.beta), quick=bool(args.quick), seed=args.seed)
+    result["parameters"].update(steps=args.steps, beta=str(args.beta), init=args.init, quick=bool(args.quick),
+                                seed=args.seed)
     result["runtime_s"] = round(time.perf_counter() - t0, 2)
     if args.plots:
         write_plots(evaluator, result, Path(args.plots))

@@ -181,7 +181,8 @@ class Evaluator:
             g = [{"lam": lam, "gamma": 0.9, "order_rating": r, "threshold": th}
                  for th in (None, 0.5, 0.0) for r in ("cos", "sign") for lam in (0.3, 0.5)]
         elif method == "ukr_clm":
-            g = [{"background_factor": f} for f in (1.0, 0.5, 0.25, 0.1, 2.0, 3.0)]
+            g = [{"background_factor": f, "error_scale": e}
+                 for e in (1.0, 0.1) for f in (1.0, 0.5, 0.25, 0.1, 2.0, 3.0)]
         else:
             g = [{"threshold": th} for th in self._baseline_thresholds(method, split)]
         return g[: self.protocol.grid_size] if self.protocol.grid_size else g

@@ -78,17 +78,20 @@ class OnlineCLMNode(_RecognizerNode):
         window: int = Field(200, ge=2, description="observations in the sliding window")
         background_factor: float = Field(1.0, gt=0, description="multiplies λ_bg (3 = strong background)")
         background: float | None = Field(None, description="λ_bg; null = 1 − 10/N")
+        error_scale: float = Field(1.0, gt=0, description="multiplies e_t before c_sre (1 = spec)")
         order_rating: Literal["sign", "cos"] = "sign"
         warm_temperature: float = Field(0.05, ge=0, description="warm-start temperature / λ_max")
-        max_sweeps: int = Field(1000, ge=1)
+        max_sweeps: int = Field(150, ge=1, description="CLM sweep budget per update (anytime; bounds latency)")
+        confirm: int = Field(5, ge=1, description="updates a changed earlier label must hold before a revision")
         seed: int | None = 0
 
     def setup(self) -> None:
         p = self.params
         self.segmenter = OnlineCLMSegmenter(
             self.load_models(), window=p.window, history=p.history, background=p.background,
-            background_factor=p.background_factor, order_rating=p.order_rating,
-            warm_temperature=p.warm_temperature, max_sweeps=p.max_sweeps, random_state=p.seed)
+            background_factor=p.background_factor, error_scale=p.error_scale, order_rating=p.order_rating,
+            warm_temperature=p.warm_temperature, max_sweeps=p.max_sweeps, confirm=p.confirm,
+            random_state=p.seed)
         self.classes = self.segmenter.classes_
         self.dropped = 0
 

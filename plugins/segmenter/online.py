@@ -7,7 +7,11 @@ new band row per layer) are computed, the others shift with the window.  The CLM
 winner) plus small random values on every layer (so the start is not unique), the new column
 starts small and random, and the temperature starts at ``warm_temperature · λ_max`` instead of
 ``λ_max``.  When later evidence changes the label of an earlier observation in the window, a
-revision is reported.
+revision is reported — only once it is *confirmed* (documented choice, see
+:meth:`OnlineCLMSegmenter._revisions`): the changed label must have held for ``confirm``
+consecutive updates, and observations within ``edge`` of the window's oldest end (they are about
+to leave and have lost their older neighbours) are never revised.  A confirmed revision moves the
+published segment boundaries (:class:`SegmentTracker`).
 """
 from __future__ import annotations
 
@@ -32,16 +36,29 @@ class SegmentChange:
 
 
 class SegmentTracker:
-    """Start/end events whenever the label of the newest observation changes.
+    """Segments as runs of *published* labels: start/end events, moved by confirmed revisions.
 
-    Segments follow the on-line decisions; later revisions of earlier labels are reported
-    separately (``revision`` events) and do not move already reported boundaries.
+    :meth:`update` publishes the newest observation's label (a ``start`` event, and the ``end`` of
+    the running segment, when it differs).  :meth:`revise` changes already published labels; the
+    boundaries of the affected segments are then re-announced: ``end`` of the segment before the
+    revised run (with its new end), ``start`` of the revised run and, if it is closed, its ``end``
+    and the ``start`` of the segment after it.  A re-announced boundary supersedes any earlier event
+    for the same segment (same label, overlapping indices).  ``memory`` published labels are kept.
     """
 
-    def __init__(self) -> None:
+    def __init__(self, memory: int = 1000) -> None:
+        self.memory = int(memory)
+        self.first = 0                    # global index of labels[0]
+        self.labels: list[int] = []
         self.current: tuple[int, int] | None = None  # (label, start index) of the running segment
 
     def update(self, index: int, label: int) -> list[SegmentChange]:
+        if not self.labels:
+            self.first = index
+        self.labels.append(int(label))
+        if len(self.labels) > self.memory:
+            del self.labels[0]
+            self.first += 1
         if self.current is not None and self.current[0] == label:
             return []
         events = []
@@ -49,6 +66,38 @@ class SegmentTracker:
             events.append(SegmentChange("end", self.current[0], self.current[1], index - 1))
         self.current = (label, index)
         events.append(SegmentChange("start", label, index, index))
+        return events
+
+    def _run(self, pos: int) -> tuple[int, int]:
+        """First and last list position of the run of equal labels around ``pos``."""
+        lo, hi, lab = pos, pos, self.labels[pos]
+        while lo > 0 and self.labels[lo - 1] == lab:
+            lo -= 1
+        while hi + 1 < len(self.labels) and self.labels[hi + 1] == lab:
+            hi += 1
+        return lo, hi
+
+    def revise(self, start: int, end: int, label: int) -> list[SegmentChange]:
+        """Published labels ``start…end`` (global) become ``label``; returns the moved boundaries."""
+        a, b = max(start - self.first, 0), min(end - self.first, len(self.labels) - 1)
+        if a > b:
+            return []
+        self.labels[a: b + 1] = [int(label)] * (b - a + 1)
+        lo, hi = self._run(a)
+        g = self.first
+        events = []
+        if lo > 0:
+            plo, _ = self._run(lo - 1)
+            events.append(SegmentChange("end", self.labels[lo - 1], g + plo, g + lo - 1))
+        events.append(SegmentChange("start", label, g + lo, g + lo))
+        if hi + 1 < len(self.labels):
+            events.append(SegmentChange("end", label, g + lo, g + hi))
+            nlo, _ = self._run(hi + 1)  # == hi + 1
+            events.append(SegmentChange("start", self.labels[hi + 1], g + nlo, g + nlo))
+            if self.current is not None and self.current[1] <= g + hi:
+                self.current = (self.labels[-1], g + self._run(len(self.labels) - 1)[0])
+        else:
+            self.current = (label, g + lo)
         return events
 
 
@@ -67,7 +116,11 @@ class OnlineUpdate:
 class OnlineCLMSegmenter(CLMSegmenter):
     """Sliding-window warm-started CLM segmentation of a stream.
 
-    Takes the parameters of :class:`CLMSegmenter` (with ``spectral="gershgorin"`` by default) plus:
+    Takes the parameters of :class:`CLMSegmenter` (with ``spectral="gershgorin"`` and
+    ``max_sweeps=150`` by default) plus the ones below.  Documented choice: ``max_sweeps`` is a
+    per-update budget — an online update is anytime: an unconverged solution still gives labels
+    (the strongest layer per observation) and the next update continues warm from it, which bounds
+    the per-sample latency (a cold check or an unlucky warm run could otherwise take 1000 sweeps).
 
     window : number of most recent observations the CLM sees (thesis-free choice; 200 = 2 s at 100 Hz).
     warm_start : re-use the previous solution (False = every update solves cold, for comparison).
@@ -77,12 +130,16 @@ class OnlineCLMSegmenter(CLMSegmenter):
     cold_every : every this many warm updates also solve cold and keep the solution of lower
         energy (the warm dynamics can stay in the local minimum of a running segment that
         swallows the next motion; ``None`` = never).
+    confirm : a changed label of an already published observation is reported as a revision only
+        after it held for this many consecutive updates (1 = report every change at once).
+    edge : observations this close to the window's oldest end are not revised; ``None`` = H.
     """
 
     def __init__(self, candidates: CandidateSet, window: int = 200, warm_start: bool = True,
                  warm_temperature: float = 0.05, warm_bias: float = 1.0, fresh: int | None = None,
-                 cold_every: int | None = 10, **clm_params) -> None:
+                 cold_every: int | None = 10, confirm: int = 5, edge: int | None = None, **clm_params) -> None:
         clm_params.setdefault("spectral", "gershgorin")
+        clm_params.setdefault("max_sweeps", 150)
         super().__init__(candidates, **clm_params)
         if window < 2:
             raise ValueError(f"window must hold at least 2 observations, got {window}")
@@ -92,6 +149,10 @@ class OnlineCLMSegmenter(CLMSegmenter):
         self.warm_bias = warm_bias
         self.fresh = 2 * self.history if fresh is None else int(fresh)
         self.cold_every = cold_every
+        if confirm < 1:
+            raise ValueError(f"confirm must be >= 1 update, got {confirm}")
+        self.confirm = int(confirm)
+        self.edge = self.history if edge is None else int(edge)
         self.reset()
 
     def reset(self) -> None:
@@ -103,10 +164,13 @@ class OnlineCLMSegmenter(CLMSegmenter):
         self._errors = np.zeros((self.window, m))
         self._band = np.zeros((m, self.window, self._width))
         self._x: np.ndarray | None = None
-        self._labels = np.zeros(0, dtype=int)
+        self._labels = np.zeros(0, dtype=int)     # current CLM labels of the window
+        self._published = np.zeros(0, dtype=int)  # labels last reported for the window
+        self._pending = np.zeros(0, dtype=int)    # consecutive updates a differing label held
+        self._pending_label = np.zeros(0, dtype=int)  # the label those updates held
         self.n = 0          # observations in the window
         self.seen = 0       # observations consumed in total
-        self.segments = SegmentTracker()
+        self.segments = SegmentTracker(memory=self.window)
         self.since_cold = 0
 
     @property
@@ -118,6 +182,11 @@ class OnlineCLMSegmenter(CLMSegmenter):
     def window_labels(self) -> np.ndarray:
         """Current labels of the observations in the window (oldest first)."""
         return self._labels.copy()
+
+    @property
+    def published_labels(self) -> np.ndarray:
+        """Labels as reported so far (on arrival, then by confirmed revisions), oldest first."""
+        return self._published.copy()
 
     def update(self, y: np.ndarray) -> OnlineUpdate:
         """Consume one observation (d,) and re-segment the window."""
@@ -133,6 +202,9 @@ class OnlineCLMSegmenter(CLMSegmenter):
             if self._x is not None:
                 self._x = self._x[:, 1:]
             self._labels = self._labels[1:]
+            self._published = self._published[1:]
+            self._pending = self._pending[1:]
+            self._pending_label = self._pending_label[1:]
         else:
             self.n += 1
         j = self.n - 1
@@ -154,7 +226,7 @@ class OnlineCLMSegmenter(CLMSegmenter):
 
     def update_projected(self, latent_time: np.ndarray, errors: np.ndarray) -> OnlineUpdate:
         """:meth:`update` for an observation already projected onto all candidates."""
-        self._append(np.asarray(latent_time, dtype=float), np.asarray(errors, dtype=float))
+        self._append(np.asarray(latent_time, dtype=float), np.asarray(errors, dtype=float) * self.error_scale)
         band, diag = self.layers()
         solver = self.solver_
         lam = solver.spectral_scale(band, diag)
@@ -173,9 +245,12 @@ class OnlineCLMSegmenter(CLMSegmenter):
                 result = cold
         self._store(result)
         self._x = result.activities
-        events = self._revisions(self.labels_[:-1])
         self._labels = self.labels_.copy()
         newest = int(self._labels[-1])
+        events = self._revisions()
+        self._published = np.r_[self._published, newest]
+        self._pending = np.r_[self._pending, 0]
+        self._pending_label = np.r_[self._pending_label, newest]
         events += self.segments.update(self.seen - 1, newest)
         return OnlineUpdate(index=self.seen - 1, label=newest, scores=result.activities[:-1, -1].copy(),
                             sweeps=result.sweeps, converged=result.converged, events=events)
@@ -199,20 +274,36 @@ class OnlineCLMSegmenter(CLMSegmenter):
         out[winners[keep], cols[keep]] = scale
         return out
 
-    def _revisions(self, new: np.ndarray) -> list[SegmentChange]:
-        """Runs of earlier observations whose label changed, one event per (old → new) run."""
-        old = self._labels
+    def _revisions(self) -> list[SegmentChange]:
+        """Confirmed revisions of published labels, one event per (old → new) run, each followed by
+        the segment boundaries it moved.
+
+        Documented choice: observation ``i`` is revised when its current label differs from the
+        published one and has differed (with the same new label) for ``confirm`` consecutive
+        updates, and ``i`` is not among the ``edge`` oldest observations of a full window (it has
+        lost its older neighbours).  Waiting for a minimum age instead was tried and rejected: it
+        revises the same observations but releases them one per update, as many single-point events.
+        """
+        new, old = self._labels[:-1], self._published
+        differs = new != old
+        held = differs & (self._pending_label == new)
+        self._pending = np.where(differs, np.where(held, self._pending + 1, 1), 0)
+        self._pending_label = new.copy()
+        ready = self._pending >= self.confirm
+        if self.n == self.window:
+            ready[: self.edge] = False
         events: list[SegmentChange] = []
-        changed = np.flatnonzero(old != new)
         base = self.window_start
-        for i in changed.tolist():
+        for i in np.flatnonzero(ready).tolist():
             last = events[-1] if events else None
             if (last is not None and last.end == base + i - 1 and last.label == new[i]
                     and last.previous == old[i]):
                 last.end = base + i
             else:
                 events.append(SegmentChange("revision", int(new[i]), base + i, base + i, int(old[i])))
-        return events
+        self._published[ready] = new[ready]
+        self._pending[ready] = 0
+        return [out for ev in events for out in [ev, *self.segments.revise(ev.start, ev.end, ev.label)]]
 
 
 __all__ = ["OnlineCLMSegmenter", "OnlineUpdate", "SegmentChange", "SegmentTracker", "REJECTED"]

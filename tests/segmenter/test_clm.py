@@ -84,3 +84,17 @@ def test_gershgorin_bound_is_above_the_largest_eigenvalue():
     bound = gershgorin_bound(band, diag)
     dense_rows = max(np.abs(dense(band[a], diag[a])).sum(axis=1).max() for a in range(band.shape[0]))
     assert exact <= bound == pytest.approx(dense_rows)
+
+
+def test_error_scale_weakens_the_reconstruction_penalty(candidates, two_letters):
+    from plugins.segmenter import CLMSegmenter
+
+    Y, _ = two_letters
+    proj = candidates.project(Y)
+    base, _ = CLMSegmenter(candidates, history=5).layer_compatibilities(proj)
+    scaled, _ = CLMSegmenter(candidates, history=5, error_scale=0.1).layer_compatibilities(proj)
+    live = base[:-1] != 0
+    assert np.all(scaled[:-1][live] >= base[:-1][live] - 1e-12)   # c_sre grows as e shrinks
+    assert np.any(scaled[:-1][live] > base[:-1][live] + 1e-3)
+    with pytest.raises(ValueError, match="error_scale"):
+        CLMSegmenter(candidates, error_scale=0.0)

@@ -27,6 +27,21 @@ def test_online_clm_node_labels_a_stream(model_dir, two_letters):
     assert any(e.kind == "start" and e.label == "B" for e in h.published["events"])
 
 
+def test_online_clm_node_revisions_are_confirmed_and_move_boundaries(model_dir, two_letters):
+    Y, _ = two_letters
+    params = {"models": str(model_dir), "window": 200, "history": 10, "confirm": 3, "error_scale": 1.0}
+    h = NodeHarness(OnlineCLMNode, params).setup()
+    assert h.node.segmenter.confirm == 3
+    for i, y in enumerate(Y):
+        h.send("array", Array(data=y), stamp_ns=i * 10_000_000)
+    events = h.published["events"]
+    for k, e in enumerate(events):
+        if e.kind == "revision":
+            assert e.previous_label and e.previous_label != e.label
+            # the moved boundaries follow the revision in the same batch
+            assert events[k + 1].kind in ("start", "end")
+
+
 def test_ukr_only_node_takes_joint_states_in_model_order(model_dir, two_letters):
     Y, _ = two_letters
     h = NodeHarness(UKROnlyNode, {"models": str(model_dir), "joints": ["x", "y"]}).setup()

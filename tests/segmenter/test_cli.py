@@ -7,7 +7,7 @@ import pytest
 from plugins.segmenter import EXPERIMENTS, METHODS, load_candidates
 from plugins.segmenter.candidates import ModelsMissingError
 from plugins.segmenter.cli import register_evaluate, register_train_classes
-from test_datasets import write_csv_dataset
+from tests.segmenter.test_datasets import write_csv_dataset
 
 
 def run(register, argv):

@@ -15,7 +15,6 @@ from __future__ import annotations
 import argparse
 import json
 import statistics
-import time
 
 import numpy as np
 from threadpoolctl import threadpool_limits
@@ -28,15 +27,8 @@ from plugins.grasp.som import SOM, decay
 from plugins.mapping.hands import HAND_MODELS
 from plugins.simulator.scenes import GraspScene
 from plugins.simulator.simulation import Simulation
+from timing import median_time
 
-
-def median_time(fn, repeats: int) -> float:
-    times = []
-    for _ in range(repeats):
-        t = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t)
-    return statistics.median(times)
 
 
 def numpy_online_som(X, rows=25, cols=25, epochs=30, seed=0):

@@ -19,41 +19,32 @@ from __future__ import annotations
 
 import argparse
 import json
-import statistics
-import time
 
 import cv2
 import numpy as np
 import pybullet as p
 
-from plugins.demo.ball_swap import BallSwapMotion
+from plugins.demo.ball_swap import run_open_loop_swaps
 from plugins.demo.cap_turning import CapTurningDemonstrator
-from plugins.mapping.hands import GIFU, SHADOW
+from plugins.mapping.hands import SHADOW
 from plugins.simulator.metrics import count_swaps
 from plugins.simulator.simulation import Simulation
 from plugins.tracker.blobs import BALL_HSV, BallTracker, normalise_points
+from timing import median_time
 
 FLEX = [f"{f}J{k}" for f in ("FF", "MF", "RF", "LF") for k in (3, 2, 1)]
 
-
-def _median_time(fn, repeats: int) -> float:
-    times = []
-    for _ in range(repeats):
-        t = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t)
-    return statistics.median(times)
 
 
 def physics_rtf(scene: str, steps: int, repeats: int) -> float:
     with Simulation("shadow", scene, {"radius": 0.025} if scene == "cap" else None) as sim:
         sim.set_targets(FLEX, [1.3] * len(FLEX))
         sim.step(240)
-        return (steps / 240.0) / _median_time(lambda: sim.step(steps), repeats)
+        return (steps / 240.0) / median_time(lambda: sim.step(steps), repeats)
 
 
 def camera_fps(sim: Simulation, w: int, h: int, frames: int, repeats: int) -> float:
-    return frames / _median_time(lambda: [sim.render(w, h) for _ in range(frames)], repeats)
+    return frames / median_time(lambda: [sim.render(w, h) for _ in range(frames)], repeats)
 
 
 def tracker_accuracy(sim: Simulation, n: int, seed: int = 0) -> np.ndarray:
@@ -78,20 +69,8 @@ def tracker_accuracy(sim: Simulation, n: int, seed: int = 0) -> np.ndarray:
 
 
 def swaps_per_min(seconds: float, seed: int) -> float:
-    motion = BallSwapMotion()
-    n = int(motion.period_s * 240)
-    with Simulation("gifu", "balls", seed=seed) as sim:
-        sim.set_targets(GIFU.names, motion.targets(0.0)[0])
-        sim.step(120)
-        pts = []
-        for s in range(int(seconds * 240)):
-            sim.set_targets(GIFU.names, motion.targets((s % n) / n)[0])
-            sim.step(1)
-            if s % 8 == 0:
-                pts.append(sim.scene.palm_plane_positions(sim.client))
-    pts = np.array(pts)
+    pts, _ = run_open_loop_swaps(seconds, seed)
     return 60.0 * count_swaps(pts[:, 0], pts[:, 1]) / seconds
-
 
 def cap_rotation(demo: CapTurningDemonstrator, radius: float, cycles: int = 6, steps: int = 400) -> tuple[float, float]:
     """(mean |rotation| in the open phases, mean rotation in close + rotate) per cycle, rad."""
@@ -130,10 +109,10 @@ def main() -> int:
         out["camera_fps_640"] = camera_fps(sim, 640, 480, 5, args.repeats)
         img = sim.render(320, 240)
         tracker = BallTracker()
-        out["tracker_fps"] = 50 / _median_time(lambda: [tracker.update(img) for _ in range(50)], args.repeats)
+        out["tracker_fps"] = 50 / median_time(lambda: [tracker.update(img) for _ in range(50)], args.repeats)
         hsv = cv2.cvtColor(img, cv2.COLOR_RGB2HSV)
         lo, hi = np.array(BALL_HSV.lower, np.uint8), np.array(BALL_HSV.upper, np.uint8)
-        out["inrange_fps"] = 50 / _median_time(lambda: [cv2.inRange(hsv, lo, hi) for _ in range(50)], args.repeats)
+        out["inrange_fps"] = 50 / median_time(lambda: [cv2.inRange(hsv, lo, hi) for _ in range(50)], args.repeats)
         err = tracker_accuracy(sim, 40)
     out["tracker_err_median"] = float(np.median(err))
     out["tracker_err_p95"] = float(np.percentile(err, 95))

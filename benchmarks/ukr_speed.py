@@ -16,13 +16,13 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import time
 
 import numpy as np
 
 from plugins.manifold import StructuredUKR
 from plugins.manifold.objective import Objective, SequenceLayout
 from plugins.manifold.validation import parse_latent
+from timing import median_time
 
 PERIODIC = {"kernel": "periodic", "beta": 12.0, "time": True}
 
@@ -43,14 +43,6 @@ def periodic_data(n_seq, n_per, d, q, seed=0):
         lat.append(np.c_[np.mod(t, np.pi), h][:, :q])
     return seqs, np.vstack(lat) + rng.normal(0, 0.01, (n_seq * n_per, q))
 
-
-def median_time(fn, repeats):
-    ts = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        ts.append(time.perf_counter() - t0)
-    return float(np.median(ts))
 
 
 def train_seconds(n_seq, n_per, d, q, repeats):

@@ -14,7 +14,6 @@ import sys
 import tempfile
 import time
 from dataclasses import dataclass, field
-from pathlib import Path
 
 from . import discovery, transport
 from .graph import Graph, RestartPolicy

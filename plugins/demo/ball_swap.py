@@ -75,3 +75,26 @@ class BallSwapMotion:
         for name, value in self.thumb.items():
             q[:, GIFU.index(name)] = value
         return GIFU.clip(q)
+
+
+def run_open_loop_swaps(seconds: float, seed: int = 0, scene_options: dict | None = None,
+                        motion: BallSwapMotion | None = None, every: int = 8):
+    """Play the scripted motion open loop in the balls scene (physics only, no camera).
+
+    Returns the two balls' palm-plane positions sampled every ``every`` physics steps, shape
+    ``(n, 2, 2)``, and the final scene state; used by the swap tests and ``benchmarks/sim.py``.
+    """
+    from plugins.simulator.simulation import Simulation
+
+    motion = motion or BallSwapMotion()
+    n = int(motion.period_s * 240)
+    with Simulation("gifu", "balls", scene_options, seed=seed) as sim:
+        sim.set_targets(GIFU.names, motion.targets(0.0)[0])
+        sim.step(120)
+        pts = []
+        for s in range(int(seconds * 240)):
+            sim.set_targets(GIFU.names, motion.targets((s % n) / n)[0])
+            sim.step(1)
+            if s % every == 0:
+                pts.append(sim.scene.palm_plane_positions(sim.client))
+        return np.array(pts), sim.scene_state()

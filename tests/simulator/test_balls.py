@@ -3,32 +3,17 @@ import numpy as np
 import pytest
 
 from framework.testing import NodeHarness
-from plugins.demo.ball_swap import BallSwapMotion, keyframes
-from plugins.mapping.hands import GIFU
+from plugins.demo.ball_swap import BallSwapMotion, keyframes, run_open_loop_swaps
 from plugins.simulator.metrics import count_swaps
 from plugins.simulator.node import PybulletSimulatorNode
 from plugins.simulator.scenes import BallsScene, Scene
 from plugins.simulator.simulation import Simulation
 
 
-def _swap_run(seconds: float, seed: int, options=None):
-    motion = BallSwapMotion()
-    n = int(motion.period_s * 240)
-    with Simulation("gifu", "balls", options, seed=seed) as sim:
-        sim.set_targets(GIFU.names, motion.targets(0.0)[0])
-        sim.step(120)
-        pts = []
-        for s in range(int(seconds * 240)):
-            sim.set_targets(GIFU.names, motion.targets((s % n) / n)[0])
-            sim.step(1)
-            if s % 8 == 0:
-                pts.append(sim.scene.palm_plane_positions(sim.client))
-        return np.array(pts), sim.scene_state()
-
 
 @pytest.mark.parametrize("seed", [0, 3])
 def test_open_loop_motion_swaps_the_balls_in_the_cupped_palm(seed):
-    pts, _ = _swap_run(8.0, seed, {"jitter": 0.004})
+    pts, _ = run_open_loop_swaps(8.0, seed, {"jitter": 0.004})
     assert count_swaps(pts[:, 0], pts[:, 1]) >= 3  # four hand cycles: one swap per cycle
     centre = np.array(BallsScene().cup_centre)
     assert np.linalg.norm(pts - centre, axis=2).max() < 0.035  # both balls stay in the palm

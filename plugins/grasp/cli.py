@@ -11,7 +11,7 @@ from threadpoolctl import threadpool_limits
 
 from .evaluation import FULL_GRID, OBJECTS, QUICK_GRID, evaluate_grasping
 from .experience import GraspDataset
-from .generation import generate_experience
+from .generation import FIXED_PREGRASP_RANGES, PREGRASP_RANGES, generate_experience
 from .plots import plot_node_postures, plot_u_matrix
 from .som import load_som, save_som
 from .training import train_experience_soms, train_grasp_som
@@ -64,6 +64,8 @@ def register_generate(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--trials", default="400", help="grasp trials per object: a count, or object=count pairs "
                         "(e.g. box=250,cylinder=900,sphere=200) to balance the experience")
     parser.add_argument("--local-trials", type=int, default=3, help="jittered retries around each stable grasp")
+    parser.add_argument("--fixed-pregrasp", action="store_true", help="grasp from the evaluation's fixed pre-grasp "
+                        "(only pose and λ vary) instead of random pre-grasps")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--out", default=str(DEFAULT_EXPERIENCE), help="output folder (gets grasps.npz)")
     parser.add_argument("--train-soms", action="store_true", help="also write som_<object>.npz and som_shared.npz")
@@ -85,8 +87,9 @@ def run_generate(args) -> int:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     with threadpool_limits(1):
+        ranges = FIXED_PREGRASP_RANGES if args.fixed_pregrasp else PREGRASP_RANGES
         data = generate_experience(objects, trials, seed=args.seed, local_trials=args.local_trials,
-                                   progress=_progress)
+                                   progress=_progress, pregrasp_ranges=ranges)
         data.save(out / "grasps.npz")
         _progress(f"wrote {len(data)} stable grasps to {out / 'grasps.npz'}: {data.metadata['counts']}")
         if args.train_soms:
@@ -158,6 +161,8 @@ def register_evaluate(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--experience", default=str(DEFAULT_EXPERIENCE),
                         help="folder with som_<object>.npz and som_shared.npz")
     parser.add_argument("--objects", default=",".join(OBJECTS))
+    parser.add_argument("--repeats", type=int, default=1, help="pool this many runs of the grid with γ jittered "
+                        "by ±2 %% steps (the floating grasp is chaotic; 3 resolves smaller differences)")
     parser.set_defaults(func=run_evaluate)
 
 
@@ -166,7 +171,7 @@ def run_evaluate(args) -> int:
         objects = _objects(args.objects)
         with threadpool_limits(1):
             result = evaluate_grasping(args.experience, QUICK_GRID if args.quick else FULL_GRID, objects,
-                                       progress=_progress)
+                                       progress=_progress, repeats=args.repeats)
     except (ValueError, FileNotFoundError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

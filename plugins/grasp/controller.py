@@ -4,9 +4,12 @@ One :meth:`ExperienceGraspController.step` per control cycle maps the measured p
 of touching hand segments to joint targets:
 
 (A) pre-grasp: actuate ``pregrasp`` until it is reached (or a contact occurs);
-(B) no contact yet: approach the best match (as a target shape, see :data:`STEER_MODES`); once it is
-    reached without a contact, close further with the heuristic (D) and search the best match of the
-    current posture again, approaching it when it changed — repeated until the first contact;
+(B) no contact yet: with ``steer_before_contact`` (the thesis rule), approach the best match (as a
+    target shape, see :data:`STEER_MODES`); once it is reached without a contact, close further with
+    the heuristic (D) and search the best match of the current posture again, approaching it when it
+    changed — repeated until the first contact.  Default (documented deviation): close with (D) only,
+    so the first contact pushes the floating object exactly as the tactile baseline does and
+    experience enters with the first PCP match;
 (C) per finger, by its contact state, re-matching with the PCP metric whenever the set of touching
     segments changes and the new set has persisted ``rematch_cycles`` cycles:
     - no contact → approach the best match's sub-target, once reached close with (D);
@@ -25,7 +28,10 @@ sub-targets.  Documented choices (all in :class:`ControllerConfig`):
   a target offset (phase ``"grip"``, targets fixed from then on);
 - closing targets lead the measured angle by at most ``max_lead`` (bounded force when blocked);
 - sub-targets are approached at ``approach_speed``, not jumped to (a position step would swing
-  the finger at full motor speed into the object);
+  the finger at full motor speed into the object); ``synchronous_approach`` scales every joint's
+  speed so that all joints of the hand arrive at the sub-target together (the fastest at
+  ``approach_speed``), as a straight-line move to the matched posture — the fingers then meet the
+  object at about the same time instead of one after the other;
 - a (sub-)target is reached when every joint is within ``reach_tol`` or the finger stopped moving
   (``still_tol`` per cycle) — joint couplings can make exact targets unreachable;
 - a lost contact still counts for ``release_cycles`` cycles, and a changed contact set must persist
@@ -72,11 +78,13 @@ class ControllerConfig:
     gamma: float = 1.0          # closing speed γ of the distal joints
     lam: float = 1.0            # proximal joints close at λ·γ (λ > 1: marginal, λ ≈ 1: distinct flexion)
     approach_speed: float = 1.0  # sub-targets are approached at most this fast per joint (rad/s)
+    synchronous_approach: bool = False  # all joints reach a new sub-target together (else each at approach_speed)
     control_hz: float = 60.0    # control cycles per second (dt of the closing heuristic)
     reach_tol: float = 0.05     # a (sub-)target is reached within this error per joint …
     still_tol: float = 0.002    # … or when no joint moved more than this in one cycle
     squeeze: float = 0.1        # grip: held closing joints finally target the measured angle plus this
     steer: str = "closing"      # how a best match steers the free fingers, one of STEER_MODES
+    steer_before_contact: bool = False  # phase B approaches best matches (False: tactile until the first contact)
     rematch_cycles: int = 3     # a changed contact set must persist this many cycles before a re-match
     max_lead: float = 0.25      # closing targets lead the measured angle by at most this
     release_cycles: int = 3     # a lost contact still counts for this many cycles (debounces flicker)
@@ -140,6 +148,7 @@ class ExperienceGraspController:
         self.deepest = {f.name: -1 for f in self.fingers}  # chain position of the deepest touching segment (wrap)
         self.match_index: int | None = None
         self.subtarget: np.ndarray | None = None
+        self.approach_rate = np.full(len(self.names), self.config.approach_speed)  # per joint (rad/s)
         self.n_matches = 0
         self._new_sub = False
         self.q_prev: np.ndarray | None = None
@@ -194,7 +203,8 @@ class ExperienceGraspController:
     def _first_contact(self, q: np.ndarray, moved) -> None:
         """Phase B: approach the all-joint best match; close with (D) once it is reached."""
         approaching = any(m == APPROACH for m in self.mode.values()) and self.match_index is not None
-        if self.experience is not None and not approaching:  # re-match only once the last match is reached
+        steering = self.experience is not None and self.config.steer_before_contact
+        if steering and not approaching:  # re-match only once the last match is reached
             k, posture = self.experience.best_match(q[self.exp_cols])
             if k != self.match_index:
                 self._set_match(k, posture)
@@ -242,6 +252,10 @@ class ExperienceGraspController:
             if self.config.steer in ("closing", "blend") or (self.phase == "B" and self.config.steer == "staged"):
                 sub = np.where(self.closing_mask, sub, self.targets)
         self.subtarget = np.clip(sub, self.lower, self.upper)
+        self.approach_rate = np.full(len(self.names), self.config.approach_speed)
+        if self.config.synchronous_approach:
+            gap = np.abs(self.subtarget - self.targets)
+            self.approach_rate *= gap / max(float(gap.max()), 1e-9)
         self._new_sub = True
 
     def _free_finger(self, f: Finger, q: np.ndarray, moved) -> None:
@@ -251,7 +265,7 @@ class ExperienceGraspController:
             before = self.targets[cols].copy()
             self.mode[f.name] = CLOSE
             self._close(f, q, frozenset())
-            limit = self.config.approach_speed * self.dt
+            limit = self.approach_rate[cols] * self.dt
             pull = before + np.clip(self.subtarget[cols] - before, 0.0, limit)
             pull = np.minimum(pull, np.maximum(before, q[cols] + self.config.max_lead))
             self.targets[cols] = np.where(self.closing_mask[cols], np.maximum(self.targets[cols], pull), self.targets[cols])
@@ -260,12 +274,12 @@ class ExperienceGraspController:
             if self.subtarget is None:
                 self.mode[f.name] = CLOSE
             else:
-                limit = self.config.approach_speed * self.dt
+                limit = self.approach_rate[cols] * self.dt
                 gap = self.subtarget[cols] - self.targets[cols]
                 if self.config.steer != "all":  # the heuristic may have closed past the match: never open
                     gap = np.where(self.closing_mask[cols], np.maximum(gap, 0.0), gap)
                 self.targets[cols] += np.clip(gap, -limit, limit)
-                if np.max(np.abs(gap)) <= limit and self._reached(q, self.targets, moved, cols):
+                if np.all(np.abs(gap) <= limit) and self._reached(q, self.targets, moved, cols):
                     self.mode[f.name] = CLOSE
         if self.mode[f.name] == CLOSE:
             self._close(f, q, frozenset())

@@ -26,7 +26,7 @@ import numpy as np
 
 from plugins.mapping.hands import HAND_MODELS
 
-from .controller import ControllerConfig, ExperienceGraspController
+from .controller import SHADOW_PREGRASP, ControllerConfig, ExperienceGraspController
 from .episode import EpisodeConfig, GraspPose, run_grasp
 from .experience import GraspDataset
 from .hand_layout import hand_layout
@@ -38,6 +38,9 @@ PREGRASP_RANGES = {
     **{f"{f}J2": (0.0, 0.4) for f in ("FF", "MF", "RF", "LF")},
 }
 """Uniform ranges (rad) of the random pre-grasp of the ShadowHand-like hand; other joints 0."""
+
+FIXED_PREGRASP_RANGES = {n: (v, v) for n, v in SHADOW_PREGRASP.items()}
+"""Pre-grasp ranges that always give the evaluation's fixed pre-grasp (only pose and λ vary)."""
 
 LAMBDA_RANGE = (0.7, 2.0)
 """Uniform range of the proximal/distal closing-speed ratio λ of the generating controller."""
@@ -64,20 +67,23 @@ def _clip_pose(pose: dict) -> GraspPose:
     return GraspPose(**{k: float(np.clip(v, *POSE_RANGES[k])) for k, v in pose.items()})
 
 
-def _jitter(rng: np.random.Generator, pose: GraspPose, pregrasp: dict) -> tuple[GraspPose, dict]:
+def _jitter(rng: np.random.Generator, pose: GraspPose, pregrasp: dict, ranges: dict) -> tuple[GraspPose, dict]:
     near = _clip_pose({k: getattr(pose, k) + rng.normal(0.0, LOCAL_JITTER[k]) for k in POSE_RANGES})
     sd = LOCAL_JITTER["pregrasp"]
-    pre = {n: float(np.clip(v + rng.normal(0.0, sd), *PREGRASP_RANGES[n])) for n, v in pregrasp.items()}
+    pre = {n: float(np.clip(v + rng.normal(0.0, sd), *ranges[n])) for n, v in pregrasp.items()}
     return near, pre
 
 
 def generate_experience(objects, n_trials: int | dict[str, int], seed: int = 0, hand: str = "shadow", local_trials: int = 3,
                         base: ControllerConfig = ControllerConfig(), episode: EpisodeConfig = EpisodeConfig(),
-                        progress: Callable[[str], None] | None = None) -> GraspDataset:
+                        progress: Callable[[str], None] | None = None,
+                        pregrasp_ranges: dict = PREGRASP_RANGES) -> GraspDataset:
     """Run ``n_trials`` randomised grasps per object and return the stable ones as a dataset.
 
     ``n_trials`` may be a dict ``{object: trials}`` to balance the experience: objects with a low yield
     of stable grasps (the lying cylinder) need more trials for a comparable number of grasps.
+    ``pregrasp_ranges`` (default :data:`PREGRASP_RANGES`) bounds the random pre-grasp; ranges with equal
+    ends fix a joint (:data:`FIXED_PREGRASP_RANGES`: always the controller's pre-grasp).
     """
     trials = n_trials if isinstance(n_trials, dict) else {obj: n_trials for obj in objects}
     bad = {obj: trials.get(obj) for obj in objects if not isinstance(trials.get(obj), int) or trials[obj] < 1}
@@ -97,7 +103,7 @@ def generate_experience(objects, n_trials: int | dict[str, int], seed: int = 0, 
             if queue:
                 pose, pregrasp, lam, depth = queue.pop(0)
             else:
-                pose, pregrasp, lam, depth = random_pose(rng), random_pregrasp(rng), float(rng.uniform(*LAMBDA_RANGE)), 0
+                pose, pregrasp, lam, depth = random_pose(rng), random_pregrasp(rng, pregrasp_ranges), float(rng.uniform(*LAMBDA_RANGE)), 0
             config = replace(base, pregrasp=pregrasp, lam=lam)
             controller = ExperienceGraspController(layout, model.lower, model.upper, None, config)
             result = run_grasp(obj, pose, controller, episode, seed=int(rng.integers(2**31)), hand=hand)
@@ -105,7 +111,7 @@ def generate_experience(objects, n_trials: int | dict[str, int], seed: int = 0, 
             if result.valid and result.stable:
                 kept += 1
                 if depth < MAX_LOCAL_DEPTH:
-                    queue.extend((*_jitter(rng, pose, pregrasp), lam, depth + 1) for _ in range(local_trials))
+                    queue.extend((*_jitter(rng, pose, pregrasp, pregrasp_ranges), lam, depth + 1) for _ in range(local_trials))
                 postures.append(result.posture[cols])
                 objs.append(obj)
                 poses.append(result.pose)
@@ -115,7 +121,7 @@ def generate_experience(objects, n_trials: int | dict[str, int], seed: int = 0, 
                 progress(f"{obj}: {t + 1}/{trials[obj]} trials, {kept} stable grasps kept")
         counts[obj] = {"trials": trials[obj], "valid": valid, "stable": kept}
     meta = {"hand": hand, "method": "randomised tactile grasping + disturbance test", "seed": seed,
-            "counts": counts, "pose_ranges": {k: list(v) for k, v in POSE_RANGES.items()}}
+            "counts": counts, "pregrasp_ranges": {k: list(v) for k, v in pregrasp_ranges.items()}, "pose_ranges": {k: list(v) for k, v in POSE_RANGES.items()}}
     return GraspDataset(names, np.array(postures).reshape(-1, len(names)), objs, np.array(poses).reshape(-1, 4),
                         contacts, quality, meta)
 

@@ -34,6 +34,7 @@ class ExperienceGraspParams(BaseModel):
     squeeze: float = Field(0.1, ge=0, description="grip: held joints finally target measured + squeeze (rad)")
     max_lead: float = Field(0.25, gt=0, description="closing targets lead the measured angle by at most this (rad)")
     steer: str = Field("closing", description="how a best match steers free fingers: closing | blend | staged | all")
+    steer_before_contact: bool = Field(False, description="phase B approaches best matches (false: tactile until the first contact)")
     rematch_cycles: int = Field(3, ge=0, description="a changed contact set must persist this many cycles to re-match")
     pregrasp: dict[str, float] | None = Field(None, description="pre-grasp joint targets (default: the hand's)")
     ignore_bodies: list[str] = Field(default_factory=lambda: ["table"], description="bodies whose contacts do not count")
@@ -55,7 +56,8 @@ class ExperienceGraspNode(Node):
         experience = ExperienceBase.load(self.ctx.resolve_path(prm.experience)) if prm.experience else None
         pregrasp = prm.pregrasp if prm.pregrasp is not None else (SHADOW_PREGRASP if prm.hand == "shadow" else {})
         config = ControllerConfig(gamma=prm.gamma, lam=prm.lam, control_hz=prm.rate_hz, squeeze=prm.squeeze,
-                                  max_lead=prm.max_lead, steer=prm.steer, rematch_cycles=prm.rematch_cycles,
+                                  max_lead=prm.max_lead, steer=prm.steer,
+                                  steer_before_contact=prm.steer_before_contact, rematch_cycles=prm.rematch_cycles,
                                   pregrasp=dict(pregrasp))
         self.controller = ExperienceGraspController(hand_layout(prm.hand), model.lower, model.upper, experience, config)
         self.model = model

@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from plugins.grasp import cli
+from plugins.grasp.evaluation import evaluate_grasping, gamma_factors
 from plugins.grasp.experience import ExperienceBase, GraspDataset
 from plugins.grasp.hand_layout import hand_layout
 from plugins.grasp.som import load_som
@@ -70,4 +71,16 @@ def test_generate_writes_a_dataset_and_soms(tmp_path, capsys):
                                         "--seed", "3"]) == 0
     data = GraspDataset.load(out / "grasps.npz")
     assert data.metadata["counts"]["sphere"]["trials"] == 6 and data.names == tuple(NAMES)
+    assert data.metadata["pregrasp_ranges"]["THJ5"] == [-0.6, 0.2]          # random pre-grasps by default
     assert set(data.objects) <= {"sphere"}
+
+
+def test_evaluation_pools_repeats_with_jittered_gamma(capsys):
+    assert gamma_factors(3) == pytest.approx([1.0, 0.98, 1.02])
+    one_pose = {"x": (0.035,), "y": (0.0,), "gap": (0.005,), "yaw_deg": (-30.0,)}   # the centred cylinder
+    result = evaluate_grasping(cli.DEFAULT_EXPERIENCE, one_pose, ("cylinder",), repeats=2)
+    assert result["grasps_evaluated"] == 6 and result["cylinder"]["n_valid"] == 2     # 2 runs × 3 conditions
+    assert result["gamma_factors"] == pytest.approx([1.0, 0.98])
+    assert all(result["overall"][c] in (0.0, 0.5, 1.0) for c in ("experience", "no_experience", "shared_som"))
+    assert call(cli.register_evaluate, ["--quick", "--repeats", "0"]) == 2
+    assert "repeats must be ≥ 1" in capsys.readouterr().err

@@ -122,7 +122,7 @@ def test_phase_b_approaches_the_best_match_over_all_joints():
     posture[names.index("MFJ3")] = 0.3
     posture[names.index("THJ5")] = -0.2
     ctl = make(ExperienceBase(posture[None], names),
-               ControllerConfig(pregrasp=CFG.pregrasp, approach_speed=0.6, steer="all"))
+               ControllerConfig(pregrasp=CFG.pregrasp, approach_speed=0.6, steer="all", steer_before_contact=True))
     t = ctl.step(ctl.pregrasp.copy(), [])                     # pre-grasp reached: A → B, best match chosen
     assert ctl.phase == "B" and ctl.n_matches == 1
     mf = [t[col("MFJ3")]]
@@ -159,7 +159,7 @@ def test_closing_steer_never_opens_and_keeps_spread_and_rotation_joints():
     posture[names.index("THJ5")] = -1.0                      # rotation: not steered by the match
     posture[names.index("FFJ4")] = 0.3                       # spread: not steered by the match
     pre = {"THJ5": -0.2, "FFJ2": 0.4}                        # FFJ2 pre-flexed beyond the match (0): never opened
-    ctl = make(ExperienceBase(posture[None], names), ControllerConfig(pregrasp=pre, approach_speed=0.6))
+    ctl = make(ExperienceBase(posture[None], names), ControllerConfig(pregrasp=pre, approach_speed=0.6, steer_before_contact=True))
     t = ctl.step(ctl.pregrasp.copy(), [])
     for _ in range(40):
         t = ctl.step(t, [])
@@ -171,7 +171,7 @@ def test_blend_steer_closes_at_least_as_fast_as_the_heuristic_and_faster_towards
     names = LAYOUT.finger_joints
     posture = np.zeros(len(names))
     posture[names.index("MFJ2")] = 1.0
-    cfg = ControllerConfig(pregrasp={}, approach_speed=3.0, steer="blend")
+    cfg = ControllerConfig(pregrasp={}, approach_speed=3.0, steer="blend", steer_before_contact=True)
     blend, plain = make(ExperienceBase(posture[None], names), cfg), make(config=cfg)
     tb = tp = blend.pregrasp.copy()
     for _ in range(10):
@@ -183,3 +183,39 @@ def test_blend_steer_closes_at_least_as_fast_as_the_heuristic_and_faster_towards
 def test_unknown_steer_mode_is_refused():
     with pytest.raises(ValueError, match="steer must be one of"):
         ControllerConfig(steer="sideways")
+
+
+def test_without_steering_before_contact_phase_b_is_tactile_and_contacts_start_matching():
+    names = LAYOUT.finger_joints
+    posture = np.zeros(len(names))
+    posture[names.index("MFJ2")] = 1.5
+    cfg = ControllerConfig(pregrasp={}, approach_speed=3.0, rematch_cycles=0, steer_before_contact=False)
+    late, plain = make(ExperienceBase(posture[None], names), cfg), make(config=cfg)
+    tl = tp = late.pregrasp.copy()
+    for _ in range(10):
+        tl, tp = late.step(tl, []), plain.step(tp, [])
+    np.testing.assert_array_equal(tl, tp)                     # phase B: same targets as without experience
+    assert late.n_matches == 0
+    tl = late.step(tl, ["FF_distal"])                          # first contact: the PCP match steers the free fingers
+    assert late.n_matches == 1
+    for _ in range(5):
+        tl = late.step(tl, ["FF_distal"])
+    assert tl[col("MFJ2")] > tp[col("MFJ2")] + 0.2
+
+
+def test_synchronous_approach_brings_every_joint_to_the_match_in_the_same_cycle():
+    names = LAYOUT.finger_joints
+    posture = np.zeros(len(names))
+    posture[names.index("MFJ3")], posture[names.index("FFJ2")] = 0.4, 0.1
+    cfg = ControllerConfig(pregrasp={}, approach_speed=0.6, synchronous_approach=True, steer_before_contact=True)
+    ctl = make(ExperienceBase(posture[None], names), cfg)
+    t = ctl.step(ctl.pregrasp.copy(), [])
+    mf, ff = [t[col("MFJ3")]], [t[col("FFJ2")]]
+    for _ in range(50):
+        t = ctl.step(t, [])
+        mf.append(t[col("MFJ3")])
+        ff.append(t[col("FFJ2")])
+    mf, ff = np.array(mf), np.array(ff)
+    arrive_mf, arrive_ff = np.argmax(mf >= 0.4 - 1e-9), np.argmax(ff >= 0.1 - 1e-9)
+    assert arrive_mf == arrive_ff == 39                       # 0.4 rad at 0.6 rad/s, 60 Hz: 40 cycles (from cycle 0)
+    np.testing.assert_allclose(ff[:arrive_ff], mf[:arrive_mf] / 4, atol=1e-9)   # on the straight line to the match

@@ -2,7 +2,10 @@
 import numpy as np
 import pytest
 
+from plugins.grasp.controller import SHADOW_PREGRASP
+from plugins.grasp.episode import GraspPose
 from plugins.grasp.experience import ExperienceBase, GraspDataset
+from plugins.grasp.generation import FIXED_PREGRASP_RANGES, PREGRASP_RANGES, _jitter, random_pregrasp
 from plugins.grasp.hand_layout import hand_layout
 from plugins.grasp.pcp import best_match_index, pcp_distances
 from plugins.grasp.som import SOM, save_som
@@ -72,3 +75,11 @@ def test_wrench_quality_tells_force_closure_apart():
     one_side = pts[[0, 2]]
     assert grasp_wrench_quality(one_side, -one_side, centre, 0.03) <= 0
     assert grasp_wrench_quality(pts[:1], -pts[:1], centre, 0.03) == 0.0
+
+
+def test_fixed_pregrasp_ranges_always_give_the_controller_pregrasp():
+    rng = np.random.default_rng(0)
+    assert random_pregrasp(rng, FIXED_PREGRASP_RANGES) == SHADOW_PREGRASP
+    assert _jitter(rng, GraspPose(0.03), dict(SHADOW_PREGRASP), FIXED_PREGRASP_RANGES)[1] == SHADOW_PREGRASP
+    varied = random_pregrasp(rng, PREGRASP_RANGES)
+    assert set(varied) == set(PREGRASP_RANGES) and varied["THJ5"] != SHADOW_PREGRASP["THJ5"]

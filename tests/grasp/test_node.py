@@ -58,7 +58,7 @@ def test_node_loads_an_experience_file_relative_to_the_graph(tmp_path):
     names = hand_layout("shadow").finger_joints
     GraspDataset(names, np.full((2, len(names)), 0.4), ["box", "box"], np.zeros((2, 4)), [[], []],
                  np.zeros(2)).save(tmp_path / "grasps.npz")
-    h = NodeHarness(ExperienceGraspNode, {"experience": "grasps.npz"}, base_dir=tmp_path).setup()
+    h = NodeHarness(ExperienceGraspNode, {"experience": "grasps.npz", "steer_before_contact": True}, base_dir=tmp_path).setup()
     assert h.node.controller.experience.kind == "database"
     q = h.node.controller.pregrasp
     ff = []

@@ -98,7 +98,7 @@ class CapTurningDemonstrator:
     def released(self, keys: np.ndarray) -> np.ndarray:
         """The release posture inside phase D: the closed-front grip with ``release_joints`` already open.
 
-        Documented choice against the release flick (measured in docs/bench_sections/sim.md): the
+        Documented choice against the release flick (measured in docs/benchmarks.md): the
         hand first uncurls the middle and distal finger joints, so the fingertips leave the cap
         while the MCP joints, the thumb and the wrist hold still, and only then opens the rest.
         Opening everything at once (or the thumb first) releases the contacts one by one and the

@@ -12,7 +12,7 @@ its 1D motion manifolds (5.2, "equidistantly distributed … according to the ch
 order").  A letter is an *open* stroke; the Isomap + atan2* init (``"isomap"``) maps it onto a
 short arc whose ends are not ordered, and the trained time axis then runs back and forth (on the
 4 letters e, g, h, l the UKR/CLM's mean share correct rose from 0.71 to 1.00 on validation+test
-with the equidistant init, docs/bench_sections/segmentation.md).  On the periodic axis the
+with the equidistant init, docs/benchmarks.md).  On the periodic axis the
 stroke's end meets its start (one wrap-around per repetition), which the order ratings treat as
 a forward step.
 """

@@ -4,12 +4,11 @@ One :meth:`ExperienceGraspController.step` per control cycle maps the measured p
 of touching hand segments to joint targets:
 
 (A) pre-grasp: actuate ``pregrasp`` until it is reached (or a contact occurs);
-(B) no contact yet: with ``steer_before_contact`` (the thesis rule), approach the best match (as a
-    target shape, see :data:`STEER_MODES`); once it is reached without a contact, close further with
-    the heuristic (D) and search the best match of the current posture again, approaching it when it
-    changed — repeated until the first contact.  Default (documented deviation): close with (D) only,
-    so the first contact pushes the floating object exactly as the tactile baseline does and
-    experience enters with the first PCP match;
+(B) no contact yet: approach the best match of the current posture (as a target shape, see
+    :data:`STEER_MODES`); once it is reached without a contact, close further with the heuristic (D)
+    and search the best match of the current posture again, approaching it when it changed —
+    repeated until the first contact (the thesis rule; ``steer_before_contact=False`` closes with (D)
+    only and lets experience enter with the first PCP match);
 (C) per finger, by its contact state, re-matching with the PCP metric whenever the set of touching
     segments changes and the new set has persisted ``rematch_cycles`` cycles:
     - no contact → approach the best match's sub-target, once reached close with (D);
@@ -48,22 +47,25 @@ import numpy as np
 from .experience import ExperienceBase
 from .hand_layout import Finger, HandLayout
 
-SHADOW_PREGRASP = {"THJ5": -0.2, "THJ4": 0.2, "THJ1": 0.3}
-"""Empirically chosen pre-grasp of the ShadowHand-like hand (thesis: one fixed pre-grasp for all runs),
-the best of a few candidates on the evaluation grid: fingers straight, thumb turned towards the
-fingers (THJ5 < 0 opposes in this model) and slightly abducted; unnamed joints 0."""
+SHADOW_PREGRASP = {"THJ5": -0.2, "THJ4": 1.22, "THJ1": 0.3}
+"""Pre-grasp of the ShadowHand-like hand (thesis: one fixed pre-grasp for all runs): fingers straight,
+thumb fully abducted (THJ4 at its limit, below the palm, opposing the fingers), turned slightly
+towards them (THJ5 < 0 opposes in this model), tip slightly flexed; unnamed joints 0.  Chosen as the
+best tactile pre-grasp of a 12-candidate sweep (THJ4 0.8–1.22 × THJ5 −0.4–0.2) on the evaluation grid
+(docs/benchmarks.md, grasping pass 5): 91.7 % stable tactile grasps on 156 valid poses."""
 
 STEER_MODES = ("closing", "blend", "staged", "all")
 """How a best match steers the free fingers (documented choice ``ControllerConfig.steer``):
 
-- ``closing`` (default): the match is a target shape for the *closing* joints only, approached only where
+- ``closing``: the match is a target shape for the *closing* joints only, approached only where
   it flexes further than the current targets (a match never opens a joint the heuristic closed);
   spread/rotation joints keep the pre-grasp, so they never swing into a floating object;
 - ``blend``: like ``closing``, but the heuristic never waits for the match: each closing joint advances by
   the larger of the heuristic step and the (``approach_speed``-limited) step towards the match (before
   the first contact the best match is then searched every cycle);
-- ``staged``: ``closing`` before the first contact (phase B), from then on the match also sets the
-  spread/rotation joints;
+- ``staged`` (default): ``closing`` before the first contact (phase B), from then on the match also sets
+  the spread/rotation joints — associative completion: the contacts say where the object is, the
+  match where the other fingers (the thumb's rotation above all) should be;
 - ``all``: the literal thesis rule — every joint of the match, opening ones included.
 """
 
@@ -83,8 +85,8 @@ class ControllerConfig:
     reach_tol: float = 0.05     # a (sub-)target is reached within this error per joint …
     still_tol: float = 0.002    # … or when no joint moved more than this in one cycle
     squeeze: float = 0.1        # grip: held closing joints finally target the measured angle plus this
-    steer: str = "closing"      # how a best match steers the free fingers, one of STEER_MODES
-    steer_before_contact: bool = False  # phase B approaches best matches (False: tactile until the first contact)
+    steer: str = "staged"       # how a best match steers the free fingers, one of STEER_MODES
+    steer_before_contact: bool = True  # phase B approaches best matches (False: tactile until the first contact)
     rematch_cycles: int = 3     # a changed contact set must persist this many cycles before a re-match
     max_lead: float = 0.25      # closing targets lead the measured angle by at most this
     release_cycles: int = 3     # a lost contact still counts for this many cycles (debounces flicker)

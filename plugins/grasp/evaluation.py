@@ -11,11 +11,15 @@ A grasp counts when it passes the :class:`~.stability.DisturbanceTest`; placemen
 already touches the object in the pre-grasp are skipped in every condition (thesis 4.3).  Rotations
 about the vertical are evaluated for the box and the lying cylinder; the sphere is symmetric (thesis:
 symmetric rotations ignored).  Shares are pooled over all valid grasps of an object
-and, for ``overall``, of all objects.  ``repeats`` > 1 runs the whole grid again with the closing
-speed γ scaled by :func:`gamma_factors` (documented choice ``GAMMA_STEP``) and pools all runs: the
-floating grasp is chaotic — a 2 % change of γ flips about 10 % of the outcomes — so one run cannot
-resolve differences of a few points.  Also reported: the share of force-closure grasps (wrench
-quality > 0) per condition and the grasps evaluated per minute of wall time.
+and, for ``overall``, of all objects.  Because every condition grasps the same poses with the same
+seeds, the comparison with the tactile baseline is also reported *paired*: the poses an experience
+condition wins and loses against ``no_experience`` and the two-sided sign-test p-value
+(:func:`sign_test`).  ``repeats`` > 1 runs the whole grid again with the closing speed γ scaled by
+:func:`gamma_factors` (documented choice ``GAMMA_STEP``) and pools all runs: even the damped grasp
+(:mod:`.episode`) is sensitive — a 2 % change of γ flips about 9 % of the outcomes, most of them
+sphere grasps — so one run cannot resolve differences of a few points.  Also reported: the share of
+force-closure grasps (wrench quality > 0) per condition and the grasps evaluated per minute of wall
+time.
 """
 from __future__ import annotations
 
@@ -26,6 +30,7 @@ from pathlib import Path
 from typing import Callable
 
 import numpy as np
+from scipy.stats import binomtest
 
 from plugins.mapping.hands import HAND_MODELS
 
@@ -81,6 +86,7 @@ def evaluate_grasping(experience_dir, grid: dict = FULL_GRID, objects=OBJECTS, h
     model = HAND_MODELS[hand]
     shared = ExperienceBase.load(files["shared"])
     counts = {obj: {c: [0, 0, 0] for c in CONDITIONS} for obj in objects}  # stable, force closure, valid
+    paired = {obj: {c: [0, 0] for c in CONDITIONS[::2]} for obj in objects}  # wins, losses vs no_experience
     t0 = time.perf_counter()
     n_run = 0
     for obj in objects:
@@ -89,6 +95,7 @@ def evaluate_grasping(experience_dir, grid: dict = FULL_GRID, objects=OBJECTS, h
         runs = [(f, {c: ExperienceGraspController(layout, model.lower, model.upper, b, replace(config, gamma=config.gamma * f))
                      for c, b in bases.items()}) for f in factors]
         for (f, controllers), (k, pose) in itertools.product(runs, enumerate(poses)):
+            stable = {}
             for cond, ctl in controllers.items():
                 r = run_grasp(obj, pose, ctl, episode, seed=k, hand=hand)
                 n_run += 1
@@ -97,15 +104,27 @@ def evaluate_grasping(experience_dir, grid: dict = FULL_GRID, objects=OBJECTS, h
                     c[0] += r.stable
                     c[1] += r.quality > 0
                     c[2] += 1
+                    stable[cond] = r.stable
+            for cond, (wins, losses) in paired[obj].items():
+                if cond in stable and "no_experience" in stable:
+                    delta = int(stable[cond]) - int(stable["no_experience"])
+                    paired[obj][cond] = [wins + (delta > 0), losses + (delta < 0)]
             if progress is not None:
                 done = {c: counts[obj][c][0] for c in CONDITIONS}
                 progress(f"{obj} (γ × {f:g}): pose {k + 1}/{len(poses)}, stable so far {done}")
     minutes = (time.perf_counter() - t0) / 60.0
-    return {**summarise(counts, n_run, minutes), "repeats": repeats, "gamma_factors": factors}
+    return {**summarise(counts, paired, n_run, minutes), "repeats": repeats, "gamma_factors": factors}
 
 
-def summarise(counts: dict, n_run: int, minutes: float) -> dict:
-    """Shares per object and pooled ``overall`` from [stable, force closure, valid] counts."""
+def sign_test(wins: int, losses: int) -> dict:
+    """Paired comparison with the tactile baseline on the same poses: poses won and lost, two-sided sign-test p."""
+    p = binomtest(wins, wins + losses).pvalue if wins + losses else 1.0
+    return {"wins": int(wins), "losses": int(losses), "p_sign": float(p)}
+
+
+def summarise(counts: dict, paired: dict, n_run: int, minutes: float) -> dict:
+    """Shares per object and pooled ``overall`` from [stable, force closure, valid] counts; paired
+    [wins, losses] of ``experience`` and ``shared_som`` against ``no_experience`` become sign tests."""
     def share(a, n):
         return float(a / n) if n else 0.0
 
@@ -115,11 +134,13 @@ def summarise(counts: dict, n_run: int, minutes: float) -> dict:
         out[obj] = {c: share(per[c][0], per[c][2]) for c in CONDITIONS}
         out[obj]["force_closure"] = {c: share(per[c][1], per[c][2]) for c in CONDITIONS}
         out[obj]["n_valid"] = int(per[CONDITIONS[0]][2])
+        out[obj]["paired"] = {c: sign_test(*wl) for c, wl in paired[obj].items()}
         for c in CONDITIONS:
             pooled[c] += per[c]
     out["overall"] = {c: share(pooled[c][0], pooled[c][2]) for c in CONDITIONS}
     out["overall"]["force_closure"] = {c: share(pooled[c][1], pooled[c][2]) for c in CONDITIONS}
     out["overall"]["n_valid"] = int(pooled[CONDITIONS[0]][2])
+    out["overall"]["paired"] = {c: sign_test(*np.sum([paired[o][c] for o in paired], axis=0)) for c in CONDITIONS[::2]}
     out["experience_gain"] = out["overall"]["experience"] - out["overall"]["no_experience"]
     out["grasps_evaluated"] = n_run
     out["grasps_per_minute"] = float(n_run / minutes) if minutes > 0 else 0.0

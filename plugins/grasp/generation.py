@@ -32,7 +32,7 @@ from .experience import GraspDataset
 from .hand_layout import hand_layout
 
 PREGRASP_RANGES = {
-    "THJ5": (-0.6, 0.2), "THJ4": (0.0, 0.6), "THJ2": (-0.2, 0.4), "THJ1": (0.0, 0.5),
+    "THJ5": (-0.6, 0.6), "THJ4": (0.0, 1.22), "THJ2": (-0.2, 0.4), "THJ1": (0.0, 0.5),
     **{f"{f}J4": (-0.15, 0.15) for f in ("FF", "MF", "RF", "LF")},
     **{f"{f}J3": (0.0, 0.5) for f in ("FF", "MF", "RF", "LF")},
     **{f"{f}J2": (0.0, 0.4) for f in ("FF", "MF", "RF", "LF")},

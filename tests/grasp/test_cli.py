@@ -5,8 +5,9 @@ import numpy as np
 import pytest
 
 from plugins.grasp import cli
-from plugins.grasp.evaluation import evaluate_grasping, gamma_factors
+from plugins.grasp.evaluation import evaluate_grasping, gamma_factors, sign_test
 from plugins.grasp.experience import ExperienceBase, GraspDataset
+from plugins.grasp.generation import PREGRASP_RANGES
 from plugins.grasp.hand_layout import hand_layout
 from plugins.grasp.som import load_som
 
@@ -71,7 +72,7 @@ def test_generate_writes_a_dataset_and_soms(tmp_path, capsys):
                                         "--seed", "3"]) == 0
     data = GraspDataset.load(out / "grasps.npz")
     assert data.metadata["counts"]["sphere"]["trials"] == 6 and data.names == tuple(NAMES)
-    assert data.metadata["pregrasp_ranges"]["THJ5"] == [-0.6, 0.2]          # random pre-grasps by default
+    assert data.metadata["pregrasp_ranges"]["THJ5"] == list(PREGRASP_RANGES["THJ5"])   # random pre-grasps by default
     assert set(data.objects) <= {"sphere"}
 
 
@@ -82,5 +83,16 @@ def test_evaluation_pools_repeats_with_jittered_gamma(capsys):
     assert result["grasps_evaluated"] == 6 and result["cylinder"]["n_valid"] == 2     # 2 runs × 3 conditions
     assert result["gamma_factors"] == pytest.approx([1.0, 0.98])
     assert all(result["overall"][c] in (0.0, 0.5, 1.0) for c in ("experience", "no_experience", "shared_som"))
+    for cond in ("experience", "shared_som"):                 # paired: share difference = (wins − losses) / poses
+        pair = result["cylinder"]["paired"][cond]
+        assert pair == result["overall"]["paired"][cond] and 0.0 <= pair["p_sign"] <= 1.0
+        diff = result["cylinder"][cond] - result["cylinder"]["no_experience"]
+        assert diff == pytest.approx((pair["wins"] - pair["losses"]) / 2)
     assert call(cli.register_evaluate, ["--quick", "--repeats", "0"]) == 2
     assert "repeats must be ≥ 1" in capsys.readouterr().err
+
+
+def test_sign_test_counts_only_poses_that_differ():
+    assert sign_test(0, 0) == {"wins": 0, "losses": 0, "p_sign": 1.0}
+    assert sign_test(9, 1)["p_sign"] == pytest.approx(22 / 1024)            # 2 · P(X ≤ 1), X ~ B(10, ½)
+    assert sign_test(5, 5)["p_sign"] == pytest.approx(1.0)

@@ -6,10 +6,11 @@ a table under the palm-down hand.  Documented choices (:class:`EpisodeConfig`):
 - ``floating=True`` (default): as in the thesis (4.3: zero gravity, object hovering in front of the
   fixed palm, free to move) the table is removed and gravity switched off while grasping, so the
   fingers can close around the object; ``floating=False`` grasps on the table under gravity;
-- ``object_damping`` (default 0.99): while grasping, the object's linear and angular velocity decay
-  like in a viscous medium (pybullet ``linearDamping``/``angularDamping``: per step ``v ← v·(1−d)^Δt``,
-  a time constant of about 0.2 s at 0.99) — the grasp is quasi-static: fingers still push the
-  object into the palm, but a touch no longer sends it flying, so the outcome depends on the hand's
+- ``object_damping`` (default 0.99): while grasping, the object moves as in a viscous medium
+  (pybullet ``linearDamping``/``angularDamping``; Bullet's multibody damping decelerates by
+  ``d·v·(1 + |v|)``: at 0.99 a 0.5 m/s push keeps half its speed after 0.5 s, a time constant of
+  about 1/d at low speed) — the grasp is quasi-static: fingers still push the object into the palm,
+  but a touch no longer sends it flying, so the outcome depends on the hand's
   posture rather than on the bounce (the undamped grasp flipped 19 of 150 outcomes for a 2 %
   change of the closing speed, the damped one 13, 4 of them box/cylinder instead of 10).  The stability
   test runs with pybullet's default damping (0.04).

@@ -6,7 +6,7 @@ import pybullet as p
 import pytest
 
 from plugins.grasp.controller import HOLD, ExperienceGraspController
-from plugins.grasp.episode import CENTRED_POSE, remove_table, run_grasp, touched_segments
+from plugins.grasp.episode import CENTRED_POSE, EpisodeConfig, remove_table, run_grasp, set_damping, touched_segments
 from plugins.grasp.experience import ExperienceBase
 from plugins.grasp.hand_layout import hand_layout
 from plugins.mapping.hands import HAND_MODELS
@@ -81,3 +81,20 @@ def test_grasp_node_drives_the_simulator_node(tmp_path):
         assert len(on_object) >= 3                     # the fingers closed on the object, not on the table
     finally:
         sim.teardown()
+
+
+def test_object_damping_makes_a_push_fade_and_is_validated():
+    """Quasi-static grasping (EpisodeConfig.object_damping): a pushed object loses most of its speed in 1 s."""
+    speed = {}
+    for damping in (0.04, 0.99):
+        scene = GraspScene(object="sphere", position=(0.1, 0.0))
+        with Simulation(scene=scene) as sim:
+            remove_table(sim, scene)
+            p.setGravity(0, 0, 0, physicsClientId=sim.client)
+            set_damping(sim, scene, damping)
+            p.resetBaseVelocity(scene.object_id, [0.0, 0.5, 0.0], physicsClientId=sim.client)
+            sim.step(240)
+            speed[damping] = float(np.linalg.norm(p.getBaseVelocity(scene.object_id, physicsClientId=sim.client)[0]))
+    assert speed[0.04] > 0.45 and speed[0.99] < 0.25      # Bullet multibody damping: dv/dt = −d·v·(1 + |v|)
+    with pytest.raises(ValueError, match="object_damping"):
+        EpisodeConfig(object_damping=1.0)

@@ -41,6 +41,8 @@ from .hand_layout import hand_layout
 
 OBJECTS = ("box", "cylinder", "sphere")
 CONDITIONS = ("experience", "no_experience", "shared_som")
+COMPARED = ("experience", "shared_som")
+"""The conditions compared pose by pose with the tactile baseline ``no_experience``."""
 SYMMETRIC_ABOUT_VERTICAL = ("sphere",)
 
 FULL_GRID = {"x": (0.02, 0.03, 0.04, 0.05), "y": (-0.012, 0.0, 0.012), "gap": (0.005, 0.015, 0.025),
@@ -86,7 +88,7 @@ def evaluate_grasping(experience_dir, grid: dict = FULL_GRID, objects=OBJECTS, h
     model = HAND_MODELS[hand]
     shared = ExperienceBase.load(files["shared"])
     counts = {obj: {c: [0, 0, 0] for c in CONDITIONS} for obj in objects}  # stable, force closure, valid
-    paired = {obj: {c: [0, 0] for c in CONDITIONS[::2]} for obj in objects}  # wins, losses vs no_experience
+    paired = {obj: {c: [0, 0] for c in COMPARED} for obj in objects}  # poses won, lost vs no_experience
     t0 = time.perf_counter()
     n_run = 0
     for obj in objects:
@@ -105,10 +107,11 @@ def evaluate_grasping(experience_dir, grid: dict = FULL_GRID, objects=OBJECTS, h
                     c[1] += r.quality > 0
                     c[2] += 1
                     stable[cond] = r.stable
-            for cond, (wins, losses) in paired[obj].items():
-                if cond in stable and "no_experience" in stable:
-                    delta = int(stable[cond]) - int(stable["no_experience"])
-                    paired[obj][cond] = [wins + (delta > 0), losses + (delta < 0)]
+            base = stable.get("no_experience")
+            for cond, won_lost in paired[obj].items():
+                if cond in stable and base is not None:
+                    won_lost[0] += stable[cond] > base
+                    won_lost[1] += stable[cond] < base
             if progress is not None:
                 done = {c: counts[obj][c][0] for c in CONDITIONS}
                 progress(f"{obj} (γ × {f:g}): pose {k + 1}/{len(poses)}, stable so far {done}")
@@ -140,7 +143,7 @@ def summarise(counts: dict, paired: dict, n_run: int, minutes: float) -> dict:
     out["overall"] = {c: share(pooled[c][0], pooled[c][2]) for c in CONDITIONS}
     out["overall"]["force_closure"] = {c: share(pooled[c][1], pooled[c][2]) for c in CONDITIONS}
     out["overall"]["n_valid"] = int(pooled[CONDITIONS[0]][2])
-    out["overall"]["paired"] = {c: sign_test(*np.sum([paired[o][c] for o in paired], axis=0)) for c in CONDITIONS[::2]}
+    out["overall"]["paired"] = {c: sign_test(*np.sum([paired[o][c] for o in paired], axis=0)) for c in COMPARED}
     out["experience_gain"] = out["overall"]["experience"] - out["overall"]["no_experience"]
     out["grasps_evaluated"] = n_run
     out["grasps_per_minute"] = float(n_run / minutes) if minutes > 0 else 0.0

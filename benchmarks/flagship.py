@@ -14,6 +14,7 @@
   ``segmenter/labels``; baselines from the same run: ``glove/frames`` (bare glove → recorder) and
   ``shadow/joints`` (after the two mapping hops).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -65,20 +66,21 @@ def _name(pid: int) -> str:
 def _labels_seen(rec: Path) -> bool:
     import logging
 
-    from framework.recording import iter_recording
+    from handflow.framework.recording import iter_recording
 
     logging.getLogger("handflow.recording").setLevel(logging.ERROR)  # the file is still being written
     try:
         return any(rm.topic.endswith("/segmenter/labels") for rm in iter_recording(rec))
-    except Exception:  # noqa: BLE001 - the file is being written; try again
+    except Exception:
         return False
 
 
 def run_graph(graph: str, seconds: float, rec: Path, handflow: list[str], cwd: Path, wait_label: bool) -> dict:
     """Run ``graph``; CPU per process over ``seconds`` of steady running; the recording for latencies."""
     t0 = time.time_ns()
-    proc = subprocess.Popen([*handflow, "run", graph, "--record", str(rec)], cwd=cwd,
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    proc = subprocess.Popen(
+        [*handflow, "run", graph, "--record", str(rec)], cwd=cwd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
+    )
     try:
         deadline = time.monotonic() + 180
         while wait_label and not (rec.exists() and _labels_seen(rec)):
@@ -105,7 +107,7 @@ def run_graph(graph: str, seconds: float, rec: Path, handflow: list[str], cwd: P
 def latencies(rec: Path, t0_ns: int, settle_s: float = 3.0) -> dict:
     """First-label time, and latencies of the messages stamped ``settle_s`` after the first label
     (the start-up backlog of the glove reader is not steady-state latency)."""
-    from framework.recording import iter_recording
+    from handflow.framework.recording import iter_recording
 
     messages = [("/".join(rm.topic.split("/")[2:]), rm.log_time_ns, rm.publish_time_ns) for rm in iter_recording(rec)]
     first_label = next((log for port, log, _ in messages if port == "segmenter/labels"), None)
@@ -134,8 +136,11 @@ def fresh_install(tmp: Path) -> dict:
     pip_s = time.monotonic() - t
     rec = tree / "out" / "demo_fresh.mcap"
     res = run_graph("configs/demo.yaml", 2.0, rec, [str(tmp / "venv" / "bin" / "handflow")], tree, True)
-    return {"venv_s": round(venv_s, 1), "pip_install_s": round(pip_s, 1),
-            "first_label_s": latencies(rec, res["t0_ns"])["first_label_s"]}
+    return {
+        "venv_s": round(venv_s, 1),
+        "pip_install_s": round(pip_s, 1),
+        "first_label_s": latencies(rec, res["t0_ns"])["first_label_s"],
+    }
 
 
 def main() -> None:
@@ -144,7 +149,7 @@ def main() -> None:
     ap.add_argument("--seconds", type=float, default=20.0, help="CPU measurement window")
     ap.add_argument("--fresh-install", action="store_true", help="also time a fresh venv + pip install -e .")
     args = ap.parse_args()
-    handflow = [sys.executable, "-m", "framework.cli"]
+    handflow = [sys.executable, "-m", "handflow.framework.cli"]
     with tempfile.TemporaryDirectory(prefix="handflow-bench-") as d:
         tmp = Path(d)
         flag = run_graph("configs/demo.yaml", args.seconds, tmp / "demo.mcap", handflow, REPO, True)
@@ -152,13 +157,17 @@ def main() -> None:
         lat = latencies(tmp / "demo.mcap", flag["t0_ns"])
         result = {
             "startup_first_label_s": lat.pop("first_label_s"),
-            "cpu_percent_total": flag["cpu_percent_total"], "cpu_percent": flag["cpu_percent"],
+            "cpu_percent_total": flag["cpu_percent_total"],
+            "cpu_percent": flag["cpu_percent"],
             "baseline_glove_chain_cpu_percent_total": base["cpu_percent_total"],
             "baseline_glove_chain_cpu_percent": base["cpu_percent"],
             "cpu_ratio_to_glove_chain": round(flag["cpu_percent_total"] / max(base["cpu_percent_total"], 1e-9), 2),
             **lat,
-            "label_latency_ratio_to_glove": round(lat["label_latency_ms"][0] / max(lat["baseline_glove_latency_ms"][0], 1e-9), 1),
-            "cpu_seconds": args.seconds, "cores": os.cpu_count(),
+            "label_latency_ratio_to_glove": round(
+                lat["label_latency_ms"][0] / max(lat["baseline_glove_latency_ms"][0], 1e-9), 1
+            ),
+            "cpu_seconds": args.seconds,
+            "cores": os.cpu_count(),
         }
         if args.fresh_install:
             result["fresh_install"] = fresh_install(tmp)

@@ -9,6 +9,7 @@ run: the configured rate (ratio received/configured) and the tick period (ratio 
 
     python benchmarks/glove_reader.py [--seconds 3] [--json]
 """
+
 from __future__ import annotations
 
 import argparse
@@ -17,11 +18,11 @@ import time
 
 import numpy as np
 
-from framework.testing import NodeHarness
-from plugins.glove import protocol as P
-from plugins.glove.emulator import GloveEmulator, constant_source
-from plugins.glove.node import CyberGloveNode
-from plugins.glove.reader import GloveReader, ReaderConfig
+from handflow.framework.testing import NodeHarness
+from handflow.plugins.glove import protocol as P
+from handflow.plugins.glove.emulator import GloveEmulator, constant_source
+from handflow.plugins.glove.node import CyberGloveNode
+from handflow.plugins.glove.reader import GloveReader, ReaderConfig
 
 
 def throughput(rate_hz: float, seconds: float) -> dict:
@@ -41,9 +42,16 @@ def throughput(rate_hz: float, seconds: float) -> dict:
     _, counters = reader.snapshot()
     configured = P.TICK_HZ / np.prod(P.period_words(rate_hz))
     received_rate = (len(got) - 1) / span_s
-    return {"target_hz": rate_hz, "configured_hz": round(float(configured), 2), "received": len(got),
-            "frames_per_s": round(float(received_rate), 1), "ratio_vs_configured": round(float(received_rate / configured), 4),
-            "lost": len(set(sent) - set(ticks)), "corrupt": int(counters["corrupt"]), "gaps": int(counters["gaps"])}
+    return {
+        "target_hz": rate_hz,
+        "configured_hz": round(float(configured), 2),
+        "received": len(got),
+        "frames_per_s": round(float(received_rate), 1),
+        "ratio_vs_configured": round(float(received_rate / configured), 4),
+        "lost": len(set(sent) - set(ticks)),
+        "corrupt": int(counters["corrupt"]),
+        "gaps": int(counters["gaps"]),
+    }
 
 
 def latency(rate_hz: float, tick_hz: float, seconds: float) -> dict:
@@ -70,9 +78,15 @@ def latency(rate_hz: float, tick_hz: float, seconds: float) -> dict:
     finally:
         h.teardown()
     ms = np.array(lat) / 1e6
-    return {"glove_hz": rate_hz, "tick_hz": tick_hz, "frames": len(ms), "median_ms": round(float(np.median(ms)), 3),
-            "p99_ms": round(float(np.percentile(ms, 99)), 3), "tick_period_ms": round(1e3 * period, 3),
-            "median_vs_tick_period": round(float(np.median(ms) / (1e3 * period)), 3)}
+    return {
+        "glove_hz": rate_hz,
+        "tick_hz": tick_hz,
+        "frames": len(ms),
+        "median_ms": round(float(np.median(ms)), 3),
+        "p99_ms": round(float(np.percentile(ms, 99)), 3),
+        "tick_period_ms": round(1e3 * period, 3),
+        "median_vs_tick_period": round(float(np.median(ms) / (1e3 * period)), 3),
+    }
 
 
 def main() -> int:
@@ -88,11 +102,15 @@ def main() -> int:
         print(json.dumps(result, indent=2))
     else:
         for t in result["throughput"]:
-            print(f"target {t['target_hz']:7.0f} Hz: {t['frames_per_s']:8.1f} frames/s "
-                  f"(×{t['ratio_vs_configured']:.3f} of configured {t['configured_hz']} Hz), lost {t['lost']}, corrupt {t['corrupt']}")
+            print(
+                f"target {t['target_hz']:7.0f} Hz: {t['frames_per_s']:8.1f} frames/s "
+                f"(×{t['ratio_vs_configured']:.3f} of configured {t['configured_hz']} Hz), lost {t['lost']}, corrupt {t['corrupt']}"
+            )
         for t in result["latency"]:
-            print(f"latency glove {t['glove_hz']:.0f} Hz, tick {t['tick_hz']:.0f} Hz: median {t['median_ms']} ms, "
-                  f"p99 {t['p99_ms']} ms ({t['median_vs_tick_period']}× tick period), n={t['frames']}")
+            print(
+                f"latency glove {t['glove_hz']:.0f} Hz, tick {t['tick_hz']:.0f} Hz: median {t['median_ms']} ms, "
+                f"p99 {t['p99_ms']} ms ({t['median_vs_tick_period']}× tick period), n={t['frames']}"
+            )
     return 0
 
 

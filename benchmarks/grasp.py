@@ -10,6 +10,7 @@ Every figure comes with a baseline measured in the same run (medians over ``--re
 
     python benchmarks/grasp.py [--repeats 3] [--json]
 """
+
 from __future__ import annotations
 
 import argparse
@@ -18,17 +19,16 @@ import statistics
 
 import numpy as np
 from threadpoolctl import threadpool_limits
-
-from plugins.grasp.controller import ExperienceGraspController
-from plugins.grasp.episode import CENTRED_POSE, EpisodeConfig, run_grasp
-from plugins.grasp.hand_layout import hand_layout
-from plugins.grasp.pcp import best_match_index
-from plugins.grasp.som import SOM, decay
-from plugins.mapping.hands import HAND_MODELS
-from plugins.simulator.scenes import GraspScene
-from plugins.simulator.simulation import Simulation
 from timing import median_time
 
+from handflow.plugins.grasp.controller import ExperienceGraspController
+from handflow.plugins.grasp.episode import CENTRED_POSE, EpisodeConfig, run_grasp
+from handflow.plugins.grasp.hand_layout import hand_layout
+from handflow.plugins.grasp.pcp import best_match_index
+from handflow.plugins.grasp.som import SOM, decay
+from handflow.plugins.hands.joints import HAND_MODELS
+from handflow.plugins.simulator.scenes import GraspScene
+from handflow.plugins.simulator.simulation import Simulation
 
 
 def numpy_online_som(X, rows=25, cols=25, epochs=30, seed=0):
@@ -67,8 +67,9 @@ def main() -> int:
         q = X[3]
         n = 200
         vec = median_time(lambda: [best_match_index(W, q, mask) for _ in range(n)], args.repeats) / n
-        loop = median_time(lambda: min(range(len(W)), key=lambda a: float(np.sum(mask * (W[a] - q) ** 2))),
-                           args.repeats)
+        loop = median_time(
+            lambda: min(range(len(W)), key=lambda a: float(np.sum(mask * (W[a] - q) ** 2))), args.repeats
+        )
         out["pcp_best_match_625_nodes_us"] = {"vectorised": vec * 1e6, "python_loop": loop * 1e6, "speedup": loop / vec}
 
         model, layout = HAND_MODELS["shadow"], hand_layout("shadow")
@@ -88,8 +89,13 @@ def main() -> int:
                 sim.step(n_steps)
 
         physics = median_time(bare, args.repeats)
-        out["grasp_trial_s"] = {"trial": grasp, "bare_physics_same_steps": physics, "overhead_ratio": grasp / physics,
-                                "grasps_per_minute": 60.0 / grasp, "physics_steps": n_steps}
+        out["grasp_trial_s"] = {
+            "trial": grasp,
+            "bare_physics_same_steps": physics,
+            "overhead_ratio": grasp / physics,
+            "grasps_per_minute": 60.0 / grasp,
+            "physics_steps": n_steps,
+        }
     if args.json:
         print(json.dumps(out, indent=2))
     else:

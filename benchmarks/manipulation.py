@@ -11,6 +11,7 @@
 
 The machine is shared: the 1-min load average is printed with the figures.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -20,11 +21,11 @@ import time
 
 import numpy as np
 
-from framework.messages import Points2D
-from framework.testing import NodeHarness
-from plugins.manifold.controllers.cli import CONFIGS_MODELS, TRAIN_CONFIGS, ensure_manifold
-from plugins.manifold.controllers.nodes import ClosedLoopNode
-from plugins.manifold.controllers.training import load_config, train_manifold
+from handflow.framework.messages import Points2D
+from handflow.framework.testing import NodeHarness
+from handflow.plugins.manipulation.cli import CONFIGS_MODELS, TRAIN_CONFIGS, ensure_manifold
+from handflow.plugins.manipulation.nodes import ClosedLoopNode
+from handflow.plugins.manipulation.training import load_config, train_manifold
 
 
 def _ms(samples):
@@ -79,14 +80,20 @@ def main():
         return
     lat = result["latency"]
     print(f"load average (1 min): {result['load_avg_1min']:.2f}")
-    print(f"closed loop obs→command: median {lat['closed_loop_ms']['median']:.3f} ms, "
-          f"p99 {lat['closed_loop_ms']['p99']:.3f} ms")
-    print(f"baseline f(x):           median {lat['f_baseline_ms']['median']:.3f} ms, "
-          f"p99 {lat['f_baseline_ms']['p99']:.3f} ms   (ratio of medians {lat['ratio_median']:.1f}×)")
+    print(
+        f"closed loop obs→command: median {lat['closed_loop_ms']['median']:.3f} ms, "
+        f"p99 {lat['closed_loop_ms']['p99']:.3f} ms"
+    )
+    print(
+        f"baseline f(x):           median {lat['f_baseline_ms']['median']:.3f} ms, "
+        f"p99 {lat['f_baseline_ms']['p99']:.3f} ms   (ratio of medians {lat['ratio_median']:.1f}×)"
+    )
     if "build_s" in result:
         b = result["build_s"]
-        print(f"cap manifold build: construction {b['cap_construction.yaml']:.1f} s, learning "
-              f"{b['cap_learning.yaml']:.1f} s (ratio {b['ratio_learning_over_construction']:.2f}×)")
+        print(
+            f"cap manifold build: construction {b['cap_construction.yaml']:.1f} s, learning "
+            f"{b['cap_learning.yaml']:.1f} s (ratio {b['ratio_learning_over_construction']:.2f}×)"
+        )
 
 
 if __name__ == "__main__":

@@ -7,6 +7,7 @@ Medians over ``--repeats`` runs.
 
     python benchmarks/mapping_cost.py [--repeats 7] [--json]
 """
+
 from __future__ import annotations
 
 import argparse
@@ -15,11 +16,11 @@ import time
 
 import numpy as np
 
-from framework.messages import GloveFrame
-from framework.testing import NodeHarness
-from plugins.glove.synthetic import SyntheticGlove
-from plugins.mapping.nodes import HumanHandMappingNode, ShadowHandMappingNode
-from plugins.mapping.robot import ShadowHandMapping
+from handflow.framework.messages import GloveFrame
+from handflow.framework.testing import NodeHarness
+from handflow.plugins.glove.synthetic import SyntheticGlove
+from handflow.plugins.mapping.nodes import HumanHandMappingNode, ShadowHandMappingNode
+from handflow.plugins.mapping.robot import ShadowHandMapping
 
 
 def _per_frame_us(fn, frames, repeats) -> float:
@@ -61,10 +62,12 @@ def main() -> int:
     def node_path(msg):
         h.send("raw", msg)
         s.send("joints", h.published["joints"][-1])
+
     nodes = _per_frame_us(node_path, msgs, max(3, args.repeats // 2))
 
     result = {
-        "frames": len(frames), "repeats": args.repeats,
+        "frames": len(frames),
+        "repeats": args.repeats,
         "baseline_linear22_us": round(baseline, 2),
         "raw_to_human_us": round(human_only, 2),
         "raw_to_shadow_us": round(chain, 2),

@@ -11,6 +11,7 @@ thread (one core); numba code is single-threaded.
 
     python benchmarks/online_segmenter.py [--seconds 20] [--dataset letters.npz] [--json]
 """
+
 from __future__ import annotations
 
 import os
@@ -25,8 +26,13 @@ import time  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from plugins.segmenter import (LetterGenerator, OnlineCLMSegmenter, candidate_set, load_dataset,  # noqa: E402
-                               train_class_models)
+from handflow.plugins.segmenter import (  # noqa: E402
+    LetterGenerator,
+    OnlineCLMSegmenter,
+    candidate_set,
+    load_dataset,
+    train_class_models,
+)
 
 RATE_HZ = 100.0
 
@@ -61,8 +67,16 @@ def per_model_projection_ms(cands, Y):
 
 
 def run(cands, Y, truth, warm: bool, seed: int, cold_every: int | None = 10, confirm: int = 5, edge=None):
-    seg = OnlineCLMSegmenter(cands, window=200, history=10, warm_start=warm, cold_every=cold_every,
-                             confirm=confirm, edge=edge, random_state=seed)
+    seg = OnlineCLMSegmenter(
+        cands,
+        window=200,
+        history=10,
+        warm_start=warm,
+        cold_every=cold_every,
+        confirm=confirm,
+        edge=edge,
+        random_state=seed,
+    )
     lat, sweeps, revisions, proj_t, clm_t = [], [], 0, [], []
     to_truth = from_truth = 0
     exit_labels = []  # published label of each observation as it leaves the window
@@ -79,21 +93,26 @@ def run(cands, Y, truth, warm: bool, seed: int, cold_every: int | None = 10, con
         for e in up.events:
             if e.kind == "revision":
                 revisions += 1
-                to_truth += int(np.sum(truth[e.start: e.end + 1] == e.label))
-                from_truth += int(np.sum(truth[e.start: e.end + 1] == e.previous))
+                to_truth += int(np.sum(truth[e.start : e.end + 1] == e.label))
+                from_truth += int(np.sum(truth[e.start : e.end + 1] == e.previous))
         if seg.n == seg.window:
             exit_labels.append(seg.published_labels[0])
     lat_ms = np.array(lat[50:]) * 1e3  # skip the JIT/warm-up start of the window
-    return {"latency_ms_median": float(np.median(lat_ms)), "latency_ms_p99": float(np.percentile(lat_ms, 99)),
-            "projection_ms_median": float(np.median(np.array(proj_t[50:]) * 1e3)),
-            "projection_ms_p99": float(np.percentile(np.array(proj_t[50:]) * 1e3, 99)),
-            "clm_ms_median": float(np.median(np.array(clm_t[50:]) * 1e3)),
-            "clm_ms_p99": float(np.percentile(np.array(clm_t[50:]) * 1e3, 99)),
-            "sweeps_median": float(np.median(sweeps[50:])),
-            "revisions_per_min": revisions / (len(Y) / RATE_HZ / 60.0),
-            "revised_points_to_truth": to_truth, "revised_points_from_truth": from_truth,
-            "published_accuracy_at_exit": (float(np.mean(np.array(exit_labels) == truth[: len(exit_labels)]))
-                                           if exit_labels else None)}
+    return {
+        "latency_ms_median": float(np.median(lat_ms)),
+        "latency_ms_p99": float(np.percentile(lat_ms, 99)),
+        "projection_ms_median": float(np.median(np.array(proj_t[50:]) * 1e3)),
+        "projection_ms_p99": float(np.percentile(np.array(proj_t[50:]) * 1e3, 99)),
+        "clm_ms_median": float(np.median(np.array(clm_t[50:]) * 1e3)),
+        "clm_ms_p99": float(np.percentile(np.array(clm_t[50:]) * 1e3, 99)),
+        "sweeps_median": float(np.median(sweeps[50:])),
+        "revisions_per_min": revisions / (len(Y) / RATE_HZ / 60.0),
+        "revised_points_to_truth": to_truth,
+        "revised_points_from_truth": from_truth,
+        "published_accuracy_at_exit": (
+            float(np.mean(np.array(exit_labels) == truth[: len(exit_labels)])) if exit_labels else None
+        ),
+    }
 
 
 def main(argv=None) -> int:
@@ -101,8 +120,9 @@ def main(argv=None) -> int:
     ap.add_argument("--seconds", type=float, default=20.0, help="stream length in seconds at 100 Hz")
     ap.add_argument("--dataset", help="labelled dataset (first 4 classes); default synthetic letters")
     ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--cold-every", type=int, default=10,
-                    help="energy check against a cold solve every N warm updates (0 = never)")
+    ap.add_argument(
+        "--cold-every", type=int, default=10, help="energy check against a cold solve every N warm updates (0 = never)"
+    )
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args(argv)
     cands, Y, truth = make_stream(args)
@@ -111,24 +131,42 @@ def main(argv=None) -> int:
     cold = run(cands, Y, truth, False, args.seed)
     every_change = run(cands, Y, truth, True, args.seed, args.cold_every or None, confirm=1, edge=0)
     base_med, base_p99 = per_model_projection_ms(cands, Y[:500])
-    out = {"latency_ms_median": warm["latency_ms_median"], "latency_ms_p99": warm["latency_ms_p99"],
-           "sweeps_warm_median": warm["sweeps_median"], "sweeps_cold_median": cold["sweeps_median"],
-           "revisions_per_min": warm["revisions_per_min"],
-           "revisions_per_min_every_change": every_change["revisions_per_min"],
-           **{f"{k}": warm[k] for k in ("revised_points_to_truth", "revised_points_from_truth",
-                                        "published_accuracy_at_exit")},
-           **{f"{k}_every_change": every_change[k] for k in ("revised_points_to_truth", "revised_points_from_truth",
-                                                             "published_accuracy_at_exit")},
-           "per_model_projection_ms_median": base_med, "per_model_projection_ms_p99": base_p99,
-           "projection_speedup_median": base_med / warm["projection_ms_median"],
-           "projection_ms_median": warm["projection_ms_median"], "projection_ms_p99": warm["projection_ms_p99"],
-           "clm_ms_median": warm["clm_ms_median"], "clm_ms_p99": warm["clm_ms_p99"],
-           "cold_clm_ms_median": cold["clm_ms_median"], "cold_clm_ms_p99": cold["clm_ms_p99"],
-           "cold_latency_ms_median": cold["latency_ms_median"], "cold_latency_ms_p99": cold["latency_ms_p99"],
-           "latency_ratio_warm_vs_cold": warm["latency_ms_median"] / cold["latency_ms_median"],
-           "clm_ratio_warm_vs_cold": warm["clm_ms_median"] / cold["clm_ms_median"],
-           "cold_every": args.cold_every, "samples": int(len(Y)), "candidates": 4, "window": 200, "rate_hz": RATE_HZ,
-           "data": args.dataset or "synthetic letters", "goal_p99_ms": 10.0}
+    out = {
+        "latency_ms_median": warm["latency_ms_median"],
+        "latency_ms_p99": warm["latency_ms_p99"],
+        "sweeps_warm_median": warm["sweeps_median"],
+        "sweeps_cold_median": cold["sweeps_median"],
+        "revisions_per_min": warm["revisions_per_min"],
+        "revisions_per_min_every_change": every_change["revisions_per_min"],
+        **{
+            f"{k}": warm[k]
+            for k in ("revised_points_to_truth", "revised_points_from_truth", "published_accuracy_at_exit")
+        },
+        **{
+            f"{k}_every_change": every_change[k]
+            for k in ("revised_points_to_truth", "revised_points_from_truth", "published_accuracy_at_exit")
+        },
+        "per_model_projection_ms_median": base_med,
+        "per_model_projection_ms_p99": base_p99,
+        "projection_speedup_median": base_med / warm["projection_ms_median"],
+        "projection_ms_median": warm["projection_ms_median"],
+        "projection_ms_p99": warm["projection_ms_p99"],
+        "clm_ms_median": warm["clm_ms_median"],
+        "clm_ms_p99": warm["clm_ms_p99"],
+        "cold_clm_ms_median": cold["clm_ms_median"],
+        "cold_clm_ms_p99": cold["clm_ms_p99"],
+        "cold_latency_ms_median": cold["latency_ms_median"],
+        "cold_latency_ms_p99": cold["latency_ms_p99"],
+        "latency_ratio_warm_vs_cold": warm["latency_ms_median"] / cold["latency_ms_median"],
+        "clm_ratio_warm_vs_cold": warm["clm_ms_median"] / cold["clm_ms_median"],
+        "cold_every": args.cold_every,
+        "samples": int(len(Y)),
+        "candidates": 4,
+        "window": 200,
+        "rate_hz": RATE_HZ,
+        "data": args.dataset or "synthetic letters",
+        "goal_p99_ms": 10.0,
+    }
     if args.json:
         print(json.dumps(out, indent=1))
     else:

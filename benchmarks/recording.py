@@ -12,6 +12,7 @@
 
 Figures are medians over the repeats (messages of 24 float64 values, JSON-encoded).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -27,8 +28,8 @@ import numpy as np
 from mcap.reader import make_reader
 from mcap.writer import CompressionType, Writer
 
-from framework.messages import Array, Header, encode
-from framework.recording import McapWriter, iter_recording
+from handflow.framework.messages import Array, Header, encode
+from handflow.framework.recording import McapWriter, iter_recording
 
 REPO = Path(__file__).resolve().parents[1]
 TOPIC = "handflow/bench/source/out"
@@ -66,6 +67,7 @@ def bench_write(path: Path, payloads: list[bytes]) -> tuple[float, float]:
             for i, p in enumerate(payloads):
                 w.add_message(cid, i, p, i, i)
             w.finish()
+
     return _time(ours), _time(bare)
 
 
@@ -78,6 +80,7 @@ def bench_read(path: Path) -> tuple[float, float]:
         with open(path, "rb") as f:
             for _ in make_reader(f).iter_messages():
                 pass
+
     return _time(ours), _time(bare)
 
 
@@ -85,26 +88,56 @@ def bench_lockstep(tmp: Path, n: int) -> dict[str, float]:
     rec = tmp / "replay.mcap"
     with McapWriter(rec) as w:
         for i, p in enumerate(_payloads(n)):
-            w.write_encoded("handflow/rec/source/out", "handflow.Array", p, 1_000_000_000 + i * 1_000_000,
-                            1_000_000_000 + i * 1_000_000, i + 1)
+            w.write_encoded(
+                "handflow/rec/source/out",
+                "handflow.Array",
+                p,
+                1_000_000_000 + i * 1_000_000,
+                1_000_000_000 + i * 1_000_000,
+                i + 1,
+            )
     empty = tmp / "empty.mcap"
     McapWriter(empty).close()
     graph = tmp / "g.yaml"
-    graph.write_text("name: bench_lockstep\nexternal: {source/out: Array}\nnodes:\n"
-                     "  - {id: scale, plugin: basic.transform, inputs: {in: source/out}}\n"
-                     "  - {id: sink, plugin: basic.sink, inputs: {in: scale/out}}\n")
+    graph.write_text(
+        "name: bench_lockstep\nexternal: {source/out: Array}\nnodes:\n"
+        "  - {id: scale, plugin: basic.transform, inputs: {in: source/out}}\n"
+        "  - {id: sink, plugin: basic.sink, inputs: {in: scale/out}}\n"
+    )
 
     def replay(path: Path, *extra: str) -> float:
-        return _time(lambda: subprocess.run([sys.executable, "-m", "framework.cli", "--log-level", "WARNING", "replay",
-                                             str(path), "--into", str(graph), *extra], check=True, cwd=REPO,
-                                            capture_output=True))
+        return _time(
+            lambda: subprocess.run(
+                [
+                    sys.executable,
+                    "-m",
+                    "handflow.framework.cli",
+                    "--log-level",
+                    "WARNING",
+                    "replay",
+                    str(path),
+                    "--into",
+                    str(graph),
+                    *extra,
+                ],
+                check=True,
+                cwd=REPO,
+                capture_output=True,
+            )
+        )
+
     overhead = replay(empty, "--lockstep")
     lock = replay(rec, "--lockstep")
     timed = replay(rec, "--speed", "1000")
     per_msg = (lock - overhead) / n
-    return {"lockstep_total_s": lock, "lockstep_startup_s": overhead, "timed_total_s": timed,
-            "lockstep_us_per_message": per_msg * 1e6, "lockstep_messages_per_s": 1 / per_msg if per_msg > 0 else float("inf"),
-            "lockstep_vs_timed_total_ratio": lock / timed}
+    return {
+        "lockstep_total_s": lock,
+        "lockstep_startup_s": overhead,
+        "timed_total_s": timed,
+        "lockstep_us_per_message": per_msg * 1e6,
+        "lockstep_messages_per_s": 1 / per_msg if per_msg > 0 else float("inf"),
+        "lockstep_vs_timed_total_ratio": lock / timed,
+    }
 
 
 def main() -> None:
@@ -128,10 +161,16 @@ def main() -> None:
     w_ours, w_bare = statistics.median(w[0] for w in writes), statistics.median(w[1] for w in writes)
     r_ours, r_bare = statistics.median(r[0] for r in reads), statistics.median(r[1] for r in reads)
     result = {
-        "messages": n, "repeats": args.repeats,
-        "write_msgs_per_s": n / w_ours, "baseline_write_msgs_per_s": n / w_bare, "write_overhead_ratio": w_ours / w_bare,
-        "read_msgs_per_s": n / r_ours, "baseline_read_msgs_per_s": n / r_bare, "read_overhead_ratio": r_ours / r_bare,
-        "replay_messages": args.replay_messages, **lock,
+        "messages": n,
+        "repeats": args.repeats,
+        "write_msgs_per_s": n / w_ours,
+        "baseline_write_msgs_per_s": n / w_bare,
+        "write_overhead_ratio": w_ours / w_bare,
+        "read_msgs_per_s": n / r_ours,
+        "baseline_read_msgs_per_s": n / r_bare,
+        "read_overhead_ratio": r_ours / r_bare,
+        "replay_messages": args.replay_messages,
+        **lock,
     }
     if args.json:
         print(json.dumps(result))

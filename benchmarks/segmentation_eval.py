@@ -4,6 +4,7 @@ compared against the better of the two baselines measured in the same run.
     handflow evaluate segmentation DATA.npz --json > result.json
     python benchmarks/segmentation_eval.py result.json [--json]
 """
+
 from __future__ import annotations
 
 import argparse
@@ -57,9 +58,12 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     with open(args.result) as f:
         result = json.load(f)
-    summary = {"ratios_vs_best_baseline": ratios(result),
-               "single_nth_1_2": {m: thesis_subset(result, m) for m in result["methods"]},
-               "selected": result["parameters"]["selected"], "runtime_s": result.get("runtime_s")}
+    summary = {
+        "ratios_vs_best_baseline": ratios(result),
+        "single_nth_1_2": {m: thesis_subset(result, m) for m in result["methods"]},
+        "selected": result["parameters"]["selected"],
+        "runtime_s": result.get("runtime_s"),
+    }
     if args.json:
         print(json.dumps(summary, indent=1))
         return 0
@@ -68,9 +72,13 @@ def main(argv=None) -> int:
     print("\nmean correct vs the better baseline (ratio):")
     for m, r in summary["ratios_vs_best_baseline"].items():
         print(f"- {m}: " + ", ".join(f"{e} {v:.2f}" for e, v in r.items() if v is not None))
-    print("\nsingle, N^th ∈ {1,2}: " + "; ".join(
-        f"{m} {v['share_ge_85']:.3f} ≥85 %, {v['share_perfect']:.3f} perfect (n={v['n']})"
-        for m, v in summary["single_nth_1_2"].items()))
+    print(
+        "\nsingle, N^th ∈ {1,2}: "
+        + "; ".join(
+            f"{m} {v['share_ge_85']:.3f} ≥85 %, {v['share_perfect']:.3f} perfect (n={v['n']})"
+            for m, v in summary["single_nth_1_2"].items()
+        )
+    )
     print(f"\nselected parameters: {summary['selected']}; runtime {summary['runtime_s']} s")
     return 0
 

@@ -15,6 +15,7 @@
   once over phase D (the previous demonstrator).
 Timing figures are the median of ``--repeats`` timed runs in this process.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -23,17 +24,16 @@ import json
 import cv2
 import numpy as np
 import pybullet as p
-
-from plugins.demo.ball_swap import run_open_loop_swaps
-from plugins.demo.cap_turning import CapTurningDemonstrator
-from plugins.mapping.hands import SHADOW
-from plugins.simulator.metrics import count_swaps
-from plugins.simulator.simulation import Simulation
-from plugins.tracker.blobs import BALL_HSV, BallTracker, normalise_points
 from timing import median_time
 
-FLEX = [f"{f}J{k}" for f in ("FF", "MF", "RF", "LF") for k in (3, 2, 1)]
+from handflow.plugins.demo.ball_swap import run_open_loop_swaps
+from handflow.plugins.demo.cap_turning import CapTurningDemonstrator
+from handflow.plugins.hands.joints import SHADOW
+from handflow.plugins.simulator.metrics import count_swaps
+from handflow.plugins.simulator.simulation import Simulation
+from handflow.plugins.tracker.blobs import BALL_HSV, BallTracker, normalise_points
 
+FLEX = [f"{f}J{k}" for f in ("FF", "MF", "RF", "LF") for k in (3, 2, 1)]
 
 
 def physics_rtf(scene: str, steps: int, repeats: int) -> float:
@@ -71,6 +71,7 @@ def tracker_accuracy(sim: Simulation, n: int, seed: int = 0) -> np.ndarray:
 def swaps_per_min(seconds: float, seed: int) -> float:
     pts, _ = run_open_loop_swaps(seconds, seed)
     return 60.0 * count_swaps(pts[:, 0], pts[:, 1]) / seconds
+
 
 def cap_rotation(demo: CapTurningDemonstrator, radius: float, cycles: int = 6, steps: int = 400) -> tuple[float, float]:
     """(mean |rotation| in the open phases, mean rotation in close + rotate) per cycle, rad."""

@@ -1,4 +1,5 @@
 """Shared timing helper of the benchmark scripts: the median wall time of repeated calls."""
+
 from __future__ import annotations
 
 import statistics

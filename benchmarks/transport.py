@@ -11,6 +11,7 @@ JSON bytes), the same session topology (a hub peer plus gossip) and the same rat
 ``overhead_ratio`` = median latency of the handflow chain / median of the bare-Zenoh chain with
 the same number of hops; ``overhead_ratio_single_hop`` compares the two-process set-ups.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -31,9 +32,9 @@ WIDTH = 24
 # bare zenoh roles (run as subprocesses of this script)
 # ------------------------------------------------------------------------------------------------
 def _role(args: argparse.Namespace) -> None:
-    from framework.graph import ZenohSettings
-    from framework.messages import Array, Header, encode
-    from framework import transport
+    from handflow.framework import transport
+    from handflow.framework.graph import ZenohSettings
+    from handflow.framework.messages import Array, Header, encode
 
     settings = ZenohSettings()
     session = transport.open_node_session(settings, args.hub)
@@ -57,7 +58,7 @@ def _role(args: argparse.Namespace) -> None:
         session.declare_subscriber("bench/a", lambda s: pub.put(s.payload.to_bytes()))
         time.sleep(args.seconds + args.warmup + 2)
     else:
-        from framework.messages import decode
+        from handflow.framework.messages import decode
 
         def on(sample):
             msg = decode(sample.payload.to_bytes())
@@ -70,15 +71,26 @@ def _role(args: argparse.Namespace) -> None:
 
 
 def run_raw(rate: float, seconds: float, hops: int) -> dict:
-    from framework.graph import ZenohSettings
-    from framework import transport
+    from handflow.framework import transport
+    from handflow.framework.graph import ZenohSettings
 
     hub_ep = transport.hub_endpoint_for()
     hub = transport.open_hub(ZenohSettings(), hub_ep)
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "rows.json"
-        common = [sys.executable, __file__, "--_role", "--hub", hub_ep, "--rate", str(rate), "--seconds", str(seconds),
-                  "--warmup", "1.5"]
+        common = [
+            sys.executable,
+            __file__,
+            "--_role",
+            "--hub",
+            hub_ep,
+            "--rate",
+            str(rate),
+            "--seconds",
+            str(seconds),
+            "--warmup",
+            "1.5",
+        ]
         key = "bench/a" if hops == 1 else "bench/b"
         procs = [subprocess.Popen(common + ["--role", "sub", "--key", key, "--out", str(out)])]
         if hops == 2:
@@ -98,7 +110,7 @@ def run_raw(rate: float, seconds: float, hops: int) -> dict:
 def run_handflow(rate: float, seconds: float, hops: int) -> dict:
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
-        middle = ("  - id: scale\n    plugin: basic.transform\n    inputs: {in: source/out}\n" if hops == 2 else "")
+        middle = "  - id: scale\n    plugin: basic.transform\n    inputs: {in: source/out}\n" if hops == 2 else ""
         sink_src = "scale/out" if hops == 2 else "source/out"
         graph = tmp / "bench.yaml"
         graph.write_text(f"""name: bench
@@ -112,8 +124,23 @@ nodes:
     inputs: {{in: {sink_src}}}
 """)
         summary = tmp / "summary.json"
-        subprocess.run([sys.executable, "-m", "framework.cli", "--log-level", "WARNING", "run", str(graph),
-                        "--duration", str(seconds + 1.5), "--summary-json", str(summary)], cwd=REPO, check=True)
+        subprocess.run(
+            [
+                sys.executable,
+                "-m",
+                "handflow.framework.cli",
+                "--log-level",
+                "WARNING",
+                "run",
+                str(graph),
+                "--duration",
+                str(seconds + 1.5),
+                "--summary-json",
+                str(summary),
+            ],
+            cwd=REPO,
+            check=True,
+        )
         rows = [json.loads(line) for line in (tmp / "sink.jsonl").read_text().splitlines()]
         gaps_upstream = sum(sum(u["gaps"].values()) for u in json.loads(summary.read_text()).values())
     # skip the first second (processes still connecting), like the raw set-up's warm-up
@@ -131,8 +158,12 @@ def _stats(lat_ns: list[int], seqs: list[int], expected: int | None) -> dict:
     gaps = int(np.sum(np.diff(seqs_arr) - 1)) if len(seqs_arr) > 1 else 0
     lost = gaps if expected is None else expected - len(seqs)
     lat_us = np.asarray(lat_ns) / 1e3
-    return {"median_us": float(np.median(lat_us)), "p99_us": float(np.percentile(lat_us, 99)),
-            "received": len(seqs), "lost": int(lost)}
+    return {
+        "median_us": float(np.median(lat_us)),
+        "p99_us": float(np.percentile(lat_us, 99)),
+        "received": len(seqs),
+        "lost": int(lost),
+    }
 
 
 def main() -> None:
@@ -140,8 +171,13 @@ def main() -> None:
     ap.add_argument("--json", action="store_true")
     ap.add_argument("--seconds", type=float, default=6.0)
     ap.add_argument("--rates", type=float, nargs="+", default=[100.0, 1000.0])
-    ap.add_argument("--max-rates", type=float, nargs="+", default=[1000.0, 2000.0, 4000.0, 8000.0],
-                    help="rates tried for max_rate_hz_no_loss (handflow chain)")
+    ap.add_argument(
+        "--max-rates",
+        type=float,
+        nargs="+",
+        default=[1000.0, 2000.0, 4000.0, 8000.0],
+        help="rates tried for max_rate_hz_no_loss (handflow chain)",
+    )
     ap.add_argument("--_role", action="store_true", help=argparse.SUPPRESS)
     ap.add_argument("--role"), ap.add_argument("--hub"), ap.add_argument("--rate", type=float)
     ap.add_argument("--key"), ap.add_argument("--out"), ap.add_argument("--warmup", type=float, default=1.5)
@@ -161,20 +197,26 @@ def main() -> None:
         if not args.json:
             print(f"{key} Hz: " + json.dumps(results["by_rate"][key]), file=sys.stderr)
     top = results["by_rate"][str(int(max(args.rates)))]
-    results.update({
-        "median_latency_us": top["handflow_chain"]["median_us"],
-        "p99_latency_us": top["handflow_chain"]["p99_us"],
-        "raw_zenoh_median_latency_us": top["raw_single_hop"]["median_us"],
-        "raw_zenoh_chain_median_latency_us": top["raw_chain"]["median_us"],
-        "overhead_ratio": top["handflow_chain"]["median_us"] / top["raw_chain"]["median_us"],
-        "overhead_ratio_single_hop": top["handflow_single_hop"]["median_us"] / top["raw_single_hop"]["median_us"],
-        "lost_at_top_rate": top["handflow_chain"]["lost"],
-    })
+    results.update(
+        {
+            "median_latency_us": top["handflow_chain"]["median_us"],
+            "p99_latency_us": top["handflow_chain"]["p99_us"],
+            "raw_zenoh_median_latency_us": top["raw_single_hop"]["median_us"],
+            "raw_zenoh_chain_median_latency_us": top["raw_chain"]["median_us"],
+            "overhead_ratio": top["handflow_chain"]["median_us"] / top["raw_chain"]["median_us"],
+            "overhead_ratio_single_hop": top["handflow_single_hop"]["median_us"] / top["raw_single_hop"]["median_us"],
+            "lost_at_top_rate": top["handflow_chain"]["lost"],
+        }
+    )
     max_ok = 0.0
     for rate in args.max_rates:
         r = run_handflow(rate, min(args.seconds, 4.0), 2)
         ok = r["lost"] == 0 and r["received"] > 0.9 * rate * (min(args.seconds, 4.0) + 0.5 - 1.0)
-        results.setdefault("max_rate_trials", {})[str(int(rate))] = {"lost": r["lost"], "received": r["received"], "ok": ok}
+        results.setdefault("max_rate_trials", {})[str(int(rate))] = {
+            "lost": r["lost"],
+            "received": r["received"],
+            "ok": ok,
+        }
         if not ok:
             break
         max_ok = rate
@@ -182,8 +224,15 @@ def main() -> None:
     if args.json:
         print(json.dumps(results))
     else:
-        for k in ("median_latency_us", "p99_latency_us", "raw_zenoh_median_latency_us", "raw_zenoh_chain_median_latency_us",
-                  "overhead_ratio", "overhead_ratio_single_hop", "max_rate_hz_no_loss"):
+        for k in (
+            "median_latency_us",
+            "p99_latency_us",
+            "raw_zenoh_median_latency_us",
+            "raw_zenoh_chain_median_latency_us",
+            "overhead_ratio",
+            "overhead_ratio_single_hop",
+            "max_rate_hz_no_loss",
+        ):
             print(f"{k:38s} {results[k]:.3f}" if isinstance(results[k], float) else f"{k:38s} {results[k]}")
 
 

@@ -11,6 +11,7 @@
 
     python benchmarks/ukr_speed.py [--json] [--repeats 3]
 """
+
 from __future__ import annotations
 
 import argparse
@@ -18,11 +19,11 @@ import json
 import os
 
 import numpy as np
-
-from plugins.manifold import StructuredUKR
-from plugins.manifold.objective import Objective, SequenceLayout
-from plugins.manifold.validation import parse_latent
 from timing import median_time
+
+from handflow.plugins.manifold import StructuredUKR
+from handflow.plugins.manifold.objective import Objective, SequenceLayout
+from handflow.plugins.manifold.validation import parse_latent
 
 PERIODIC = {"kernel": "periodic", "beta": 12.0, "time": True}
 
@@ -35,8 +36,9 @@ def periodic_data(n_seq, n_per, d, q, seed=0):
     for s in range(n_seq):
         t = np.pi * (np.arange(n_per) / n_per + rng.uniform())
         h = np.full(n_per, s / n_seq)
-        feats = np.c_[np.cos(2 * t), np.sin(2 * t), np.cos(4 * t), np.sin(4 * t), np.sin(6 * t),
-                      h, h * np.cos(2 * t), h**2]
+        feats = np.c_[
+            np.cos(2 * t), np.sin(2 * t), np.cos(4 * t), np.sin(4 * t), np.sin(6 * t), h, h * np.cos(2 * t), h**2
+        ]
         if q == 1:
             feats[:, 5:] = 0
         seqs.append(feats @ A + rng.normal(0, 0.02, (n_per, d)))
@@ -44,12 +46,10 @@ def periodic_data(n_seq, n_per, d, q, seed=0):
     return seqs, np.vstack(lat) + rng.normal(0, 0.01, (n_seq * n_per, q))
 
 
-
 def train_seconds(n_seq, n_per, d, q, repeats):
     seqs, X0 = periodic_data(n_seq, n_per, d, q)
     latent = [PERIODIC, {"kernel": "gaussian", "beta": 4.0}][:q]
-    return median_time(lambda: StructuredUKR(latent=latent, n_steps=600, init=X0).fit(seqs),
-                       repeats)
+    return median_time(lambda: StructuredUKR(latent=latent, n_steps=600, init=X0).fit(seqs), repeats)
 
 
 def projection_ms(repeats):
@@ -58,7 +58,7 @@ def projection_ms(repeats):
     rng = np.random.default_rng(2)
     Y = np.vstack(seqs)[rng.integers(0, 300, 1000)] + rng.normal(0, 0.05, (1000, 2))
     model.transform(Y[0])
-    singles = [median_time(lambda y=y: model.transform(y), 1) for y in Y[:max(200, repeats)]]
+    singles = [median_time(lambda y=y: model.transform(y), 1) for y in Y[: max(200, repeats)]]
     batch = median_time(lambda: model.transform(Y), max(10, repeats))
     return 1e3 * float(np.median(singles)), 1e3 * batch
 
@@ -66,8 +66,14 @@ def projection_ms(repeats):
 def gflops(repeats, N=1800, d=20, q=1):
     seqs, X = periodic_data(N // 45, 45, d, q)
     kernel, t = parse_latent([PERIODIC])
-    obj = Objective(np.vstack(seqs), kernel, SequenceLayout(np.repeat(np.arange(N // 45), 45)),
-                    time_dim=t, lambda_cseq=1.0, lambda_pvar=1.0)
+    obj = Objective(
+        np.vstack(seqs),
+        kernel,
+        SequenceLayout(np.repeat(np.arange(N // 45), 45)),
+        time_dim=t,
+        lambda_cseq=1.0,
+        lambda_pvar=1.0,
+    )
     obj(X)
     sec = median_time(lambda: obj(X), max(20, repeats))
     flops = N * N * (6 * q + 1 + 2 * (d + 2 * d * q + 2 * q + 1) + 2 * (2 * d * q + 2 * q))
@@ -84,10 +90,14 @@ def main():
     a = ap.parse_args()
     gf, mm, eval_ms = gflops(a.repeats)
     single, batch = projection_ms(a.repeats)
-    res = {"train_seconds_n1800": train_seconds(40, 45, 20, 1, a.repeats),
-           "train_seconds_n1200": train_seconds(24, 50, 24, 2, a.repeats),
-           "project_single_ms": single, "project_batch1000_ms": batch,
-           "gflops": gf, "gflops_ratio_to_matmul": gf / mm}
+    res = {
+        "train_seconds_n1800": train_seconds(40, 45, 20, 1, a.repeats),
+        "train_seconds_n1200": train_seconds(24, 50, 24, 2, a.repeats),
+        "project_single_ms": single,
+        "project_batch1000_ms": batch,
+        "gflops": gf,
+        "gflops_ratio_to_matmul": gf / mm,
+    }
     if a.json:
         print(json.dumps(res))
         return
@@ -95,8 +105,10 @@ def main():
     print(f"600 RPROP steps, N=1200 d=24 q=2: {res['train_seconds_n1200']:.2f} s")
     print(f"transform, one point (N=300 d=2): {single:.3f} ms (goal <= 1)")
     print(f"transform, batch of 1000:          {batch:.2f} ms")
-    print(f"objective+gradient N=1800 d=20: {eval_ms:.2f} ms, {gf:.1f} GFLOP/s; numpy matmul "
-          f"{mm:.1f} GFLOP/s; ratio {gf / mm:.2f} (goal >= 0.3)")
+    print(
+        f"objective+gradient N=1800 d=20: {eval_ms:.2f} ms, {gf:.1f} GFLOP/s; numpy matmul "
+        f"{mm:.1f} GFLOP/s; ratio {gf / mm:.2f} (goal >= 0.3)"
+    )
     print(f"load average (1 min) at the end: {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores")
 
 

@@ -7,6 +7,7 @@ once with λ = 0 ("ablation").  ``--compare-optimizers`` adds RPROP vs L-BFGS co
 
     python benchmarks/ukr_toy.py [--json] [--runs 10] [--steps 500] [--compare-optimizers]
 """
+
 from __future__ import annotations
 
 import argparse
@@ -15,17 +16,31 @@ import time
 
 import numpy as np
 
-from plugins.manifold import StructuredUKR, toy
+from handflow.plugins.manifold import StructuredUKR, toy
 
-LATENT = [{"kernel": "periodic", "beta": 12.0, "time": True},
-          {"kernel": "gaussian", "beta": 4.0}]
-MEASURES = ("nmse_test", "nmse_denoise", "bias", "param_variance", "ring_nvar_map",
-            "ring_nvar_project", "line_ncmse_map", "line_ncmse_project")
+LATENT = [{"kernel": "periodic", "beta": 12.0, "time": True}, {"kernel": "gaussian", "beta": 4.0}]
+MEASURES = (
+    "nmse_test",
+    "nmse_denoise",
+    "bias",
+    "param_variance",
+    "ring_nvar_map",
+    "ring_nvar_project",
+    "line_ncmse_map",
+    "line_ncmse_project",
+)
 
 
 def model(lam, steps, optimizer="rprop"):
-    return StructuredUKR(latent=LATENT, lambda_cseq=lam, lambda_pvar=lam, n_steps=steps,
-                         optimizer=optimizer, isomap_neighbors=(10,), random_state=0)
+    return StructuredUKR(
+        latent=LATENT,
+        lambda_cseq=lam,
+        lambda_pvar=lam,
+        n_steps=steps,
+        optimizer=optimizer,
+        isomap_neighbors=(10,),
+        random_state=0,
+    )
 
 
 def protocol(lam, runs, steps):
@@ -35,8 +50,7 @@ def protocol(lam, runs, steps):
         train = toy.cylinder(toy.TRAIN_HEIGHTS, noise=toy.NOISE, random_state=100 + run)
         m = model(lam, steps).fit(train)
         rows.append(toy.evaluate(m, train, random_state=200 + run))
-    out = {k: [float(np.mean([r[k] for r in rows])), float(np.std([r[k] for r in rows]))]
-           for k in MEASURES}
+    out = {k: [float(np.mean([r[k] for r in rows])), float(np.std([r[k] for r in rows]))] for k in MEASURES}
     out["seconds"] = time.perf_counter() - t0
     return out
 
@@ -54,9 +68,11 @@ def compare_optimizers(runs, steps, checkpoints=(10, 50, 100, 200, 500)):
             h = np.minimum.accumulate(m.history_)
             curves.append([float(h[min(c, len(h) - 1)]) for c in checkpoints if c <= steps])
             evals.append(m.n_evaluations_)
-        out[opt] = {"best_objective_at_step": dict(zip(map(str, checkpoints),
-                                                       np.mean(curves, 0).tolist())),
-                    "evaluations": float(np.mean(evals)), "seconds": float(np.mean(secs))}
+        out[opt] = {
+            "best_objective_at_step": dict(zip(map(str, checkpoints), np.mean(curves, 0).tolist())),
+            "evaluations": float(np.mean(evals)),
+            "seconds": float(np.mean(secs)),
+        }
     return out
 
 
@@ -80,8 +96,10 @@ def main():
         print(f"{k:22s}{s[0]:>14.5f} ± {s[1]:<7.5f}{b[0]:>14.5f} ± {b[1]:<7.5f}")
     print(f"{'seconds':22s}{res['structured']['seconds']:>14.1f}{res['ablation']['seconds']:>24.1f}")
     for opt, r in res.get("optimizers", {}).items():
-        print(f"{opt}: best objective at step {r['best_objective_at_step']}, "
-              f"{r['evaluations']:.0f} evaluations, {r['seconds']:.2f} s")
+        print(
+            f"{opt}: best objective at step {r['best_objective_at_step']}, "
+            f"{r['evaluations']:.0f} evaluations, {r['seconds']:.2f} s"
+        )
 
 
 if __name__ == "__main__":

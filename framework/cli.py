@@ -4,6 +4,7 @@ Each entry point names ``register(parser)``, which adds its arguments to its sub
 ``func=run`` where ``run(args) -> int`` is the exit code.  Dotted names nest (``evaluate.grasping``
 → ``handflow evaluate grasping``), so families add commands without touching the framework.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -32,19 +33,26 @@ def _requested_path(argv: list[str]) -> tuple[str, ...]:
 def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
     """The full parser; only the entry points on the requested command's path are imported (fast start)."""
     requested = _requested_path(sys.argv[1:] if argv is None else argv)
-    parser = argparse.ArgumentParser(prog="handflow", description="Streams glove, camera and simulator data through "
-                                     "plugins over Zenoh; learns, drives and recognises motions with structured manifolds.")
+    parser = argparse.ArgumentParser(
+        prog="handflow",
+        description="Streams glove, camera and simulator data through "
+        "plugins over Zenoh; learns, drives and recognises motions with structured manifolds.",
+    )
     parser.add_argument("--log-level", default="INFO", choices=["DEBUG", "INFO", "WARNING", "ERROR"])
-    subparsers: dict[tuple[str, ...], argparse._SubParsersAction] = {(): parser.add_subparsers(dest="command", metavar="COMMAND")}
+    subparsers: dict[tuple[str, ...], argparse._SubParsersAction] = {
+        (): parser.add_subparsers(dest="command", metavar="COMMAND")
+    }
     for ep in command_entries():
         path = tuple(ep.name.split("."))
         for depth in range(1, len(path)):
             prefix = path[:depth]
             if prefix not in subparsers:
-                grp = subparsers[prefix[:-1]].add_parser(prefix[-1], help=f"{prefix[-1]} … (see `handflow {prefix[-1]} -h`)")
+                grp = subparsers[prefix[:-1]].add_parser(
+                    prefix[-1], help=f"{prefix[-1]} … (see `handflow {prefix[-1]} -h`)"
+                )
                 subparsers[prefix] = grp.add_subparsers(dest=f"command_{depth}", metavar="WHAT")
         parent = subparsers[path[:-1]]
-        if requested[:len(path)] != path:
+        if requested[: len(path)] != path:
             parent.add_parser(path[-1], help=f"see `handflow {' '.join(path)} -h`")
             continue
         try:
@@ -67,7 +75,9 @@ def _unavailable(name: str, exc: Exception) -> int:
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser(argv)
     args = parser.parse_args(argv)
-    logging.basicConfig(level=args.log_level, stream=sys.stderr, format="%(asctime)s %(levelname)s [%(name)s] %(message)s")
+    logging.basicConfig(
+        level=args.log_level, stream=sys.stderr, format="%(asctime)s %(levelname)s [%(name)s] %(message)s"
+    )
     func = getattr(args, "func", None)
     if func is None:
         parser.print_help()

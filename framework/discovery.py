@@ -6,6 +6,7 @@ graph file, and removes it on exit; a run-file whose pid is gone is stale and re
 Run dir: ``$HANDFLOW_RUN_DIR``, else ``$XDG_RUNTIME_DIR/handflow/runs``, else
 ``~/.cache/handflow/runs``.  ``--connect ENDPOINT`` bypasses discovery (e.g. another machine).
 """
+
 from __future__ import annotations
 
 import json
@@ -96,17 +97,21 @@ def find_run(graph: str | None = None) -> RunInfo:
         runs = [r for r in runs if r.graph == graph]
     if not runs:
         what = f"graph '{graph}'" if graph else "graph"
-        raise DiscoveryError(f"no running {what} found in {run_dir()}; start it with `handflow run GRAPH.yaml`, "
-                             f"or pass --connect ENDPOINT (e.g. tcp/127.0.0.1:7447)")
+        raise DiscoveryError(
+            f"no running {what} found in {run_dir()}; start it with `handflow run GRAPH.yaml`, "
+            f"or pass --connect ENDPOINT (e.g. tcp/127.0.0.1:7447)"
+        )
     names = sorted({r.graph for r in runs})
     if graph is None and len(names) > 1:
         raise DiscoveryError(f"several graphs are running ({', '.join(names)}); pass --graph NAME")
     if len(runs) > 1:
-        log.info("%d launchers of graph '%s' are running; joining the newest (pid %d)", len(runs), runs[0].graph, runs[0].pid)
+        log.info(
+            "%d launchers of graph '%s' are running; joining the newest (pid %d)", len(runs), runs[0].graph, runs[0].pid
+        )
     return runs[0]
 
 
-def join(graph: str | None = None, connect: str | None = None) -> tuple["zenoh.Session", RunInfo | None]:
+def join(graph: str | None = None, connect: str | None = None) -> tuple[zenoh.Session, RunInfo | None]:
     """Open a Zenoh peer session on a running graph's network: ``connect`` if given, else via its run-file."""
     from .graph import ZenohSettings
     from .transport import open_node_session

@@ -7,6 +7,7 @@ the Image panel shows them; the Plot panel reads fields such as ``positions[3]``
 channel directly.
 Runtime-internal topics (``_progress``) are skipped; node heartbeats (``_health``) are shown.
 """
+
 from __future__ import annotations
 
 import logging
@@ -26,14 +27,16 @@ class PortInUse(OSError):
     """The Foxglove port is taken by another program."""
 
 
-def start_bridge(session: zenoh.Session, graph: str, host: str, port: int) -> "FoxgloveBridge":
+def start_bridge(session: zenoh.Session, graph: str, host: str, port: int) -> FoxgloveBridge:
     """A running bridge, or :class:`PortInUse` with what to do."""
     try:
         return FoxgloveBridge(session, graph, host, port)
     except Exception as exc:  # foxglove-sdk reports bind failures as a generic error
         if "in use" in str(exc).lower() or "address" in str(exc).lower():
-            raise PortInUse(f"port {port} on {host} is in use (another handflow or Foxglove bridge?); "
-                            f"choose another with --foxglove PORT or 'foxglove: {{port: ...}}' in the graph") from exc
+            raise PortInUse(
+                f"port {port} on {host} is in use (another handflow or Foxglove bridge?); "
+                f"choose another with --foxglove PORT or 'foxglove: {{port: ...}}' in the graph"
+            ) from exc
         raise
 
 
@@ -53,28 +56,39 @@ class FoxgloveBridge:
 
     def _on_sample(self, sample: zenoh.Sample) -> None:
         key = str(sample.key_expr)
-        if key.endswith("/_progress") or key.endswith("/_clock"):
+        if key.endswith(("/_progress", "/_clock")):
             return
         payload = sample.payload.to_bytes()
         try:
             msg = decode(payload)
         except MessageError:
             return
-        topic = key[len(PREFIX) + 1:]
+        topic = key[len(PREFIX) + 1 :]
         stamp = msg.header.stamp_ns or None
         with self._lock:
             channel = self._channels.get(topic)
             if channel is None:
-                channel = foxglove.Channel(topic, schema=json_schema(type(msg)), message_encoding="json",
-                                           context=self.context)
+                channel = foxglove.Channel(
+                    topic, schema=json_schema(type(msg)), message_encoding="json", context=self.context
+                )
                 self._channels[topic] = channel
             if isinstance(msg, Image) and topic not in self._images:
                 self._images[topic] = foxglove.channels.RawImageChannel(f"{topic}/foxglove", context=self.context)
         channel.log(payload, log_time=stamp)
         if isinstance(msg, Image):
             ts = Timestamp(msg.header.stamp_ns // 1_000_000_000, msg.header.stamp_ns % 1_000_000_000)
-            self._images[topic].log(RawImage(timestamp=ts, frame_id=msg.frame_id, width=msg.width, height=msg.height,
-                                             encoding=msg.encoding, step=msg.step, data=msg.data), log_time=stamp)
+            self._images[topic].log(
+                RawImage(
+                    timestamp=ts,
+                    frame_id=msg.frame_id,
+                    width=msg.width,
+                    height=msg.height,
+                    encoding=msg.encoding,
+                    step=msg.step,
+                    data=msg.data,
+                ),
+                log_time=stamp,
+            )
 
     @property
     def topics(self) -> list[str]:

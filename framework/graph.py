@@ -1,4 +1,4 @@
-"""YAML graph files: pydantic models, loading with line numbers, and validation (spec framework.md).
+"""YAML graph files: pydantic models, loading with line numbers, and validation (spec handflow.framework.md).
 
 A graph names nodes, the plugin each runs, its parameters (validated by the plugin's own params
 model) and which outputs feed which inputs (``inputs: {port: node/output}``); plus Zenoh settings,
@@ -6,6 +6,7 @@ topics fed from outside (``external``), process groups, hosts, restart policies 
 :func:`load_graph` returns a :class:`Graph` or raises :class:`GraphError` listing every problem as
 ``file:line: message`` with what to change.  Feedback loops are legal.
 """
+
 from __future__ import annotations
 
 import re
@@ -31,8 +32,12 @@ class ZenohSettings(_Strict):
     """Transport settings. Default: embedded peer on loopback, multicast scouting off, no router."""
 
     mode: Literal["peer", "client"] = "peer"
-    listen: list[str] = Field(default_factory=list, description="extra endpoints this graph listens on, e.g. tcp/0.0.0.0:7450")
-    connect: list[str] = Field(default_factory=list, description="endpoints of other machines' graphs, e.g. tcp/192.168.1.7:7450")
+    listen: list[str] = Field(
+        default_factory=list, description="extra endpoints this graph listens on, e.g. tcp/0.0.0.0:7450"
+    )
+    connect: list[str] = Field(
+        default_factory=list, description="endpoints of other machines' graphs, e.g. tcp/192.168.1.7:7450"
+    )
     multicast_scouting: bool = False
 
 
@@ -167,7 +172,9 @@ def _line_of(lines: dict[tuple, int], loc: tuple) -> int:
     return lines.get(loc, 1)
 
 
-def _pydantic_problems(exc: ValidationError, lines: dict[tuple, int], prefix: tuple = (), what: str = "") -> list[Problem]:
+def _pydantic_problems(
+    exc: ValidationError, lines: dict[tuple, int], prefix: tuple = (), what: str = ""
+) -> list[Problem]:
     problems = []
     for err in exc.errors():
         loc = prefix + tuple(err["loc"])
@@ -192,7 +199,9 @@ def read_graph_text(text: str, path: Path) -> tuple[Graph | None, list[Problem]]
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         line = mark.line + 1 if mark else 1
-        return None, [Problem(line, f"YAML syntax error: {getattr(exc, 'problem', exc)}; fix the indentation/quoting there")]
+        return None, [
+            Problem(line, f"YAML syntax error: {getattr(exc, 'problem', exc)}; fix the indentation/quoting there")
+        ]
     if doc is None or not isinstance(data, dict):
         return None, [Problem(1, "a graph file must be a YAML mapping with 'name' and 'nodes'")]
     lines = _line_index(doc)
@@ -206,8 +215,12 @@ def read_graph_text(text: str, path: Path) -> tuple[Graph | None, list[Problem]]
     seen: dict[str, int] = {}
     for i, ns in enumerate(spec.nodes):
         if ns.id in seen:
-            problems.append(Problem(_line_of(lines, ("nodes", i, "id")),
-                                    f"duplicate node id '{ns.id}' (first used on line {seen[ns.id]}); give each node a unique id"))
+            problems.append(
+                Problem(
+                    _line_of(lines, ("nodes", i, "id")),
+                    f"duplicate node id '{ns.id}' (first used on line {seen[ns.id]}); give each node a unique id",
+                )
+            )
             continue
         seen[ns.id] = _line_of(lines, ("nodes", i, "id"))
         try:
@@ -224,8 +237,12 @@ def read_graph_text(text: str, path: Path) -> tuple[Graph | None, list[Problem]]
 
     for topic, tname in spec.external.items():
         if _message_type(tname) is None:
-            problems.append(Problem(_line_of(lines, ("external", topic)),
-                                    f"external topic '{topic}': unknown message type '{tname}'; known: {', '.join(sorted(message_types()))}"))
+            problems.append(
+                Problem(
+                    _line_of(lines, ("external", topic)),
+                    f"external topic '{topic}': unknown message type '{tname}'; known: {', '.join(sorted(message_types()))}",
+                )
+            )
 
     for i, ns in enumerate(spec.nodes):
         rn = graph.nodes.get(ns.id)
@@ -240,7 +257,12 @@ def read_graph_text(text: str, path: Path) -> tuple[Graph | None, list[Problem]]
 def _input_problems(graph: Graph, rn: ResolvedNode, port: str, source: str, line: int) -> list[Problem]:
     nid = rn.spec.id
     if port not in rn.cls.inputs:
-        return [Problem(line, f"node '{nid}' ({rn.spec.plugin}) has no input port '{port}'; its inputs: {', '.join(rn.cls.inputs) or 'none'}")]
+        return [
+            Problem(
+                line,
+                f"node '{nid}' ({rn.spec.plugin}) has no input port '{port}'; its inputs: {', '.join(rn.cls.inputs) or 'none'}",
+            )
+        ]
     src_node, sep, src_port = source.partition("/")
     if not sep or not src_port:
         return [Problem(line, f"node '{nid}' input '{port}': source must be 'node/port', got '{source}'")]
@@ -248,15 +270,30 @@ def _input_problems(graph: Graph, rn: ResolvedNode, port: str, source: str, line
         known = [n for n in graph.spec.nodes if n.id == src_node]
         if known:  # the source node exists but failed its own checks (reported there)
             return []
-        return [Problem(line, f"node '{nid}' input '{port}' reads from missing node '{src_node}'; "
-                              f"existing nodes: {', '.join(graph.nodes)} (or declare '{source}' under 'external:')")]
+        return [
+            Problem(
+                line,
+                f"node '{nid}' input '{port}' reads from missing node '{src_node}'; "
+                f"existing nodes: {', '.join(graph.nodes)} (or declare '{source}' under 'external:')",
+            )
+        ]
     out_type = graph.source_type(source)
     if out_type is None:
         outs = graph.nodes[src_node].cls.outputs
-        return [Problem(line, f"node '{nid}' input '{port}': node '{src_node}' has no output '{src_port}'; its outputs: {', '.join(outs) or 'none'}")]
+        return [
+            Problem(
+                line,
+                f"node '{nid}' input '{port}': node '{src_node}' has no output '{src_port}'; its outputs: {', '.join(outs) or 'none'}",
+            )
+        ]
     in_type = rn.cls.inputs[port]
     if not issubclass(out_type, in_type):
-        return [Problem(line, f"node '{nid}' input '{port}' expects {in_type.TYPE or 'any message'} but '{source}' publishes {out_type.TYPE}; connect a matching output")]
+        return [
+            Problem(
+                line,
+                f"node '{nid}' input '{port}' expects {in_type.TYPE or 'any message'} but '{source}' publishes {out_type.TYPE}; connect a matching output",
+            )
+        ]
     return []
 
 

@@ -1,10 +1,11 @@
-"""Launch and supervise a graph: one process per node or per group (spec framework.md, "Runtime").
+"""Launch and supervise a graph: one process per node or per group (spec handflow.framework.md, "Runtime").
 
-The launcher opens the hub Zenoh session, starts a :mod:`framework.runner` process per unit,
+The launcher opens the hub Zenoh session, starts a :mod:`handflow.framework.runner` process per unit,
 restarts crashed units according to their restart policy (``never`` | ``on-failure`` with a maximum
 count and exponential backoff), optionally records topics to MCAP, and on Ctrl-C, SIGTERM or the
 end of ``--duration`` stops every unit in order (their teardown runs) and exits 0.
 """
+
 from __future__ import annotations
 
 import logging
@@ -54,8 +55,7 @@ def plan_units(graph: Graph, host: str | None = None) -> list[Unit]:
 class Launcher:
     """Runs a validated graph until stopped; see :func:`run_graph`."""
 
-    def __init__(self, graph: Graph, host: str | None = None, lockstep: bool = False,
-                 log_level: str = "INFO") -> None:
+    def __init__(self, graph: Graph, host: str | None = None, lockstep: bool = False, log_level: str = "INFO") -> None:
         self.graph = graph
         self.units = plan_units(graph, host)
         if not self.units:
@@ -70,7 +70,8 @@ class Launcher:
         self.run_file = discovery.write_run_file(graph.name, self.hub_endpoint, graph.path, lockstep)
         self.health: dict[str, Status] = {}
         self._health_sub = self.session.declare_subscriber(
-            transport.topic_key(graph.name, "*", "_health"), self._on_health)
+            transport.topic_key(graph.name, "*", "_health"), self._on_health
+        )
 
     def _on_health(self, sample) -> None:
         try:
@@ -81,8 +82,20 @@ class Launcher:
 
     # -- processes --------------------------------------------------------------------------
     def _spawn(self, unit: Unit) -> None:
-        cmd = [sys.executable, "-m", "framework.runner", str(self.graph.path), "--nodes", ",".join(unit.node_ids),
-               "--hub", self.hub_endpoint, "--state-dir", self._state_dir.name, "--log-level", self.log_level]
+        cmd = [
+            sys.executable,
+            "-m",
+            "handflow.framework.runner",
+            str(self.graph.path),
+            "--nodes",
+            ",".join(unit.node_ids),
+            "--hub",
+            self.hub_endpoint,
+            "--state-dir",
+            self._state_dir.name,
+            "--log-level",
+            self.log_level,
+        ]
         if self.lockstep:
             cmd.append("--lockstep")
         unit.proc = subprocess.Popen(cmd, start_new_session=True)
@@ -104,13 +117,23 @@ class Launcher:
                     continue
                 why = f"killed by signal {-code}" if code < 0 else f"exit code {code}"
                 if unit.policy.policy == "on-failure" and unit.restarts < unit.policy.max_restarts:
-                    delay = unit.policy.backoff_s * (2 ** unit.restarts)
+                    delay = unit.policy.backoff_s * (2**unit.restarts)
                     unit.restart_at = now + delay
-                    log.warning("%s failed (%s); restarting in %.2fs (%d/%d)", unit.name, why, delay,
-                                unit.restarts + 1, unit.policy.max_restarts)
+                    log.warning(
+                        "%s failed (%s); restarting in %.2fs (%d/%d)",
+                        unit.name,
+                        why,
+                        delay,
+                        unit.restarts + 1,
+                        unit.policy.max_restarts,
+                    )
                 else:
-                    log.error("%s failed (%s); restart policy '%s' gives up; the rest of the graph keeps running",
-                              unit.name, why, unit.policy.policy)
+                    log.error(
+                        "%s failed (%s); restart policy '%s' gives up; the rest of the graph keeps running",
+                        unit.name,
+                        why,
+                        unit.policy.policy,
+                    )
             if unit.proc is None and unit.restart_at is not None and now >= unit.restart_at:
                 unit.restart_at = None
                 unit.restarts += 1
@@ -130,7 +153,9 @@ class Launcher:
             try:
                 u.proc.wait(timeout=max(0.1, deadline - time.monotonic()))
             except subprocess.TimeoutExpired:
-                log.error("%s did not stop within %.0fs; its threads' stacks follow, then it is killed", u.name, STOP_GRACE_S)
+                log.error(
+                    "%s did not stop within %.0fs; its threads' stacks follow, then it is killed", u.name, STOP_GRACE_S
+                )
                 u.proc.send_signal(signal.SIGUSR1)
                 time.sleep(0.5)
                 u.proc.kill()
@@ -146,15 +171,25 @@ class Launcher:
 
     def summary(self) -> dict[str, dict[str, object]]:
         """Per unit: nodes, restarts, exit codes, and per node the input gaps of its last heartbeat."""
+
         def gaps(nid: str) -> int:
             status = self.health.get(nid)
             return int(sum(v for k, v in status.counters.items() if k.startswith("gaps."))) if status else 0
-        return {u.name: {"nodes": u.node_ids, "restarts": u.restarts, "exit_codes": u.exit_codes,
-                         "gaps": {nid: gaps(nid) for nid in u.node_ids}} for u in self.units}
+
+        return {
+            u.name: {
+                "nodes": u.node_ids,
+                "restarts": u.restarts,
+                "exit_codes": u.exit_codes,
+                "gaps": {nid: gaps(nid) for nid in u.node_ids},
+            }
+            for u in self.units
+        }
 
 
-def run_graph(graph: Graph, duration_s: float | None = None, host: str | None = None,
-              on_ready=None, lockstep: bool = False) -> Launcher:
+def run_graph(
+    graph: Graph, duration_s: float | None = None, host: str | None = None, on_ready=None, lockstep: bool = False
+) -> Launcher:
     """Run ``graph`` until Ctrl-C/SIGTERM or ``duration_s``; returns the stopped launcher (for its summary).
 
     ``on_ready(launcher)`` runs once the hub session is open and before any node starts (attach a
@@ -169,7 +204,7 @@ def run_graph(graph: Graph, duration_s: float | None = None, host: str | None = 
             raise
     stop = {"flag": False}
 
-    def _stop(signum, frame):  # noqa: ARG001
+    def _stop(signum, frame):
         stop["flag"] = True
 
     old = {s: signal.signal(s, _stop) for s in (signal.SIGINT, signal.SIGTERM)}
@@ -187,4 +222,3 @@ def run_graph(graph: Graph, duration_s: float | None = None, host: str | None = 
         for s, h in old.items():
             signal.signal(s, h)
     return launcher
-

@@ -1,4 +1,4 @@
-"""Typed message schemas and the one codec used on the wire and in recordings (spec framework.md).
+"""Typed message schemas and the one codec used on the wire and in recordings (spec handflow.framework.md).
 
 Every message carries a :class:`Header` (source node, sequence number, ``stamp_ns``).  Payloads are
 plain dataclasses whose array fields are numpy arrays; :func:`encode` turns a message into compact
@@ -8,6 +8,7 @@ recordings readable by Foxglove (JSON-schema channels, see :func:`json_schema`).
 Validation (:meth:`Message.check`) rejects NaN/inf and wrongly shaped payloads; the publisher calls
 it and names the node and port in the error.
 """
+
 from __future__ import annotations
 
 import base64
@@ -40,7 +41,7 @@ def _array(dtype: str, ndim: int = 1, *, finite: bool = True, cols: int | None =
     )
 
 
-_REGISTRY: dict[str, type["Message"]] = {}
+_REGISTRY: dict[str, type[Message]] = {}
 
 
 @dataclass
@@ -94,7 +95,7 @@ class Message:
         return out
 
     @classmethod
-    def from_dict(cls, d: dict[str, Any]) -> "Message":
+    def from_dict(cls, d: dict[str, Any]) -> Message:
         kwargs = {k: v for k, v in d.items() if k not in ("type", "header") and k in cls.__dataclass_fields__}
         for f in dataclasses.fields(cls):
             if f.type in ("bytes", bytes) and isinstance(kwargs.get(f.name), str):
@@ -114,7 +115,7 @@ def _array_fields(cls: type) -> list[dataclasses.Field]:
     cached = cls.__dict__.get("_array_fields_cache")
     if cached is None:
         cached = [f for f in dataclasses.fields(cls) if f.metadata.get("array")]
-        setattr(cls, "_array_fields_cache", cached)
+        cls._array_fields_cache = cached
     return cached
 
 
@@ -217,7 +218,7 @@ class Points2D(Message):
         return d
 
     @classmethod
-    def from_dict(cls, d: dict[str, Any]) -> "Message":
+    def from_dict(cls, d: dict[str, Any]) -> Message:
         d = dict(d, points=[[np.nan, np.nan] if p is None else p for p in d.get("points", [])])
         return super().from_dict(d)
 
@@ -236,10 +237,12 @@ class Image(Message):
 
     def _check_shapes(self) -> None:
         if self.step * self.height != len(self.data):
-            raise MessageError(f"image of {self.height} rows × step {self.step} needs {self.step * self.height} bytes, got {len(self.data)}")
+            raise MessageError(
+                f"image of {self.height} rows × step {self.step} needs {self.step * self.height} bytes, got {len(self.data)}"
+            )
 
     @classmethod
-    def from_array(cls, rgb: np.ndarray, frame_id: str = "camera") -> "Image":
+    def from_array(cls, rgb: np.ndarray, frame_id: str = "camera") -> Image:
         rgb = np.ascontiguousarray(rgb, dtype=np.uint8)
         h, w = rgb.shape[:2]
         channels = 1 if rgb.ndim == 2 else rgb.shape[2]
@@ -303,6 +306,31 @@ class Status(Message):
     text: str = ""
 
 
+EVENT_KINDS = ("restart", "crash_loop", "gap", "dropped", "outage", "recovered")
+
+
+@dataclass
+class RuntimeEvent(Message):
+    """Something the runtime noticed, published on ``handflow/<graph>/_runtime/events`` and recorded.
+
+    ``kind``: ``restart`` (a node process was restarted), ``crash_loop`` (restarts given up),
+    ``gap`` (``count`` messages missed on ``topic``), ``dropped`` (``count`` payloads on ``topic``
+    failed validation), ``outage`` / ``recovered`` (a remote peer left / came back).
+    See docs/monitoring.md.
+    """
+
+    TYPE: ClassVar[str] = "handflow.RuntimeEvent"
+    kind: str = "restart"
+    node: str = ""
+    topic: str = ""
+    count: int = 0
+    detail: str = ""
+
+    def _check_shapes(self) -> None:
+        if self.kind not in EVENT_KINDS:
+            raise MessageError(f"kind must be one of {', '.join(EVENT_KINDS)}, got {self.kind!r}")
+
+
 # --------------------------------------------------------------------------------------------
 # Codec
 # --------------------------------------------------------------------------------------------
@@ -333,8 +361,10 @@ def json_schema(cls: type[Message]) -> dict[str, Any]:
     """JSON schema of a message type, for MCAP channels (Foxglove reads JSON-schema channels)."""
     props: dict[str, Any] = {
         "type": {"type": "string"},
-        "header": {"type": "object", "properties": {
-            "source": {"type": "string"}, "seq": {"type": "integer"}, "stamp_ns": {"type": "integer"}}},
+        "header": {
+            "type": "object",
+            "properties": {"source": {"type": "string"}, "seq": {"type": "integer"}, "stamp_ns": {"type": "integer"}},
+        },
     }
     for f in dataclasses.fields(cls):
         if f.name == "header":
@@ -342,8 +372,13 @@ def json_schema(cls: type[Message]) -> dict[str, Any]:
         meta = f.metadata
         tname = f.type if isinstance(f.type, str) else getattr(f.type, "__name__", str(f.type))
         if meta.get("array"):
-            item: dict[str, Any] = {"type": "boolean" if meta["array"] == "bool" else
-                                    "integer" if meta["array"].startswith("int") else "number"}
+            item: dict[str, Any] = {
+                "type": "boolean"
+                if meta["array"] == "bool"
+                else "integer"
+                if meta["array"].startswith("int")
+                else "number"
+            }
             for _ in range(meta["ndim"]):
                 item = {"type": "array", "items": item}
             props[f.name] = item

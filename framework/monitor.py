@@ -1,6 +1,6 @@
 """Live view of a running graph: topics, rates, latency, sequence gaps, last values, node health.
 
-Issue 2 item 8, spec framework.md ("Sequence gaps are counted and visible in the monitor").
+Issue 2 item 8, spec handflow.framework.md ("Sequence gaps are counted and visible in the monitor").
 :class:`Monitor` subscribes to ``handflow/<graph>/**`` (or ``handflow/**``) and keeps, per topic, a
 sliding window of arrival times and end-to-end latencies (arrival wall clock − header
 ``stamp_ns``), the sequence gaps (a jump from seq n to n+k counts k−1 lost messages; a seq that goes
@@ -9,6 +9,7 @@ numbering across node restarts, so a restart is not a gap) and the last payload 
 a snapshot is taken).  Node health comes from the ``_health`` heartbeats: alive if one arrived
 within :data:`ALIVE_S`; restarts are seen as a change of the heartbeat's pid.
 """
+
 from __future__ import annotations
 
 import re
@@ -24,8 +25,8 @@ from . import transport
 from .messages import Array, Message, MessageError, Status, decode
 from .recording import peek_header
 
-ALIVE_S = 2.0          # a node is alive if its last heartbeat is younger than this
-WINDOW_S = 5.0         # rate and latency are computed over this sliding window
+ALIVE_S = 2.0  # a node is alive if its last heartbeat is younger than this
+WINDOW_S = 5.0  # rate and latency are computed over this sliding window
 
 
 @dataclass
@@ -36,7 +37,7 @@ class TopicStats:
     gaps: int = 0
     last_seq: int = 0
     last_data: bytes = b""
-    arrivals: deque = field(default_factory=deque)   # (monotonic s, latency ns)
+    arrivals: deque = field(default_factory=deque)  # (monotonic s, latency ns)
 
     def note(self, now_m: float, latency_ns: int, seq: int, window_s: float) -> None:
         self.count += 1
@@ -63,7 +64,7 @@ class TopicStats:
 class NodeHealth:
     graph: str
     id: str
-    last_seen: float = 0.0   # monotonic s
+    last_seen: float = 0.0  # monotonic s
     pid: int | None = None
     restarts: int = 0
     counters: dict[str, float] = field(default_factory=dict)
@@ -71,10 +72,12 @@ class NodeHealth:
 
 def summarize(msg: Message, max_values: int = 4) -> str:
     """A one-line summary of a message's payload for the table."""
+
     def arr(a: np.ndarray) -> str:
         flat = np.asarray(a).reshape(-1)
         head = ", ".join(f"{v:.3g}" if isinstance(v, float) else str(v) for v in flat[:max_values].tolist())
         return f"[{head}{', …' if flat.size > max_values else ''}] ({flat.size})"
+
     if isinstance(msg, Array):
         return arr(msg.data)
     if isinstance(msg, Status):
@@ -161,18 +164,34 @@ class Monitor:
             except MessageError as exc:
                 last = f"(undecodable: {exc})"
             lat = t.latency_ms()
-            out_topics.append({"topic": t.key, "type": t.type_name, "rate_hz": round(t.rate_hz(), 2),
-                               "latency_ms": None if lat is None else round(lat, 3), "gaps": t.gaps,
-                               "count": t.count, "last": last})
+            out_topics.append(
+                {
+                    "topic": t.key,
+                    "type": t.type_name,
+                    "rate_hz": round(t.rate_hz(), 2),
+                    "latency_ms": None if lat is None else round(lat, 3),
+                    "gaps": t.gaps,
+                    "count": t.count,
+                    "last": last,
+                }
+            )
         out_nodes = []
         for h in sorted(nodes, key=lambda h: (h.graph, h.id)):
             c = h.counters
-            out_nodes.append({"id": h.id, "graph": h.graph, "alive": now_m - h.last_seen < ALIVE_S,
-                              "last_heartbeat_s": round(now_m - h.last_seen, 2), "pid": h.pid,
-                              "restarts_seen": h.restarts, "errors": int(c.get("errors", 0)),
-                              "input_gaps": int(sum(v for k, v in c.items() if k.startswith("gaps."))),
-                              "handled": int(sum(v for k, v in c.items() if k.startswith("handled."))),
-                              "published": int(sum(v for k, v in c.items() if k.startswith("published.")))})
+            out_nodes.append(
+                {
+                    "id": h.id,
+                    "graph": h.graph,
+                    "alive": now_m - h.last_seen < ALIVE_S,
+                    "last_heartbeat_s": round(now_m - h.last_seen, 2),
+                    "pid": h.pid,
+                    "restarts_seen": h.restarts,
+                    "errors": int(c.get("errors", 0)),
+                    "input_gaps": int(sum(v for k, v in c.items() if k.startswith("gaps."))),
+                    "handled": int(sum(v for k, v in c.items() if k.startswith("handled."))),
+                    "published": int(sum(v for k, v in c.items() if k.startswith("published."))),
+                }
+            )
         return {"topics": out_topics, "nodes": out_nodes}
 
     def close(self) -> None:
@@ -185,20 +204,37 @@ def render(snapshot: dict[str, Any], title: str = "handflow monitor", graph: str
     from rich.table import Table
 
     topics = Table(title=title, expand=True)
-    for col, kw in (("topic", {}), ("type", {}), ("rate Hz", {"justify": "right"}), ("latency ms", {"justify": "right"}),
-                    ("gaps", {"justify": "right"}), ("count", {"justify": "right"}), ("last value", {"overflow": "ellipsis"})):
+    for col, kw in (
+        ("topic", {}),
+        ("type", {}),
+        ("rate Hz", {"justify": "right"}),
+        ("latency ms", {"justify": "right"}),
+        ("gaps", {"justify": "right"}),
+        ("count", {"justify": "right"}),
+        ("last value", {"overflow": "ellipsis"}),
+    ):
         topics.add_column(col, **kw)
     for t in snapshot["topics"]:
         lat = "-" if t["latency_ms"] is None else f"{t['latency_ms']:.2f}"
         gaps = f"[red]{t['gaps']}[/red]" if t["gaps"] else "0"
         name = t["topic"].removeprefix(f"{transport.PREFIX}/{graph}/") if graph else t["topic"]
-        topics.add_row(name, t["type"].removeprefix("handflow."), f"{t['rate_hz']:.1f}", lat, gaps,
-                       str(t["count"]), t["last"])
+        topics.add_row(
+            name, t["type"].removeprefix("handflow."), f"{t['rate_hz']:.1f}", lat, gaps, str(t["count"]), t["last"]
+        )
     nodes = Table(title="nodes", expand=True)
     for col in ("graph", "node", "alive", "pid", "restarts seen", "errors", "input gaps", "handled", "published"):
         nodes.add_column(col)
     for n in snapshot["nodes"]:
         alive = "[green]yes[/green]" if n["alive"] else f"[red]no ({n['last_heartbeat_s']:.0f}s)[/red]"
-        nodes.add_row(n["graph"], n["id"], alive, str(n["pid"]), str(n["restarts_seen"]), str(n["errors"]),
-                      str(n["input_gaps"]), str(n["handled"]), str(n["published"]))
+        nodes.add_row(
+            n["graph"],
+            n["id"],
+            alive,
+            str(n["pid"]),
+            str(n["restarts_seen"]),
+            str(n["errors"]),
+            str(n["input_gaps"]),
+            str(n["handled"]),
+            str(n["published"]),
+        )
     return Group(topics, nodes)

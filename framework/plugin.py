@@ -1,4 +1,4 @@
-"""The plugin base class every node derives from (spec framework.md, "Rooms").
+"""The plugin base class every node derives from (spec handflow.framework.md, "Rooms").
 
 A plugin declares typed input and output ports, a pydantic ``Params`` model, and any of the hooks
 ``setup`` / ``on_message`` / ``tick`` / ``teardown``.  The runtime never runs two hooks of a node
@@ -17,6 +17,7 @@ Example::
         def on_message(self, port, msg):
             self.ctx.publish("out", Array(data=msg.data * self.params.gain))
 """
+
 from __future__ import annotations
 
 import logging
@@ -35,7 +36,7 @@ class NoParams(BaseModel):
 
 
 class Context(Protocol):
-    """What the runtime gives a node (see ``framework.runner.NodeContext`` for the implementation)."""
+    """What the runtime gives a node (see ``handflow.framework.runner.NodeContext`` for the implementation)."""
 
     node_id: str
     graph_name: str
@@ -97,7 +98,9 @@ class Node:
             return None
         rate = getattr(self.params, "rate_hz", None)
         if rate is None:
-            raise TypeError(f"{type(self).__name__} overrides tick() but its Params has no 'rate_hz'; override tick_rate_hz()")
+            raise TypeError(
+                f"{type(self).__name__} overrides tick() but its Params has no 'rate_hz'; override tick_rate_hz()"
+            )
         return float(rate)
 
     @classmethod

@@ -1,13 +1,13 @@
 """MCAP recordings: writer, graph recorder, and a reader that recovers truncated files.
 
-Spec framework.md ("Runtime expectations": recordings open in Foxglove, are readable after a hard
+Spec handflow.framework.md ("Runtime expectations": recordings open in Foxglove, are readable after a hard
 kill, keep the publish time) and issue 2 item 7.
 
 File layout (what :class:`McapWriter` writes):
 
 - one channel per topic (topic = Zenoh key ``handflow/<graph>/<node>/<port>``), message encoding
   ``json``, schema encoding ``jsonschema``, schema name = message ``TYPE`` with
-  :func:`framework.messages.json_schema`; each message's data is :func:`framework.messages.encode`;
+  :func:`handflow.framework.messages.json_schema`; each message's data is :func:`handflow.framework.messages.encode`;
   ``log_time`` = receive time, ``publish_time`` = header ``stamp_ns``, ``sequence`` = header seq;
 - for ``handflow.Image`` topics also a *view* channel ``<topic>/foxglove_image`` with Foxglove's
   well-known ``foxglove.RawImage`` JSON schema, so the Image panel shows it (documented choice:
@@ -24,6 +24,7 @@ Helpers for code that writes recordings without the runtime::
     for topic, msg, log_time_ns in read_messages("demo.mcap"):
         ...
 """
+
 from __future__ import annotations
 
 import json
@@ -34,12 +35,14 @@ import socket
 import struct
 import threading
 import time
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Iterable, Iterator
+from typing import Any
 
 from mcap.exceptions import EndOfFile, InvalidMagic
-from mcap.records import Attachment, Channel, Footer, Message as McapMessage, Metadata, Schema
+from mcap.records import Attachment, Channel, Footer, Metadata, Schema
+from mcap.records import Message as McapMessage
 from mcap.stream_reader import StreamReader
 from mcap.writer import CompressionType, Writer
 
@@ -50,8 +53,8 @@ log = logging.getLogger("handflow.recording")
 
 SCHEMA_ENCODING = "jsonschema"
 MESSAGE_ENCODING = "json"
-TYPE_KEY = "handflow.type"            # channel metadata: the handflow message type
-VIEW_KEY = "handflow.view_of"         # channel metadata of a Foxglove view channel: the source topic
+TYPE_KEY = "handflow.type"  # channel metadata: the handflow message type
+VIEW_KEY = "handflow.view_of"  # channel metadata of a Foxglove view channel: the source topic
 FOXGLOVE_IMAGE_SUFFIX = "/foxglove_image"
 MAX_ATTACHED_FILE_BYTES = 64 * 2**20  # files named by params larger than this are listed, not attached
 
@@ -60,9 +63,14 @@ FOXGLOVE_RAW_IMAGE_SCHEMA: dict[str, Any] = {
     "description": "A raw image",
     "type": "object",
     "properties": {
-        "timestamp": {"type": "object", "title": "time", "properties": {
-            "sec": {"type": "integer", "minimum": 0},
-            "nsec": {"type": "integer", "minimum": 0, "maximum": 999999999}}},
+        "timestamp": {
+            "type": "object",
+            "title": "time",
+            "properties": {
+                "sec": {"type": "integer", "minimum": 0},
+                "nsec": {"type": "integer", "minimum": 0, "maximum": 999999999},
+            },
+        },
         "frame_id": {"type": "string"},
         "width": {"type": "integer", "minimum": 0},
         "height": {"type": "integer", "minimum": 0},
@@ -126,7 +134,9 @@ class TopicFilter:
         return False
 
 
-_HEADER_RX = re.compile(rb'^\{"type":"([^"]+)","header":\{"source":"((?:[^"\\]|\\.)*)","seq":(-?\d+),"stamp_ns":(-?\d+)\}')
+_HEADER_RX = re.compile(
+    rb'^\{"type":"([^"]+)","header":\{"source":"((?:[^"\\]|\\.)*)","seq":(-?\d+),"stamp_ns":(-?\d+)\}'
+)
 
 
 @dataclass(frozen=True)
@@ -163,8 +173,15 @@ class McapWriter:
     defaults to the wall clock at the call; ``publish_time_ns`` defaults to the header's ``stamp_ns``.
     """
 
-    def __init__(self, path: str | Path, *, chunk_size: int = 256 * 1024, flush_interval_s: float | None = 1.0,
-                 foxglove_images: bool = True, compression: str = "zstd") -> None:
+    def __init__(
+        self,
+        path: str | Path,
+        *,
+        chunk_size: int = 256 * 1024,
+        flush_interval_s: float | None = 1.0,
+        foxglove_images: bool = True,
+        compression: str = "zstd",
+    ) -> None:
         self.path = Path(path)
         if compression not in ("zstd", "lz4", "none"):
             raise RecordingError(f"compression must be 'zstd', 'lz4' or 'none', got {compression!r}")
@@ -185,8 +202,9 @@ class McapWriter:
         self._stop = threading.Event()
         self._flusher = None
         if flush_interval_s:
-            self._flusher = threading.Thread(target=self._flush_loop, args=(flush_interval_s,),
-                                             name=f"mcap-flush:{self.path.name}", daemon=True)
+            self._flusher = threading.Thread(
+                target=self._flush_loop, args=(flush_interval_s,), name=f"mcap-flush:{self.path.name}", daemon=True
+            )
             self._flusher.start()
 
     # -- channels ---------------------------------------------------------------------------
@@ -200,10 +218,12 @@ class McapWriter:
         if cid is None:
             cls = message_types().get(type_name)
             if cls is None:
-                raise RecordingError(f"topic '{topic}': unknown message type '{type_name}'; "
-                                     f"known: {', '.join(sorted(message_types()))}")
-            cid = self._writer.register_channel(topic, MESSAGE_ENCODING, self._schema_id(type_name, json_schema(cls)),
-                                                {TYPE_KEY: type_name})
+                raise RecordingError(
+                    f"topic '{topic}': unknown message type '{type_name}'; known: {', '.join(sorted(message_types()))}"
+                )
+            cid = self._writer.register_channel(
+                topic, MESSAGE_ENCODING, self._schema_id(type_name, json_schema(cls)), {TYPE_KEY: type_name}
+            )
             self._channels[topic] = cid
         return cid
 
@@ -217,13 +237,28 @@ class McapWriter:
         return cid
 
     # -- writing ----------------------------------------------------------------------------
-    def write(self, topic: str, msg: Message, log_time_ns: int | None = None, publish_time_ns: int | None = None) -> None:
+    def write(
+        self, topic: str, msg: Message, log_time_ns: int | None = None, publish_time_ns: int | None = None
+    ) -> None:
         """Encode ``msg`` and store it on ``topic``."""
-        self.write_encoded(topic, msg.TYPE, encode(msg), log_time_ns,
-                           msg.header.stamp_ns if publish_time_ns is None else publish_time_ns, msg.header.seq)
+        self.write_encoded(
+            topic,
+            msg.TYPE,
+            encode(msg),
+            log_time_ns,
+            msg.header.stamp_ns if publish_time_ns is None else publish_time_ns,
+            msg.header.seq,
+        )
 
-    def write_encoded(self, topic: str, type_name: str, data: bytes, log_time_ns: int | None = None,
-                      publish_time_ns: int = 0, sequence: int = 0) -> None:
+    def write_encoded(
+        self,
+        topic: str,
+        type_name: str,
+        data: bytes,
+        log_time_ns: int | None = None,
+        publish_time_ns: int = 0,
+        sequence: int = 0,
+    ) -> None:
         """Store already-encoded message bytes (type from :func:`peek_header` or the sender)."""
         with self._lock:
             if self._closed:
@@ -232,8 +267,13 @@ class McapWriter:
             log_time = time.time_ns() if log_time_ns is None else int(log_time_ns)
             self._writer.add_message(cid, log_time, data, int(publish_time_ns), sequence & 0xFFFFFFFF)
             if type_name == Image.TYPE and self.foxglove_images:
-                self._writer.add_message(self._view_channel_id(topic), log_time, _foxglove_image(data, publish_time_ns),
-                                         int(publish_time_ns), sequence & 0xFFFFFFFF)
+                self._writer.add_message(
+                    self._view_channel_id(topic),
+                    log_time,
+                    _foxglove_image(data, publish_time_ns),
+                    int(publish_time_ns),
+                    sequence & 0xFFFFFFFF,
+                )
             self.counts[topic] = self.counts.get(topic, 0) + 1
             self._dirty = True
 
@@ -274,7 +314,7 @@ class McapWriter:
             self._writer.finish()
             self._file.close()
 
-    def __enter__(self) -> "McapWriter":
+    def __enter__(self) -> McapWriter:
         return self
 
     def __exit__(self, *exc: object) -> None:
@@ -285,8 +325,10 @@ def _foxglove_image(data: bytes, stamp_ns: int) -> bytes:
     """A ``handflow.Image`` payload as ``foxglove.RawImage`` JSON (pixels stay base64)."""
     d = json.loads(data)
     stamp = max(int(stamp_ns), 0)
-    view = {"timestamp": {"sec": stamp // 1_000_000_000, "nsec": stamp % 1_000_000_000},
-            **{k: d[k] for k in ("frame_id", "width", "height", "encoding", "step", "data")}}
+    view = {
+        "timestamp": {"sec": stamp // 1_000_000_000, "nsec": stamp % 1_000_000_000},
+        **{k: d[k] for k in ("frame_id", "width", "height", "encoding", "step", "data")},
+    }
     return json.dumps(view, separators=(",", ":")).encode()
 
 
@@ -303,8 +345,12 @@ def graph_provenance(graph: Any) -> tuple[dict[str, dict[str, str]], dict[str, t
     (resolved relative to the graph folder), as ``files/<path>``.
     """
     meta = {
-        "handflow.graph": {"name": graph.name, "file": str(graph.path), "host": socket.gethostname(),
-                           "started_ns": str(time.time_ns())},
+        "handflow.graph": {
+            "name": graph.name,
+            "file": str(graph.path),
+            "host": socket.gethostname(),
+            "started_ns": str(time.time_ns()),
+        },
         "handflow.params": {nid: json.dumps(rn.params.model_dump(mode="json")) for nid, rn in graph.nodes.items()},
         "handflow.plugins": {nid: rn.spec.plugin for nid, rn in graph.nodes.items()},
     }
@@ -375,7 +421,9 @@ class GraphRecorder:
         self._subscriber = None
 
     @classmethod
-    def for_graph(cls, graph: Any, path: str | Path, topics: Iterable[str] | None = None, **writer_kw: Any) -> "GraphRecorder":
+    def for_graph(
+        cls, graph: Any, path: str | Path, topics: Iterable[str] | None = None, **writer_kw: Any
+    ) -> GraphRecorder:
         if topics is None:
             topics = graph.spec.record.topics if graph.spec.record else None
         writer = McapWriter(path, **writer_kw)
@@ -407,8 +455,12 @@ class GraphRecorder:
             self._subscriber.undeclare()
             self._subscriber = None
         self.writer.close()
-        log.info("recorded %d message(s) on %d topic(s) to %s", self.writer.message_count, len(self.writer.counts),
-                 self.writer.path)
+        log.info(
+            "recorded %d message(s) on %d topic(s) to %s",
+            self.writer.message_count,
+            len(self.writer.counts),
+            self.writer.path,
+        )
 
 
 # ----------------------------------------------------------------------------------------------
@@ -448,12 +500,19 @@ class ReadReport:
     def describe(self) -> str:
         if self.complete:
             return f"{self.path}: complete recording, {self.messages} message(s)"
-        return (f"{self.path}: truncated or damaged recording ({self.error}); recovered {self.messages} message(s) "
-                f"from its complete chunks")
+        return (
+            f"{self.path}: truncated or damaged recording ({self.error}); recovered {self.messages} message(s) "
+            f"from its complete chunks"
+        )
 
 
-def iter_recording(path: str | Path, topics: Iterable[str] | None = None, *, report: ReadReport | None = None,
-                   include_views: bool = False) -> Iterator[RecordedMessage]:
+def iter_recording(
+    path: str | Path,
+    topics: Iterable[str] | None = None,
+    *,
+    report: ReadReport | None = None,
+    include_views: bool = False,
+) -> Iterator[RecordedMessage]:
     """Messages of a recording in file order; a truncated file yields every complete chunk.
 
     ``topics``: :class:`TopicFilter` globs (None: all data topics).  Foxglove view channels are
@@ -478,9 +537,11 @@ def iter_recording(path: str | Path, topics: Iterable[str] | None = None, *, rep
                 rec = next(records)
             except StopIteration:
                 break
-            except Exception as exc:  # noqa: BLE001 - anything past this point is unreadable; say what
+            except Exception as exc:
                 if isinstance(exc, InvalidMagic) and not schemas and not report.complete:
-                    raise RecordingError(f"{path} is not an MCAP file (bad magic bytes); pass a .mcap recording") from exc
+                    raise RecordingError(
+                        f"{path} is not an MCAP file (bad magic bytes); pass a .mcap recording"
+                    ) from exc
                 report.error = _describe_read_error(exc, f)
                 log.warning("%s", report.describe())
                 return
@@ -490,8 +551,14 @@ def iter_recording(path: str | Path, topics: Iterable[str] | None = None, *, rep
                     continue
                 report.messages += 1
                 channel = ch[0]
-                yield RecordedMessage(channel.topic, channel.metadata.get(TYPE_KEY, "") or
-                                      schemas[channel.schema_id].name, rec.data, rec.log_time, rec.publish_time, rec.sequence)
+                yield RecordedMessage(
+                    channel.topic,
+                    channel.metadata.get(TYPE_KEY, "") or schemas[channel.schema_id].name,
+                    rec.data,
+                    rec.log_time,
+                    rec.publish_time,
+                    rec.sequence,
+                )
             elif isinstance(rec, Schema):
                 schemas[rec.id] = rec
             elif isinstance(rec, Channel):
@@ -503,8 +570,11 @@ def iter_recording(path: str | Path, topics: Iterable[str] | None = None, *, rep
                 is_data = not is_view and type_name in message_types()
                 selected = (is_data or (is_view and include_views)) and (keep is None or keep(rec.topic))
                 channels[rec.id] = (rec, is_data, selected)
-                report.channels[rec.topic] = {"type": type_name, "schema": schema.name if schema else "",
-                                              **({"view_of": rec.metadata[VIEW_KEY]} if is_view else {})}
+                report.channels[rec.topic] = {
+                    "type": type_name,
+                    "schema": schema.name if schema else "",
+                    **({"view_of": rec.metadata[VIEW_KEY]} if is_view else {}),
+                }
             elif isinstance(rec, Metadata):
                 report.metadata[rec.name] = dict(rec.metadata)
             elif isinstance(rec, Attachment):
@@ -535,4 +605,3 @@ def read_report(path: str | Path) -> ReadReport:
     for _ in iter_recording(path, report=report):
         pass
     return report
-

@@ -1,12 +1,15 @@
-"""Plugin and command discovery through entry points (spec framework.md, "Rooms").
+"""Plugin and command discovery through entry points (spec handflow.framework.md, "Rooms").
 
 Built-in plugins register exactly like third-party ones: entry-point group ``handflow.plugins``
-(name → ``module:NodeClass``).  CLI commands come from group ``handflow.commands``.
+(name → ``module:NodeClass``).  A plugin that was renamed keeps its old entry point; its class
+names the current one in ``plugin_name`` and loading it by the old name warns (docs/pipelines.md).  CLI commands come from group ``handflow.commands``.
 """
+
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import cache
 from importlib.metadata import EntryPoint, entry_points
 
 from .plugin import Node
@@ -29,13 +32,15 @@ class PluginEntry:
         try:
             cls = self.entry_point.load()
         except Exception as exc:  # an import error inside a plugin must not hide the others
-            raise PluginError(f"plugin '{self.name}' ({self.target}) failed to load: {type(exc).__name__}: {exc}") from exc
+            raise PluginError(
+                f"plugin '{self.name}' ({self.target}) failed to load: {type(exc).__name__}: {exc}"
+            ) from exc
         if not (isinstance(cls, type) and issubclass(cls, Node)):
-            raise PluginError(f"plugin '{self.name}' ({self.target}) is not a framework.plugin.Node subclass")
+            raise PluginError(f"plugin '{self.name}' ({self.target}) is not a handflow.framework.plugin.Node subclass")
         return cls
 
 
-@lru_cache(maxsize=None)
+@cache
 def plugin_entries() -> dict[str, PluginEntry]:
     """All installed plugins by name (not yet imported)."""
     return {ep.name: PluginEntry(ep.name, ep.value, ep) for ep in entry_points(group=PLUGIN_GROUP)}
@@ -46,7 +51,16 @@ def load_plugin(name: str) -> type[Node]:
     entries = plugin_entries()
     if name not in entries:
         raise PluginError(f"unknown plugin '{name}'; installed plugins: {', '.join(sorted(entries))}")
-    return entries[name].load()
+    cls = entries[name].load()
+    canonical = getattr(cls, "plugin_name", None)
+    if canonical and canonical != name:
+        warnings.warn(
+            f"plugin '{name}' is now called '{canonical}'; the old name still works but will be "
+            f"removed: write 'plugin: {canonical}' in the graph",
+            FutureWarning,
+            stacklevel=2,
+        )
+    return cls
 
 
 def command_entries() -> list[EntryPoint]:

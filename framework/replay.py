@@ -14,6 +14,7 @@
 
 Keys are remapped from the recorded graph onto the target graph with :func:`remap_key`.
 """
+
 from __future__ import annotations
 
 import json
@@ -21,16 +22,17 @@ import logging
 import threading
 import time
 from collections import Counter
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Iterable, Iterator
+from typing import Any
 
 import zenoh
 
 from . import transport
 from .graph import Graph
 from .messages import MessageError, decode
-from .recording import RecordedMessage, ReadReport, iter_recording
+from .recording import ReadReport, RecordedMessage, iter_recording
 
 log = logging.getLogger("handflow.replay")
 
@@ -49,8 +51,12 @@ def remap_key(key: str, graph: str | None) -> str:
 
 def external_inputs(graph: Graph) -> set[str]:
     """``node/port`` sources the graph's nodes read but no node of the graph publishes."""
-    return {src for rn in graph.nodes.values() for src in rn.spec.inputs.values()
-            if src.partition("/")[0] not in graph.nodes}
+    return {
+        src
+        for rn in graph.nodes.values()
+        for src in rn.spec.inputs.values()
+        if src.partition("/")[0] not in graph.nodes
+    }
 
 
 @dataclass
@@ -123,8 +129,10 @@ class GraphWatcher:
         ids = set(node_ids)
         if not self.wait_for(lambda: ids <= set(self.health), timeout_s, poll):
             missing = sorted(ids - set(self.health))
-            raise ReplayError(f"node(s) {', '.join(missing)} of graph '{self.graph_name}' sent no heartbeat within "
-                              f"{timeout_s:.0f}s; check their logs above (or raise --ready-timeout)")
+            raise ReplayError(
+                f"node(s) {', '.join(missing)} of graph '{self.graph_name}' sent no heartbeat within "
+                f"{timeout_s:.0f}s; check their logs above (or raise --ready-timeout)"
+            )
 
     def close(self) -> None:
         for sub in self._subs:
@@ -157,15 +165,20 @@ class _Publishers:
     def __getitem__(self, key: str) -> Any:
         pub = self.by_key.get(key)
         if pub is None:
-            pub = self.by_key[key] = self.session.declare_publisher(key, congestion_control=zenoh.CongestionControl.BLOCK)
+            pub = self.by_key[key] = self.session.declare_publisher(
+                key, congestion_control=zenoh.CongestionControl.BLOCK
+            )
             if self.match_timeout_s and not wait_matching([pub], self.match_timeout_s):
                 log.warning("no subscriber for %s after %.1fs; publishing anyway", key, self.match_timeout_s)
         return pub
 
     def prepare(self, keys: Iterable[str], timeout_s: float) -> None:
         """Declare publishers up front and wait (once, for all) until they have subscribers."""
-        pubs = [self.session.declare_publisher(k, congestion_control=zenoh.CongestionControl.BLOCK)
-                for k in keys if k not in self.by_key]
+        pubs = [
+            self.session.declare_publisher(k, congestion_control=zenoh.CongestionControl.BLOCK)
+            for k in keys
+            if k not in self.by_key
+        ]
         self.by_key.update({str(p.key_expr): p for p in pubs})
         if pubs and not wait_matching(pubs, timeout_s):
             missing = [str(p.key_expr) for p in pubs if not p.matching_status.matching]
@@ -184,9 +197,9 @@ class ReplayPlan:
     """Which recorded topics to publish, under which keys."""
 
     path: Path
-    topics: list[str] | None = None               # TopicFilter globs over the recorded topics
-    target_graph: str | None = None               # remap onto this graph name
-    only_sources: set[str] | None = None          # keep only these node/port sources (after remap)
+    topics: list[str] | None = None  # TopicFilter globs over the recorded topics
+    target_graph: str | None = None  # remap onto this graph name
+    only_sources: set[str] | None = None  # keep only these node/port sources (after remap)
 
     def messages(self, report: ReadReport | None = None) -> Iterator[tuple[str, RecordedMessage]]:
         """(target key, recorded message) in file order."""
@@ -205,8 +218,16 @@ class ReplayPlan:
 class TimedReplayer:
     """Publish a recording with its original timing scaled by ``speed`` (2.0 = twice as fast)."""
 
-    def __init__(self, session: zenoh.Session, plan: ReplayPlan, *, speed: float = 1.0, loop: bool = False,
-                 stop: threading.Event | None = None, match_timeout_s: float = 0.0) -> None:
+    def __init__(
+        self,
+        session: zenoh.Session,
+        plan: ReplayPlan,
+        *,
+        speed: float = 1.0,
+        loop: bool = False,
+        stop: threading.Event | None = None,
+        match_timeout_s: float = 0.0,
+    ) -> None:
         if not speed > 0:
             raise ValueError(f"speed must be > 0, got {speed}")
         self.plan, self.speed, self.loop = plan, speed, loop
@@ -239,9 +260,17 @@ class TimedReplayer:
 class LockstepReplayer:
     """Feed a lock-step graph one message at a time in virtual time (see the module docstring)."""
 
-    def __init__(self, session: zenoh.Session, graph: Graph, node_ids: Iterable[str], watcher: GraphWatcher, *,
-                 step_timeout_s: float = 10.0, stop: threading.Event | None = None,
-                 poll: Callable[[], None] | None = None) -> None:
+    def __init__(
+        self,
+        session: zenoh.Session,
+        graph: Graph,
+        node_ids: Iterable[str],
+        watcher: GraphWatcher,
+        *,
+        step_timeout_s: float = 10.0,
+        stop: threading.Event | None = None,
+        poll: Callable[[], None] | None = None,
+    ) -> None:
         self.graph = graph
         self.node_ids = list(node_ids)
         self.watcher = watcher
@@ -249,8 +278,9 @@ class LockstepReplayer:
         self.stop = stop or threading.Event()
         self.poll = poll
         self.pubs = _Publishers(session, match_timeout_s=step_timeout_s)
-        self.clock_pub = session.declare_publisher(transport.clock_key(graph.name),
-                                                   congestion_control=zenoh.CongestionControl.BLOCK)
+        self.clock_pub = session.declare_publisher(
+            transport.clock_key(graph.name), congestion_control=zenoh.CongestionControl.BLOCK
+        )
         self.sent: Counter = Counter()  # node/port → messages the replayer published
         self.edges = [(src, nid, port) for nid in self.node_ids for port, src in graph.nodes[nid].spec.inputs.items()]
 
@@ -277,8 +307,10 @@ class LockstepReplayer:
         if not self.watcher.wait_for(lambda: extra() and not self._unsettled(), self.step_timeout_s, self.poll):
             with self.watcher.cond:
                 detail = "; ".join(self._unsettled()) or "nodes did not acknowledge the clock"
-            raise ReplayError(f"lock-step: the graph did not settle within {self.step_timeout_s:.0f}s after {what} "
-                              f"({detail}); a node may have crashed or dropped a message — see its log")
+            raise ReplayError(
+                f"lock-step: the graph did not settle within {self.step_timeout_s:.0f}s after {what} "
+                f"({detail}); a node may have crashed or dropped a message — see its log"
+            )
 
     def advance_clock(self, t_ns: int) -> None:
         """Publish the virtual time and wait until every node ran its ticks up to it and all is processed."""

@@ -1,6 +1,6 @@
-"""One node process: runs a group of graph nodes (spec framework.md, "Runtime").
+"""One node process: runs a group of graph nodes (spec handflow.framework.md, "Runtime").
 
-Started by the launcher as ``python -m framework.runner GRAPH --nodes a,b --hub ENDPOINT``.
+Started by the launcher as ``python -m handflow.framework.runner GRAPH --nodes a,b --hub ENDPOINT``.
 Messages are handled directly in the Zenoh callback and ticks in the main loop, serialised by one
 lock, so node code never runs concurrently with itself (no locks needed in plugins) and a message
 costs no thread hand-off.  Each node publishes a ``_health`` heartbeat with its counters.
@@ -13,6 +13,7 @@ Lock-step mode (``--lockstep``): no wall-clock ticks; the replayer publishes the
 ``_clock``, nodes run the ticks due up to it and report their per-port counters on ``_progress``
 after every event, so the replayer can release the next message only when the graph is quiet.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -62,18 +63,20 @@ class SeqState:
 
 
 class NodeContext:
-    """The runtime's :class:`framework.plugin.Context` for one node."""
+    """The runtime's :class:`handflow.framework.plugin.Context` for one node."""
 
-    def __init__(self, runtime: "GroupRuntime", rn: ResolvedNode, state: SeqState) -> None:
+    def __init__(self, runtime: GroupRuntime, rn: ResolvedNode, state: SeqState) -> None:
         self.node_id = rn.spec.id
         self.graph_name = runtime.graph.name
         self.log = logging.getLogger(f"handflow.node.{self.node_id}")
         self._rt = runtime
         self._outputs = rn.cls.outputs
         self._state = state
-        self._pubs = {port: runtime.session.declare_publisher(transport.topic_key(self.graph_name, self.node_id, port))
-                      for port in self._outputs}
-        self.published = {port: 0 for port in self._outputs}
+        self._pubs = {
+            port: runtime.session.declare_publisher(transport.topic_key(self.graph_name, self.node_id, port))
+            for port in self._outputs
+        }
+        self.published = dict.fromkeys(self._outputs, 0)
 
     def publish(self, port: str, msg: Message, stamp_ns: int | None = None) -> None:
         check_publish(self.node_id, self._outputs, port, msg)
@@ -94,15 +97,15 @@ class NodeContext:
 class _NodeSlot:
     """Runtime bookkeeping of one node: instance, context, counters, next tick."""
 
-    def __init__(self, rt: "GroupRuntime", rn: ResolvedNode, state_dir: Path | None) -> None:
+    def __init__(self, rt: GroupRuntime, rn: ResolvedNode, state_dir: Path | None) -> None:
         self.rn = rn
         self.id = rn.spec.id
         keys = [f"out:{p}" for p in sorted(rn.cls.outputs)] + [f"in:{p}" for p in sorted(rn.spec.inputs)]
         self.state = SeqState(state_dir / f"{self.id}.seq" if state_dir else None, keys)
         self.ctx = NodeContext(rt, rn, self.state)
         self.node: Node = rn.cls(rn.params, self.ctx)
-        self.handled = {port: 0 for port in rn.spec.inputs}
-        self.gaps = {port: 0 for port in rn.spec.inputs}
+        self.handled = dict.fromkeys(rn.spec.inputs, 0)
+        self.gaps = dict.fromkeys(rn.spec.inputs, 0)
         self.errors = 0
         rate = self.node.tick_rate_hz()
         self.period_ns = int(1e9 / rate) if rate else 0
@@ -125,8 +128,9 @@ class _NodeSlot:
 class GroupRuntime:
     """Runs the named nodes of a graph in this process until stopped."""
 
-    def __init__(self, graph: Graph, node_ids: list[str], hub: str, lockstep: bool = False,
-                 state_dir: Path | None = None) -> None:
+    def __init__(
+        self, graph: Graph, node_ids: list[str], hub: str, lockstep: bool = False, state_dir: Path | None = None
+    ) -> None:
         self.graph = graph
         self.lockstep = lockstep
         self.virtual_ns = 0
@@ -137,10 +141,17 @@ class GroupRuntime:
         self.failure: str | None = None
         self.slots = [_NodeSlot(self, graph.nodes[nid], state_dir) for nid in node_ids]
         self._subs = []
-        self._health_pubs = {s.id: self.session.declare_publisher(transport.topic_key(graph.name, s.id, "_health"))
-                             for s in self.slots}
-        self._progress_pubs = ({s.id: self.session.declare_publisher(transport.topic_key(graph.name, s.id, "_progress"))
-                                for s in self.slots} if lockstep else {})
+        self._health_pubs = {
+            s.id: self.session.declare_publisher(transport.topic_key(graph.name, s.id, "_health")) for s in self.slots
+        }
+        self._progress_pubs = (
+            {
+                s.id: self.session.declare_publisher(transport.topic_key(graph.name, s.id, "_progress"))
+                for s in self.slots
+            }
+            if lockstep
+            else {}
+        )
 
     # -- clock ------------------------------------------------------------------------------
     def now_ns(self) -> int:
@@ -153,11 +164,17 @@ class GroupRuntime:
             for port, source in slot.rn.spec.inputs.items():
                 node, _, out = source.partition("/")
                 key = transport.topic_key(g, node, out)
-                self._subs.append(self.session.declare_subscriber(
-                    key, lambda sample, s=slot, p=port: self._on_sample(s, p, sample.payload.to_bytes())))
+                self._subs.append(
+                    self.session.declare_subscriber(
+                        key, lambda sample, s=slot, p=port: self._on_sample(s, p, sample.payload.to_bytes())
+                    )
+                )
         if self.lockstep:
-            self._subs.append(self.session.declare_subscriber(
-                transport.clock_key(g), lambda sample: self.inbox.put(sample.payload.to_bytes())))
+            self._subs.append(
+                self.session.declare_subscriber(
+                    transport.clock_key(g), lambda sample: self.inbox.put(sample.payload.to_bytes())
+                )
+            )
 
     def _on_sample(self, slot: _NodeSlot, port: str, payload: bytes) -> None:
         """Zenoh callback: handle the message right here, serialised with ticks by the lock."""
@@ -277,7 +294,9 @@ class GroupRuntime:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m framework.runner", description="Run nodes of a graph (used by the launcher).")
+    ap = argparse.ArgumentParser(
+        prog="python -m handflow.framework.runner", description="Run nodes of a graph (used by the launcher)."
+    )
     ap.add_argument("graph")
     ap.add_argument("--nodes", required=True, help="comma-separated node ids")
     ap.add_argument("--hub", required=True, help="zenoh endpoint of the launcher's hub session")
@@ -285,12 +304,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--state-dir", type=Path)
     ap.add_argument("--log-level", default="INFO")
     args = ap.parse_args(argv)
-    logging.basicConfig(level=args.log_level, stream=sys.stderr,
-                        format="%(asctime)s %(levelname)s [%(name)s] %(message)s")
+    logging.basicConfig(
+        level=args.log_level, stream=sys.stderr, format="%(asctime)s %(levelname)s [%(name)s] %(message)s"
+    )
     graph = load_graph(args.graph)
     rt = GroupRuntime(graph, args.nodes.split(","), args.hub, args.lockstep, args.state_dir)
 
-    def _stop(signum, frame):  # noqa: ARG001 - signal handler signature
+    def _stop(signum, frame):
         rt.stop_requested = True
 
     signal.signal(signal.SIGTERM, _stop)

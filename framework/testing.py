@@ -4,6 +4,7 @@ The harness builds the node exactly as the runtime does (params validated by the
 published messages validated by :meth:`Message.check`), but delivers messages and ticks on demand
 and keeps what the node publishes.  End-to-end behaviour is tested with ``handflow run``.
 """
+
 from __future__ import annotations
 
 import logging
@@ -16,7 +17,7 @@ from .plugin import Node
 
 
 class HarnessContext:
-    """A :class:`framework.plugin.Context` that records publications and uses a settable clock."""
+    """A :class:`handflow.framework.plugin.Context` that records publications and uses a settable clock."""
 
     def __init__(self, node_id: str, base_dir: Path, outputs: dict[str, type[Message]]) -> None:
         self.node_id = node_id
@@ -58,8 +59,13 @@ def check_publish(node_id: str, outputs: dict[str, type[Message]], port: str, ms
 class NodeHarness:
     """``h = NodeHarness(MyNode, {"gain": 2}); h.setup(); h.send("in", msg); h.published["out"]``."""
 
-    def __init__(self, node_cls: type[Node], params: dict[str, Any] | None = None,
-                 node_id: str = "node", base_dir: str | Path = ".") -> None:
+    def __init__(
+        self,
+        node_cls: type[Node],
+        params: dict[str, Any] | None = None,
+        node_id: str = "node",
+        base_dir: str | Path = ".",
+    ) -> None:
         self.ctx = HarnessContext(node_id, Path(base_dir).resolve(), node_cls.outputs)
         self.node = node_cls(node_cls.Params.model_validate(params or {}), self.ctx)
 
@@ -67,7 +73,7 @@ class NodeHarness:
     def published(self) -> dict[str, list[Message]]:
         return self.ctx.published
 
-    def setup(self) -> "NodeHarness":
+    def setup(self) -> NodeHarness:
         self.node.setup()
         return self
 

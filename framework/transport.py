@@ -1,4 +1,4 @@
-"""Zenoh transport: key expressions and session configuration (spec framework.md, "Runtime").
+"""Zenoh transport: key expressions and session configuration (spec handflow.framework.md, "Runtime").
 
 Keys are ``handflow/<graph>/<node>/<port>``; runtime-internal topics use ports starting with ``_``
 (``_health``, ``_progress``) and the graph-wide ``handflow/<graph>/_clock``.
@@ -8,6 +8,7 @@ loopback port, multicast scouting off, no router); every node process is a peer 
 the hub and finds the other peers through gossip.  A graph's ``zenoh.listen`` / ``zenoh.connect``
 endpoints are added to the hub so graphs on several machines join one Zenoh network.
 """
+
 from __future__ import annotations
 
 import json
@@ -64,15 +65,20 @@ def open_hub(settings: ZenohSettings, hub_endpoint: str) -> zenoh.Session:
     A listen endpoint already in use raises :class:`EndpointInUse` saying what to change.
     """
     try:
-        return zenoh.open(_config(settings.mode, [hub_endpoint, *settings.listen], list(settings.connect),
-                                  settings.multicast_scouting))
+        return zenoh.open(
+            _config(
+                settings.mode, [hub_endpoint, *settings.listen], list(settings.connect), settings.multicast_scouting
+            )
+        )
     except zenoh.ZError as exc:
         busy = [ep for ep in settings.listen if ep.split("/", 1)[-1] in str(exc)]
         if "in use" not in str(exc).lower() or not busy:
             raise
-        raise EndpointInUse(f"cannot listen on {busy[0]}: the address is already in use (another `handflow run` of "
-                            f"this graph, or another program); stop that program or choose a free port in the "
-                            f"graph's 'zenoh: {{listen: [...]}}'") from None
+        raise EndpointInUse(
+            f"cannot listen on {busy[0]}: the address is already in use (another `handflow run` of "
+            f"this graph, or another program); stop that program or choose a free port in the "
+            f"graph's 'zenoh: {{listen: [...]}}'"
+        ) from None
 
 
 def open_node_session(settings: ZenohSettings, hub_endpoint: str) -> zenoh.Session:

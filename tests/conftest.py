@@ -1,4 +1,5 @@
 """Shared pytest fixtures: running the ``handflow`` CLI as a real subprocess."""
+
 from __future__ import annotations
 
 import subprocess
@@ -12,8 +13,14 @@ REPO = Path(__file__).resolve().parents[1]
 
 def handflow(*args: str, timeout: float = 120, check: bool = False, **kw) -> subprocess.CompletedProcess:
     """Run ``handflow ARGS`` in a fresh interpreter; returns the completed process (text output)."""
-    proc = subprocess.run([sys.executable, "-m", "framework.cli", *args], capture_output=True, text=True,
-                          timeout=timeout, cwd=kw.pop("cwd", REPO), **kw)
+    proc = subprocess.run(
+        [sys.executable, "-m", "handflow.framework.cli", *args],
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        cwd=kw.pop("cwd", REPO),
+        **kw,
+    )
     if check and proc.returncode != 0:
         raise AssertionError(f"handflow {' '.join(args)} failed ({proc.returncode}):\n{proc.stdout}\n{proc.stderr}")
     return proc

@@ -1,4 +1,5 @@
 """``handflow inspect FILE.mcap [--json]``: topics, types, counts, time range, rates; recovers truncated files."""
+
 from __future__ import annotations
 
 import argparse
@@ -32,8 +33,16 @@ def summarize(path: str) -> dict[str, Any]:
     for topic in sorted(stats):
         count, first, last = stats[topic]
         rate = (count - 1) / ((last - first) / 1e9) if count > 1 and last > first else 0.0
-        topics.append({"topic": topic, "type": report.channels[topic]["type"], "count": count, "rate_hz": round(rate, 3),
-                       "start_ns": first, "end_ns": last})
+        topics.append(
+            {
+                "topic": topic,
+                "type": report.channels[topic]["type"],
+                "count": count,
+                "rate_hz": round(rate, 3),
+                "start_ns": first,
+                "end_ns": last,
+            }
+        )
     return {
         "file": str(path),
         "total_messages": report.messages,
@@ -52,8 +61,10 @@ def summarize(path: str) -> dict[str, Any]:
 def _text(summary: dict[str, Any]) -> str:
     lines = [f"file:       {summary['file']}"]
     if summary["recovered"]:
-        lines.append(f"RECOVERED:  truncated or damaged file ({summary['error']}); "
-                     f"{summary['total_messages']} message(s) recovered from its complete chunks")
+        lines.append(
+            f"RECOVERED:  truncated or damaged file ({summary['error']}); "
+            f"{summary['total_messages']} message(s) recovered from its complete chunks"
+        )
     start, end = summary["start_ns"], summary["end_ns"]
     duration = (end - start) / 1e9 if start is not None else 0.0
     lines.append(f"messages:   {summary['total_messages']} over {duration:.3f} s")

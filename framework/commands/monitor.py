@@ -1,4 +1,5 @@
 """``handflow monitor [--graph NAME] [--connect EP] [--once [--json]] [--window S] [--foxglove [PORT]]``."""
+
 from __future__ import annotations
 
 import argparse
@@ -19,8 +20,14 @@ def register(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--json", action="store_true", help="with --once: print the snapshot as JSON")
     parser.add_argument("--listen", type=float, default=2.0, help="listening window of --once in seconds (default 2)")
     parser.add_argument("--window", type=float, default=WINDOW_S, help="sliding window for rates and latency (s)")
-    parser.add_argument("--foxglove", nargs="?", const=8765, type=int, metavar="PORT",
-                        help="also stream every topic live to Foxglove on ws://127.0.0.1:PORT (default 8765)")
+    parser.add_argument(
+        "--foxglove",
+        nargs="?",
+        const=8765,
+        type=int,
+        metavar="PORT",
+        help="also stream every topic live to Foxglove on ws://127.0.0.1:PORT (default 8765)",
+    )
     parser.set_defaults(func=run)
 
 
@@ -53,6 +60,7 @@ def run(args: argparse.Namespace) -> int:
                 print(json.dumps(snap))
             else:
                 from rich.console import Console
+
                 Console().print(render(snap, title, graph))
         else:
             _live(monitor, title, graph)

@@ -1,4 +1,5 @@
 """``handflow plugins``."""
+
 from __future__ import annotations
 
 import argparse
@@ -25,9 +26,14 @@ def _describe(name: str) -> dict:
         ann = getattr(f.annotation, "__name__", None) or str(f.annotation).replace("typing.", "")
         default = None if f.is_required() else f.get_default(call_default_factory=True)
         params[fname] = {"type": ann, "default": default, "required": f.is_required(), "help": f.description or ""}
-    return {"name": name, "target": entry.target, "summary": cls.summary(),
-            "inputs": {p: t.TYPE or "any" for p, t in cls.inputs.items()},
-            "outputs": {p: t.TYPE for p, t in cls.outputs.items()}, "params": params}
+    return {
+        "name": name,
+        "target": entry.target,
+        "summary": cls.summary(),
+        "inputs": {p: t.TYPE or "any" for p, t in cls.inputs.items()},
+        "outputs": {p: t.TYPE for p, t in cls.outputs.items()},
+        "params": params,
+    }
 
 
 def run(args: argparse.Namespace) -> int:

@@ -1,4 +1,5 @@
 """``handflow record GRAPH --out FILE.mcap [--topics GLOB ...] [--duration S] [--connect EP]``."""
+
 from __future__ import annotations
 
 import argparse
@@ -16,10 +17,16 @@ def register(parser: argparse.ArgumentParser) -> None:
     """Record a running graph's topics to MCAP from outside (until Ctrl-C or --duration)."""
     parser.add_argument("graph", help="name of a running graph, or its YAML file")
     parser.add_argument("--out", required=True, metavar="FILE.mcap", help="recording to write")
-    parser.add_argument("--topics", nargs="+", metavar="GLOB",
-                        help="globs over node/port (default: the graph's record.topics, else all data topics)")
+    parser.add_argument(
+        "--topics",
+        nargs="+",
+        metavar="GLOB",
+        help="globs over node/port (default: the graph's record.topics, else all data topics)",
+    )
     parser.add_argument("--duration", type=float, help="stop after this many seconds")
-    parser.add_argument("--connect", metavar="ENDPOINT", help="join this Zenoh endpoint instead of finding the graph's run-file")
+    parser.add_argument(
+        "--connect", metavar="ENDPOINT", help="join this Zenoh endpoint instead of finding the graph's run-file"
+    )
     parser.set_defaults(func=run)
 
 

@@ -1,4 +1,5 @@
 """``handflow replay FILE.mcap [--speed X] [--loop] [--topics GLOB ...] [--into GRAPH.yaml [--lockstep]]``."""
+
 from __future__ import annotations
 
 import argparse
@@ -13,8 +14,15 @@ from ..discovery import DiscoveryError, join
 from ..graph import Graph, GraphError, load_graph
 from ..launcher import Launcher
 from ..recording import GraphRecorder, ReadReport, RecordingError, iter_recording
-from ..replay import (GraphWatcher, LockstepReplayer, ReplayError, ReplayPlan, ReplayStats, TimedReplayer,
-                      external_inputs)
+from ..replay import (
+    GraphWatcher,
+    LockstepReplayer,
+    ReplayError,
+    ReplayPlan,
+    ReplayStats,
+    TimedReplayer,
+    external_inputs,
+)
 
 log = logging.getLogger("handflow.replay")
 
@@ -27,16 +35,27 @@ def register(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--speed", type=float, default=1.0, help="time scale: 2 = twice as fast (default 1)")
     parser.add_argument("--loop", action="store_true", help="start over at the end until Ctrl-C")
     parser.add_argument("--topics", nargs="+", metavar="GLOB", help="globs over the recorded node/port topics")
-    parser.add_argument("--into", metavar="GRAPH.yaml",
-                        help="launch this graph and feed it the recorded topics its nodes read but do not publish")
-    parser.add_argument("--lockstep", action="store_true",
-                        help="with --into: virtual time, each message fully processed before the next (deterministic)")
-    parser.add_argument("--record", metavar="FILE.mcap",
-                        help="with --into: record the launched graph's topics (and the replayed inputs) to MCAP")
+    parser.add_argument(
+        "--into",
+        metavar="GRAPH.yaml",
+        help="launch this graph and feed it the recorded topics its nodes read but do not publish",
+    )
+    parser.add_argument(
+        "--lockstep",
+        action="store_true",
+        help="with --into: virtual time, each message fully processed before the next (deterministic)",
+    )
+    parser.add_argument(
+        "--record",
+        metavar="FILE.mcap",
+        help="with --into: record the launched graph's topics (and the replayed inputs) to MCAP",
+    )
     parser.add_argument("--graph", help="replay into this running graph (default: the recording's graph, if running)")
     parser.add_argument("--connect", metavar="ENDPOINT", help="join this Zenoh endpoint instead of a run-file")
     parser.add_argument("--ready-timeout", type=float, default=30.0, help="seconds to wait for the graph's nodes")
-    parser.add_argument("--step-timeout", type=float, default=10.0, help="lock-step: seconds one message may take to settle")
+    parser.add_argument(
+        "--step-timeout", type=float, default=10.0, help="lock-step: seconds one message may take to settle"
+    )
     parser.set_defaults(func=run)
 
 
@@ -58,7 +77,9 @@ def _check_args(args: argparse.Namespace) -> str | None:
     if args.record and not args.into:
         return "--record needs --into GRAPH.yaml (to record a running graph use `handflow record`)"
     if args.lockstep and not args.into:
-        return "--lockstep needs --into GRAPH.yaml: the replayer launches the graph in lock-step mode to know its wiring"
+        return (
+            "--lockstep needs --into GRAPH.yaml: the replayer launches the graph in lock-step mode to know its wiring"
+        )
     if args.lockstep and args.loop:
         return "--lockstep cannot --loop (a lock-step replay is a finite, deterministic run)"
     if not Path(args.file).is_file():
@@ -92,8 +113,10 @@ def run(args: argparse.Namespace) -> int:
 def _print_stats(stats: ReplayStats, where: str) -> None:
     if stats.report is not None and stats.report.recovered:
         print(f"warning: {stats.report.describe()}", file=sys.stderr)
-    print(f"replayed {stats.total} message(s) on {len(stats.published)} topic(s) into {where}"
-          + (f" ({stats.loops} loops)" if stats.loops > 1 else ""))
+    print(
+        f"replayed {stats.total} message(s) on {len(stats.published)} topic(s) into {where}"
+        + (f" ({stats.loops} loops)" if stats.loops > 1 else "")
+    )
 
 
 def _replay_join(args: argparse.Namespace, recorded: str | None, stop: threading.Event) -> int:
@@ -131,8 +154,11 @@ def _replay_into(args: argparse.Namespace, recorded: str | None, stop: threading
         return 2
     sources = external_inputs(graph)
     if not sources:
-        print(f"error: graph '{graph.name}' has no inputs fed from outside; declare the recorded topics its nodes "
-              f"should read under 'external:' (e.g. glove/frames: GloveFrame) and point the inputs at them", file=sys.stderr)
+        print(
+            f"error: graph '{graph.name}' has no inputs fed from outside; declare the recorded topics its nodes "
+            f"should read under 'external:' (e.g. glove/frames: GloveFrame) and point the inputs at them",
+            file=sys.stderr,
+        )
         return 2
     plan = ReplayPlan(Path(args.file), args.topics, graph.name, sources)
     launcher = Launcher(graph, lockstep=args.lockstep, log_level=logging.getLevelName(logging.getLogger().level))
@@ -147,8 +173,9 @@ def _replay_into(args: argparse.Namespace, recorded: str | None, stop: threading
         poll = launcher.poll
         watcher.wait_alive(graph.nodes, args.ready_timeout, poll)
         if args.lockstep:
-            replayer = LockstepReplayer(launcher.session, graph, graph.nodes, watcher,
-                                        step_timeout_s=args.step_timeout, stop=stop, poll=poll)
+            replayer = LockstepReplayer(
+                launcher.session, graph, graph.nodes, watcher, step_timeout_s=args.step_timeout, stop=stop, poll=poll
+            )
             work = lambda: replayer.run(plan)  # noqa: E731
         else:
             timed = TimedReplayer(launcher.session, plan, speed=args.speed, loop=args.loop, stop=stop)
@@ -173,15 +200,18 @@ def _replay_into(args: argparse.Namespace, recorded: str | None, stop: threading
         launcher.close()
     _print_stats(stats, f"graph '{graph.name}'" + (" (lock-step)" if args.lockstep else ""))
     if stats.total == 0:
-        print(f"warning: nothing replayed; the recording (graph '{recorded}') has none of the topics "
-              f"{', '.join(sorted(sources))} that graph '{graph.name}' reads from outside", file=sys.stderr)
+        print(
+            f"warning: nothing replayed; the recording (graph '{recorded}') has none of the topics "
+            f"{', '.join(sorted(sources))} that graph '{graph.name}' reads from outside",
+            file=sys.stderr,
+        )
     return 0
 
 
 def _capture(work, result: dict[str, object]) -> None:
     try:
         result["stats"] = work()
-    except Exception as exc:  # noqa: BLE001 - re-raised on the main thread
+    except Exception as exc:
         result["error"] = exc
 
 
@@ -194,7 +224,11 @@ def _drain(graph: Graph, watcher: GraphWatcher, stats: ReplayStats, poll) -> Non
             counters = watcher.health.get(nid, {})
             for port, src in rn.spec.inputs.items():
                 node, _, out = src.partition("/")
-                published = sent.get(src, 0) if node not in graph.nodes else watcher.health.get(node, {}).get(f"published.{out}", 0)
+                published = (
+                    sent.get(src, 0)
+                    if node not in graph.nodes
+                    else watcher.health.get(node, {}).get(f"published.{out}", 0)
+                )
                 if counters.get(f"handled.{port}", 0) < published:
                     return False
         return True
@@ -203,5 +237,7 @@ def _drain(graph: Graph, watcher: GraphWatcher, stats: ReplayStats, poll) -> Non
         seen = dict(watcher.beats)
     fresh = lambda: all(watcher.beats[n] >= seen.get(n, 0) + 2 for n in graph.nodes)  # noqa: E731 - counters newer than the replay
     if not watcher.wait_for(lambda: fresh() and drained(), DRAIN_TIMEOUT_S, poll):
-        log.warning("the graph had not handled every replayed message %.0fs after the replay; stopping it anyway",
-                    DRAIN_TIMEOUT_S)
+        log.warning(
+            "the graph had not handled every replayed message %.0fs after the replay; stopping it anyway",
+            DRAIN_TIMEOUT_S,
+        )

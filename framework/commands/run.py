@@ -1,4 +1,5 @@
 """``handflow run GRAPH.yaml [--duration S] [--record FILE.mcap] [--host NAME]``."""
+
 from __future__ import annotations
 
 import argparse
@@ -15,10 +16,18 @@ def register(parser: argparse.ArgumentParser) -> None:
     """Run a graph: one process per node (or group), supervised, until Ctrl-C or --duration."""
     parser.add_argument("graph", help="YAML graph file")
     parser.add_argument("--duration", type=float, help="stop after this many seconds (orderly, exit 0)")
-    parser.add_argument("--record", metavar="FILE.mcap", help="record the graph's 'record.topics' (default all) to MCAP")
+    parser.add_argument(
+        "--record", metavar="FILE.mcap", help="record the graph's 'record.topics' (default all) to MCAP"
+    )
     parser.add_argument("--host", help="run only the nodes whose 'host' is NAME (a graph spread over machines)")
-    parser.add_argument("--foxglove", nargs="?", const=8765, type=int, metavar="PORT",
-                        help="live view: stream every topic to Foxglove on ws://127.0.0.1:PORT (default 8765)")
+    parser.add_argument(
+        "--foxglove",
+        nargs="?",
+        const=8765,
+        type=int,
+        metavar="PORT",
+        help="live view: stream every topic to Foxglove on ws://127.0.0.1:PORT (default 8765)",
+    )
     parser.add_argument("--summary-json", metavar="FILE", help="write per-process restarts and exit codes as JSON")
     parser.set_defaults(func=run)
 
@@ -42,6 +51,7 @@ def run(args: argparse.Namespace) -> int:
             bridge = start_bridge(launcher.session, graph.name, fox.host, fox.port)
         if record_path:
             from ..recording import GraphRecorder
+
             recorder = GraphRecorder.for_graph(graph, graph.base_dir / record_path if not args.record else record_path)
             recorder.attach(launcher.session)
 

@@ -1,4 +1,5 @@
 """``handflow validate GRAPH.yaml``."""
+
 from __future__ import annotations
 
 import argparse

@@ -5,14 +5,15 @@
 message it receives (on either input), once, and logs it.  Messages of the stream not in use are
 dropped.  The forwarded message keeps its stamp, so latency stays measurable end to end.
 """
+
 from __future__ import annotations
 
 from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from framework.messages import JointState
-from framework.plugin import Node
+from handflow.framework.messages import JointState
+from handflow.framework.plugin import Node
 
 INPUTS = ("primary", "secondary")
 
@@ -20,8 +21,9 @@ INPUTS = ("primary", "secondary")
 class SelectParams(BaseModel):
     model_config = ConfigDict(extra="forbid")
     use: Literal["primary", "secondary"] = Field("primary", description="input forwarded at start")
-    switch_after_s: float | None = Field(None, gt=0, description="switch to the other input this many seconds "
-                                                                 "after the first message; null = never")
+    switch_after_s: float | None = Field(
+        None, gt=0, description="switch to the other input this many seconds after the first message; null = never"
+    )
 
 
 class Select(Node):

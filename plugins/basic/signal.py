@@ -1,4 +1,5 @@
 """Signal source for tests and demos: sine, seeded noise, or rows of a CSV file at a fixed rate."""
+
 from __future__ import annotations
 
 from typing import Literal
@@ -6,8 +7,8 @@ from typing import Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
-from framework.messages import Array
-from framework.plugin import Node
+from handflow.framework.messages import Array
+from handflow.framework.plugin import Node
 
 
 class SignalParams(BaseModel):

@@ -1,4 +1,5 @@
 """Sink that counts, logs, or writes what it receives (any message type)."""
+
 from __future__ import annotations
 
 import json
@@ -6,8 +7,8 @@ import time
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from framework.messages import Message
-from framework.plugin import Node
+from handflow.framework.messages import Message
+from handflow.framework.plugin import Node
 
 
 class SinkParams(BaseModel):

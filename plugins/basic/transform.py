@@ -1,10 +1,11 @@
 """Element-wise gain and offset on Array messages."""
+
 from __future__ import annotations
 
 from pydantic import BaseModel, ConfigDict
 
-from framework.messages import Array
-from framework.plugin import Node
+from handflow.framework.messages import Array
+from handflow.framework.plugin import Node
 
 
 class GainOffsetParams(BaseModel):

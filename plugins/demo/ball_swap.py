@@ -3,7 +3,7 @@
 The thesis recorded an open-loop controller (Oztop et al. 2006) that moves only the four fingers;
 every hand cycle is identical and the balls' response varies.  The thesis does not give the
 motion; documented choice (docs/simulator.md "Ball swapping"), tuned on the ``balls`` scene of
-:mod:`plugins.simulator.scenes` (cupped palm in which the two balls can only circle around each
+:mod:`handflow.plugins.simulator.scenes` (cupped palm in which the two balls can only circle around each
 other):
 
 - **rake** — index and middle finger (``rake_fingers``) hook their tips behind the ball lying at
@@ -21,13 +21,14 @@ other):
 Every joint follows periodic key frames ``((phase, value), …)`` with cosine easing between them
 (:func:`keyframes`), identical every cycle.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from plugins.mapping.hands import GIFU
+from handflow.plugins.hands.joints import GIFU
 
 Keys = tuple[tuple[float, float], ...]
 """Periodic key frames: (phase in [0, 1), joint angle in rad), phases increasing."""
@@ -77,14 +78,19 @@ class BallSwapMotion:
         return GIFU.clip(q)
 
 
-def run_open_loop_swaps(seconds: float, seed: int = 0, scene_options: dict | None = None,
-                        motion: BallSwapMotion | None = None, every: int = 8):
+def run_open_loop_swaps(
+    seconds: float,
+    seed: int = 0,
+    scene_options: dict | None = None,
+    motion: BallSwapMotion | None = None,
+    every: int = 8,
+):
     """Play the scripted motion open loop in the balls scene (physics only, no camera).
 
     Returns the two balls' palm-plane positions sampled every ``every`` physics steps, shape
     ``(n, 2, 2)``, and the final scene state; used by the swap tests and ``benchmarks/sim.py``.
     """
-    from plugins.simulator.simulation import Simulation
+    from handflow.plugins.simulator.simulation import Simulation
 
     motion = motion or BallSwapMotion()
     n = int(motion.period_s * 240)

@@ -12,13 +12,14 @@ Between the four key postures the targets follow cosine easing.  Human-like vari
 amplitudes, small per-joint offsets.  The targets are what a glove operator would command; the
 simulator's collision correction decides the recorded posture.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 import numpy as np
 
-from plugins.mapping.hands import SHADOW
+from handflow.plugins.hands.joints import SHADOW
 
 FINGERS = ("FF", "MF", "RF", "LF")
 PHASES = ("open_back", "close", "rotate", "open")
@@ -63,7 +64,9 @@ class CapTurningDemonstrator:
             raise ValueError(f"release_fraction must lie strictly between 0 and 1, got {self.release_fraction}")
         unknown = [n for n in self.release_joints if n not in SHADOW.names]
         if unknown:
-            raise ValueError(f"release_joints {unknown} are not ShadowHand-like joints; use names of plugins.mapping.hands.SHADOW")
+            raise ValueError(
+                f"release_joints {unknown} are not ShadowHand-like joints; use names of handflow.plugins.hands.joints.SHADOW"
+            )
 
     def closure(self, radius: float) -> float:
         """Commanded flexion (rad) of MCP, middle and distal joints when closing on a cap of ``radius``."""
@@ -72,10 +75,12 @@ class CapTurningDemonstrator:
     def variation(self, rng: np.random.Generator) -> CycleVariation:
         """Draw one sequence's human-like variation."""
         f = np.asarray(self.fractions) * (1 + rng.uniform(-self.timing_jitter, self.timing_jitter, 4))
-        return CycleVariation(fractions=f / f.sum(),
-                              closure_scale=1 + rng.uniform(-self.amplitude_jitter, self.amplitude_jitter),
-                              sweep_scale=1 + rng.uniform(-2, 2) * self.amplitude_jitter,
-                              offsets=rng.normal(0.0, self.offset_jitter, len(SHADOW)))
+        return CycleVariation(
+            fractions=f / f.sum(),
+            closure_scale=1 + rng.uniform(-self.amplitude_jitter, self.amplitude_jitter),
+            sweep_scale=1 + rng.uniform(-2, 2) * self.amplitude_jitter,
+            offsets=rng.normal(0.0, self.offset_jitter, len(SHADOW)),
+        )
 
     def key_postures(self, radius: float, var: CycleVariation) -> np.ndarray:
         """The four key postures (4, 24) in SHADOW joint order: open-back, closed-back, closed-front, open-front."""
@@ -90,8 +95,13 @@ class CapTurningDemonstrator:
                 q[f"{f}J4"] = direction * sweep * (1.0 if f in ("FF", "MF") else -1.0)
                 flex = flex_closed if closed else self.open_flex
                 q[f"{f}J3"], q[f"{f}J2"], q[f"{f}J1"] = flex, flex, flex
-            q.update(THJ5=-0.75 if closed else -0.6, THJ4=0.9 if closed else 0.55, THJ3=0.0,
-                     THJ2=0.3 if closed else 0.0, THJ1=1.5 * var.closure_scale if closed else 0.2)
+            q.update(
+                THJ5=-0.75 if closed else -0.6,
+                THJ4=0.9 if closed else 0.55,
+                THJ3=0.0,
+                THJ2=0.3 if closed else 0.0,
+                THJ1=1.5 * var.closure_scale if closed else 0.2,
+            )
             postures.append([q[n] for n in SHADOW.names])
         return SHADOW.clip(np.asarray(postures) + var.offsets)
 

@@ -1,7 +1,7 @@
 """Record demonstrations to MCAP: the thesis pipeline with a scripted operator (spec production.md §1).
 
-Recordings use :class:`framework.recording.McapWriter` (JSON-schema channels, ``encode``d payloads,
-``log_time`` = simulated time in ns from the start of the recording), so ``framework.recording.
+Recordings use :class:`handflow.framework.recording.McapWriter` (JSON-schema channels, ``encode``d payloads,
+``log_time`` = simulated time in ns from the start of the recording), so ``handflow.framework.recording.
 read_messages`` reads them back.  Everything is seeded: the same arguments give the same file.
 
 Cap turning (``record_cap``) — topics (graph name ``demo_cap``):
@@ -23,22 +23,23 @@ cycles) and ``demo/observation`` — Array of d = 20 (the 16 independent Gifu jo
 p2, the two tracked balls in track-id order); written only when both balls and both marks were
 seen (a frame with a lost blob has no observation — nothing is invented).
 
-Read them back with :mod:`plugins.demo.loaders`.
+Read them back with :mod:`handflow.plugins.demo.loaders`.
 """
+
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 
-from framework.messages import Array, JointState, Points2D
-from framework.recording import McapWriter
-from plugins.mapping.hands import GIFU, SHADOW
-from plugins.simulator.metrics import count_swaps
-from plugins.simulator.simulation import Simulation
-from plugins.tracker.blobs import BallTracker
+from handflow.framework.messages import Array, JointState, Points2D
+from handflow.framework.recording import McapWriter
+from handflow.plugins.hands.joints import GIFU, SHADOW
+from handflow.plugins.simulator.metrics import count_swaps
+from handflow.plugins.simulator.simulation import Simulation
+from handflow.plugins.tracker.blobs import BallTracker
 
 from .ball_swap import BallSwapMotion
 from .cap_turning import CapTurningDemonstrator
@@ -67,10 +68,18 @@ def _ns(steps: int, hz: float) -> int:
     return int(round(steps * 1e9 / hz))
 
 
-def record_cap(path: str | Path, radii=CAP_RADII, sequences: int | None = None, seed: int = 0,
-               demonstrator: CapTurningDemonstrator | None = None, record_every: int = 10,
-               postures_range: tuple[int, int] = (30, 45), physics_hz: float = 240.0,
-               include_targets: bool = False, progress: Progress | None = None) -> CapRecordingSummary:
+def record_cap(
+    path: str | Path,
+    radii=CAP_RADII,
+    sequences: int | None = None,
+    seed: int = 0,
+    demonstrator: CapTurningDemonstrator | None = None,
+    record_every: int = 10,
+    postures_range: tuple[int, int] = (30, 45),
+    physics_hz: float = 240.0,
+    include_targets: bool = False,
+    progress: Progress | None = None,
+) -> CapRecordingSummary:
     """Cap-turning demonstrations: per radius ``sequences`` cycles (None: 5–9 drawn from the seed).
 
     Each sequence is one turning cycle of 30–45 postures sampled every ``record_every`` physics
@@ -87,11 +96,20 @@ def record_cap(path: str | Path, radii=CAP_RADII, sequences: int | None = None, 
     counts = {r: int(sequences if sequences is not None else rng.integers(5, 10)) for r in radii}
     steps_total, seq_id, postures = 0, 0, 0
     with McapWriter(path, flush_interval_s=None) as w:
-        w.add_metadata("handflow.demo", {
-            "task": "cap_turning", "hand": "shadow", "seed": seed, "radii_m": ",".join(map(str, radii)),
-            "sequences": ",".join(str(counts[r]) for r in radii), "physics_hz": physics_hz,
-            "record_every_steps": record_every, "posture_topic": f"{CAP_PREFIX}/sim/joints",
-            "label_topic": f"{CAP_PREFIX}/demo/label"})
+        w.add_metadata(
+            "handflow.demo",
+            {
+                "task": "cap_turning",
+                "hand": "shadow",
+                "seed": seed,
+                "radii_m": ",".join(map(str, radii)),
+                "sequences": ",".join(str(counts[r]) for r in radii),
+                "physics_hz": physics_hz,
+                "record_every_steps": record_every,
+                "posture_topic": f"{CAP_PREFIX}/sim/joints",
+                "label_topic": f"{CAP_PREFIX}/demo/label",
+            },
+        )
         for r in radii:
             with Simulation("shadow", "cap", {"radius": r}, seed=seed, physics_hz=physics_hz) as sim:
                 first = demo.targets(np.zeros(1), r, demo.variation(rng))[0]
@@ -108,15 +126,29 @@ def record_cap(path: str | Path, radii=CAP_RADII, sequences: int | None = None, 
                         if (i + 1) % record_every == 0:
                             t = _ns(steps_total + sim.steps, physics_hz)
                             js = sim.joint_state()
-                            w.write(f"{CAP_PREFIX}/sim/joints", JointState(names=js.names, positions=js.positions,
-                                                                             hand="shadow"), t, t)
-                            w.write(f"{CAP_PREFIX}/demo/label", Array(data=[r, seq_id, i // record_every],
-                                                                       names=["radius", "sequence", "posture"]), t, t)
+                            w.write(
+                                f"{CAP_PREFIX}/sim/joints",
+                                JointState(names=js.names, positions=js.positions, hand="shadow"),
+                                t,
+                                t,
+                            )
+                            w.write(
+                                f"{CAP_PREFIX}/demo/label",
+                                Array(data=[r, seq_id, i // record_every], names=["radius", "sequence", "posture"]),
+                                t,
+                                t,
+                            )
                             if include_targets:
-                                w.write(f"{CAP_PREFIX}/demo/targets", JointState(
-                                    names=list(SHADOW.names), positions=sim.targets, hand="shadow"), t, t)
+                                w.write(
+                                    f"{CAP_PREFIX}/demo/targets",
+                                    JointState(names=list(SHADOW.names), positions=sim.targets, hand="shadow"),
+                                    t,
+                                    t,
+                                )
                             state = sim.scene_state()
-                            w.write(f"{CAP_PREFIX}/sim/scene", Array(data=list(state.values()), names=list(state)), t, t)
+                            w.write(
+                                f"{CAP_PREFIX}/sim/scene", Array(data=list(state.values()), names=list(state)), t, t
+                            )
                             postures += 1
                     seq_id += 1
                     if progress:
@@ -133,13 +165,22 @@ class BallsRecordingSummary:
     swaps: int
 
 
-def record_balls(path: str | Path, cycles: int = 4, seed: int = 0, motion: BallSwapMotion | None = None,
-                 rate_hz: float = 25.0, width: int = 240, height: int = 180, physics_hz: float = 240.0,
-                 scene_options: dict | None = None, progress: Progress | None = None) -> BallsRecordingSummary:
+def record_balls(
+    path: str | Path,
+    cycles: int = 4,
+    seed: int = 0,
+    motion: BallSwapMotion | None = None,
+    rate_hz: float = 25.0,
+    width: int = 240,
+    height: int = 180,
+    physics_hz: float = 240.0,
+    scene_options: dict | None = None,
+    progress: Progress | None = None,
+) -> BallsRecordingSummary:
     """Ball-swapping demonstrations: ``cycles`` swap cycles (ball periods = 2 hand cycles each), camera + tracker at ``rate_hz``.
 
     Returns the number of frames, of d = 20 observations and of swaps done (ground truth,
-    :func:`plugins.simulator.metrics.count_swaps`).
+    :func:`handflow.plugins.simulator.metrics.count_swaps`).
     """
     if cycles < 1:
         raise ValueError(f"cycles must be at least 1, got {cycles}")
@@ -152,13 +193,26 @@ def record_balls(path: str | Path, cycles: int = 4, seed: int = 0, motion: BallS
     dof = [GIFU.index(n) for n in GIFU_DOF]
     frames = observations = 0
     truth = []
-    with McapWriter(path, flush_interval_s=None) as w, \
-            Simulation("gifu", "balls", scene_options, seed=seed, physics_hz=physics_hz) as sim:
-        w.add_metadata("handflow.demo", {
-            "task": "ball_swapping", "hand": "gifu", "seed": seed, "cycles": cycles, "rate_hz": rate_hz,
-            "hand_period_s": motion.period_s, "hand_cycles_per_swap_cycle": 2,
-            "image_size": f"{width}x{height}", "observation_topic": f"{BALLS_PREFIX}/demo/observation",
-            "label_topic": f"{BALLS_PREFIX}/demo/label", "observation_names": ",".join(OBSERVATION_NAMES)})
+    with (
+        McapWriter(path, flush_interval_s=None) as w,
+        Simulation("gifu", "balls", scene_options, seed=seed, physics_hz=physics_hz) as sim,
+    ):
+        w.add_metadata(
+            "handflow.demo",
+            {
+                "task": "ball_swapping",
+                "hand": "gifu",
+                "seed": seed,
+                "cycles": cycles,
+                "rate_hz": rate_hz,
+                "hand_period_s": motion.period_s,
+                "hand_cycles_per_swap_cycle": 2,
+                "image_size": f"{width}x{height}",
+                "observation_topic": f"{BALLS_PREFIX}/demo/observation",
+                "label_topic": f"{BALLS_PREFIX}/demo/label",
+                "observation_names": ",".join(OBSERVATION_NAMES),
+            },
+        )
         sim.set_targets(GIFU.names, motion.targets(0.0)[0])
         sim.step(int(0.5 * physics_hz))
         start = sim.steps
@@ -172,13 +226,29 @@ def record_balls(path: str | Path, cycles: int = 4, seed: int = 0, motion: BallS
                 js = sim.joint_state()
                 res = tracker.update(sim.render(width, height))
                 truth.append(sim.scene.palm_plane_positions(sim.client))
-                w.write(f"{BALLS_PREFIX}/sim/joints", JointState(names=js.names, positions=js.positions, hand="gifu"), t, t)
-                w.write(f"{BALLS_PREFIX}/tracker/balls", Points2D(points=res.balls, valid=res.balls_valid, ids=res.ids), t, t)
-                w.write(f"{BALLS_PREFIX}/tracker/marks", Points2D(points=res.marks_px, valid=res.marks_valid, ids=[0, 1]), t, t)
+                w.write(
+                    f"{BALLS_PREFIX}/sim/joints", JointState(names=js.names, positions=js.positions, hand="gifu"), t, t
+                )
+                w.write(
+                    f"{BALLS_PREFIX}/tracker/balls",
+                    Points2D(points=res.balls, valid=res.balls_valid, ids=res.ids),
+                    t,
+                    t,
+                )
+                w.write(
+                    f"{BALLS_PREFIX}/tracker/marks",
+                    Points2D(points=res.marks_px, valid=res.marks_valid, ids=[0, 1]),
+                    t,
+                    t,
+                )
                 state = sim.scene_state()
                 w.write(f"{BALLS_PREFIX}/sim/scene", Array(data=list(state.values()), names=list(state)), t, t)
-                w.write(f"{BALLS_PREFIX}/demo/label", Array(data=[hand_cycle // 2, hand_cycle, (i + 1) / n_steps],
-                                                          names=BALL_LABEL_NAMES), t, t)
+                w.write(
+                    f"{BALLS_PREFIX}/demo/label",
+                    Array(data=[hand_cycle // 2, hand_cycle, (i + 1) / n_steps], names=BALL_LABEL_NAMES),
+                    t,
+                    t,
+                )
                 frames += 1
                 if res.balls_valid.all():
                     obs = np.concatenate([js.positions[dof], res.balls.reshape(-1)])

@@ -1,6 +1,6 @@
 """Scripted hand gestures for the flagship demo: motion classes, a script, recordings, a dataset.
 
-Four periodic motion classes in the 24-joint human hand model (``plugins.mapping.hands.HUMAN``):
+Four periodic motion classes in the 24-joint human hand model (``handflow.plugins.hands.joints.HUMAN``):
 
 - ``grasp``: all fingers and the thumb close and open together (small per-finger lags);
 - ``wave``: sequential finger flexion, index → little (a quarter cycle apart);
@@ -18,21 +18,22 @@ time warp of ±3 % of a cycle); every joint also moves a little in the gesture's
 
 :class:`GestureScript` plays classes one after another for given durations with a short
 cross-fade (``blend_s``) and reports the ground-truth label per time.  Its raw glove frames (the
-inverse sensor model of :class:`plugins.glove.synthetic.SyntheticGlove`) are what the flagship's
+inverse sensor model of :class:`handflow.plugins.glove.synthetic.SyntheticGlove`) are what the flagship's
 emulated glove plays (``emulator.frames``), so no plugin imports another at run time.
 
 The flagship's models come from the project itself (docs/flagship.md)::
 
-    python -m plugins.demo.gestures frames --out configs/models/gestures/demo_frames.npy
-    python -m plugins.demo.gestures record --out recordings/gestures.mcap
-    python -m plugins.demo.gestures dataset recordings/gestures.mcap --out out/gestures_dataset.npz
+    python -m handflow.plugins.demo.gestures frames --out configs/models/gestures/demo_frames.npy
+    python -m handflow.plugins.demo.gestures record --out recordings/gestures.mcap
+    python -m handflow.plugins.demo.gestures dataset recordings/gestures.mcap --out out/gestures_dataset.npz
     handflow train-classes out/gestures_dataset.npz --out configs/models/gestures --steps 200
 
 ``record`` runs every gesture through the glove chain as plain classes — inverse sensor model →
-integer raw frames → :class:`~plugins.mapping.human.HumanHandMapping` →
-:class:`~plugins.mapping.robot.ShadowHandMapping`, the same code the graph nodes wrap — and writes
+integer raw frames → :class:`~handflow.plugins.mapping.human.HumanHandMapping` →
+:class:`~handflow.plugins.mapping.robot.ShadowHandMapping`, the same code the graph nodes wrap — and writes
 the frames, the ShadowHand joints and one ``SegmentEvent`` per demonstration to MCAP.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -43,11 +44,11 @@ from pathlib import Path
 
 import numpy as np
 
-from framework.messages import GloveFrame, JointState, SegmentEvent
-from framework.recording import McapWriter, RecordingError, read_messages
-from plugins.glove.synthetic import SyntheticGlove
-from plugins.mapping.hands import DEG, HUMAN, SHADOW
-from plugins.mapping.robot import ShadowHandMapping
+from handflow.framework.messages import GloveFrame, JointState, SegmentEvent
+from handflow.framework.recording import McapWriter, RecordingError, read_messages
+from handflow.plugins.glove.synthetic import SyntheticGlove
+from handflow.plugins.hands.joints import DEG, HUMAN, SHADOW
+from handflow.plugins.mapping.robot import ShadowHandMapping
 
 GRAPH = "gestures"
 """Graph name in the topics of a gesture recording (``handflow/gestures/<node>/<port>``)."""
@@ -55,16 +56,37 @@ FRAMES_TOPIC = f"handflow/{GRAPH}/glove/frames"
 JOINTS_TOPIC = f"handflow/{GRAPH}/shadow/joints"
 TRUTH_TOPIC = f"handflow/{GRAPH}/script/truth"
 
-SEGMENT_JOINTS: tuple[str, ...] = ("WRJ2", "WRJ1", "FFJ4", "FFJ3", "FFJ2", "MFJ3", "MFJ2", "RFJ3", "RFJ2",
-                                   "LFJ5", "LFJ3", "LFJ2", "THJ4", "THJ2", "THJ1")
+SEGMENT_JOINTS: tuple[str, ...] = (
+    "WRJ2",
+    "WRJ1",
+    "FFJ4",
+    "FFJ3",
+    "FFJ2",
+    "MFJ3",
+    "MFJ2",
+    "RFJ3",
+    "RFJ2",
+    "LFJ5",
+    "LFJ3",
+    "LFJ2",
+    "THJ4",
+    "THJ2",
+    "THJ1",
+)
 """ShadowHand joints the gesture classes are recognised from (documented choice): the coupled distal
 J1s repeat J2, THJ3 is passive, the middle/ring spread barely moves, and the thumb base rotation
 THJ5 swings strongly near the analytic thumb mapping's singularity, so it would dominate the
 normalised reconstruction error.  The flagship's segmenter uses the same list (``joints:``)."""
 
 NEUTRAL_DEG: dict[str, float] = {
-    "wrist_pitch": 0.0, "wrist_yaw": 0.0, "palm_arch": 5.0, "th_abduction": 45.0, "th_roll": 20.0,
-    "th_mcp_side": 0.0, "th_mcp": 10.0, "th_ip": 10.0,
+    "wrist_pitch": 0.0,
+    "wrist_yaw": 0.0,
+    "palm_arch": 5.0,
+    "th_abduction": 45.0,
+    "th_roll": 20.0,
+    "th_mcp_side": 0.0,
+    "th_mcp": 10.0,
+    "th_ip": 10.0,
     **{f"{f}_{j}": v for f in ("ff", "mf", "rf", "lf") for j, v in (("mcp", 15.0), ("pip", 20.0), ("dip", 10.0))},
 }
 """Relaxed hand (degrees); joints a gesture does not name stay here.  Spread joints follow ``phi``."""
@@ -84,8 +106,9 @@ class GestureSpec:
     waves: dict[str, Wave] = field(default_factory=dict)
 
 
-def _fingers(mcp: Wave, pip: Wave, dip: Wave, lag_step: float = 0.0, only: tuple[str, ...] = ("ff", "mf", "rf", "lf")
-             ) -> dict[str, Wave]:
+def _fingers(
+    mcp: Wave, pip: Wave, dip: Wave, lag_step: float = 0.0, only: tuple[str, ...] = ("ff", "mf", "rf", "lf")
+) -> dict[str, Wave]:
     """The same flexion waves on several fingers, each ``lag_step`` cycles after the previous one."""
     out = {}
     for k, f in enumerate(only):
@@ -95,33 +118,74 @@ def _fingers(mcp: Wave, pip: Wave, dip: Wave, lag_step: float = 0.0, only: tuple
 
 
 SYMPATHETIC: dict[str, Wave] = {
-    "wrist_pitch": (0, 8, 0.1), "wrist_yaw": (0, 6, 0.2), "palm_arch": (0, 6, 0.0),
-    "th_abduction": (0, 8, 0.0), "th_roll": (0, 8, 0.05), "th_mcp": (0, 8, 0.1), "th_ip": (0, 8, 0.15),
-    **_fingers((0, 10, 0.0), (0, 10, 0.05), (0, 8, 0.1), lag_step=0.05), "phi": (0, 5, 0.3)}
+    "wrist_pitch": (0, 8, 0.1),
+    "wrist_yaw": (0, 6, 0.2),
+    "palm_arch": (0, 6, 0.0),
+    "th_abduction": (0, 8, 0.0),
+    "th_roll": (0, 8, 0.05),
+    "th_mcp": (0, 8, 0.1),
+    "th_ip": (0, 8, 0.15),
+    **_fingers((0, 10, 0.0), (0, 10, 0.05), (0, 8, 0.1), lag_step=0.05),
+    "phi": (0, 5, 0.3),
+}
 """Small motion of every joint in the gesture's rhythm, under each gesture's own waves (documented
 choice: a hand never holds a joint perfectly still while moving the others, and a class whose
 training data holds a joint still would have a near-zero variance there, so glove noise alone would
 dominate the normalised reconstruction error ``e_t`` of the recognisers)."""
 
-GESTURES: dict[str, GestureSpec] = {g.name: g for g in (
-    GestureSpec("grasp", 1.6, {
-        **_fingers((0, 60, 0.0), (0, 75, 0.04), (0, 50, 0.07), lag_step=0.03),
-        "th_abduction": (0, 30, 0.0), "th_roll": (0, 40, 0.0), "th_mcp": (0, 30, 0.05), "th_ip": (0, 35, 0.08),
-        "palm_arch": (0, 20, 0.0), "phi": (15, -20, 0.0)}),
-    GestureSpec("wave", 1.8, {
-        **_fingers((0, 65, 0.0), (0, 75, 0.04), (0, 50, 0.06), lag_step=0.25),
-        "wrist_pitch": (0, 12, 0.3), "phi": (0, 15, 0.5)}),
-    GestureSpec("pinch", 1.0, {
-        **_fingers((10, 40, 0.0), (10, 45, 0.02), (0, 30, 0.04), only=("ff",)),
-        **_fingers((20, 10, 0.1), (30, 10, 0.15), (15, 8, 0.2), only=("mf", "rf", "lf")),
-        "th_abduction": (10, 35, 0.0), "th_roll": (20, 40, 0.0), "th_mcp": (0, 25, 0.02), "th_ip": (0, 30, 0.04),
-        "phi": (-5, 5, 0.0)}),
-    GestureSpec("turn", 2.0, {
-        **_fingers((20, 20, 0.25), (20, 20, 0.3), (10, 15, 0.3), lag_step=0.02),
-        "wrist_yaw": (-12, 24, 0.0), "wrist_pitch": (-5, 10, 0.5),
-        "th_abduction": (15, 20, 0.5), "th_roll": (25, 15, 0.5), "th_mcp": (15, 15, 0.55),
-        "phi": (0, 10, 0.25)}),
-)}
+GESTURES: dict[str, GestureSpec] = {
+    g.name: g
+    for g in (
+        GestureSpec(
+            "grasp",
+            1.6,
+            {
+                **_fingers((0, 60, 0.0), (0, 75, 0.04), (0, 50, 0.07), lag_step=0.03),
+                "th_abduction": (0, 30, 0.0),
+                "th_roll": (0, 40, 0.0),
+                "th_mcp": (0, 30, 0.05),
+                "th_ip": (0, 35, 0.08),
+                "palm_arch": (0, 20, 0.0),
+                "phi": (15, -20, 0.0),
+            },
+        ),
+        GestureSpec(
+            "wave",
+            1.8,
+            {
+                **_fingers((0, 65, 0.0), (0, 75, 0.04), (0, 50, 0.06), lag_step=0.25),
+                "wrist_pitch": (0, 12, 0.3),
+                "phi": (0, 15, 0.5),
+            },
+        ),
+        GestureSpec(
+            "pinch",
+            1.0,
+            {
+                **_fingers((10, 40, 0.0), (10, 45, 0.02), (0, 30, 0.04), only=("ff",)),
+                **_fingers((20, 10, 0.1), (30, 10, 0.15), (15, 8, 0.2), only=("mf", "rf", "lf")),
+                "th_abduction": (10, 35, 0.0),
+                "th_roll": (20, 40, 0.0),
+                "th_mcp": (0, 25, 0.02),
+                "th_ip": (0, 30, 0.04),
+                "phi": (-5, 5, 0.0),
+            },
+        ),
+        GestureSpec(
+            "turn",
+            2.0,
+            {
+                **_fingers((20, 20, 0.25), (20, 20, 0.3), (10, 15, 0.3), lag_step=0.02),
+                "wrist_yaw": (-12, 24, 0.0),
+                "wrist_pitch": (-5, 10, 0.5),
+                "th_abduction": (15, 20, 0.5),
+                "th_roll": (25, 15, 0.5),
+                "th_mcp": (15, 15, 0.55),
+                "phi": (0, 10, 0.25),
+            },
+        ),
+    )
+}
 """The flagship's motion classes (see the module docstring)."""
 
 
@@ -208,7 +272,9 @@ class GestureScript:
             self.segments.append(Segment(label, start, d))
             start += d
         seeds = np.random.SeedSequence(seed).spawn(len(steps))
-        self.gestures = [Gesture(s.label, int(ss.generate_state(1)[0]), variation) for s, ss in zip(self.segments, seeds)]
+        self.gestures = [
+            Gesture(s.label, int(ss.generate_state(1)[0]), variation) for s, ss in zip(self.segments, seeds)
+        ]
         self.blend_s = blend_s
 
     @property
@@ -238,7 +304,9 @@ class GestureScript:
             if fading.any():  # previous gesture (the last one before the first: the script loops)
                 prev, ps = self.gestures[i - 1], self.segments[i - 1]
                 w = (0.5 - 0.5 * np.cos(np.pi * local[fading] / self.blend_s))[:, None]
-                q[np.flatnonzero(here)[fading]] = (1 - w) * prev.joints(ps.duration_s + local[fading]) + w * q[here][fading]
+                q[np.flatnonzero(here)[fading]] = (1 - w) * prev.joints(ps.duration_s + local[fading]) + w * q[here][
+                    fading
+                ]
         return q
 
     def frames(self, rate_hz: float, noise: float = 0.5, seed: int = 0) -> np.ndarray:
@@ -250,8 +318,15 @@ class GestureScript:
 # ----------------------------------------------------------------------------------------------
 # Recording demonstrations and turning them into a labelled dataset
 # ----------------------------------------------------------------------------------------------
-def record_gestures(path: str | Path, sequences: int = 5, duration_s: float = 3.6, rate_hz: float = 50.0,
-                    noise: float = 0.5, seed: int = 0, gestures: list[str] | None = None) -> dict[str, int]:
+def record_gestures(
+    path: str | Path,
+    sequences: int = 5,
+    duration_s: float = 3.6,
+    rate_hz: float = 50.0,
+    noise: float = 0.5,
+    seed: int = 0,
+    gestures: list[str] | None = None,
+) -> dict[str, int]:
     """Record ``sequences`` performances of every gesture through the glove chain to MCAP.
 
     Topics: :data:`FRAMES_TOPIC` (GloveFrame), :data:`JOINTS_TOPIC` (ShadowHand JointState, stamp =
@@ -265,7 +340,7 @@ def record_gestures(path: str | Path, sequences: int = 5, duration_s: float = 3.
     index, start_ns = 0, 0
     with McapWriter(path, flush_interval_s=None) as w:
         for label in names:
-            for k in range(sequences):
+            for _k in range(sequences):
                 s = int(next(seeds).generate_state(1)[0])
                 glove = SyntheticGlove(Gesture(label, s), noise=noise, seed=s)
                 raw = glove.frames(t)
@@ -273,10 +348,18 @@ def record_gestures(path: str | Path, sequences: int = 5, duration_s: float = 3.
                 stamps = start_ns + (t * 1e9).astype(np.int64)
                 for frame, joints, stamp in zip(raw, q, stamps):
                     w.write(FRAMES_TOPIC, GloveFrame(sensors=frame, arrival_ns=int(stamp)), int(stamp), int(stamp))
-                    w.write(JOINTS_TOPIC, JointState(names=SHADOW.names, positions=joints, hand=SHADOW.name),
-                            int(stamp), int(stamp))
-                w.write(TRUTH_TOPIC, SegmentEvent(kind="end", label=label, start_index=index,
-                                                  end_index=index + len(t) - 1), int(stamps[-1]), int(stamps[-1]))
+                    w.write(
+                        JOINTS_TOPIC,
+                        JointState(names=SHADOW.names, positions=joints, hand=SHADOW.name),
+                        int(stamp),
+                        int(stamp),
+                    )
+                w.write(
+                    TRUTH_TOPIC,
+                    SegmentEvent(kind="end", label=label, start_index=index, end_index=index + len(t) - 1),
+                    int(stamps[-1]),
+                    int(stamps[-1]),
+                )
                 index += len(t)
                 start_ns = int(stamps[-1]) + 1_000_000_000
         counts = dict(w.counts)
@@ -296,28 +379,34 @@ def gesture_dataset(recording: str | Path, out: str | Path, joints: tuple[str, .
         elif topic == TRUTH_TOPIC:
             segments.append(msg)
     if not rows or not segments:
-        raise RecordingError(f"{recording} has no '{JOINTS_TOPIC}' joints or no '{TRUTH_TOPIC}' segments; "
-                             "record it with `python -m plugins.demo.gestures record`")
+        raise RecordingError(
+            f"{recording} has no '{JOINTS_TOPIC}' joints or no '{TRUTH_TOPIC}' segments; "
+            "record it with `python -m handflow.plugins.demo.gestures record`"
+        )
     Y = np.stack(rows)
     arrays, per_label = {}, {}
     for ev in segments:
         k = per_label.get(ev.label, 0)
-        arrays[f"{ev.label}_{k}"] = Y[ev.start_index: ev.end_index + 1]
+        arrays[f"{ev.label}_{k}"] = Y[ev.start_index : ev.end_index + 1]
         per_label[ev.label] = k + 1
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    np.savez_compressed(out, **arrays, metadata=np.array(json.dumps({"columns": list(joints), "source": str(recording)})))
+    np.savez_compressed(
+        out, **arrays, metadata=np.array(json.dumps({"columns": list(joints), "source": str(recording)}))
+    )
     return per_label
 
 
 # ----------------------------------------------------------------------------------------------
-# Command line: python -m plugins.demo.gestures {frames,record,dataset}
+# Command line: python -m handflow.plugins.demo.gestures {frames,record,dataset}
 # ----------------------------------------------------------------------------------------------
 def _script_steps(text: str) -> list[tuple[str, float]]:
     try:
         return [(label, float(d)) for label, d in (item.split(":") for item in text.split(","))]
     except ValueError:
-        raise argparse.ArgumentTypeError(f"--script must look like grasp:8,wave:8 (gesture:seconds,...), got {text!r}") from None
+        raise argparse.ArgumentTypeError(
+            f"--script must look like grasp:8,wave:8 (gesture:seconds,...), got {text!r}"
+        ) from None
 
 
 def register(parser: argparse.ArgumentParser) -> None:
@@ -325,8 +414,12 @@ def register(parser: argparse.ArgumentParser) -> None:
     sub = parser.add_subparsers(dest="what", required=True, metavar="WHAT")
     fr = sub.add_parser("frames", help="raw glove frames (.npy) of a gesture script, for emulator.frames")
     fr.add_argument("--out", required=True, help="output .npy (n × 22 raw values)")
-    fr.add_argument("--script", type=_script_steps, default=list(DEMO_SCRIPT), help="gesture:seconds,... "
-                    f"(default {','.join(f'{g}:{d:g}' for g, d in DEMO_SCRIPT)})")
+    fr.add_argument(
+        "--script",
+        type=_script_steps,
+        default=list(DEMO_SCRIPT),
+        help=f"gesture:seconds,... (default {','.join(f'{g}:{d:g}' for g, d in DEMO_SCRIPT)})",
+    )
     fr.add_argument("--rate", type=float, default=50.0, help="glove rate in Hz (the graph's glove_rate_hz)")
     fr.add_argument("--seed", type=int, default=0)
     rec = sub.add_parser("record", help="record every gesture through the glove chain to MCAP")
@@ -349,8 +442,11 @@ def run(args: argparse.Namespace) -> int:
             frames = script.frames(args.rate, seed=args.seed)
             Path(args.out).parent.mkdir(parents=True, exist_ok=True)
             np.save(args.out, frames.astype(np.uint8))
-            print(f"wrote {len(frames)} frames ({script.duration_s:g} s at {args.rate:g} Hz: "
-                  + ", ".join(f"{s.label} {s.start_s:g}–{s.end_s:g} s" for s in script.segments) + f") to {args.out}")
+            print(
+                f"wrote {len(frames)} frames ({script.duration_s:g} s at {args.rate:g} Hz: "
+                + ", ".join(f"{s.label} {s.start_s:g}–{s.end_s:g} s" for s in script.segments)
+                + f") to {args.out}"
+            )
         elif args.what == "record":
             if args.sequences < 3:
                 raise ValueError("--sequences must be ≥ 3 (train-classes splits them into train/validation/test)")
@@ -358,13 +454,16 @@ def run(args: argparse.Namespace) -> int:
             unknown = sorted(set(gestures or []) - set(GESTURES))
             if unknown:
                 raise ValueError(f"unknown gesture(s) {unknown}; choose from {sorted(GESTURES)}")
-            counts = record_gestures(args.out, args.sequences, args.duration, args.rate, seed=args.seed,
-                                     gestures=gestures)
+            counts = record_gestures(
+                args.out, args.sequences, args.duration, args.rate, seed=args.seed, gestures=gestures
+            )
             print(f"wrote {sum(counts.values())} messages to {args.out}")
         else:
             per_label = gesture_dataset(args.recording, args.out)
-            print(f"wrote {sum(per_label.values())} sequences ({', '.join(f'{k}: {v}' for k, v in per_label.items())}) "
-                  f"to {args.out}")
+            print(
+                f"wrote {sum(per_label.values())} sequences ({', '.join(f'{k}: {v}' for k, v in per_label.items())}) "
+                f"to {args.out}"
+            )
     except (ValueError, OSError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
@@ -372,7 +471,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m plugins.demo.gestures", description=register.__doc__)
+    parser = argparse.ArgumentParser(prog="python -m handflow.plugins.demo.gestures", description=register.__doc__)
     register(parser)
     args = parser.parse_args(argv)
     return args.func(args)

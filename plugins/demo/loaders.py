@@ -1,24 +1,26 @@
-"""Loading the demonstration recordings of ``handflow demo-record`` (layout: :mod:`plugins.demo.demonstrations`).
+"""Loading the demonstration recordings of ``handflow demo-record`` (layout: :mod:`handflow.plugins.demo.demonstrations`).
 
 Both loaders find their topics by suffix (``…/sim/joints``, ``…/demo/label``,
 ``…/demo/observation``), so a recording of a real glove session with the same ports loads too,
 and pair messages by identical log time.  They raise :class:`ValueError` naming the missing
 topic or the command that records the file.
 """
+
 from __future__ import annotations
 
 from pathlib import Path
 
 import numpy as np
 
-from framework.recording import read_messages
+from handflow.framework.recording import read_messages
 
 
 def _by_suffix(path, suffixes: tuple[str, ...]) -> dict[str, list[tuple[int, object]]]:
     path = Path(path)
     if not path.is_file():
-        raise ValueError(f"demonstration recording {path} not found; record one with "
-                         f"`handflow demo-record cap|balls --out {path}`")
+        raise ValueError(
+            f"demonstration recording {path} not found; record one with `handflow demo-record cap|balls --out {path}`"
+        )
     out: dict[str, list[tuple[int, object]]] = {s: [] for s in suffixes}
     for topic, msg, log_time in read_messages(path):
         for s in suffixes:
@@ -26,8 +28,10 @@ def _by_suffix(path, suffixes: tuple[str, ...]) -> dict[str, list[tuple[int, obj
                 out[s].append((log_time, msg))
     missing = [s for s, found in out.items() if not found]
     if missing:
-        raise ValueError(f"{path} has no messages on …/{', …/'.join(missing)}; is it a "
-                         f"`handflow demo-record` recording of the right task?")
+        raise ValueError(
+            f"{path} has no messages on …/{', …/'.join(missing)}; is it a "
+            f"`handflow demo-record` recording of the right task?"
+        )
     return out
 
 
@@ -72,8 +76,11 @@ def load_ball_demonstrations(path) -> list[tuple[dict, np.ndarray, list[str]]]:
         names = list(obs.names)
     out = []
     for c, rows in cycles.items():
-        meta = {"swap_cycle": c, "time_s": np.array([t for t, _, _ in rows]) * 1e-9,
-                "hand_cycle": np.array([int(lab["hand_cycle"]) for _, _, lab in rows]),
-                "hand_phase": np.array([lab["hand_phase"] for _, _, lab in rows])}
+        meta = {
+            "swap_cycle": c,
+            "time_s": np.array([t for t, _, _ in rows]) * 1e-9,
+            "hand_cycle": np.array([int(lab["hand_cycle"]) for _, _, lab in rows]),
+            "hand_phase": np.array([lab["hand_phase"] for _, _, lab in rows]),
+        }
         out.append((meta, np.vstack([d for _, d, _ in rows]), names))
     return out

@@ -1,4 +1,5 @@
 """Commands ``handflow glove-emulator`` and ``handflow calibrate`` (issue 4 items 3 and 5)."""
+
 from __future__ import annotations
 
 import argparse
@@ -8,8 +9,13 @@ from pathlib import Path
 
 import numpy as np
 
-from plugins.mapping.calibration import (DEFAULT_PROFILE, CalibrationFileError, calibrate_session, load_profile,
-                                         save)
+from handflow.plugins.mapping.calibration import (
+    DEFAULT_PROFILE,
+    CalibrationFileError,
+    calibrate_session,
+    load_profile,
+    save,
+)
 
 from .frames_io import load_frames, save_frames
 from .node import EmulatorParams, FaultParams, build_emulator
@@ -41,7 +47,8 @@ def _fault(text: str) -> FaultParams:
     except (ValueError, TypeError) as exc:
         raise argparse.ArgumentTypeError(
             f"bad fault '{text}': use KIND@RECORD[:SIZE[:DURATION_S]] with KIND one of garbage, drop_bytes, "
-            f"truncate, zero_value, disconnect, stall ({exc})") from None
+            f"truncate, zero_value, disconnect, stall ({exc})"
+        ) from None
 
 
 # ------------------------------------------------------------------------------------------------
@@ -53,18 +60,30 @@ def register_emulator(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--motion-period", type=float, default=4.0, help="grasp cycle of the synthetic motion (s)")
     parser.add_argument("--noise", type=float, default=0.5, help="sensor noise of the synthetic motion (raw units)")
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--fault", type=_fault, action="append", default=[], metavar="KIND@RECORD[:SIZE[:DURATION_S]]",
-                        help="inject a fault at a streamed record number (repeatable)")
-    parser.add_argument("--rfcomm", action="store_true",
-                        help="Bluetooth-like delivery: bursts of 1-5 records, up to 30 ms jitter")
+    parser.add_argument(
+        "--fault",
+        type=_fault,
+        action="append",
+        default=[],
+        metavar="KIND@RECORD[:SIZE[:DURATION_S]]",
+        help="inject a fault at a streamed record number (repeatable)",
+    )
+    parser.add_argument(
+        "--rfcomm", action="store_true", help="Bluetooth-like delivery: bursts of 1-5 records, up to 30 ms jitter"
+    )
     parser.add_argument("--duration", type=float, help="stop after this many seconds (default: until Ctrl-C)")
     parser.set_defaults(func=run_emulator)
 
 
 def run_emulator(args: argparse.Namespace) -> int:
-    opts = EmulatorParams(frames=args.frames, motion_period_s=args.motion_period, noise=args.noise,
-                          seed=args.seed, faults=args.fault,
-                          **({"burst": 5, "jitter_s": 0.03} if args.rfcomm else {}))
+    opts = EmulatorParams(
+        frames=args.frames,
+        motion_period_s=args.motion_period,
+        noise=args.noise,
+        seed=args.seed,
+        faults=args.fault,
+        **({"burst": 5, "jitter_s": 0.03} if args.rfcomm else {}),
+    )
     try:
         emu = build_emulator(opts)
     except (OSError, ValueError) as exc:
@@ -72,8 +91,11 @@ def run_emulator(args: argparse.Namespace) -> int:
         return 2
     emu.start()
     print(emu.path, flush=True)
-    print(f"CyberGlove II emulator on {emu.path} (pty {Path(emu.path).resolve()}); use it as the glove port. "
-          "Ctrl-C to stop.", file=sys.stderr)
+    print(
+        f"CyberGlove II emulator on {emu.path} (pty {Path(emu.path).resolve()}); use it as the glove port. "
+        "Ctrl-C to stop.",
+        file=sys.stderr,
+    )
     try:
         end = time.monotonic() + args.duration if args.duration else None
         while end is None or time.monotonic() < end:
@@ -99,8 +121,12 @@ def register_calibrate(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--topic", help="MCAP topic of the glove frames (default: every GloveFrame)")
     parser.add_argument("--step-seconds", type=float, default=5.0, help="recording time per guided step")
     parser.add_argument("--glove-rate", type=float, default=100.0, help="glove sample rate (Hz)")
-    parser.add_argument("--support", type=int, default=5,
-                        help="robust extreme: the N-th most extreme reading (rejects up to N-1 outliers)")
+    parser.add_argument(
+        "--support",
+        type=int,
+        default=5,
+        help="robust extreme: the N-th most extreme reading (rejects up to N-1 outliers)",
+    )
     parser.add_argument("--save-session", help="also save the raw session frames (.mcap/.npy/.csv)")
     parser.set_defaults(func=run_calibrate)
 
@@ -121,8 +147,12 @@ def _record_live(args: argparse.Namespace) -> np.ndarray:
                 time.sleep(min(0.1, left))
                 rows.extend(rec.values for rec, _ in reader.drain())
                 state, counters = reader.snapshot()
-                print(f"\r  {left:4.1f} s left · {len(rows)} frames · link {state} · corrupt {counters['corrupt']:.0f}   ",
-                      end="", file=sys.stderr, flush=True)
+                print(
+                    f"\r  {left:4.1f} s left · {len(rows)} frames · link {state} · corrupt {counters['corrupt']:.0f}   ",
+                    end="",
+                    file=sys.stderr,
+                    flush=True,
+                )
         print(file=sys.stderr)
     finally:
         reader.stop()
@@ -130,8 +160,10 @@ def _record_live(args: argparse.Namespace) -> np.ndarray:
         if emulator:
             emulator.stop()
     if not rows:
-        raise RuntimeError(f"no frames from the glove on {port} ({reader.last_error or 'no data'}); "
-                           "check the port and that the glove is switched on")
+        raise RuntimeError(
+            f"no frames from the glove on {port} ({reader.last_error or 'no data'}); "
+            "check the port and that the glove is switched on"
+        )
     return np.stack(rows)
 
 
@@ -159,7 +191,8 @@ def run_calibrate(args: argparse.Namespace) -> int:
     print(f"wrote {args.output}: {calib.n_samples} frames, profile '{profile.name}'")
     rejected = {k: v for k, v in calib.rejected.items() if v}
     if rejected:
-        print(f"samples set aside beyond the robust extremes (≤ {args.support - 1} per side by design; "
-              "more on the thumb, whose two sensors are combined): "
-              + ", ".join(f"{k} {v}" for k, v in rejected.items()))
+        print(
+            f"samples set aside beyond the robust extremes (≤ {args.support - 1} per side by design; "
+            "more on the thumb, whose two sensors are combined): " + ", ".join(f"{k} {v}" for k, v in rejected.items())
+        )
     return 0

@@ -22,6 +22,7 @@ vanishes mid-record and reappears after ``duration_s``; streaming has stopped, s
 of that time are never produced).  ``sent`` holds every streamed record started; the records a
 fault damaged (possibly still readable, e.g. after a short stall) are in ``damaged``.
 """
+
 from __future__ import annotations
 
 import collections
@@ -32,14 +33,16 @@ import tempfile
 import threading
 import time
 import tty
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, Literal
+from typing import Literal
 
 import numpy as np
 
+from handflow.plugins.hands.sensors import MASK22, N_SENSORS
+
 from . import protocol as P
-from .sensors import MASK22, N_SENSORS
 
 Source = Callable[[int, float], np.ndarray]
 """Record values for record number ``k`` at emulator time ``t`` seconds."""
@@ -99,10 +102,19 @@ class GloveEmulator:
     streamed record started (the last ``log_limit``); ``damaged`` holds the timestamps of records a fault broke.
     """
 
-    def __init__(self, source: Source | None = None, *, period: tuple[int, int] = (1152, 1),
-                 faults: list[Fault] | None = None, seed: int = 0, reset_delay_s: float = 1.75,
-                 link_dir: str | Path | None = None, log_limit: int = 1_000_000, burst: int = 1,
-                 jitter_s: float = 0.0) -> None:
+    def __init__(
+        self,
+        source: Source | None = None,
+        *,
+        period: tuple[int, int] = (1152, 1),
+        faults: list[Fault] | None = None,
+        seed: int = 0,
+        reset_delay_s: float = 1.75,
+        link_dir: str | Path | None = None,
+        log_limit: int = 1_000_000,
+        burst: int = 1,
+        jitter_s: float = 0.0,
+    ) -> None:
         self.source = source or constant_source()
         self.faults = sorted(faults or [], key=lambda f: f.at_record)
         self.rng = np.random.default_rng(seed)
@@ -128,7 +140,7 @@ class GloveEmulator:
         self._t0 = time.monotonic()
 
     # -- lifecycle -------------------------------------------------------------------------------
-    def start(self) -> "GloveEmulator":
+    def start(self) -> GloveEmulator:
         self._open_pty()
         self._thread = threading.Thread(target=self._run, name="glove-emulator", daemon=True)
         self._thread.start()
@@ -142,7 +154,7 @@ class GloveEmulator:
         if self._own_dir:
             shutil.rmtree(self._dir, ignore_errors=True)
 
-    def __enter__(self) -> "GloveEmulator":
+    def __enter__(self) -> GloveEmulator:
         return self.start()
 
     def __exit__(self, *exc) -> None:
@@ -241,8 +253,9 @@ class GloveEmulator:
             elif letter == "G":
                 del buf[0]
                 fmt = self.state.record_format(P.LEAD_POLL)
-                self._write(P.encode_record(self.source(self._record_no, self._now()), fmt,
-                                            self.ticks(), self._status()))
+                self._write(
+                    P.encode_record(self.source(self._record_no, self._now()), fmt, self.ticks(), self._status())
+                )
             elif letter == "?":
                 if len(buf) < 2:
                     return
@@ -252,8 +265,8 @@ class GloveEmulator:
                 n = P.SET_ARG_LEN[letter]
                 if len(buf) < 1 + n:
                     return
-                self._set(letter, bytes(buf[1:1 + n]))
-                del buf[:1 + n]
+                self._set(letter, bytes(buf[1 : 1 + n]))
+                del buf[: 1 + n]
                 self._write(letter.encode() + b"\x00")
             elif c == 0x12:
                 del buf[0]
@@ -278,14 +291,34 @@ class GloveEmulator:
         if letter == "i":
             return b"?iCyberGlove II emulator (handflow)\r\n22 sensors, right hand\r\n\x00"
         payloads = {
-            "G": bytes([3]), "S": bytes([N_SENSORS]), "K": MASK22.to_bytes(3, "little"),
-            "M": s.mask.to_bytes(3, "little"), "N": bytes([s.n_values]), "R": bytes([int(s.right_hand)]),
+            "G": bytes([3]),
+            "S": bytes([N_SENSORS]),
+            "K": MASK22.to_bytes(3, "little"),
+            "M": s.mask.to_bytes(3, "little"),
+            "N": bytes([s.n_values]),
+            "R": bytes([int(s.right_hand)]),
             "T": s.period[0].to_bytes(2, "big") + s.period[1].to_bytes(2, "big"),
-            "U": bytes([int(s.status_byte)]), "D": bytes([int(s.timestamp)]), "F": bytes([int(s.filter)]),
-            "J": bytes([int(s.switch_light)]), "L": bytes([int(s.light)]), "Q": bytes([int(s.quantized)]),
-            "W": bytes([0]), "B": bytes([0]), "Y": bytes([0]),
-            "P": bytes([self._status(), 0x80 | 0x40 * s.right_hand | 0x20 * s.timestamp | 0x10 * s.filter
-                        | 0x08 * s.switch_light | 0x04 * s.status_byte, int(s.quantized)]),
+            "U": bytes([int(s.status_byte)]),
+            "D": bytes([int(s.timestamp)]),
+            "F": bytes([int(s.filter)]),
+            "J": bytes([int(s.switch_light)]),
+            "L": bytes([int(s.light)]),
+            "Q": bytes([int(s.quantized)]),
+            "W": bytes([0]),
+            "B": bytes([0]),
+            "Y": bytes([0]),
+            "P": bytes(
+                [
+                    self._status(),
+                    0x80
+                    | 0x40 * s.right_hand
+                    | 0x20 * s.timestamp
+                    | 0x10 * s.filter
+                    | 0x08 * s.switch_light
+                    | 0x04 * s.status_byte,
+                    int(s.quantized),
+                ]
+            ),
         }
         if letter not in payloads:
             self.counters["unknown_commands"] += 1
@@ -301,8 +334,14 @@ class GloveEmulator:
         elif letter == "N":
             s.n_values = min(arg[0], N_SENSORS)
         else:
-            attr = {"D": "timestamp", "U": "status_byte", "F": "filter", "J": "switch_light", "L": "light",
-                    "Q": "quantized"}.get(letter)
+            attr = {
+                "D": "timestamp",
+                "U": "status_byte",
+                "F": "filter",
+                "J": "switch_light",
+                "L": "light",
+                "Q": "quantized",
+            }.get(letter)
             if attr:
                 setattr(s, attr, bool(arg[0]))
 
@@ -339,14 +378,14 @@ class GloveEmulator:
         self.damaged.add(ticks)
         if fault.kind == "drop_bytes":
             at = int(rng.integers(1, len(record) - fault.size + 1))
-            return record[:at] + record[at + fault.size:]
+            return record[:at] + record[at + fault.size :]
         if fault.kind == "truncate":
-            return record[:int(rng.integers(1, len(record) - 1))]
+            return record[: int(rng.integers(1, len(record) - 1))]
         if fault.kind == "zero_value":
             at = int(rng.integers(1, 1 + self.state.n_values))
-            return record[:at] + b"\x00" + record[at + 1:]
+            return record[:at] + b"\x00" + record[at + 1 :]
         if fault.kind == "disconnect":
-            self._write(record[:len(record) // 2])
+            self._write(record[: len(record) // 2])
             self._close_pty()
             self.state.streaming = False
             self._sleep(fault.duration_s)

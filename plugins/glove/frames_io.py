@@ -1,18 +1,18 @@
 """Raw glove frames from and to files: ``.npy``, ``.csv`` (n × 22 integers) or MCAP recordings.
 
-MCAP files are read and written with :mod:`framework.recording` (GloveFrame messages, JSON), so a
+MCAP files are read and written with :mod:`handflow.framework.recording` (GloveFrame messages, JSON), so a
 recording made by the runtime, by ``handflow calibrate`` or by :func:`save_frames` all work.
 """
+
 from __future__ import annotations
 
 from pathlib import Path
 
 import numpy as np
 
-from framework.messages import GloveFrame
-from framework.recording import McapWriter, RecordingError, read_messages
-
-from .sensors import N_SENSORS
+from handflow.framework.messages import GloveFrame
+from handflow.framework.recording import McapWriter, RecordingError, read_messages
+from handflow.plugins.hands.sensors import N_SENSORS
 
 DEFAULT_TOPIC = "handflow/glove/glove/frames"
 
@@ -26,13 +26,16 @@ def load_frames(path: str | Path, topic: str | None = None) -> np.ndarray:
     suffix = p.suffix.lower()
     if suffix == ".mcap":
         try:
-            rows = [m.sensors for t, m, _ in read_messages(p)
-                    if isinstance(m, GloveFrame) and (topic is None or t == topic)]
+            rows = [
+                m.sensors for t, m, _ in read_messages(p) if isinstance(m, GloveFrame) and (topic is None or t == topic)
+            ]
         except RecordingError as exc:
             raise ValueError(f"cannot read glove frames from '{p}': {exc}") from None
         if not rows:
-            raise ValueError(f"'{p}' holds no GloveFrame messages{f' on {topic}' if topic else ''}; "
-                             "record the glove's 'frames' output")
+            raise ValueError(
+                f"'{p}' holds no GloveFrame messages{f' on {topic}' if topic else ''}; "
+                "record the glove's 'frames' output"
+            )
         frames = np.stack(rows)
     elif suffix == ".npy":
         frames = np.load(p)

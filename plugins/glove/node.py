@@ -1,4 +1,4 @@
-"""``glove.cyberglove``: CyberGlove II reader node (thin wrapper of :class:`~plugins.glove.reader.GloveReader`).
+"""``glove.cyberglove``: CyberGlove II reader node (thin wrapper of :class:`~handflow.plugins.glove.reader.GloveReader`).
 
 The reader thread timestamps records on arrival (``ctx.now_ns``) and queues them; the node drains
 the queue in ``tick()`` (``rate_hz``, default 500 Hz) and publishes every record on ``frames``
@@ -6,10 +6,11 @@ the queue in ``tick()`` (``rate_hz``, default 500 Hz) and publishes every record
 state (``ok`` streaming, ``warn`` connecting/stalled, ``error`` disconnected) with the counters,
 on every change and every ``status_period_s``.
 
-``port: emulator`` starts an embedded :class:`~plugins.glove.emulator.GloveEmulator` (source:
+``port: emulator`` starts an embedded :class:`~handflow.plugins.glove.emulator.GloveEmulator` (source:
 the synthetic hand motion, or ``emulator.frames`` = a .npy/.csv/.mcap file of raw frames), so a
 graph runs without hardware and without a second command.
 """
+
 from __future__ import annotations
 
 import glob
@@ -18,8 +19,8 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from framework.messages import GloveFrame, Status
-from framework.plugin import Node
+from handflow.framework.messages import GloveFrame, Status
+from handflow.framework.plugin import Node
 
 from .emulator import Fault, GloveEmulator, array_source
 from .frames_io import load_frames
@@ -53,7 +54,9 @@ def build_emulator(opts: EmulatorParams, resolve=lambda p: p) -> GloveEmulator:
     if opts.frames:
         source = array_source(load_frames(resolve(opts.frames)))
     else:
-        source = SyntheticGlove(HandMotion(opts.motion_period_s, seed=opts.seed), noise=opts.noise, seed=opts.seed).source
+        source = SyntheticGlove(
+            HandMotion(opts.motion_period_s, seed=opts.seed), noise=opts.noise, seed=opts.seed
+        ).source
     faults = [Fault(f.kind, f.at_record, f.size, f.duration_s) for f in opts.faults]
     return GloveEmulator(source, faults=faults, seed=opts.seed, burst=opts.burst, jitter_s=opts.jitter_s)
 
@@ -70,9 +73,11 @@ def missing_device_message(port: str) -> str | None:
     if port == "emulator" or port.startswith("bt://") or Path(port).exists():
         return None
     found = ", ".join(serial_ports()) or "none"
-    return (f"glove device {port} not found (serial ports on this machine: {found}); plug the glove in or pair it "
-            f"(Bluetooth: /dev/rfcommN), set 'port' to its device, or use 'port: emulator' to run without "
-            f"hardware; retrying in the background")
+    return (
+        f"glove device {port} not found (serial ports on this machine: {found}); plug the glove in or pair it "
+        f"(Bluetooth: /dev/rfcommN), set 'port' to its device, or use 'port: emulator' to run without "
+        f"hardware; retrying in the background"
+    )
 
 
 class CyberGloveNode(Node):
@@ -101,7 +106,9 @@ class CyberGloveNode(Node):
             port = self.emulator.path
         elif (problem := missing_device_message(port)) is not None:
             self.ctx.log.error(problem)
-        cfg = ReaderConfig(port, p.baudrate, p.glove_rate_hz, p.timestamp, p.status_byte, stall_timeout_s=p.stall_timeout_s)
+        cfg = ReaderConfig(
+            port, p.baudrate, p.glove_rate_hz, p.timestamp, p.status_byte, stall_timeout_s=p.stall_timeout_s
+        )
         self.reader = GloveReader(cfg, clock_ns=self.ctx.now_ns).start()
         self._last_state = None
         self._last_status_ns = None
@@ -109,8 +116,11 @@ class CyberGloveNode(Node):
 
     def _publish_pending(self) -> None:
         for rec, arrival_ns in self.reader.drain():
-            self.ctx.publish("frames", GloveFrame(sensors=rec.values, device_time=rec.device_time, status=rec.status,
-                                                  arrival_ns=arrival_ns), stamp_ns=arrival_ns)
+            self.ctx.publish(
+                "frames",
+                GloveFrame(sensors=rec.values, device_time=rec.device_time, status=rec.status, arrival_ns=arrival_ns),
+                stamp_ns=arrival_ns,
+            )
             self.published += 1
 
     def tick(self) -> None:

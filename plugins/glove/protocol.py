@@ -15,6 +15,7 @@ byte is sent as 0x01 with its flag bit set and decoded to 0 (§6.1, works with V
 the status byte must have bit 7 set (§6.2); bit 7 of the timestamp flag byte is not required
 (§14 item 7).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -28,12 +29,28 @@ LEAD_POLL = ord("G")
 TICK_HZ = 115200
 """CGIU clock: the timestamp counter and the ``T`` period count at 115200 Hz."""
 
-QUERY_PAYLOAD = {"B": 1, "D": 1, "F": 1, "G": 1, "J": 1, "K": 3, "L": 1, "M": 3, "N": 1,
-                 "P": 3, "Q": 1, "R": 1, "S": 1, "T": 4, "U": 1, "W": 1, "Y": 1}
+QUERY_PAYLOAD = {
+    "B": 1,
+    "D": 1,
+    "F": 1,
+    "G": 1,
+    "J": 1,
+    "K": 3,
+    "L": 1,
+    "M": 3,
+    "N": 1,
+    "P": 3,
+    "Q": 1,
+    "R": 1,
+    "S": 1,
+    "T": 4,
+    "U": 1,
+    "W": 1,
+    "Y": 1,
+}
 """Payload length of the binary query replies ``? X payload NUL`` (§3, §4)."""
 
-SET_ARG_LEN = {"B": 1, "D": 1, "F": 1, "J": 1, "L": 1, "M": 3, "N": 1, "P": 3, "Q": 1, "T": 4,
-               "U": 1, "W": 1, "Y": 1}
+SET_ARG_LEN = {"B": 1, "D": 1, "F": 1, "J": 1, "L": 1, "M": 3, "N": 1, "P": 3, "Q": 1, "T": 4, "U": 1, "W": 1, "Y": 1}
 """Argument length of the binary set commands (§4); each is acknowledged with ``letter NUL``."""
 
 ERROR_CODES = {ord("s"): "sample_rate", ord("g"): "glove_unplugged"}
@@ -136,8 +153,9 @@ def decode_timestamp(five: bytes) -> int:
     return int.from_bytes(raw, "little")
 
 
-def encode_record(values: np.ndarray, fmt: RecordFormat, device_time: int = 0, status: int = 0x81,
-                  errors: tuple[str, ...] = ()) -> bytes:
+def encode_record(
+    values: np.ndarray, fmt: RecordFormat, device_time: int = 0, status: int = 0x81, errors: tuple[str, ...] = ()
+) -> bytes:
     """Wire bytes of a record incl. the NUL; values are clamped to 1…255 (0 is the terminator)."""
     vals = np.clip(np.asarray(values, dtype=np.int64), 1, 255).astype(np.uint8)
     if vals.size != fmt.n_values:
@@ -237,7 +255,7 @@ class StreamParser:
         values = np.frombuffer(frame, dtype=np.uint8, count=fmt.n_values, offset=1).astype(np.int64)
         device_time = None
         if fmt.timestamp:
-            device_time = decode_timestamp(frame[pos:pos + 5])
+            device_time = decode_timestamp(frame[pos : pos + 5])
             pos += 5
         status = None
         if fmt.status:
@@ -258,7 +276,7 @@ def parse_query_reply(letter: str, buf: bytes) -> tuple[bytes, int] | None:
         if len(buf) <= end:
             return None
         if buf[end] == NUL:
-            return bytes(buf[start + 2:end]), end + 1
+            return bytes(buf[start + 2 : end]), end + 1
         start = buf.find(head, start + 1)
     return None
 

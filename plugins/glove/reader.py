@@ -5,7 +5,7 @@ or ``/dev/rfcommN`` device, or a direct RFCOMM socket for ``bt://AA:BB:CC:DD:EE:
 where the OS has ``socket.AF_BLUETOOTH``), stops a running stream (``^C``; bytes still in flight
 are parsed, not flushed), checks ``?G`` = 3 and ``?S``, configures timestamp (``D``), status byte
 (``U``) and period (``T``), starts ``S`` and frames the stream with
-:class:`~plugins.glove.protocol.StreamParser`.  Every record gets the arrival time from ``clock_ns``
+:class:`~handflow.plugins.glove.protocol.StreamParser`.  Every record gets the arrival time from ``clock_ns``
 (the node passes ``ctx.now_ns``) and is appended to a thread-safe queue that :meth:`drain` empties.
 
 If no record arrives for ``stall_timeout_s`` the link counts as stalled and is re-initialised; an
@@ -13,19 +13,21 @@ I/O error or a vanished device closes the port and reopens it with exponential b
 state and counters (records, corrupt, gaps, missed records from the device timestamps, reconnects
 …) are read with :meth:`snapshot`.
 """
+
 from __future__ import annotations
 
 import collections
 import socket
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import serial
 
+from handflow.plugins.hands.sensors import N_SENSORS
+
 from . import protocol as P
-from .sensors import N_SENSORS
 
 
 class GloveLinkError(RuntimeError):
@@ -54,8 +56,10 @@ class RfcommTransport:
 
     def __init__(self, address: str, channel: int, timeout: float) -> None:
         if not hasattr(socket, "AF_BLUETOOTH"):
-            raise GloveLinkError("this Python/OS has no socket.AF_BLUETOOTH; bind the glove to "
-                                 "/dev/rfcommN (rfcomm bind) and use that path as the port")
+            raise GloveLinkError(
+                "this Python/OS has no socket.AF_BLUETOOTH; bind the glove to "
+                "/dev/rfcommN (rfcomm bind) and use that path as the port"
+            )
         self._sock = socket.socket(socket.AF_BLUETOOTH, socket.SOCK_STREAM, socket.BTPROTO_RFCOMM)
         self._sock.connect((address, channel))
         self._sock.settimeout(timeout)
@@ -63,7 +67,7 @@ class RfcommTransport:
     def read(self, n: int) -> bytes:
         try:
             data = self._sock.recv(n)
-        except socket.timeout:
+        except TimeoutError:
             return b""
         if not data:
             raise OSError("RFCOMM connection closed by the glove")
@@ -85,8 +89,17 @@ def open_transport(cfg: ReaderConfig):
     if cfg.port.startswith("bt://"):
         addr, _, chan = cfg.port[5:].partition("/")
         return RfcommTransport(addr, int(chan or 1), cfg.read_timeout_s)
-    return serial.Serial(cfg.port, cfg.baudrate, bytesize=8, parity="N", stopbits=1, xonxoff=False,
-                         rtscts=False, timeout=cfg.read_timeout_s, write_timeout=1.0)
+    return serial.Serial(
+        cfg.port,
+        cfg.baudrate,
+        bytesize=8,
+        parity="N",
+        stopbits=1,
+        xonxoff=False,
+        rtscts=False,
+        timeout=cfg.read_timeout_s,
+        write_timeout=1.0,
+    )
 
 
 class GloveReader:
@@ -99,8 +112,15 @@ class GloveReader:
         self.period_words = P.period_words(cfg.rate_hz)
         self.link_state = "stopped"
         self.info = ""
-        self.counters = {"reconnects": 0, "stalls": 0, "gaps": 0, "missed_records": 0, "out_of_order": 0,
-                         "io_errors": 0, "bringup_failures": 0}
+        self.counters = {
+            "reconnects": 0,
+            "stalls": 0,
+            "gaps": 0,
+            "missed_records": 0,
+            "out_of_order": 0,
+            "io_errors": 0,
+            "bringup_failures": 0,
+        }
         self._queue: collections.deque = collections.deque()
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
@@ -109,7 +129,7 @@ class GloveReader:
         self.last_error = ""
 
     # -- public ----------------------------------------------------------------------------------
-    def start(self) -> "GloveReader":
+    def start(self) -> GloveReader:
         self._stop.clear()
         self._thread = threading.Thread(target=self._run, name="glove-reader", daemon=True)
         self._thread.start()
@@ -197,7 +217,9 @@ class GloveReader:
         self.parser.reset()
         valid = self._query(link, "G")[0]
         if valid != 3:
-            raise GloveLinkError(f"glove not ready: ?G = {valid} (3 = initialised and connected); check the glove cable")
+            raise GloveLinkError(
+                f"glove not ready: ?G = {valid} (3 = initialised and connected); check the glove cable"
+            )
         n = self._query(link, "S")[0]
         if n != N_SENSORS:
             raise GloveLinkError(f"glove reports {n} sensors; this reader supports the 22-sensor CyberGlove II")
@@ -218,7 +240,9 @@ class GloveReader:
         link.write(command)
         buf = self._read_for(link, self.cfg.reply_timeout_s, lambda b: P.parse_ack(letter, b) is not None)
         if P.parse_ack(letter, buf) is None:
-            raise GloveLinkError(f"no acknowledgement of '{letter}' within {self.cfg.reply_timeout_s} s (got {buf[:32]!r})")
+            raise GloveLinkError(
+                f"no acknowledgement of '{letter}' within {self.cfg.reply_timeout_s} s (got {buf[:32]!r})"
+            )
 
     def _stream(self, link) -> None:
         last_record = time.monotonic()

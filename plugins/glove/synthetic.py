@@ -3,18 +3,19 @@
 :class:`HandMotion` generates smooth, seedable human-model postures (grasp open/close with per-finger
 phase lags, thumb opposition, spread, small wrist motion), all inside the joint limits and obeying
 the spread constraint (index and little spread equally).  The inverse sensor model is the exact
-inverse of the first mapping (:meth:`plugins.mapping.human.HumanHandMapping.inverse`) for a glove
+inverse of the first mapping (:meth:`handflow.plugins.mapping.human.HumanHandMapping.inverse`) for a glove
 profile and session calibration, rounded and clamped to the wire range 1…255.
 """
+
 from __future__ import annotations
 
 from pathlib import Path
 
 import numpy as np
 
-from plugins.mapping.calibration import DEFAULT_CALIBRATION, DEFAULT_PROFILE, load_calibration, load_profile
-from plugins.mapping.hands import HUMAN
-from plugins.mapping.human import HumanHandMapping
+from handflow.plugins.hands.joints import HUMAN
+from handflow.plugins.mapping.calibration import DEFAULT_CALIBRATION, DEFAULT_PROFILE, load_calibration, load_profile
+from handflow.plugins.mapping.human import HumanHandMapping
 
 
 class HandMotion:
@@ -50,8 +51,14 @@ class HandMotion:
 class SyntheticGlove:
     """Raw frames of a :class:`HandMotion` seen through a glove profile + session calibration."""
 
-    def __init__(self, motion: HandMotion | None = None, profile_path: str | Path = DEFAULT_PROFILE,
-                 calibration_path: str | Path = DEFAULT_CALIBRATION, noise: float = 0.0, seed: int = 0) -> None:
+    def __init__(
+        self,
+        motion: HandMotion | None = None,
+        profile_path: str | Path = DEFAULT_PROFILE,
+        calibration_path: str | Path = DEFAULT_CALIBRATION,
+        noise: float = 0.0,
+        seed: int = 0,
+    ) -> None:
         self.motion = motion or HandMotion(seed=seed)
         self.mapping = HumanHandMapping(load_profile(profile_path), load_calibration(calibration_path))
         self.noise = noise

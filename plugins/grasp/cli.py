@@ -1,4 +1,5 @@
 """Commands ``grasp-experience``, ``grasp-som`` and ``evaluate grasping`` (docs/grasping.md)."""
+
 from __future__ import annotations
 
 import argparse
@@ -9,6 +10,8 @@ from pathlib import Path
 
 from threadpoolctl import threadpool_limits
 
+from handflow.framework.resources import shipped
+
 from .evaluation import FULL_GRID, OBJECTS, QUICK_GRID, evaluate_grasping
 from .experience import GraspDataset
 from .generation import FIXED_PREGRASP_RANGES, PREGRASP_RANGES, generate_experience
@@ -16,7 +19,7 @@ from .plots import plot_node_postures, plot_u_matrix
 from .som import load_som, save_som
 from .training import train_experience_soms, train_grasp_som
 
-DEFAULT_EXPERIENCE = Path(__file__).resolve().parents[2] / "configs" / "grasp" / "experience"
+DEFAULT_EXPERIENCE = shipped("grasp", "experience")
 """Shipped experience (grasp dataset + SOMs), regenerated with ``handflow grasp-experience --train-soms``."""
 
 
@@ -39,12 +42,16 @@ def _trials(text: str, objects: list[str]) -> int | dict[str, int]:
             return int(text)
         per = {k.strip(): int(v) for k, v in (item.split("=") for item in text.split(",") if item.strip())}
     except ValueError:
-        raise ValueError(f"--trials takes a count (250) or object=count pairs (box=250,cylinder=900), got {text!r}") from None
+        raise ValueError(
+            f"--trials takes a count (250) or object=count pairs (box=250,cylinder=900), got {text!r}"
+        ) from None
     missing = [o for o in objects if o not in per]
     unknown = [o for o in per if o not in objects]
     if missing or unknown:
-        raise ValueError(f"--trials {text!r}: give a count for exactly the objects {','.join(objects)} "
-                         f"(missing {missing}, not generated {unknown})")
+        raise ValueError(
+            f"--trials {text!r}: give a count for exactly the objects {','.join(objects)} "
+            f"(missing {missing}, not generated {unknown})"
+        )
     return per
 
 
@@ -58,14 +65,23 @@ def _pair(text: str, name: str) -> tuple[float, float]:
 
 # -- grasp-experience ---------------------------------------------------------------------------
 def register_generate(parser: argparse.ArgumentParser) -> None:
-    parser.description = ("Generate grasp experience in pybullet (randomised tactile grasps kept when they pass "
-                          "the disturbance test) and optionally train the SOM grasp manifolds.")
+    parser.description = (
+        "Generate grasp experience in pybullet (randomised tactile grasps kept when they pass "
+        "the disturbance test) and optionally train the SOM grasp manifolds."
+    )
     parser.add_argument("--objects", default=",".join(OBJECTS), help="comma-separated subset of box,cylinder,sphere")
-    parser.add_argument("--trials", default="400", help="grasp trials per object: a count, or object=count pairs "
-                        "(e.g. box=250,cylinder=900,sphere=200) to balance the experience")
+    parser.add_argument(
+        "--trials",
+        default="400",
+        help="grasp trials per object: a count, or object=count pairs "
+        "(e.g. box=250,cylinder=900,sphere=200) to balance the experience",
+    )
     parser.add_argument("--local-trials", type=int, default=3, help="jittered retries around each stable grasp")
-    parser.add_argument("--fixed-pregrasp", action="store_true", help="grasp from the evaluation's fixed pre-grasp "
-                        "(only pose and λ vary) instead of random pre-grasps")
+    parser.add_argument(
+        "--fixed-pregrasp",
+        action="store_true",
+        help="grasp from the evaluation's fixed pre-grasp (only pose and λ vary) instead of random pre-grasps",
+    )
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--out", default=str(DEFAULT_EXPERIENCE), help="output folder (gets grasps.npz)")
     parser.add_argument("--train-soms", action="store_true", help="also write som_<object>.npz and som_shared.npz")
@@ -88,13 +104,16 @@ def run_generate(args) -> int:
     out.mkdir(parents=True, exist_ok=True)
     with threadpool_limits(1):
         ranges = FIXED_PREGRASP_RANGES if args.fixed_pregrasp else PREGRASP_RANGES
-        data = generate_experience(objects, trials, seed=args.seed, local_trials=args.local_trials,
-                                   progress=_progress, pregrasp_ranges=ranges)
+        data = generate_experience(
+            objects, trials, seed=args.seed, local_trials=args.local_trials, progress=_progress, pregrasp_ranges=ranges
+        )
         data.save(out / "grasps.npz")
         _progress(f"wrote {len(data)} stable grasps to {out / 'grasps.npz'}: {data.metadata['counts']}")
         if args.train_soms:
             try:
-                train_experience_soms(data, out, objects, args.size, args.shared_size, args.epochs, args.seed, _progress)
+                train_experience_soms(
+                    data, out, objects, args.size, args.shared_size, args.epochs, args.seed, _progress
+                )
             except ValueError as exc:
                 print(f"error: {exc}", file=sys.stderr)
                 return 1
@@ -111,8 +130,12 @@ def register_train_som(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--rows", type=int, default=25)
     parser.add_argument("--cols", type=int, default=25)
     parser.add_argument("--epochs", type=int, default=None, help="default 300 (10 with --resume)")
-    parser.add_argument("--lr", default=None, help="start,end learning rate (default 0.95,0.05; 0.1,0.05 with --resume)")
-    parser.add_argument("--sigma", default=None, help="start,end neighbourhood width (default 6,0.7; 3,0.7 with --resume)")
+    parser.add_argument(
+        "--lr", default=None, help="start,end learning rate (default 0.95,0.05; 0.1,0.05 with --resume)"
+    )
+    parser.add_argument(
+        "--sigma", default=None, help="start,end neighbourhood width (default 6,0.7; 3,0.7 with --resume)"
+    )
     parser.add_argument("--mode", default="online", choices=("online", "batch"))
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--umatrix", help="write the inter-node distance map (PNG)")
@@ -135,15 +158,28 @@ def run_train_som(args) -> int:
                 sigma = _pair(args.sigma, "--sigma") if args.sigma else (3.0, 0.7)
                 som.partial_fit(part.postures, epochs=args.epochs or 10, lr=lr, sigma=sigma)
             else:
-                params = {"lr": _pair(args.lr, "--lr") if args.lr else (0.95, 0.05),
-                          "sigma": _pair(args.sigma, "--sigma") if args.sigma else (6.0, 0.7), "mode": args.mode}
+                params = {
+                    "lr": _pair(args.lr, "--lr") if args.lr else (0.95, 0.05),
+                    "sigma": _pair(args.sigma, "--sigma") if args.sigma else (6.0, 0.7),
+                    "mode": args.mode,
+                }
                 som = train_grasp_som(data, obj, args.rows, args.cols, args.epochs or 300, args.seed, **params)
     except (ValueError, OSError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     qe, te = som.quantization_error(part.postures), som.topographic_error(part.postures)
-    save_som(som, args.out, {"names": list(data.names), "object": args.object, "n_postures": len(part),
-                             "quantization_error": qe, "topographic_error": te, "data": str(args.data)})
+    save_som(
+        som,
+        args.out,
+        {
+            "names": list(data.names),
+            "object": args.object,
+            "n_postures": len(part),
+            "quantization_error": qe,
+            "topographic_error": te,
+            "data": str(args.data),
+        },
+    )
     _progress(f"wrote {args.out}: QE {qe:.4f} rad, topographic error {te:.3f} on {len(part)} grasps")
     if args.umatrix:
         plot_u_matrix(som, args.umatrix, hits=som.hits(part.postures), title=f"SOM grasp manifold ({args.object})")
@@ -154,15 +190,23 @@ def run_train_som(args) -> int:
 
 # -- evaluate grasping -----------------------------------------------------------------------------
 def register_evaluate(parser: argparse.ArgumentParser) -> None:
-    parser.description = ("Grasp every object over a grid of poses with the object-specific SOM, without "
-                          "experience and with one shared SOM; report the shares of stable grasps.")
+    parser.description = (
+        "Grasp every object over a grid of poses with the object-specific SOM, without "
+        "experience and with one shared SOM; report the shares of stable grasps."
+    )
     parser.add_argument("--quick", action="store_true", help="coarse grid (under 2 minutes), same keys")
     parser.add_argument("--json", action="store_true", help="print the result as JSON on stdout")
-    parser.add_argument("--experience", default=str(DEFAULT_EXPERIENCE),
-                        help="folder with som_<object>.npz and som_shared.npz")
+    parser.add_argument(
+        "--experience", default=str(DEFAULT_EXPERIENCE), help="folder with som_<object>.npz and som_shared.npz"
+    )
     parser.add_argument("--objects", default=",".join(OBJECTS))
-    parser.add_argument("--repeats", type=int, default=1, help="pool this many runs of the grid with γ jittered "
-                        "by ±2 %% steps (a 2 %% change of γ flips ~9 %% of the outcomes; 3 resolves smaller differences)")
+    parser.add_argument(
+        "--repeats",
+        type=int,
+        default=1,
+        help="pool this many runs of the grid with γ jittered "
+        "by ±2 %% steps (a 2 %% change of γ flips ~9 %% of the outcomes; 3 resolves smaller differences)",
+    )
     parser.set_defaults(func=run_evaluate)
 
 
@@ -170,8 +214,13 @@ def run_evaluate(args) -> int:
     try:
         objects = _objects(args.objects)
         with threadpool_limits(1):
-            result = evaluate_grasping(args.experience, QUICK_GRID if args.quick else FULL_GRID, objects,
-                                       progress=_progress, repeats=args.repeats)
+            result = evaluate_grasping(
+                args.experience,
+                QUICK_GRID if args.quick else FULL_GRID,
+                objects,
+                progress=_progress,
+                repeats=args.repeats,
+            )
     except (ValueError, FileNotFoundError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
@@ -179,11 +228,15 @@ def run_evaluate(args) -> int:
     if args.json:
         print(json.dumps(result, indent=2))
     else:
-        print(f"{'object':10s} {'experience':>11s} {'no_exp':>8s} {'shared':>8s} {'n':>5s}  experience vs none: won/lost (sign-test p)")
+        print(
+            f"{'object':10s} {'experience':>11s} {'no_exp':>8s} {'shared':>8s} {'n':>5s}  experience vs none: won/lost (sign-test p)"
+        )
         for key in [*objects, "overall"]:
             r = result[key]
             pair = r["paired"]["experience"]
-            print(f"{key:10s} {r['experience']:11.1%} {r['no_experience']:8.1%} {r['shared_som']:8.1%} {r['n_valid']:5d}"
-                  f"  {pair['wins']}/{pair['losses']} (p = {pair['p_sign']:.3f})")
+            print(
+                f"{key:10s} {r['experience']:11.1%} {r['no_experience']:8.1%} {r['shared_som']:8.1%} {r['n_valid']:5d}"
+                f"  {pair['wins']}/{pair['losses']} (p = {pair['p_sign']:.3f})"
+            )
         print(f"grasps per minute: {result['grasps_per_minute']:.1f}")
     return 0

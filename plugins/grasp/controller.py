@@ -38,6 +38,7 @@ sub-targets.  Documented choices (all in :class:`ControllerConfig`):
   re-match and re-steer the free fingers every cycle);
 - ``steer``: which joints a best match moves, and in which direction (:data:`STEER_MODES`).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -77,19 +78,19 @@ APPROACH, CLOSE, WRAP, HOLD = "approach", "close", "wrap", "hold"
 class ControllerConfig:
     """Parameters of the controller (angles in rad, speeds in rad/s)."""
 
-    gamma: float = 1.0          # closing speed γ of the distal joints
-    lam: float = 1.0            # proximal joints close at λ·γ (λ > 1: marginal, λ ≈ 1: distinct flexion)
+    gamma: float = 1.0  # closing speed γ of the distal joints
+    lam: float = 1.0  # proximal joints close at λ·γ (λ > 1: marginal, λ ≈ 1: distinct flexion)
     approach_speed: float = 1.0  # sub-targets are approached at most this fast per joint (rad/s)
     synchronous_approach: bool = False  # all joints reach a new sub-target together (else each at approach_speed)
-    control_hz: float = 60.0    # control cycles per second (dt of the closing heuristic)
-    reach_tol: float = 0.05     # a (sub-)target is reached within this error per joint …
-    still_tol: float = 0.002    # … or when no joint moved more than this in one cycle
-    squeeze: float = 0.1        # grip: held closing joints finally target the measured angle plus this
-    steer: str = "staged"       # how a best match steers the free fingers, one of STEER_MODES
+    control_hz: float = 60.0  # control cycles per second (dt of the closing heuristic)
+    reach_tol: float = 0.05  # a (sub-)target is reached within this error per joint …
+    still_tol: float = 0.002  # … or when no joint moved more than this in one cycle
+    squeeze: float = 0.1  # grip: held closing joints finally target the measured angle plus this
+    steer: str = "staged"  # how a best match steers the free fingers, one of STEER_MODES
     steer_before_contact: bool = True  # phase B approaches best matches (False: tactile until the first contact)
-    rematch_cycles: int = 3     # a changed contact set must persist this many cycles before a re-match
-    max_lead: float = 0.25      # closing targets lead the measured angle by at most this
-    release_cycles: int = 3     # a lost contact still counts for this many cycles (debounces flicker)
+    rematch_cycles: int = 3  # a changed contact set must persist this many cycles before a re-match
+    max_lead: float = 0.25  # closing targets lead the measured angle by at most this
+    release_cycles: int = 3  # a lost contact still counts for this many cycles (debounces flicker)
     pregrasp: dict = field(default_factory=lambda: dict(SHADOW_PREGRASP))
 
     def __post_init__(self) -> None:
@@ -109,8 +110,14 @@ class ControllerConfig:
 class ExperienceGraspController:
     """Phases A–D over the joints of ``layout``; ``experience=None`` gives the purely tactile baseline."""
 
-    def __init__(self, layout: HandLayout, lower, upper, experience: ExperienceBase | None = None,
-                 config: ControllerConfig = ControllerConfig()) -> None:
+    def __init__(
+        self,
+        layout: HandLayout,
+        lower,
+        upper,
+        experience: ExperienceBase | None = None,
+        config: ControllerConfig = ControllerConfig(),
+    ) -> None:
         self.layout = layout
         self.config = config
         self.names = list(layout.names)
@@ -124,8 +131,10 @@ class ExperienceGraspController:
         if experience is not None:
             missing = [n for n in experience.names if n not in self.index]
             if missing:
-                raise ValueError(f"experience joints {missing} are not joints of hand '{layout.hand}'; "
-                                 f"use experience recorded with that hand")
+                raise ValueError(
+                    f"experience joints {missing} are not joints of hand '{layout.hand}'; "
+                    f"use experience recorded with that hand"
+                )
             self.exp_cols = np.array([self.index[n] for n in experience.names])
         self.fingers = layout.fingers
         self.finger_cols = {f.name: np.array([self.index[j] for j in f.joints]) for f in self.fingers}
@@ -144,7 +153,7 @@ class ExperienceGraspController:
         self.targets = self.pregrasp.copy()
         self.touched: frozenset[str] = frozenset()
         self.matched_touch: frozenset[str] = frozenset()  # the contact set the current best match was searched for
-        self.unchanged_for = 0                            # cycles the contact set has stayed the same
+        self.unchanged_for = 0  # cycles the contact set has stayed the same
         self.last_seen: dict[str, int] = {}
         self.mode = {f.name: APPROACH for f in self.fingers}
         self.deepest = {f.name: -1 for f in self.fingers}  # chain position of the deepest touching segment (wrap)
@@ -270,7 +279,9 @@ class ExperienceGraspController:
             limit = self.approach_rate[cols] * self.dt
             pull = before + np.clip(self.subtarget[cols] - before, 0.0, limit)
             pull = np.minimum(pull, np.maximum(before, q[cols] + self.config.max_lead))
-            self.targets[cols] = np.where(self.closing_mask[cols], np.maximum(self.targets[cols], pull), self.targets[cols])
+            self.targets[cols] = np.where(
+                self.closing_mask[cols], np.maximum(self.targets[cols], pull), self.targets[cols]
+            )
             return
         if self.mode[f.name] == APPROACH:
             if self.subtarget is None:

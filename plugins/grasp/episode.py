@@ -1,6 +1,6 @@
 """One grasp trial in pybullet: build the scene, run the controller, test stability (spec §5).
 
-The simulator (:class:`plugins.simulator.simulation.Simulation`, scene ``grasp``) puts the object on
+The simulator (:class:`handflow.plugins.simulator.simulation.Simulation`, scene ``grasp``) puts the object on
 a table under the palm-down hand.  Documented choices (:class:`EpisodeConfig`):
 
 - ``floating=True`` (default): as in the thesis (4.3: zero gravity, object hovering in front of the
@@ -20,6 +20,7 @@ The controller runs at ``control_hz`` on the measured posture and the segments t
 ends when the controller is finished for ``settle_s`` or after ``grasp_s``; then the wrench-space
 quality is computed and the :class:`DisturbanceTest` runs with gravity on.
 """
+
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field
@@ -27,8 +28,8 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 import pybullet as p
 
-from plugins.simulator.scenes import GRASP_OBJECTS, GraspScene
-from plugins.simulator.simulation import Simulation
+from handflow.plugins.simulator.scenes import GRASP_OBJECTS, GraspScene
+from handflow.plugins.simulator.simulation import Simulation
 
 from .controller import ExperienceGraspController
 from .stability import DisturbanceTest, grasp_wrench_quality, object_contacts, random_directions, rotation_angle_deg
@@ -106,11 +107,22 @@ def touched_segments(sim: Simulation, ignore) -> list[str]:
     return sorted({s for s, b in zip(c.segments, c.bodies) if b not in ignore})
 
 
-def run_grasp(obj: str, pose: GraspPose, controller: ExperienceGraspController, config: EpisodeConfig = EpisodeConfig(),
-              seed: int = 0, hand: str = "shadow") -> GraspResult:
+def run_grasp(
+    obj: str,
+    pose: GraspPose,
+    controller: ExperienceGraspController,
+    config: EpisodeConfig = EpisodeConfig(),
+    seed: int = 0,
+    hand: str = "shadow",
+) -> GraspResult:
     """Grasp ``obj`` at ``pose`` with ``controller`` and test the grasp's stability."""
-    scene = GraspScene(object=obj, position=(pose.x, pose.y), yaw_deg=pose.yaw_deg, gap_below_palm=pose.gap,
-                       start_posture=dict(controller.config.pregrasp))
+    scene = GraspScene(
+        object=obj,
+        position=(pose.x, pose.y),
+        yaw_deg=pose.yaw_deg,
+        gap_below_palm=pose.gap,
+        start_posture=dict(controller.config.pregrasp),
+    )
     with Simulation(hand=hand, scene=scene, seed=seed, physics_hz=config.physics_hz) as sim:
         if config.floating:
             remove_table(sim, scene)
@@ -125,7 +137,7 @@ def run_grasp(obj: str, pose: GraspPose, controller: ExperienceGraspController, 
         cycles = int(config.grasp_s * controller.config.control_hz)
         settle = max(1, int(config.settle_s * controller.config.control_hz))
         done_for = 0
-        for k in range(cycles):
+        for _k in range(cycles):
             q = sim.joint_positions()
             touched = touched_segments(sim, config.ignore_bodies)
             targets = controller.step(q, touched)
@@ -146,10 +158,22 @@ def run_grasp(obj: str, pose: GraspPose, controller: ExperienceGraspController, 
         pos0, orn0 = p.getBasePositionAndOrientation(obj_id, physicsClientId=sim.client)
         quality = grasp_wrench_quality(pts, nrm, pos0, object_radius(obj))
         shift, turn, n_touch = disturb(sim, scene, config.test, np.random.default_rng(seed))
-        stable = (shift < config.test.max_shift_m and turn < config.test.max_turn_deg
-                  and n_touch >= config.test.min_contacts)
-        return GraspResult(obj, pose.as_array(), bool(stable), True, posture, touched, quality, shift, turn, grasp_time,
-                           controller.n_matches)
+        stable = (
+            shift < config.test.max_shift_m and turn < config.test.max_turn_deg and n_touch >= config.test.min_contacts
+        )
+        return GraspResult(
+            obj,
+            pose.as_array(),
+            bool(stable),
+            True,
+            posture,
+            touched,
+            quality,
+            shift,
+            turn,
+            grasp_time,
+            controller.n_matches,
+        )
 
 
 def set_damping(sim: Simulation, scene: GraspScene, damping: float) -> None:
@@ -163,7 +187,9 @@ def remove_table(sim: Simulation, scene: GraspScene) -> None:
             del scene.bodies[key]
 
 
-def disturb(sim: Simulation, scene: GraspScene, test: DisturbanceTest, rng: np.random.Generator) -> tuple[float, float, int]:
+def disturb(
+    sim: Simulation, scene: GraspScene, test: DisturbanceTest, rng: np.random.Generator
+) -> tuple[float, float, int]:
     """Gravity on, table gone, hold, push the object randomly → (shift m, turn deg, touching segments)."""
     client, obj_id = sim.client, scene.object_id
     remove_table(sim, scene)

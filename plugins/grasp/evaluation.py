@@ -21,18 +21,19 @@ sphere grasps — so one run cannot resolve differences of a few points.  Also r
 force-closure grasps (wrench quality > 0) per condition and the grasps evaluated per minute of wall
 time.
 """
+
 from __future__ import annotations
 
 import itertools
 import time
+from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 from scipy.stats import binomtest
 
-from plugins.mapping.hands import HAND_MODELS
+from handflow.plugins.hands.joints import HAND_MODELS
 
 from .controller import ControllerConfig, ExperienceGraspController
 from .episode import EpisodeConfig, GraspPose, run_grasp
@@ -45,8 +46,12 @@ COMPARED = ("experience", "shared_som")
 """The conditions compared pose by pose with the tactile baseline ``no_experience``."""
 SYMMETRIC_ABOUT_VERTICAL = ("sphere",)
 
-FULL_GRID = {"x": (0.02, 0.03, 0.04, 0.05), "y": (-0.012, 0.0, 0.012), "gap": (0.005, 0.015, 0.025),
-             "yaw_deg": (-30.0, 0.0, 30.0)}
+FULL_GRID = {
+    "x": (0.02, 0.03, 0.04, 0.05),
+    "y": (-0.012, 0.0, 0.012),
+    "gap": (0.005, 0.015, 0.025),
+    "yaw_deg": (-30.0, 0.0, 30.0),
+}
 """Full grid: offsets along the fingers / across the palm (m), gap below the palm (m), yaw (deg).
 The object centre lies 8–11 cm from the wrist, under the knuckles and proximal finger segments."""
 QUICK_GRID = {"x": (0.02, 0.035, 0.05), "y": (0.0,), "gap": (0.005, 0.02), "yaw_deg": (-30.0, 30.0)}
@@ -74,16 +79,25 @@ def experience_files(folder: Path) -> dict[str, Path]:
     return {**{obj: folder / f"som_{obj}.npz" for obj in OBJECTS}, "shared": folder / "som_shared.npz"}
 
 
-def evaluate_grasping(experience_dir, grid: dict = FULL_GRID, objects=OBJECTS, hand: str = "shadow",
-                      config: ControllerConfig = ControllerConfig(), episode: EpisodeConfig = EpisodeConfig(),
-                      progress: Callable[[str], None] | None = None, repeats: int = 1) -> dict:
+def evaluate_grasping(
+    experience_dir,
+    grid: dict = FULL_GRID,
+    objects=OBJECTS,
+    hand: str = "shadow",
+    config: ControllerConfig = ControllerConfig(),
+    episode: EpisodeConfig = EpisodeConfig(),
+    progress: Callable[[str], None] | None = None,
+    repeats: int = 1,
+) -> dict:
     """Run the grid for every object and condition ``repeats`` times; return the pooled result dict."""
     factors = gamma_factors(repeats)
     files = experience_files(Path(experience_dir))
     missing = [str(p) for key, p in files.items() if (key in objects or key == "shared") and not p.exists()]
     if missing:
-        raise FileNotFoundError(f"experience files missing: {', '.join(missing)}; create them with "
-                                f"`handflow grasp-experience --out {experience_dir} --train-soms`")
+        raise FileNotFoundError(
+            f"experience files missing: {', '.join(missing)}; create them with "
+            f"`handflow grasp-experience --out {experience_dir} --train-soms`"
+        )
     layout = hand_layout(hand)
     model = HAND_MODELS[hand]
     shared = ExperienceBase.load(files["shared"])
@@ -94,8 +108,18 @@ def evaluate_grasping(experience_dir, grid: dict = FULL_GRID, objects=OBJECTS, h
     for obj in objects:
         bases = {"experience": ExperienceBase.load(files[obj]), "no_experience": None, "shared_som": shared}
         poses = grid_poses(obj, grid)
-        runs = [(f, {c: ExperienceGraspController(layout, model.lower, model.upper, b, replace(config, gamma=config.gamma * f))
-                     for c, b in bases.items()}) for f in factors]
+        runs = [
+            (
+                f,
+                {
+                    c: ExperienceGraspController(
+                        layout, model.lower, model.upper, b, replace(config, gamma=config.gamma * f)
+                    )
+                    for c, b in bases.items()
+                },
+            )
+            for f in factors
+        ]
         for (f, controllers), (k, pose) in itertools.product(runs, enumerate(poses)):
             stable = {}
             for cond, ctl in controllers.items():
@@ -128,6 +152,7 @@ def sign_test(wins: int, losses: int) -> dict:
 def summarise(counts: dict, paired: dict, n_run: int, minutes: float) -> dict:
     """Shares per object and pooled ``overall`` from [stable, force closure, valid] counts; paired
     [wins, losses] of ``experience`` and ``shared_som`` against ``no_experience`` become sign tests."""
+
     def share(a, n):
         return float(a / n) if n else 0.0
 

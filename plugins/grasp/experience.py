@@ -12,6 +12,7 @@ Three sources share that interface (:class:`ExperienceBase`):
 object type and pose of every successful grasp plus a JSON metadata string (touching segments per
 grasp, generation settings); read without pickle.
 """
+
 from __future__ import annotations
 
 import json
@@ -41,8 +42,10 @@ class ExperienceBase:
         self.postures = np.atleast_2d(np.asarray(self.postures, dtype=float))
         self.names = tuple(self.names)
         if self.postures.shape[1] != len(self.names) or len(self.postures) == 0:
-            raise ValueError(f"experience base needs (M ≥ 1, {len(self.names)}) postures for joints "
-                             f"{list(self.names)}, got shape {self.postures.shape}")
+            raise ValueError(
+                f"experience base needs (M ≥ 1, {len(self.names)}) postures for joints "
+                f"{list(self.names)}, got shape {self.postures.shape}"
+            )
         if not np.isfinite(self.postures).all():
             raise ValueError("experience postures contain NaN or inf")
 
@@ -58,20 +61,22 @@ class ExperienceBase:
         return k, self.postures[k]
 
     @classmethod
-    def from_som(cls, som: SOM, names) -> "ExperienceBase":
+    def from_som(cls, som: SOM, names) -> ExperienceBase:
         return cls(som.postures.copy(), tuple(names), "som")
 
     @classmethod
-    def from_dataset(cls, data: "GraspDataset") -> "ExperienceBase":
+    def from_dataset(cls, data: GraspDataset) -> ExperienceBase:
         return cls(data.postures.copy(), data.names, "database")
 
     @classmethod
-    def load(cls, path) -> "ExperienceBase":
+    def load(cls, path) -> ExperienceBase:
         """From a SOM file (``grasp-som``) or a grasp dataset (``grasp-experience``), told apart by format."""
         path = Path(path)
         if not path.exists():
-            raise FileNotFoundError(f"experience file {path} does not exist; create it with "
-                                    f"`handflow grasp-experience` or `handflow grasp-som`")
+            raise FileNotFoundError(
+                f"experience file {path} does not exist; create it with "
+                f"`handflow grasp-experience` or `handflow grasp-som`"
+            )
         with np.load(path, allow_pickle=False) as f:
             meta = json.loads(str(f["metadata"][()])) if "metadata" in f.files else {}
         if meta.get("format") == DATASET_FORMAT:
@@ -107,39 +112,66 @@ class GraspDataset:
     def __len__(self) -> int:
         return len(self.postures)
 
-    def select(self, obj: str | None) -> "GraspDataset":
+    def select(self, obj: str | None) -> GraspDataset:
         """The grasps of one object (``None``: all)."""
         keep = np.ones(len(self), bool) if obj is None else self.objects == obj
-        return GraspDataset(self.names, self.postures[keep], self.objects[keep], self.poses[keep],
-                            [c for c, k in zip(self.contacts, keep) if k], self.quality[keep], dict(self.metadata))
+        return GraspDataset(
+            self.names,
+            self.postures[keep],
+            self.objects[keep],
+            self.poses[keep],
+            [c for c, k in zip(self.contacts, keep) if k],
+            self.quality[keep],
+            dict(self.metadata),
+        )
 
     @classmethod
-    def concatenate(cls, parts: list["GraspDataset"]) -> "GraspDataset":
+    def concatenate(cls, parts: list[GraspDataset]) -> GraspDataset:
         if not parts:
             raise ValueError("no grasp datasets to concatenate")
         names = parts[0].names
         if any(p.names != names for p in parts):
             raise ValueError("grasp datasets disagree on the joint names; they come from different hands")
-        return cls(names, np.vstack([p.postures for p in parts]), np.concatenate([p.objects for p in parts]),
-                   np.vstack([p.poses for p in parts]), [c for p in parts for c in p.contacts],
-                   np.concatenate([p.quality for p in parts]), dict(parts[0].metadata))
+        return cls(
+            names,
+            np.vstack([p.postures for p in parts]),
+            np.concatenate([p.objects for p in parts]),
+            np.vstack([p.poses for p in parts]),
+            [c for p in parts for c in p.contacts],
+            np.concatenate([p.quality for p in parts]),
+            dict(parts[0].metadata),
+        )
 
     def save(self, path) -> None:
-        meta = {"format": DATASET_FORMAT, "format_version": DATASET_VERSION, "names": list(self.names),
-                "pose_fields": list(POSE_FIELDS), "contacts": self.contacts, **self.metadata}
+        meta = {
+            "format": DATASET_FORMAT,
+            "format_version": DATASET_VERSION,
+            "names": list(self.names),
+            "pose_fields": list(POSE_FIELDS),
+            "contacts": self.contacts,
+            **self.metadata,
+        }
         with open(path, "wb") as fh:
-            np.savez(fh, postures=self.postures, objects=self.objects, poses=self.poses, quality=self.quality,
-                     metadata=np.array(json.dumps(meta)))
+            np.savez(
+                fh,
+                postures=self.postures,
+                objects=self.objects,
+                poses=self.poses,
+                quality=self.quality,
+                metadata=np.array(json.dumps(meta)),
+            )
 
     @classmethod
-    def load(cls, path) -> "GraspDataset":
+    def load(cls, path) -> GraspDataset:
         with np.load(path, allow_pickle=False) as f:
             if "metadata" not in f.files:
                 raise ValueError(f"{path}: not a handflow grasp dataset (no metadata)")
             meta = json.loads(str(f["metadata"][()]))
             if meta.get("format") != DATASET_FORMAT or meta.get("format_version") != DATASET_VERSION:
-                raise ValueError(f"{path}: format {meta.get('format')!r} v{meta.get('format_version')!r} is not "
-                                 f"{DATASET_FORMAT!r} v{DATASET_VERSION}; regenerate with `handflow grasp-experience`")
+                raise ValueError(
+                    f"{path}: format {meta.get('format')!r} v{meta.get('format_version')!r} is not "
+                    f"{DATASET_FORMAT!r} v{DATASET_VERSION}; regenerate with `handflow grasp-experience`"
+                )
             arrays = {k: f[k] for k in ("postures", "objects", "poses", "quality")}
         names = meta.pop("names")
         contacts = meta.pop("contacts")

@@ -16,15 +16,16 @@ postures the thesis obtained from its start postures.  Local exploration (like t
 around each start posture): after a stable grasp, ``local_trials`` more trials reuse its λ with the
 pose and pre-grasp jittered by :data:`LOCAL_JITTER` — successes cluster, so this raises the yield.
 """
+
 from __future__ import annotations
 
 import sys
+from collections.abc import Callable
 from dataclasses import replace
-from typing import Callable
 
 import numpy as np
 
-from plugins.mapping.hands import HAND_MODELS
+from handflow.plugins.hands.joints import HAND_MODELS
 
 from .controller import SHADOW_PREGRASP, ControllerConfig, ExperienceGraspController
 from .episode import EpisodeConfig, GraspPose, run_grasp
@@ -32,7 +33,10 @@ from .experience import GraspDataset
 from .hand_layout import hand_layout
 
 PREGRASP_RANGES = {
-    "THJ5": (-0.6, 0.6), "THJ4": (0.0, 1.22), "THJ2": (-0.2, 0.4), "THJ1": (0.0, 0.5),
+    "THJ5": (-0.6, 0.6),
+    "THJ4": (0.0, 1.22),
+    "THJ2": (-0.2, 0.4),
+    "THJ1": (0.0, 0.5),
     **{f"{f}J4": (-0.15, 0.15) for f in ("FF", "MF", "RF", "LF")},
     **{f"{f}J3": (0.0, 0.5) for f in ("FF", "MF", "RF", "LF")},
     **{f"{f}J2": (0.0, 0.4) for f in ("FF", "MF", "RF", "LF")},
@@ -74,10 +78,17 @@ def _jitter(rng: np.random.Generator, pose: GraspPose, pregrasp: dict, ranges: d
     return near, pre
 
 
-def generate_experience(objects, n_trials: int | dict[str, int], seed: int = 0, hand: str = "shadow", local_trials: int = 3,
-                        base: ControllerConfig = ControllerConfig(), episode: EpisodeConfig = EpisodeConfig(),
-                        progress: Callable[[str], None] | None = None,
-                        pregrasp_ranges: dict = PREGRASP_RANGES) -> GraspDataset:
+def generate_experience(
+    objects,
+    n_trials: int | dict[str, int],
+    seed: int = 0,
+    hand: str = "shadow",
+    local_trials: int = 3,
+    base: ControllerConfig = ControllerConfig(),
+    episode: EpisodeConfig = EpisodeConfig(),
+    progress: Callable[[str], None] | None = None,
+    pregrasp_ranges: dict = PREGRASP_RANGES,
+) -> GraspDataset:
     """Run ``n_trials`` randomised grasps per object and return the stable ones as a dataset.
 
     ``n_trials`` may be a dict ``{object: trials}`` to balance the experience: objects with a low yield
@@ -85,7 +96,7 @@ def generate_experience(objects, n_trials: int | dict[str, int], seed: int = 0, 
     ``pregrasp_ranges`` (default :data:`PREGRASP_RANGES`) bounds the random pre-grasp; ranges with equal
     ends fix a joint (:data:`FIXED_PREGRASP_RANGES`: always the controller's pre-grasp).
     """
-    trials = n_trials if isinstance(n_trials, dict) else {obj: n_trials for obj in objects}
+    trials = n_trials if isinstance(n_trials, dict) else dict.fromkeys(objects, n_trials)
     bad = {obj: trials.get(obj) for obj in objects if not isinstance(trials.get(obj), int) or trials[obj] < 1}
     if bad:
         raise ValueError(f"every object needs ≥ 1 trials, got {bad}")
@@ -103,7 +114,12 @@ def generate_experience(objects, n_trials: int | dict[str, int], seed: int = 0, 
             if queue:
                 pose, pregrasp, lam, depth = queue.pop(0)
             else:
-                pose, pregrasp, lam, depth = random_pose(rng), random_pregrasp(rng, pregrasp_ranges), float(rng.uniform(*LAMBDA_RANGE)), 0
+                pose, pregrasp, lam, depth = (
+                    random_pose(rng),
+                    random_pregrasp(rng, pregrasp_ranges),
+                    float(rng.uniform(*LAMBDA_RANGE)),
+                    0,
+                )
             config = replace(base, pregrasp=pregrasp, lam=lam)
             controller = ExperienceGraspController(layout, model.lower, model.upper, None, config)
             result = run_grasp(obj, pose, controller, episode, seed=int(rng.integers(2**31)), hand=hand)
@@ -111,7 +127,9 @@ def generate_experience(objects, n_trials: int | dict[str, int], seed: int = 0, 
             if result.valid and result.stable:
                 kept += 1
                 if depth < MAX_LOCAL_DEPTH:
-                    queue.extend((*_jitter(rng, pose, pregrasp, pregrasp_ranges), lam, depth + 1) for _ in range(local_trials))
+                    queue.extend(
+                        (*_jitter(rng, pose, pregrasp, pregrasp_ranges), lam, depth + 1) for _ in range(local_trials)
+                    )
                 postures.append(result.posture[cols])
                 objs.append(obj)
                 poses.append(result.pose)
@@ -120,10 +138,17 @@ def generate_experience(objects, n_trials: int | dict[str, int], seed: int = 0, 
             if progress is not None and (t + 1) % 20 == 0:
                 progress(f"{obj}: {t + 1}/{trials[obj]} trials, {kept} stable grasps kept")
         counts[obj] = {"trials": trials[obj], "valid": valid, "stable": kept}
-    meta = {"hand": hand, "method": "randomised tactile grasping + disturbance test", "seed": seed,
-            "counts": counts, "pregrasp_ranges": {k: list(v) for k, v in pregrasp_ranges.items()}, "pose_ranges": {k: list(v) for k, v in POSE_RANGES.items()}}
-    return GraspDataset(names, np.array(postures).reshape(-1, len(names)), objs, np.array(poses).reshape(-1, 4),
-                        contacts, quality, meta)
+    meta = {
+        "hand": hand,
+        "method": "randomised tactile grasping + disturbance test",
+        "seed": seed,
+        "counts": counts,
+        "pregrasp_ranges": {k: list(v) for k, v in pregrasp_ranges.items()},
+        "pose_ranges": {k: list(v) for k, v in POSE_RANGES.items()},
+    }
+    return GraspDataset(
+        names, np.array(postures).reshape(-1, len(names)), objs, np.array(poses).reshape(-1, 4), contacts, quality, meta
+    )
 
 
 def stderr_progress(text: str) -> None:

@@ -1,6 +1,6 @@
 """Fingers, segments and joints of a simulated hand as the grasp controller sees them (spec §5).
 
-Derived from the simulator's kinematic skeleton (:func:`plugins.simulator.hand_geometry.build_skeleton`),
+Derived from the simulator's kinematic skeleton (:func:`handflow.plugins.simulator.hand_geometry.build_skeleton`),
 so the contact segment names of :meth:`Simulation.contacts` map directly to fingers:
 
 - a *finger* is a joint chain that starts at the palm (thumb, index … little; the wrist is not a finger);
@@ -15,14 +15,15 @@ so the contact segment names of :meth:`Simulation.contacts` map directly to fing
 PCP (thesis eq. 4.2): a contact on segment ``S_i,k`` specifies the joints ``j ≤ k`` of finger ``i``
 (every joint between the palm and the touching segment).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import cache
 
 import numpy as np
 
-from plugins.simulator.hand_geometry import build_skeleton
+from handflow.plugins.simulator.hand_geometry import build_skeleton
 
 
 @dataclass(frozen=True)
@@ -81,7 +82,7 @@ class HandLayout:
         return s
 
 
-@lru_cache(maxsize=None)
+@cache
 def hand_layout(hand: str = "shadow") -> HandLayout:
     """The :class:`HandLayout` of simulator hand ``hand`` (``shadow`` | ``gifu`` | ``human``)."""
     sk = build_skeleton(hand)

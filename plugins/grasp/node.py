@@ -8,14 +8,15 @@ the latest posture and contacts and publishes ``targets`` (JointState for the si
 ``ignore_bodies`` (the table) are not grasp contacts.  The experience base is a SOM file, a grasp
 dataset (raw database) or nothing (purely tactile grasping).
 """
+
 from __future__ import annotations
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
-from framework.messages import Contacts, JointState, Label, Status
-from framework.plugin import Node
-from plugins.mapping.hands import HAND_MODELS
+from handflow.framework.messages import Contacts, JointState, Label, Status
+from handflow.framework.plugin import Node
+from handflow.plugins.hands.joints import HAND_MODELS
 
 from .controller import SHADOW_PREGRASP, ControllerConfig, ExperienceGraspController
 from .experience import ExperienceBase
@@ -34,10 +35,14 @@ class ExperienceGraspParams(BaseModel):
     squeeze: float = Field(0.1, ge=0, description="grip: held joints finally target measured + squeeze (rad)")
     max_lead: float = Field(0.25, gt=0, description="closing targets lead the measured angle by at most this (rad)")
     steer: str = Field("staged", description="how a best match steers free fingers: closing | blend | staged | all")
-    steer_before_contact: bool = Field(True, description="phase B approaches best matches (false: tactile until the first contact)")
+    steer_before_contact: bool = Field(
+        True, description="phase B approaches best matches (false: tactile until the first contact)"
+    )
     rematch_cycles: int = Field(3, ge=0, description="a changed contact set must persist this many cycles to re-match")
     pregrasp: dict[str, float] | None = Field(None, description="pre-grasp joint targets (default: the hand's)")
-    ignore_bodies: list[str] = Field(default_factory=lambda: ["table"], description="bodies whose contacts do not count")
+    ignore_bodies: list[str] = Field(
+        default_factory=lambda: ["table"], description="bodies whose contacts do not count"
+    )
     autostart: bool = Field(True, description="start grasping at once (else wait for a 'grasp' trigger)")
 
 
@@ -55,10 +60,17 @@ class ExperienceGraspNode(Node):
         model = HAND_MODELS[prm.hand]
         experience = ExperienceBase.load(self.ctx.resolve_path(prm.experience)) if prm.experience else None
         pregrasp = prm.pregrasp if prm.pregrasp is not None else (SHADOW_PREGRASP if prm.hand == "shadow" else {})
-        config = ControllerConfig(gamma=prm.gamma, lam=prm.lam, control_hz=prm.rate_hz, squeeze=prm.squeeze,
-                                  max_lead=prm.max_lead, steer=prm.steer,
-                                  steer_before_contact=prm.steer_before_contact, rematch_cycles=prm.rematch_cycles,
-                                  pregrasp=dict(pregrasp))
+        config = ControllerConfig(
+            gamma=prm.gamma,
+            lam=prm.lam,
+            control_hz=prm.rate_hz,
+            squeeze=prm.squeeze,
+            max_lead=prm.max_lead,
+            steer=prm.steer,
+            steer_before_contact=prm.steer_before_contact,
+            rematch_cycles=prm.rematch_cycles,
+            pregrasp=dict(pregrasp),
+        )
         self.controller = ExperienceGraspController(hand_layout(prm.hand), model.lower, model.upper, experience, config)
         self.model = model
         self.posture: np.ndarray | None = None
@@ -70,8 +82,10 @@ class ExperienceGraspNode(Node):
             where = {n: k for k, n in enumerate(msg.names)}
             missing = [n for n in self.controller.names if n not in where]
             if missing:
-                raise ValueError(f"joint state lacks joints {missing} of hand '{self.params.hand}'; "
-                                 f"connect the simulator's 'joints' output of the same hand")
+                raise ValueError(
+                    f"joint state lacks joints {missing} of hand '{self.params.hand}'; "
+                    f"connect the simulator's 'joints' output of the same hand"
+                )
             self.posture = np.asarray(msg.positions, dtype=float)[[where[n] for n in self.controller.names]]
         elif port == "contacts":
             ignore = set(self.params.ignore_bodies)
@@ -91,9 +105,16 @@ class ExperienceGraspNode(Node):
         if self.posture is None:
             return
         targets = ctl.step(self.posture, self.touched) if self.active else ctl.pregrasp
-        self.ctx.publish("targets", JointState(names=list(ctl.names), positions=np.asarray(targets, dtype=float),
-                                               hand=self.model.name))
+        self.ctx.publish(
+            "targets",
+            JointState(names=list(ctl.names), positions=np.asarray(targets, dtype=float), hand=self.model.name),
+        )
         phase = ctl.phase if self.active else "idle"
-        self.ctx.publish("status", Status(state=phase, counters={"matches": float(ctl.n_matches),
-                                                                "contacts": float(len(ctl.touched))},
-                                          text=",".join(sorted(ctl.touched))))
+        self.ctx.publish(
+            "status",
+            Status(
+                state=phase,
+                counters={"matches": float(ctl.n_matches), "contacts": float(len(ctl.touched))},
+                text=",".join(sorted(ctl.touched)),
+            ),
+        )

@@ -5,6 +5,7 @@ count.  With ``s`` all ones it is the squared Euclidean distance (phase B of the
 plain best-match search); with ``s`` from the contacts it is *associative completion*: the best
 match supplies the unspecified joints.
 """
+
 from __future__ import annotations
 
 import numpy as np

@@ -7,21 +7,22 @@
   simulated hand in that posture (pybullet TinyRenderer), framed in a colour for the node's mean
   distance to its neighbours (red: smallest, green: medium, blue: largest).
 """
+
 from __future__ import annotations
 
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import pybullet as p  # noqa: E402
-from matplotlib.collections import LineCollection  # noqa: E402
-from matplotlib.colors import LinearSegmentedColormap  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+import pybullet as p
+from matplotlib.collections import LineCollection
+from matplotlib.colors import LinearSegmentedColormap
 
-from plugins.simulator.camera import CameraSpec  # noqa: E402
-from plugins.simulator.simulation import Simulation  # noqa: E402
+from handflow.plugins.simulator.camera import CameraSpec
+from handflow.plugins.simulator.simulation import Simulation
 
-from .som import SOM  # noqa: E402
+from .som import SOM
 
 POSTURE_CAMERA = CameraSpec(eye=(0.19, -0.17, 0.2), target=(0.08, 0.0, 0.27), up=(0.0, 0.0, 1.0), fov_deg=40.0)
 """Camera of the node pictures: in front of and below the palm-down hand, seeing thumb and fingertips."""
@@ -61,8 +62,9 @@ def plot_u_matrix(som: SOM, path, hits=None, title: str = "SOM grasp manifold") 
     plt.close(fig)
 
 
-def render_postures(postures: np.ndarray, names, hand: str = "shadow", width: int = 160,
-                    height: int = 120) -> list[np.ndarray]:
+def render_postures(
+    postures: np.ndarray, names, hand: str = "shadow", width: int = 160, height: int = 120
+) -> list[np.ndarray]:
     """RGB images of the simulated hand set (without physics) to each posture over joint ``names``."""
     images = []
     with Simulation(hand=hand, scene="empty") as sim:
@@ -77,8 +79,9 @@ def render_postures(postures: np.ndarray, names, hand: str = "shadow", width: in
     return images
 
 
-def plot_node_postures(som: SOM, names, path, extract: int = 10, hand: str = "shadow", tile: tuple[int, int] = (160, 120),
-                       border: int = 4) -> None:
+def plot_node_postures(
+    som: SOM, names, path, extract: int = 10, hand: str = "shadow", tile: tuple[int, int] = (160, 120), border: int = 4
+) -> None:
     """Write a grid of rendered node postures (top-left ``extract × extract`` block) to ``path`` (PNG)."""
     rows, cols = (min(extract, n) for n in som.nodes_.shape[:2])
     block = som.nodes_[:rows, :cols].reshape(rows * cols, -1)
@@ -91,6 +94,6 @@ def plot_node_postures(som: SOM, names, path, extract: int = 10, hand: str = "sh
     for k, (img, colour) in enumerate(zip(images, colours)):
         r, c = divmod(k, cols)
         y0, x0 = r * (h + 2 * border), c * (w + 2 * border)
-        canvas[y0:y0 + h + 2 * border, x0:x0 + w + 2 * border] = (colour * 255).astype(np.uint8)
-        canvas[y0 + border:y0 + border + h, x0 + border:x0 + border + w] = img
+        canvas[y0 : y0 + h + 2 * border, x0 : x0 + w + 2 * border] = (colour * 255).astype(np.uint8)
+        canvas[y0 + border : y0 + border + h, x0 + border : x0 + border + w] = img
     plt.imsave(path, canvas)

@@ -20,6 +20,7 @@ from the manifold (associative completion, eq. 4.11).  ``partial_fit`` resumes t
 found during use (thesis: 10 epochs, ε 0.1 → 0.05, σ 3 → 0.7).  Files: ``.npz`` of arrays + a JSON
 metadata string, never pickled.
 """
+
 from __future__ import annotations
 
 import datetime as _dt
@@ -72,8 +73,18 @@ class SOM(BaseEstimator):
     far: fit + partial_fit calls).
     """
 
-    def __init__(self, rows: int = 25, cols: int = 25, lr=(0.95, 0.05), sigma=(6.0, 0.7), epochs: int = 300,
-                 mode: str = "online", schedule: str = "exponential", init="pca", random_state=None):
+    def __init__(
+        self,
+        rows: int = 25,
+        cols: int = 25,
+        lr=(0.95, 0.05),
+        sigma=(6.0, 0.7),
+        epochs: int = 300,
+        mode: str = "online",
+        schedule: str = "exponential",
+        init="pca",
+        random_state=None,
+    ):
         self.rows = rows
         self.cols = cols
         self.lr = lr
@@ -98,7 +109,7 @@ class SOM(BaseEstimator):
             raise ValueError(f"epochs must be ≥ 1, got {self.epochs}")
 
     # -- training ------------------------------------------------------------------------------
-    def fit(self, X, y=None) -> "SOM":
+    def fit(self, X, y=None) -> SOM:
         """Initialise the lattice and train ``epochs`` epochs on postures ``X`` (n, d)."""
         self._check_params()
         X = _check_postures(X)
@@ -113,7 +124,7 @@ class SOM(BaseEstimator):
         self._train(X, int(self.epochs), self.lr, self.sigma, rng)
         return self
 
-    def partial_fit(self, X, y=None, epochs: int = RESUME["epochs"], lr=RESUME["lr"], sigma=RESUME["sigma"]) -> "SOM":
+    def partial_fit(self, X, y=None, epochs: int = RESUME["epochs"], lr=RESUME["lr"], sigma=RESUME["sigma"]) -> SOM:
         """Resume training on new postures (e.g. grasps found during use) with small parameters."""
         if not hasattr(self, "nodes_"):
             return self.fit(X)
@@ -169,7 +180,7 @@ class SOM(BaseEstimator):
                 tau = e / max(epochs - 1, 1)
                 eps = decay(lr[0], lr[1], tau, self.schedule)
                 sig = decay(sigma[0], sigma[1], tau, self.schedule)
-                H = np.exp(-D2[self._bmus(W, X)] / (2.0 * sig ** 2))  # (n, nodes)
+                H = np.exp(-D2[self._bmus(W, X)] / (2.0 * sig**2))  # (n, nodes)
                 mass = H.sum(axis=0)
                 target = (H.T @ X) / np.maximum(mass, 1e-300)[:, None]
                 W += eps * (mass > 1e-12)[:, None] * (target - W)
@@ -293,11 +304,21 @@ def save_som(som: SOM, path, metadata: dict | None = None) -> None:
         params["init"] = "pca"
     if not isinstance(params["random_state"], (int, type(None))):
         params["random_state"] = None
-    meta = {"format": FORMAT, "format_version": FORMAT_VERSION, "params": params, "n_updates": som.n_updates_,
-            "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"), **(metadata or {})}
+    meta = {
+        "format": FORMAT,
+        "format_version": FORMAT_VERSION,
+        "params": params,
+        "n_updates": som.n_updates_,
+        "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+        **(metadata or {}),
+    }
     with open(path, "wb") as fh:
-        np.savez(fh, nodes=som.nodes_, qe_history=np.asarray(som.qe_history_, dtype=float),
-                 metadata=np.array(json.dumps(meta)))
+        np.savez(
+            fh,
+            nodes=som.nodes_,
+            qe_history=np.asarray(som.qe_history_, dtype=float),
+            metadata=np.array(json.dumps(meta)),
+        )
 
 
 def load_som(path) -> tuple[SOM, dict]:
@@ -307,8 +328,10 @@ def load_som(path) -> tuple[SOM, dict]:
             raise ValueError(f"{path}: not a handflow grasp SOM file (needs 'nodes' and 'metadata')")
         meta = json.loads(str(f["metadata"][()]))
         if meta.get("format") != FORMAT or meta.get("format_version") != FORMAT_VERSION:
-            raise ValueError(f"{path}: format {meta.get('format')!r} v{meta.get('format_version')!r} is not "
-                             f"{FORMAT!r} v{FORMAT_VERSION}; retrain with `handflow grasp-som`")
+            raise ValueError(
+                f"{path}: format {meta.get('format')!r} v{meta.get('format_version')!r} is not "
+                f"{FORMAT!r} v{FORMAT_VERSION}; retrain with `handflow grasp-som`"
+            )
         nodes, qe = f["nodes"], f["qe_history"]
     params = dict(meta["params"])
     params["lr"], params["sigma"] = tuple(params["lr"]), tuple(params["sigma"])

@@ -15,6 +15,7 @@ torques are divided by the object's radius; the quality is the signed distance f
 the boundary of their convex hull (> 0: force closure).  Computed at the end of the grasp, before
 the disturbance test.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -72,8 +73,9 @@ def grasp_wrench_quality(points, normals, centre, radius: float, mu: float = 0.8
     t1 /= np.linalg.norm(t1, axis=1, keepdims=True)
     t2 = np.cross(N, t1)
     ang = 2 * np.pi * np.arange(n_edges) / n_edges
-    forces = (N[:, None, :] + mu * (np.cos(ang)[None, :, None] * t1[:, None, :]
-                                    + np.sin(ang)[None, :, None] * t2[:, None, :]))
+    forces = N[:, None, :] + mu * (
+        np.cos(ang)[None, :, None] * t1[:, None, :] + np.sin(ang)[None, :, None] * t2[:, None, :]
+    )
     forces /= np.linalg.norm(forces, axis=2, keepdims=True)
     arms = (P - np.asarray(centre, dtype=float))[:, None, :]
     torques = np.cross(np.broadcast_to(arms, forces.shape), forces) / radius
@@ -90,6 +92,6 @@ def object_contacts(client: int, hand_id: int, object_id: int) -> tuple[np.ndarr
     """Contact points on the object and the hand's force directions (into the object)."""
     pts, nrm = [], []
     for c in p.getContactPoints(bodyA=object_id, bodyB=hand_id, physicsClientId=client):
-        pts.append(c[5])           # position on A (the object)
-        nrm.append(c[7])           # normal on B pointing towards A: the hand pushes along it
+        pts.append(c[5])  # position on A (the object)
+        nrm.append(c[7])  # normal on B pointing towards A: the hand pushes along it
     return np.array(pts).reshape(-1, 3), np.array(nrm).reshape(-1, 3)

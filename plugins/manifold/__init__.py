@@ -1,4 +1,5 @@
 """Structured UKR manifolds (spec ukr.md): plain numpy/scipy, independent of the runtime."""
+
 from .model import StructuredUKR
 from .validation import InvalidInputError, LatentDim
 

@@ -3,10 +3,12 @@
 Exit codes: 0 ok (also after Ctrl-C, which saves the best model so far), 2 bad input
 (config, data, layout — the message names what to change), 1 runtime failure.
 """
+
 from __future__ import annotations
 
 import argparse
 import sys
+from importlib.metadata import entry_points
 from pathlib import Path
 from typing import Literal, Optional
 
@@ -89,10 +91,8 @@ def load_config(path) -> TrainConfig:
     try:
         cfg = TrainConfig.model_validate(raw if raw is not None else {})
     except ValidationError as exc:
-        lines = [f"  {'.'.join(str(p) for p in e['loc']) or '(top level)'}: {e['msg']}"
-                 for e in exc.errors()]
-        raise InvalidInputError(f"{path}: invalid config — change:\n" + "\n".join(lines)) \
-            from None
+        lines = [f"  {'.'.join(str(p) for p in e['loc']) or '(top level)'}: {e['msg']}" for e in exc.errors()]
+        raise InvalidInputError(f"{path}: invalid config — change:\n" + "\n".join(lines)) from None
     for key in ("csv_dir", "npz", "mcap"):
         value = getattr(cfg.data, key)
         if value is not None and not value.is_absolute():
@@ -111,11 +111,19 @@ def load_data(cfg: DataConfig):
 
 def build_model(cfg: TrainConfig, n_steps=None) -> StructuredUKR:
     m, t = cfg.model, cfg.training
-    return StructuredUKR(latent=[d.model_dump() for d in m.latent], time_dim=m.time_dim,
-                         lambda_cseq=m.lambda_cseq, lambda_pvar=m.lambda_pvar, loo_cv=m.loo_cv,
-                         optimizer=t.optimizer, n_steps=t.n_steps if n_steps is None else n_steps,
-                         init=t.init, isomap_neighbors=tuple(t.isomap_neighbors),
-                         projection_steps=t.projection_steps, random_state=t.random_state)
+    return StructuredUKR(
+        latent=[d.model_dump() for d in m.latent],
+        time_dim=m.time_dim,
+        lambda_cseq=m.lambda_cseq,
+        lambda_pvar=m.lambda_pvar,
+        loo_cv=m.loo_cv,
+        optimizer=t.optimizer,
+        n_steps=t.n_steps if n_steps is None else n_steps,
+        init=t.init,
+        isomap_neighbors=tuple(t.isomap_neighbors),
+        projection_steps=t.projection_steps,
+        random_state=t.random_state,
+    )
 
 
 class _Progress:
@@ -127,9 +135,15 @@ class _Progress:
         if not quiet and sys.stderr.isatty():
             from rich.console import Console
             from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn
-            self.bar = Progress(TextColumn("training"), BarColumn(), MofNCompleteColumn(),
-                                TextColumn("objective {task.fields[obj]:.6g}"),
-                                console=Console(stderr=True), transient=False)
+
+            self.bar = Progress(
+                TextColumn("training"),
+                BarColumn(),
+                MofNCompleteColumn(),
+                TextColumn("objective {task.fields[obj]:.6g}"),
+                console=Console(stderr=True),
+                transient=False,
+            )
             self.task = self.bar.add_task("train", total=total, obj=float("nan"))
 
     def __enter__(self):
@@ -172,11 +186,35 @@ def check_train_args(args: argparse.Namespace) -> None:
         raise InvalidInputError(f"--out: directory {args.out.parent} does not exist")
 
 
+def train_mode_handler(config: Path):
+    """The command a config's top-level ``mode:`` names, or None for a plain UKR config.
+
+    Other families add training modes through the entry-point group ``handflow.train_modes``
+    (docs/training.md), so this library knows none of them.
+    """
+    try:
+        raw = yaml.safe_load(Path(config).read_text())
+    except (OSError, yaml.YAMLError):
+        return None  # load_config reports the problem with its location
+    mode = raw.get("mode") if isinstance(raw, dict) else None
+    if mode is None:
+        return None
+    modes = {ep.name: ep for ep in entry_points(group="handflow.train_modes")}
+    if mode not in modes:
+        raise InvalidInputError(
+            f"{config}: unknown mode {mode!r}; installed training modes: {', '.join(sorted(modes)) or 'none'}"
+        )
+    return modes[mode].load()
+
+
 def run_train(args: argparse.Namespace) -> int:
     """Run ``train``; returns the exit code."""
-    from .controllers.training import manipulation_mode, run_manipulation_training
-    if manipulation_mode(args.config):       # `mode: construction | learning` (docs/manipulation.md)
-        return run_manipulation_training(args)
+    try:
+        handler = train_mode_handler(args.config)
+    except InvalidInputError as exc:
+        return _fail(2, exc)
+    if handler is not None:  # e.g. `mode: construction | learning` (docs/manipulation.md)
+        return handler(args)
     try:
         cfg = load_config(args.config)
         check_train_args(args)
@@ -188,13 +226,15 @@ def run_train(args: argparse.Namespace) -> int:
         return _fail(2, exc)
     except KeyboardInterrupt:
         return _fail(1, "interrupted before training started; nothing saved")
-    except Exception as exc:   # noqa: BLE001 - any other failure is a runtime error (exit 1)
+    except Exception as exc:
         return _fail(1, f"{type(exc).__name__}: {exc}")
     if model.interrupted_:
-        print(f"interrupted after {len(model.history_) - 1} steps; saving the best model so "
-              f"far (objective {model.objective_:.6g})", file=sys.stderr)
-    provenance = {"config": str(args.config), "config_content": cfg.model_dump(mode="json"),
-                  "sequences": names}
+        print(
+            f"interrupted after {len(model.history_) - 1} steps; saving the best model so "
+            f"far (objective {model.objective_:.6g})",
+            file=sys.stderr,
+        )
+    provenance = {"config": str(args.config), "config_content": cfg.model_dump(mode="json"), "sequences": names}
     try:
         model.save(args.out, provenance=provenance)
         if args.plot is not None:
@@ -204,6 +244,8 @@ def run_train(args: argparse.Namespace) -> int:
     except OSError as exc:
         return _fail(1, f"cannot write output: {exc}")
     if not args.quiet:
-        print(f"saved {args.out} ({len(model.Y_)} points, {len(names)} sequences, objective "
-              f"{model.objective_:.6g})", file=sys.stderr)
+        print(
+            f"saved {args.out} ({len(model.Y_)} points, {len(names)} sequences, objective {model.objective_:.6g})",
+            file=sys.stderr,
+        )
     return 0

@@ -13,6 +13,7 @@ Latent space ``(time, radius)``, built without any 2D training:
 
 The time axis is not periodic: a controller jumps back to the start of the time range at its end.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -64,9 +65,18 @@ class ManifoldConstruction(BaseEstimator):
     sequence_radius_ : (n_sequences,) radius of every sequence in ``model_`` order
     """
 
-    def __init__(self, time_beta=30.0, radius_beta=4.0, lambda_cseq=1.0, synchronisation="monotone",
-                 grid_size=200, n_steps=100, optimizer="rprop", projection_steps=10,
-                 random_state=0):
+    def __init__(
+        self,
+        time_beta=30.0,
+        radius_beta=4.0,
+        lambda_cseq=1.0,
+        synchronisation="monotone",
+        grid_size=200,
+        n_steps=100,
+        optimizer="rprop",
+        projection_steps=10,
+        random_state=0,
+    ):
         self.time_beta = time_beta
         self.radius_beta = radius_beta
         self.lambda_cseq = lambda_cseq
@@ -78,12 +88,16 @@ class ManifoldConstruction(BaseEstimator):
         self.random_state = random_state
 
     def _stage_model(self, init):
-        return StructuredUKR(latent=[{"kernel": "gaussian", "beta": float(self.time_beta),
-                                      "time": True}],
-                             lambda_cseq=self.lambda_cseq, lambda_pvar=0.0,
-                             optimizer=self.optimizer, n_steps=int(self.n_steps), init=init,
-                             projection_steps=self.projection_steps,
-                             random_state=self.random_state)
+        return StructuredUKR(
+            latent=[{"kernel": "gaussian", "beta": float(self.time_beta), "time": True}],
+            lambda_cseq=self.lambda_cseq,
+            lambda_pvar=0.0,
+            optimizer=self.optimizer,
+            n_steps=int(self.n_steps),
+            init=init,
+            projection_steps=self.projection_steps,
+            random_state=self.random_state,
+        )
 
     def fit(self, sequences, radii, callback=None):
         """``sequences``: list of ``(n_i, d)`` arrays (chronological); ``radii``: one per sequence.
@@ -93,13 +107,13 @@ class ManifoldConstruction(BaseEstimator):
         reports the progress of every (re)training.
         """
         if self.synchronisation not in ("monotone", "pointwise"):
-            raise InvalidInputError(f"synchronisation must be 'monotone' or 'pointwise', got "
-                                    f"{self.synchronisation!r}")
+            raise InvalidInputError(f"synchronisation must be 'monotone' or 'pointwise', got {self.synchronisation!r}")
         seqs = [check_array(s, f"sequence {i}") for i, s in enumerate(sequences)]
         radii = np.asarray(radii, dtype=float)
         if radii.shape != (len(seqs),):
-            raise InvalidInputError(f"give one radius per sequence: {len(seqs)} sequences, "
-                                    f"radii of shape {radii.shape}")
+            raise InvalidInputError(
+                f"give one radius per sequence: {len(seqs)} sequences, radii of shape {radii.shape}"
+            )
         if not seqs:
             raise InvalidInputError("no sequences given")
         if len({s.shape[1] for s in seqs}) > 1:
@@ -117,16 +131,14 @@ class ManifoldConstruction(BaseEstimator):
             members = np.flatnonzero(radii == r)
             model = None
             for n, i in enumerate(members):
-                cb = None if callback is None else (
-                    lambda step, value, r=r, n=n: callback(float(r), n, step, value))
+                cb = None if callback is None else (lambda step, value, r=r, n=n: callback(float(r), n, step, value))
                 if model is None:
                     init = "equidistant" if previous is None else self._project(previous, seqs[i])
                     model = self._stage_model(init).fit([seqs[i]], callback=cb)
                 else:
                     merged = np.vstack([model.latents_, self._project(model, seqs[i])])
                     ids = np.r_[model.sequence_ids_, np.full(len(seqs[i]), n)]
-                    model = self._stage_model(merged).fit(np.vstack([model.Y_, seqs[i]]), ids,
-                                                          callback=cb)
+                    model = self._stage_model(merged).fit(np.vstack([model.Y_, seqs[i]]), ids, callback=cb)
             self.stages_.append((float(r), model))
             previous = model
             order.extend(members.tolist())
@@ -151,10 +163,18 @@ class ManifoldConstruction(BaseEstimator):
         self.sequence_radius_ = radii[order]
         self.sequence_order_ = np.asarray(order)
         self.model_ = StructuredUKR.from_latents(
-            Y, X, latent=[{"kernel": "gaussian", "beta": float(self.time_beta), "time": True},
-                          {"kernel": "gaussian", "beta": float(self.radius_beta)}],
-            lambda_cseq=self.lambda_cseq, lambda_pvar=0.0, optimizer=self.optimizer,
-            projection_steps=self.projection_steps, random_state=self.random_state)
+            Y,
+            X,
+            latent=[
+                {"kernel": "gaussian", "beta": float(self.time_beta), "time": True},
+                {"kernel": "gaussian", "beta": float(self.radius_beta)},
+            ],
+            lambda_cseq=self.lambda_cseq,
+            lambda_pvar=0.0,
+            optimizer=self.optimizer,
+            projection_steps=self.projection_steps,
+            random_state=self.random_state,
+        )
 
 
 def monotone_projection(Y, F):
@@ -164,8 +184,7 @@ def monotone_projection(Y, F):
     programming with a running prefix minimum, O(n·G)); any start and end on the curve is
     allowed.  Returns ``a`` (n,).
     """
-    D = (np.einsum("nd,nd->n", Y, Y)[:, None] - 2.0 * Y @ F.T
-         + np.einsum("gd,gd->g", F, F)[None, :])
+    D = np.einsum("nd,nd->n", Y, Y)[:, None] - 2.0 * Y @ F.T + np.einsum("gd,gd->g", F, F)[None, :]
     n, G = D.shape
     cost = D[0].copy()
     back = np.empty((n, G), dtype=int)

@@ -2,6 +2,7 @@
 recording (one topic, optional time ranges).  Every loader returns ``(sequences, names)``
 with ``sequences`` a list of finite ``(n_i, d)`` float arrays in chronological order.
 """
+
 from __future__ import annotations
 
 import csv
@@ -38,11 +39,9 @@ def load_csv_dir(path, time_column=None, columns=None):
         try:
             table = np.loadtxt(f, delimiter=",", skiprows=1, ndmin=2)
         except ValueError as exc:
-            raise InvalidInputError(f"{f.name}: not a numeric CSV with one header row ({exc})") \
-                from None
+            raise InvalidInputError(f"{f.name}: not a numeric CSV with one header row ({exc})") from None
         if table.shape[1] != len(header):
-            raise InvalidInputError(f"{f.name}: header has {len(header)} names but rows have "
-                                    f"{table.shape[1]} values")
+            raise InvalidInputError(f"{f.name}: header has {len(header)} names but rows have {table.shape[1]} values")
         keep = [h for h in header if h != time_column] if columns is None else list(columns)
         missing = [c for c in keep + ([time_column] if time_column else []) if c not in header]
         if missing:
@@ -59,8 +58,7 @@ def load_npz(path):
     with np.load(p, allow_pickle=False) as f:
         names = list(f.files)
         arrays = [f[k] for k in names]
-    seqs = [check_array(a[:, None] if a.ndim == 1 else a, f"{p.name}[{k}]")
-            for k, a in zip(names, arrays)]
+    seqs = [check_array(a[:, None] if a.ndim == 1 else a, f"{p.name}[{k}]") for k, a in zip(names, arrays)]
     if not seqs:
         raise InvalidInputError(f"npz {p} holds no arrays")
     return seqs, names
@@ -79,16 +77,18 @@ def load_mcap(path, topic, field="positions", time_ranges=None):
             try:
                 value = json.loads(msg.data)[field]
             except (ValueError, KeyError, TypeError):
-                raise InvalidInputError(f"{p.name}: a message on {topic} has no numeric field "
-                                        f"{field!r}; set field: to one of its list fields") \
-                    from None
+                raise InvalidInputError(
+                    f"{p.name}: a message on {topic} has no numeric field "
+                    f"{field!r}; set field: to one of its list fields"
+                ) from None
             times.append(msg.log_time)
             rows.append(np.ravel(np.asarray(value, dtype=float)))
     if not rows:
         raise InvalidInputError(f"{p.name}: no messages on topic {topic!r}")
     if len({len(r) for r in rows}) > 1:
-        raise InvalidInputError(f"inconsistent dimensions: messages on {topic} carry "
-                                f"{sorted({len(r) for r in rows})} values")
+        raise InvalidInputError(
+            f"inconsistent dimensions: messages on {topic} carry {sorted({len(r) for r in rows})} values"
+        )
     t = (np.asarray(times) - times[0]) * 1e-9
     Y = check_array(np.vstack(rows), f"{p.name}:{topic}")
     ranges = time_ranges or [[t[0], t[-1]]]
@@ -96,8 +96,9 @@ def load_mcap(path, topic, field="positions", time_ranges=None):
     for a, b in ranges:
         sel = (t >= a) & (t <= b)
         if not sel.any():
-            raise InvalidInputError(f"time range [{a}, {b}] s holds no messages on {topic} "
-                                    f"(recording spans 0 … {t[-1]:.3f} s)")
+            raise InvalidInputError(
+                f"time range [{a}, {b}] s holds no messages on {topic} (recording spans 0 … {t[-1]:.3f} s)"
+            )
         seqs.append(Y[sel])
         names.append(f"{topic}[{a}:{b}]")
     return seqs, names

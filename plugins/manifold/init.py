@@ -6,6 +6,7 @@
 * ``equidistant_init``: latent times ``π i / N_σ`` (periodic) or ``i / (N_σ − 1)`` in
   chronological order; other dimensions 0 plus a seeded jitter.
 """
+
 from __future__ import annotations
 
 import warnings
@@ -36,10 +37,12 @@ def cycle_plane(Z):
     points have the smallest coefficient of variation of their radius, i.e. look most like a
     ring.
     """
+
     def ring_score(pair):
         P = Z[:, pair] - Z[:, pair].mean(axis=0)
         r = np.hypot(P[:, 0], P[:, 1])
         return r.std() / max(r.mean(), 1e-300)
+
     return min(combinations(range(Z.shape[1]), 2), key=lambda p: ring_score(list(p)))
 
 
@@ -53,10 +56,11 @@ def spectral_latents(Y, kernel, n_neighbors):
     """Isomap embedding of Y mapped to the latent layout (periodic dims via atan2*)."""
     n_periodic = int(kernel.periodic.sum())
     if n_periodic > 1:
-        raise ValueError("isomap init supports at most one periodic latent dimension; "
-                         "use init='equidistant' or give the latents")
+        raise ValueError(
+            "isomap init supports at most one periodic latent dimension; use init='equidistant' or give the latents"
+        )
     with warnings.catch_warnings():
-        warnings.simplefilter("ignore")   # disconnected-graph warnings: sklearn completes it
+        warnings.simplefilter("ignore")  # disconnected-graph warnings: sklearn completes it
         Z = Isomap(n_neighbors=n_neighbors, n_components=kernel.q + n_periodic).fit_transform(Y)
     Z = _canonical_signs(Z)
     X = np.empty((Y.shape[0], kernel.q))
@@ -106,8 +110,7 @@ def isomap_init(Y, objective: Objective, neighbors=(10,)):
     N = Y.shape[0]
     valid = [int(k) for k in neighbors if 1 <= int(k) < N]
     if not valid:
-        raise ValueError(f"isomap needs n_neighbors < number of points ({N}); "
-                         f"got {list(neighbors)}")
+        raise ValueError(f"isomap needs n_neighbors < number of points ({N}); got {list(neighbors)}")
     results = {}
     for k in valid:
         X0 = spectral_latents(Y, objective.kernel, k)
@@ -123,14 +126,12 @@ def equidistant_init(layout, kernel, time_dim, random_state):
     dimensions: 0 plus a jitter of ``1e-3/β`` (seeded) so their gradient is not identically 0.
     """
     if time_dim is None:
-        raise ValueError("init='equidistant' needs a time dimension (set time: true on one "
-                         "latent dimension)")
+        raise ValueError("init='equidistant' needs a time dimension (set time: true on one latent dimension)")
     rng = np.random.default_rng(random_state)
     pos = layout.positions()
     n = layout.counts[layout.index].astype(float)
     X = np.empty((len(pos), kernel.q))
     for l, k in enumerate(kernel.kernels):
         X[:, l] = rng.normal(0.0, JITTER / k.beta, len(pos))
-    X[:, time_dim] = (np.pi * pos / n if kernel.periodic[time_dim]
-                      else pos / np.maximum(n - 1, 1))
+    X[:, time_dim] = np.pi * pos / n if kernel.periodic[time_dim] else pos / np.maximum(n - 1, 1)
     return kernel.wrap(X)

@@ -5,6 +5,7 @@ cannot execute code.  Metadata: ``format``, ``format_version``, all hyper-parame
 dimension, the final objective, provenance (software version, time of creation, plus whatever
 the caller passes: source recording, topic, time ranges …).
 """
+
 from __future__ import annotations
 
 import datetime as _dt
@@ -38,27 +39,41 @@ def _json_params(model):
 
 def save_model(model, path, provenance=None):
     """Write ``model`` (fitted) to ``path`` (.npz)."""
-    prov = {"software": "handflow", "software_version": _software_version(),
-            "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")}
+    prov = {
+        "software": "handflow",
+        "software_version": _software_version(),
+        "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+    }
     prov.update(getattr(model, "provenance_", {}) or {})
     prov.update(provenance or {})
-    meta = {"format": FORMAT, "format_version": FORMAT_VERSION, "params": _json_params(model),
-            "time_dim": model.time_dim_, "objective": float(model.objective_),
-            "interrupted": bool(model.interrupted_),
-            "n_evaluations": int(model.n_evaluations_), "init_info": _jsonable(model.init_info_),
-            "provenance": _jsonable(prov)}
+    meta = {
+        "format": FORMAT,
+        "format_version": FORMAT_VERSION,
+        "params": _json_params(model),
+        "time_dim": model.time_dim_,
+        "objective": float(model.objective_),
+        "interrupted": bool(model.interrupted_),
+        "n_evaluations": int(model.n_evaluations_),
+        "init_info": _jsonable(model.init_info_),
+        "provenance": _jsonable(prov),
+    }
     ids = model.sequence_ids_
     if ids.dtype == object:
         ids = ids.astype(str)
     with open(path, "wb") as fh:
-        np.savez(fh, Y=model.Y_, latents=model.latents_, sequence_ids=ids,
-                 train_variance=model.train_variance_, history=model.history_,
-                 metadata=np.array(json.dumps(meta)))
+        np.savez(
+            fh,
+            Y=model.Y_,
+            latents=model.latents_,
+            sequence_ids=ids,
+            train_variance=model.train_variance_,
+            history=model.history_,
+            metadata=np.array(json.dumps(meta)),
+        )
 
 
 def _jsonable(obj):
-    return json.loads(json.dumps(obj, default=lambda o: o.tolist() if hasattr(o, "tolist")
-                                 else str(o)))
+    return json.loads(json.dumps(obj, default=lambda o: o.tolist() if hasattr(o, "tolist") else str(o)))
 
 
 def load_model(cls, path):
@@ -73,9 +88,11 @@ def load_model(cls, path):
         if meta.get("format") != FORMAT:
             raise ValueError(f"{path}: format {meta.get('format')!r} is not {FORMAT!r}")
         if meta.get("format_version") != FORMAT_VERSION:
-            raise ValueError(f"{path}: model format version {meta.get('format_version')!r} is "
-                             f"not supported (this handflow reads version {FORMAT_VERSION}); "
-                             f"retrain the model with this version or use a matching handflow")
+            raise ValueError(
+                f"{path}: model format version {meta.get('format_version')!r} is "
+                f"not supported (this handflow reads version {FORMAT_VERSION}); "
+                f"retrain the model with this version or use a matching handflow"
+            )
         missing = [k for k in _ARRAYS if k not in f.files]
         if missing:
             raise ValueError(f"{path}: model file is missing arrays {missing}")
@@ -85,8 +102,7 @@ def load_model(cls, path):
     params["init"] = arrays["latents"]
     model = cls(**params)
     kernel, time_dim = model._layout()
-    model._set_state(arrays["Y"], arrays["latents"], arrays["sequence_ids"], time_dim, kernel,
-                     arrays["train_variance"])
+    model._set_state(arrays["Y"], arrays["latents"], arrays["sequence_ids"], time_dim, kernel, arrays["train_variance"])
     model.history_ = arrays["history"]
     model.objective_ = meta["objective"]
     model.interrupted_ = meta["interrupted"]

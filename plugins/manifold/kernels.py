@@ -15,6 +15,7 @@ distances come out of one small matrix product instead of N² trigonometric call
 sums over (i, j) reduce to products of an N×N weight matrix with a few columns.  Differences
 are centred first (translation invariance) to limit cancellation in ``a² - 2ab + b²``.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -56,15 +57,13 @@ class Kernel:
             return (0.5 * b2 * np.stack([one_a, ca, sa], 1), np.stack([one_b, -cb, -sb], 1))
         c = b.mean() if b.size else 0.0
         a, b = a - c, b - c
-        return (b2 * np.stack([a * a, a, np.ones_like(a)], 1),
-                np.stack([np.ones_like(b), -2 * b, b * b], 1))
+        return (b2 * np.stack([a * a, a, np.ones_like(a)], 1), np.stack([np.ones_like(b), -2 * b, b * b], 1))
 
     def du_factors(self, a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(P, Q) with ``P @ Q.T == du/dδ`` at ``δ = a_i - b_j``."""
         b2 = self.beta**2
         if self.periodic:  # d/dδ β² sin²δ = β² sin 2δ = β² (sin2a cos2b − cos2a sin2b)
-            return (b2 * np.stack([np.sin(2 * a), np.cos(2 * a)], 1),
-                    np.stack([np.cos(2 * b), -np.sin(2 * b)], 1))
+            return (b2 * np.stack([np.sin(2 * a), np.cos(2 * a)], 1), np.stack([np.cos(2 * b), -np.sin(2 * b)], 1))
         return (2 * b2 * np.stack([a, np.ones_like(a)], 1), np.stack([np.ones_like(b), -b], 1))
 
     # -- profile ----------------------------------------------------------------------------
@@ -138,7 +137,7 @@ class ProductKernel:
         """
         if self.exp_dims:
             Ls, Rs = zip(*(self.kernels[l].u_factors(A[:, l], B[:, l]) for l in self.exp_dims))
-            expo = (-0.5 * np.hstack(Ls)) @ np.hstack(Rs).T      # -u/2, summed over dims
+            expo = (-0.5 * np.hstack(Ls)) @ np.hstack(Rs).T  # -u/2, summed over dims
             if stabilise:
                 expo -= expo.max(axis=1, keepdims=True)
             K = np.exp(expo, out=expo)

@@ -1,4 +1,5 @@
 """The Structured UKR estimator (spec ukr.md; thesis 2.1 and 5.3), scikit-learn conventions."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -9,8 +10,7 @@ from .io import load_model, save_model
 from .objective import Objective, SequenceLayout
 from .optimize import OPTIMIZERS
 from .projection import Manifold
-from .validation import (InvalidInputError, as_sequences, check_array, check_time_dim,
-                         parse_latent)
+from .validation import InvalidInputError, as_sequences, check_array, check_time_dim, parse_latent
 
 INIT_NAMES = ("isomap", "equidistant")
 
@@ -51,9 +51,20 @@ class StructuredUKR(BaseEstimator):
     provenance_ (dict saved with the model).
     """
 
-    def __init__(self, latent=None, time_dim=None, lambda_cseq=1.0, lambda_pvar=1.0,
-                 loo_cv=True, optimizer="rprop", n_steps=500, init="isomap",
-                 isomap_neighbors=(5, 10, 15), projection_steps=10, random_state=None):
+    def __init__(
+        self,
+        latent=None,
+        time_dim=None,
+        lambda_cseq=1.0,
+        lambda_pvar=1.0,
+        loo_cv=True,
+        optimizer="rprop",
+        n_steps=500,
+        init="isomap",
+        isomap_neighbors=(5, 10, 15),
+        projection_steps=10,
+        random_state=None,
+    ):
         self.latent = latent
         self.time_dim = time_dim
         self.lambda_cseq = lambda_cseq
@@ -73,16 +84,18 @@ class StructuredUKR(BaseEstimator):
         if self.time_dim is not None:
             check_time_dim(int(self.time_dim), kernel.q)
             if time_dim is not None and time_dim != int(self.time_dim):
-                raise InvalidInputError(f"time_dim={self.time_dim} conflicts with time: true "
-                                        f"on latent dimension {time_dim}")
+                raise InvalidInputError(
+                    f"time_dim={self.time_dim} conflicts with time: true on latent dimension {time_dim}"
+                )
             time_dim = int(self.time_dim)
         if time_dim is None and (self.lambda_cseq or self.lambda_pvar):
-            raise InvalidInputError("lambda_cseq/lambda_pvar need a time dimension: set "
-                                    "time: true on one latent dimension or set both lambdas "
-                                    "to 0")
+            raise InvalidInputError(
+                "lambda_cseq/lambda_pvar need a time dimension: set "
+                "time: true on one latent dimension or set both lambdas "
+                "to 0"
+            )
         if self.optimizer not in OPTIMIZERS:
-            raise InvalidInputError(f"unknown optimizer {self.optimizer!r}; choose one of "
-                                    f"{', '.join(OPTIMIZERS)}")
+            raise InvalidInputError(f"unknown optimizer {self.optimizer!r}; choose one of {', '.join(OPTIMIZERS)}")
         if int(self.n_steps) < 0:
             raise InvalidInputError(f"n_steps must be >= 0, got {self.n_steps}")
         for name in ("lambda_cseq", "lambda_pvar"):
@@ -97,14 +110,17 @@ class StructuredUKR(BaseEstimator):
                 return isomap_init(Y, objective, self.isomap_neighbors)
             if init == "equidistant":
                 return equidistant_init(layout, kernel, time_dim, self.random_state), {}
-            raise InvalidInputError(f"unknown init {init!r}; use one of {', '.join(INIT_NAMES)}"
-                                    f" or an (N, q) array of latents")
+            raise InvalidInputError(
+                f"unknown init {init!r}; use one of {', '.join(INIT_NAMES)} or an (N, q) array of latents"
+            )
         X = np.vstack(init) if isinstance(init, (list, tuple)) else init
         X = check_array(X, "init latents")
         if X.shape != (len(Y), kernel.q):
-            raise InvalidInputError(f"init latents must have shape ({len(Y)}, {kernel.q}) "
-                                    f"(one row per point, one column per latent dimension); "
-                                    f"got {X.shape}")
+            raise InvalidInputError(
+                f"init latents must have shape ({len(Y)}, {kernel.q}) "
+                f"(one row per point, one column per latent dimension); "
+                f"got {X.shape}"
+            )
         return kernel.wrap(X), {}
 
     # -- training ------------------------------------------------------------------------------
@@ -119,19 +135,24 @@ class StructuredUKR(BaseEstimator):
         Y, ids = as_sequences(sequences, sequence_ids)
         N, d = Y.shape
         if kernel.q >= d:
-            raise InvalidInputError(f"the latent space ({kernel.q}-D) must have fewer "
-                                    f"dimensions than the data ({d} columns)")
+            raise InvalidInputError(
+                f"the latent space ({kernel.q}-D) must have fewer dimensions than the data ({d} columns)"
+            )
         need = max(3, kernel.q + 2)
         if N < need:
-            raise InvalidInputError(f"fewer points than needed: got {N}, a {kernel.q}-D model "
-                                    f"needs at least {need}")
+            raise InvalidInputError(f"fewer points than needed: got {N}, a {kernel.q}-D model needs at least {need}")
         layout = SequenceLayout(ids)
-        objective = Objective(Y, kernel, layout, time_dim=time_dim,
-                              lambda_cseq=self.lambda_cseq, lambda_pvar=self.lambda_pvar,
-                              loo_cv=self.loo_cv)
+        objective = Objective(
+            Y,
+            kernel,
+            layout,
+            time_dim=time_dim,
+            lambda_cseq=self.lambda_cseq,
+            lambda_pvar=self.lambda_pvar,
+            loo_cv=self.loo_cv,
+        )
         X0, self.init_info_ = self._initial_latents(Y, objective, layout, kernel, time_dim)
-        result = OPTIMIZERS[self.optimizer](objective, X0, int(self.n_steps), wrap=kernel.wrap,
-                                            callback=callback)
+        result = OPTIMIZERS[self.optimizer](objective, X0, int(self.n_steps), wrap=kernel.wrap, callback=callback)
         self._set_state(Y, kernel.wrap(result.X), ids, time_dim, kernel)
         self.history_ = np.asarray(result.history, dtype=float)
         self.objective_ = result.value
@@ -168,11 +189,10 @@ class StructuredUKR(BaseEstimator):
         Y_new, ids_new = as_sequences(sequences)
         check_array(Y_new, "new sequences", columns=self.n_features_in_)
         X_new = self.transform(Y_new)
-        _, old = np.unique(self.sequence_ids_, return_inverse=True)   # ids become 0 … n−1
+        _, old = np.unique(self.sequence_ids_, return_inverse=True)  # ids become 0 … n−1
         ids = np.r_[old, ids_new + old.max() + 1]
         steps = self.n_steps
-        self.set_params(init=np.vstack([self.latents_, X_new]),
-                        n_steps=steps if n_steps is None else n_steps)
+        self.set_params(init=np.vstack([self.latents_, X_new]), n_steps=steps if n_steps is None else n_steps)
         try:
             return self.fit(np.vstack([self.Y_, Y_new]), ids, callback=callback)
         finally:
@@ -181,7 +201,7 @@ class StructuredUKR(BaseEstimator):
     # -- mapping and projection ----------------------------------------------------------------
     @property
     def kernel_(self):
-        """The fitted latent :class:`~plugins.manifold.kernels.ProductKernel` (one kernel per dimension)."""
+        """The fitted latent :class:`~handflow.plugins.manifold.kernels.ProductKernel` (one kernel per dimension)."""
         self._check_fitted()
         return self._manifold.kernel
 
@@ -218,8 +238,7 @@ class StructuredUKR(BaseEstimator):
             return None
         w = np.asarray(mask, dtype=float)
         if w.shape not in ((shape[1],), shape):
-            raise InvalidInputError(f"mask must have shape ({shape[1]},) or {shape}, got "
-                                    f"{w.shape}")
+            raise InvalidInputError(f"mask must have shape ({shape[1]},) or {shape}, got {w.shape}")
         if not np.all(np.isfinite(w)) or np.any(w < 0) or np.any(w.sum(axis=-1) <= 0):
             raise InvalidInputError("mask weights must be finite, >= 0 and not all zero")
         return w
@@ -245,7 +264,7 @@ class StructuredUKR(BaseEstimator):
 
     # -- persistence ---------------------------------------------------------------------------
     def save(self, path, provenance=None):
-        """Write ``.npz`` + JSON metadata (spec §8); see :mod:`plugins.manifold.io`."""
+        """Write ``.npz`` + JSON metadata (spec §8); see :mod:`handflow.plugins.manifold.io`."""
         self._check_fitted()
         save_model(self, path, provenance)
 

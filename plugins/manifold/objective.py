@@ -18,6 +18,7 @@ and ``K_ij = K(x_i − x_j)``, so ``∂R/∂x_al = Σ_j G_aj ∂K_aj/∂δ_l −
 ``∂K/∂δ_l = C_l ∘ (P_l Q_lᵀ)`` is low rank in the pair (kernels.py), so both sums reduce to two
 GEMMs of the N×N matrix with thin (N × d·rank) blocks — no N×N temporaries besides K.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -37,10 +38,10 @@ class SequenceLayout:
         self.counts = np.bincount(self.index, minlength=self.n_sequences)
         order = np.argsort(self.index, kind="stable")
         same = self.index[order[1:]] == self.index[order[:-1]]
-        self.pairs = np.stack([order[:-1][same], order[1:][same]])   # (prev, next)
+        self.pairs = np.stack([order[:-1][same], order[1:][same]])  # (prev, next)
         starts = np.r_[0, np.cumsum(self.counts)[:-1]]
         last = order[starts + self.counts - 1]
-        self.closing = np.stack([last, order[starts]])                # last -> first
+        self.closing = np.stack([last, order[starts]])  # last -> first
 
     def transitions(self, cyclic: bool) -> np.ndarray:
         return np.hstack([self.pairs, self.closing]) if cyclic else self.pairs
@@ -57,8 +58,17 @@ class SequenceLayout:
 class Objective:
     """Callable ``X (N×q) -> (E, ∂E/∂X)``; components are exposed for tests and plots."""
 
-    def __init__(self, Y, kernel: ProductKernel, layout: SequenceLayout, *, time_dim=None,
-                 lambda_cseq=0.0, lambda_pvar=0.0, loo_cv=True):
+    def __init__(
+        self,
+        Y,
+        kernel: ProductKernel,
+        layout: SequenceLayout,
+        *,
+        time_dim=None,
+        lambda_cseq=0.0,
+        lambda_pvar=0.0,
+        loo_cv=True,
+    ):
         self.Y = np.ascontiguousarray(Y, dtype=float)
         self.N = self.Y.shape[0]
         self.kernel = kernel
@@ -101,7 +111,7 @@ class Objective:
 
         fused = bool(groups) and groups[0][1] is K
         T = K @ np.hstack([Y] + (yp_block(factors[0][0]) if fused else []) + [np.ones((N, 1))])
-        s = np.maximum(T[:, -1], _TINY)              # column sums of K (K is symmetric)
+        s = np.maximum(T[:, -1], _TINY)  # column sums of K (K is symmetric)
         T = T[:, :-1] / s[:, None]
         F = T[:, :d]
         E = Y - F
@@ -113,11 +123,9 @@ class Objective:
         for n, ((dims, M, scale), (P, Q, bounds)) in enumerate(zip(groups, factors)):
             r = P.shape[1]
             U = T[:, d:] if (n == 0 and fused) else (M @ np.hstack(yp_block(P))) / s[:, None]
-            V = M @ (np.hstack([(E[:, None, :] * Q[:, :, None]).reshape(N, -1),
-                                c[:, None] * Q]) / s[:, None])
-            WQ = np.einsum("nd,nrd->nr", Y, V[:, :r * d].reshape(N, r, d)) - V[:, r * d:]
-            WtP = (np.einsum("nd,nrd->nr", E, U[:, :r * d].reshape(N, r, d))
-                   - c[:, None] * U[:, r * d:])
+            V = M @ (np.hstack([(E[:, None, :] * Q[:, :, None]).reshape(N, -1), c[:, None] * Q]) / s[:, None])
+            WQ = np.einsum("nd,nrd->nr", Y, V[:, : r * d].reshape(N, r, d)) - V[:, r * d :]
+            WtP = np.einsum("nd,nrd->nr", E, U[:, : r * d].reshape(N, r, d)) - c[:, None] * U[:, r * d :]
             prod = (-2.0 * scale / N) * (P * WQ - Q * WtP)
             for l, lo, hi in zip(dims, bounds[:-1], bounds[1:]):
                 grad[:, l] = prod[:, lo:hi].sum(axis=1)
@@ -135,8 +143,7 @@ class Objective:
             value, d = np.sum(np.sin(delta) ** 2), np.sin(2 * delta)
         else:
             value, d = np.sum(delta**2), 2 * delta
-        grad[:, self.time_dim] = (np.bincount(b, d, minlength=self.N)
-                                  - np.bincount(a, d, minlength=self.N))
+        grad[:, self.time_dim] = np.bincount(b, d, minlength=self.N) - np.bincount(a, d, minlength=self.N)
         return float(value), grad
 
     def pvar(self, X):
@@ -147,8 +154,9 @@ class Objective:
         lay, dims = self.layout, self._param_dims
         idx, n = lay.index, lay.counts
         Xp = X[:, dims]
-        means = np.stack([np.bincount(idx, Xp[:, k], minlength=lay.n_sequences)
-                          for k in range(len(dims))], 1) / n[:, None]
+        means = (
+            np.stack([np.bincount(idx, Xp[:, k], minlength=lay.n_sequences) for k in range(len(dims))], 1) / n[:, None]
+        )
         dev = Xp - means[idx]
         w = 1.0 / n[idx]
         grad[:, dims] = 2.0 * dev * w[:, None]
@@ -169,5 +177,8 @@ class Objective:
 
     def components(self, X) -> dict:
         """Unweighted terms at X (for logs and plots)."""
-        return {"R_cv" if self.loo_cv else "R": self.reconstruction(X, False)[0],
-                "E_cseq": self.cseq(X)[0], "E_pvar": self.pvar(X)[0]}
+        return {
+            "R_cv" if self.loo_cv else "R": self.reconstruction(X, False)[0],
+            "E_cseq": self.cseq(X)[0],
+            "E_pvar": self.pvar(X)[0],
+        }

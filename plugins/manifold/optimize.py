@@ -4,6 +4,7 @@ Both keep the *best* latents seen (RPROP is not monotone), report progress throu
 ``callback(step, value)`` and stop cleanly on ``KeyboardInterrupt`` (``interrupted=True``),
 returning the best latents so far.
 """
+
 from __future__ import annotations
 
 import contextlib
@@ -18,7 +19,7 @@ from threadpoolctl import ThreadpoolController
 class OptimResult:
     X: np.ndarray
     value: float
-    history: list = field(default_factory=list)   # objective per step (index 0 = initial)
+    history: list = field(default_factory=list)  # objective per step (index 0 = initial)
     n_evaluations: int = 0
     interrupted: bool = False
 
@@ -29,12 +30,24 @@ class _Best:
 
     def update(self, value, X):
         self.n += 1
-        if value < self.value:            # NaN never becomes the best
+        if value < self.value:  # NaN never becomes the best
             self.value, self.X = value, X.copy()
 
 
-def rprop(fun, X0, n_steps, *, wrap=None, callback=None, variant="minus", delta0=0.01,
-          delta_min=1e-6, delta_max=0.2, eta_plus=1.2, eta_minus=0.5):
+def rprop(
+    fun,
+    X0,
+    n_steps,
+    *,
+    wrap=None,
+    callback=None,
+    variant="minus",
+    delta0=0.01,
+    delta_min=1e-6,
+    delta_max=0.2,
+    eta_plus=1.2,
+    eta_minus=0.5,
+):
     """iRprop− (``variant="minus"``) or iRprop+ (Igel & Hüsken 2000) for ``n_steps`` steps.
 
     ``fun(X) -> (value, grad)``; ``wrap(X)`` maps periodic coordinates back after each step.
@@ -58,8 +71,11 @@ def rprop(fun, X0, n_steps, *, wrap=None, callback=None, variant="minus", delta0
             if step == n_steps:
                 break
             prod = g * g_prev
-            delta = np.where(prod > 0, np.minimum(delta * eta_plus, delta_max),
-                             np.where(prod < 0, np.maximum(delta * eta_minus, delta_min), delta))
+            delta = np.where(
+                prod > 0,
+                np.minimum(delta * eta_plus, delta_max),
+                np.where(prod < 0, np.maximum(delta * eta_minus, delta_min), delta),
+            )
             flip = prod < 0
             move = -np.sign(g) * delta
             if variant == "plus":
@@ -82,8 +98,7 @@ def _scipy_blas_single_thread():
     """scipy ships its own OpenBLAS; its idle threads spinning next to numpy's pool on a
     2-core machine slowed L-BFGS-B >10x (measured).  Limit scipy's pool to 1 thread."""
     ctl = ThreadpoolController()
-    libs = [c.filepath for c in ctl.lib_controllers
-            if "scipy" in c.filepath and "numpy" not in c.filepath]
+    libs = [c.filepath for c in ctl.lib_controllers if "scipy" in c.filepath and "numpy" not in c.filepath]
     return ctl.select(filepath=libs).limit(limits=1) if libs else contextlib.nullcontext()
 
 
@@ -108,10 +123,14 @@ def lbfgs(fun, X0, n_steps, *, wrap=None, callback=None):
         record(f(X0.ravel())[0])
         if n_steps > 0:
             with _scipy_blas_single_thread():
-                minimize(f, X0.ravel(), jac=True, method="L-BFGS-B",
-                         callback=lambda intermediate_result: record(intermediate_result.fun),
-                         options={"maxiter": n_steps, "maxfun": 4 * n_steps, "ftol": 0.0,
-                                  "gtol": 0.0})
+                minimize(
+                    f,
+                    X0.ravel(),
+                    jac=True,
+                    method="L-BFGS-B",
+                    callback=lambda intermediate_result: record(intermediate_result.fun),
+                    options={"maxiter": n_steps, "maxfun": 4 * n_steps, "ftol": 0.0, "gtol": 0.0},
+                )
     except KeyboardInterrupt:
         interrupted = True
     if best.X is None:

@@ -1,4 +1,5 @@
 """Training plots (PNG, Agg canvas; pyplot's global state is never touched)."""
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -65,8 +66,7 @@ def plot_training(model, out_dir):
     ax = fig.add_subplot(projection="3d" if dims == 3 else None)
     ax.scatter(*Y[:, :dims].T, s=4, c="0.6", label="data")
     for n, C in enumerate(latent_grid_curves(model)):
-        ax.plot(*model.inverse_transform(C)[:, :dims].T, "r-", lw=1,
-                label="manifold f(x)" if n == 0 else None)
+        ax.plot(*model.inverse_transform(C)[:, :dims].T, "r-", lw=1, label="manifold f(x)" if n == 0 else None)
     ax.legend()
     ax.set_title(f"data vs reconstructed manifold (dims 1–{dims})")
     paths.append(_save(fig, out / "manifold.png"))

@@ -10,6 +10,7 @@
 Documented choice: non-periodic coordinates are clamped to the box spanned by the training
 latents (f is a convex combination of the y_i and only extrapolates by flattening).
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -55,8 +56,7 @@ class Manifold:
         w2 = np.broadcast_to(w, Yq.shape)
         Fc = self.candidates
         Yw = Yq * w2
-        dist = (Yw @ (-2.0 * Fc.T) + (w2 @ (Fc * Fc).T) if w.ndim == 2
-                else Yw @ (-2.0 * Fc.T) + (Fc * Fc) @ w)
+        dist = Yw @ (-2.0 * Fc.T) + (w2 @ (Fc * Fc).T) if w.ndim == 2 else Yw @ (-2.0 * Fc.T) + (Fc * Fc) @ w
         x = self.X[np.argmin(dist, axis=1)].copy()
         F, J = self.f_and_jacobian(x)
         r = Yq - F

@@ -13,6 +13,7 @@ Documented normalisations (the thesis gives none legibly):
 * nCMSE = mean Δ² / (P/2)² with the periodic deviation Δ from the circular mean (period P =
   2π for mapped lines in observation space, π for projected lines), so it lies in [0, 1].
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -64,10 +65,13 @@ def evaluate(model, train_noisy, random_state=None, n_time=90, n_lines=12):
     t, p = model.time_dim_, 1 - model.time_dim_
     test = np.vstack(cylinder(TEST_HEIGHTS))
     test_noisy = test + rng.normal(0.0, NOISE, test.shape)
-    rec = lambda Y: model.inverse_transform(model.transform(Y))   # noqa: E731
+    rec = lambda Y: model.inverse_transform(model.transform(Y))  # noqa: E731
     train = np.vstack(train_noisy)
-    out = {"nmse_test": nmse(test, rec(test)), "nmse_denoise": nmse(test, rec(test_noisy)),
-           "bias": float(np.mean(1 - np.hypot(*rec(train)[:, :2].T)))}
+    out = {
+        "nmse_test": nmse(test, rec(test)),
+        "nmse_denoise": nmse(test, rec(test_noisy)),
+        "bias": float(np.mean(1 - np.hypot(*rec(train)[:, :2].T))),
+    }
 
     lat = model.latents_[:, p]
     _, seq = np.unique(model.sequence_ids_, return_inverse=True)
@@ -99,8 +103,9 @@ def evaluate(model, train_noisy, random_state=None, n_time=90, n_lines=12):
     angles = 2 * np.pi * np.arange(n_lines) / n_lines
     ncm_proj = []
     for phi in angles:
-        line = np.column_stack([np.full(len(TEST_HEIGHTS), np.cos(phi)),
-                                np.full(len(TEST_HEIGHTS), np.sin(phi)), TEST_HEIGHTS])
+        line = np.column_stack(
+            [np.full(len(TEST_HEIGHTS), np.cos(phi)), np.full(len(TEST_HEIGHTS), np.sin(phi)), TEST_HEIGHTS]
+        )
         ncm_proj.append(ncmse(model.transform(line)[:, t], np.pi))
     out["line_ncmse_project"] = float(np.mean(ncm_proj))
     return out
@@ -112,13 +117,20 @@ def write_csv_dir(folder, heights=TRAIN_HEIGHTS, noise=NOISE, random_state=0):
     folder.mkdir(parents=True, exist_ok=True)
     for n, seq in enumerate(cylinder(heights, noise=noise, random_state=random_state)):
         t = np.arange(len(seq)) / 45.0
-        np.savetxt(folder / f"ring_{n:02d}.csv", np.column_stack([t, seq]), delimiter=",",
-                   header="t,x,y,z", comments="", fmt="%.6f")
+        np.savetxt(
+            folder / f"ring_{n:02d}.csv",
+            np.column_stack([t, seq]),
+            delimiter=",",
+            header="t,x,y,z",
+            comments="",
+            fmt="%.6f",
+        )
     return folder
 
 
 if __name__ == "__main__":
     import argparse
+
     ap = argparse.ArgumentParser(description="write the toy-cylinder training rings as CSVs")
     ap.add_argument("folder", type=Path)
     ap.add_argument("--seed", type=int, default=0)

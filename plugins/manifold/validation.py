@@ -1,4 +1,5 @@
 """Input checks with messages that say what to change (spec ukr.md §1, issue 3)."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -28,18 +29,20 @@ def parse_latent(latent):
     """Latent layout (list of dicts / :class:`LatentDim`) → ``(ProductKernel, time_dim)``."""
     dims = DEFAULT_LATENT if latent is None else latent
     if isinstance(dims, (dict, LatentDim)) or not len(dims):
-        raise InvalidInputError("latent must be a non-empty list with one entry per latent "
-                                "dimension, e.g. [{'kernel': 'periodic', 'beta': 12, 'time': True}]")
+        raise InvalidInputError(
+            "latent must be a non-empty list with one entry per latent "
+            "dimension, e.g. [{'kernel': 'periodic', 'beta': 12, 'time': True}]"
+        )
     kernels, times = [], []
     for l, dim in enumerate(dims):
         d = dim.__dict__ if isinstance(dim, LatentDim) else dict(dim)
         unknown = set(d) - {"kernel", "beta", "time"}
         if unknown or "kernel" not in d or "beta" not in d:
-            raise InvalidInputError(f"latent[{l}] must have keys kernel, beta and optional "
-                                    f"time; got {sorted(d)}")
+            raise InvalidInputError(f"latent[{l}] must have keys kernel, beta and optional time; got {sorted(d)}")
         if d["kernel"] not in KERNEL_NAMES:
-            raise InvalidInputError(f"latent[{l}]: unknown kernel {d['kernel']!r}; choose one "
-                                    f"of {', '.join(KERNEL_NAMES)}")
+            raise InvalidInputError(
+                f"latent[{l}]: unknown kernel {d['kernel']!r}; choose one of {', '.join(KERNEL_NAMES)}"
+            )
         try:
             kernels.append(Kernel(d["kernel"], float(d["beta"])))
         except (TypeError, ValueError) as exc:
@@ -47,16 +50,18 @@ def parse_latent(latent):
         if d.get("time", False):
             times.append(l)
     if len(times) > 1:
-        raise InvalidInputError(f"only one latent dimension can be the time dimension; "
-                                f"got time: true on dimensions {times}")
+        raise InvalidInputError(
+            f"only one latent dimension can be the time dimension; got time: true on dimensions {times}"
+        )
     return ProductKernel(kernels), (times[0] if times else None)
 
 
 def check_time_dim(time_dim, q):
     """A time dimension given as an index must exist in the latent layout."""
     if time_dim is not None and not 0 <= time_dim < q:
-        raise InvalidInputError(f"time dimension index {time_dim} is out of range for a "
-                                f"{q}-dimensional latent space (valid: 0…{q - 1})")
+        raise InvalidInputError(
+            f"time dimension index {time_dim} is out of range for a {q}-dimensional latent space (valid: 0…{q - 1})"
+        )
 
 
 def as_sequences(sequences, sequence_ids=None):
@@ -74,15 +79,15 @@ def as_sequences(sequences, sequence_ids=None):
         dims = {a.shape[1] for a in arrays}
         if len(dims) > 1:
             shapes = ", ".join(f"{i}: {a.shape[1]}" for i, a in enumerate(arrays))
-            raise InvalidInputError(f"inconsistent dimensions: all sequences need the same "
-                                    f"number of columns (got {shapes})")
+            raise InvalidInputError(
+                f"inconsistent dimensions: all sequences need the same number of columns (got {shapes})"
+            )
         ids = np.repeat(np.arange(len(arrays)), [len(a) for a in arrays])
         return np.vstack(arrays), ids
     Y = check_array(sequences, "Y")
     ids = np.zeros(len(Y), dtype=int) if sequence_ids is None else np.asarray(sequence_ids)
     if ids.shape != (len(Y),):
-        raise InvalidInputError(f"sequence_ids must have one entry per row of Y ({len(Y)}), "
-                                f"got shape {ids.shape}")
+        raise InvalidInputError(f"sequence_ids must have one entry per row of Y ({len(Y)}), got shape {ids.shape}")
     return Y, ids
 
 
@@ -97,12 +102,15 @@ def check_array(a, name="Y", ndim=2, columns=None):
     if ndim == 2 and a.shape[0] == 0:
         raise InvalidInputError(f"{name} is empty")
     if columns is not None and a.shape[-1] != columns:
-        raise InvalidInputError(f"inconsistent dimensions: {name} has {a.shape[-1]} columns, "
-                                f"the model expects {columns}")
+        raise InvalidInputError(
+            f"inconsistent dimensions: {name} has {a.shape[-1]} columns, the model expects {columns}"
+        )
     bad = ~np.isfinite(a)
     if bad.any():
         where = np.argwhere(bad)[0]
-        raise InvalidInputError(f"{name} contains NaN or inf ({int(bad.sum())} values, first "
-                                f"at index {tuple(int(i) for i in where)}); clean or drop those "
-                                f"rows")
+        raise InvalidInputError(
+            f"{name} contains NaN or inf ({int(bad.sum())} values, first "
+            f"at index {tuple(int(i) for i in where)}); clean or drop those "
+            f"rows"
+        )
     return a

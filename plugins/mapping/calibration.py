@@ -9,6 +9,7 @@
 Both are YAML or JSON (by suffix), validated by pydantic; a missing or broken file raises
 :class:`CalibrationFileError` saying which file and what to change.
 """
+
 from __future__ import annotations
 
 import datetime as _dt
@@ -19,7 +20,8 @@ import numpy as np
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
-from plugins.glove.sensors import N_SENSORS, SENSOR_NAMES, sensor_index
+from handflow.framework.resources import shipped
+from handflow.plugins.hands.sensors import N_SENSORS, SENSOR_NAMES, sensor_index
 
 from .parallelogram import fit_intercepts, robust_extremes
 
@@ -31,7 +33,7 @@ SPREAD_SENSORS = {
 """Spread sensor → (left, right) neighbouring flex sensors that shape its zero level."""
 
 THESIS_INTERCEPTS = (249.0, 244.0, 572.0, 147.0)
-DEFAULT_CONFIG_DIR = Path(__file__).resolve().parents[2] / "configs" / "glove"
+DEFAULT_CONFIG_DIR = shipped("glove")
 DEFAULT_PROFILE = DEFAULT_CONFIG_DIR / "default_profile.yaml"
 DEFAULT_CALIBRATION = DEFAULT_CONFIG_DIR / "default_calibration.yaml"
 """Shipped defaults (configs/glove/)."""
@@ -69,15 +71,18 @@ class GloveProfile(BaseModel):
     spread_phi_max_deg: float = 60.0
     th_mcp_side_deg: float = 0.0
     joint_ranges_deg: dict[str, tuple[float, float]] = Field(
-        default_factory=dict, description="overrides of (θ_min, θ_max) for mapped human joints")
+        default_factory=dict, description="overrides of (θ_min, θ_max) for mapped human joints"
+    )
 
     @model_validator(mode="after")
     def _check(self):
         missing = set(SPREAD_SENSORS) - set(self.zero_abduction)
         extra = set(self.zero_abduction) - set(SPREAD_SENSORS)
         if missing or extra:
-            raise ValueError(f"zero_abduction needs exactly the keys {sorted(SPREAD_SENSORS)}"
-                             f" (missing {sorted(missing)}, unknown {sorted(extra)})")
+            raise ValueError(
+                f"zero_abduction needs exactly the keys {sorted(SPREAD_SENSORS)}"
+                f" (missing {sorted(missing)}, unknown {sorted(extra)})"
+            )
         if abs(self.thumb_m13 - self.thumb_m24) < 1e-6:
             raise ValueError("thumb_m13 and thumb_m24 must differ (parallel sides make no parallelogram)")
         return self
@@ -98,12 +103,15 @@ class SessionCalibration(BaseModel):
     @model_validator(mode="after")
     def _check(self):
         if len(self.s_min) != N_SENSORS or len(self.s_max) != N_SENSORS:
-            raise ValueError(f"s_min and s_max need {N_SENSORS} values (one per sensor), "
-                             f"got {len(self.s_min)} and {len(self.s_max)}")
+            raise ValueError(
+                f"s_min and s_max need {N_SENSORS} values (one per sensor), got {len(self.s_min)} and {len(self.s_max)}"
+            )
         flat = [SENSOR_NAMES[i] for i in range(N_SENSORS) if self.s_max[i] <= self.s_min[i]]
         if flat:
-            raise ValueError(f"s_max must exceed s_min for every sensor; not for: {', '.join(flat)} "
-                             "(move these joints through their full range while calibrating)")
+            raise ValueError(
+                f"s_max must exceed s_min for every sensor; not for: {', '.join(flat)} "
+                "(move these joints through their full range while calibrating)"
+            )
         return self
 
     @property
@@ -118,13 +126,17 @@ class SessionCalibration(BaseModel):
 def _load(path: str | Path, model: type[BaseModel], what: str):
     p = Path(path)
     if not p.is_file():
-        raise CalibrationFileError(f"{what} file '{p}' not found; pass an existing file (defaults ship in "
-                                   "configs/glove/) or record one with 'handflow calibrate'")
+        raise CalibrationFileError(
+            f"{what} file '{p}' not found; pass an existing file (defaults ship in "
+            "configs/glove/) or record one with 'handflow calibrate'"
+        )
     try:
         text = p.read_text()
         data = json.loads(text) if p.suffix.lower() == ".json" else yaml.safe_load(text)
     except (ValueError, yaml.YAMLError, UnicodeDecodeError) as exc:
-        raise CalibrationFileError(f"{what} file '{p}' is not valid {'JSON' if p.suffix == '.json' else 'YAML'}: {exc}") from None
+        raise CalibrationFileError(
+            f"{what} file '{p}' is not valid {'JSON' if p.suffix == '.json' else 'YAML'}: {exc}"
+        ) from None
     if not isinstance(data, dict):
         raise CalibrationFileError(f"{what} file '{p}' must hold a mapping of fields, got {type(data).__name__}")
     try:
@@ -158,13 +170,21 @@ def calibrate_session(frames, profile: GloveProfile, support: int = 5) -> Sessio
     if frames.ndim != 2 or frames.shape[1] != N_SENSORS:
         raise ValueError(f"raw frames must have shape (n, {N_SENSORS}), got {frames.shape}")
     lo, hi, rejected = robust_extremes(frames, support)
-    para, thumb_rejected = fit_intercepts(frames[:, sensor_index("thumb_roll")],
-                                          frames[:, sensor_index("thumb_abduction")],
-                                          profile.thumb_m13, profile.thumb_m24, support)
+    para, thumb_rejected = fit_intercepts(
+        frames[:, sensor_index("thumb_roll")],
+        frames[:, sensor_index("thumb_abduction")],
+        profile.thumb_m13,
+        profile.thumb_m24,
+        support,
+    )
     report = {SENSOR_NAMES[i]: int(r) for i, r in enumerate(rejected) if r}
     report["thumb_parallelogram"] = thumb_rejected
     return SessionCalibration(
-        profile=profile.name, s_min=lo.tolist(), s_max=hi.tolist(),
+        profile=profile.name,
+        s_min=lo.tolist(),
+        s_max=hi.tolist(),
         thumb_intercepts=(float(para.b1), float(para.b2), float(para.b3), float(para.b4)),
-        n_samples=len(frames), rejected=report,
-        created=_dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"))
+        n_samples=len(frames),
+        rejected=report,
+        created=_dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+    )

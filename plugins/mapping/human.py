@@ -10,28 +10,40 @@
    zero level of :mod:`.zero_abduction` (:meth:`spread`);
 4. the unmeasured thumb MCP sideways joint at the profile's default.
 
-``θ_min, θ_max`` default to the human model's joint limits (:data:`plugins.mapping.hands.HUMAN`),
+``θ_min, θ_max`` default to the human model's joint limits (:data:`handflow.plugins.hands.joints.HUMAN`),
 overridable per joint in the profile.  :meth:`inverse` is the exact inverse on the model's image
 (used by the emulator's inverse sensor model and by the tests).
 """
+
 from __future__ import annotations
 
 import numpy as np
 
-from plugins.glove.sensors import N_SENSORS, sensor_index
+from handflow.plugins.hands.joints import HUMAN
+from handflow.plugins.hands.sensors import N_SENSORS, sensor_index
 
 from .calibration import SPREAD_SENSORS, GloveProfile, SessionCalibration
-from .hands import HUMAN
 from .parallelogram import Parallelogram
 from .zero_abduction import zero_level
 
 LINEAR_JOINTS = {
-    "thumb_mcp": "th_mcp", "thumb_ip": "th_ip",
-    "index_mcp": "ff_mcp", "index_pip": "ff_pip", "index_dip": "ff_dip",
-    "middle_mcp": "mf_mcp", "middle_pip": "mf_pip", "middle_dip": "mf_dip",
-    "ring_mcp": "rf_mcp", "ring_pip": "rf_pip", "ring_dip": "rf_dip",
-    "little_mcp": "lf_mcp", "little_pip": "lf_pip", "little_dip": "lf_dip",
-    "palm_arch": "palm_arch", "wrist_pitch": "wrist_pitch", "wrist_yaw": "wrist_yaw",
+    "thumb_mcp": "th_mcp",
+    "thumb_ip": "th_ip",
+    "index_mcp": "ff_mcp",
+    "index_pip": "ff_pip",
+    "index_dip": "ff_dip",
+    "middle_mcp": "mf_mcp",
+    "middle_pip": "mf_pip",
+    "middle_dip": "mf_dip",
+    "ring_mcp": "rf_mcp",
+    "ring_pip": "rf_pip",
+    "ring_dip": "rf_dip",
+    "little_mcp": "lf_mcp",
+    "little_pip": "lf_pip",
+    "little_dip": "lf_dip",
+    "palm_arch": "palm_arch",
+    "wrist_pitch": "wrist_pitch",
+    "wrist_yaw": "wrist_yaw",
 }
 """Flex sensor → human joint mapped linearly."""
 

@@ -9,6 +9,7 @@
 
 Every output message carries the joint names and keeps the input's stamp.
 """
+
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
@@ -16,11 +17,11 @@ from abc import ABC, abstractmethod
 import numpy as np
 from pydantic import BaseModel, ConfigDict
 
-from framework.messages import GloveFrame, JointState
-from framework.plugin import Node
+from handflow.framework.messages import GloveFrame, JointState
+from handflow.framework.plugin import Node
+from handflow.plugins.hands.joints import HUMAN
 
 from .calibration import DEFAULT_CALIBRATION, DEFAULT_PROFILE, load_calibration, load_profile
-from .hands import HUMAN
 from .human import HumanHandMapping
 from .robot import GifuHandMapping, RobotHandMapping, ShadowHandMapping
 
@@ -39,13 +40,17 @@ class HumanHandMappingNode(Node):
 
     def setup(self) -> None:
         p = self.params
-        self.mapping = HumanHandMapping(load_profile(self.ctx.resolve_path(p.profile)),
-                                        load_calibration(self.ctx.resolve_path(p.calibration)))
+        self.mapping = HumanHandMapping(
+            load_profile(self.ctx.resolve_path(p.profile)), load_calibration(self.ctx.resolve_path(p.calibration))
+        )
 
     def on_message(self, port: str, msg: GloveFrame) -> None:
         q = self.mapping.map(msg.sensors)
-        self.ctx.publish("joints", JointState(names=HUMAN.names, positions=q, hand=HUMAN.name,
-                                              handedness=self.params.handedness), stamp_ns=msg.header.stamp_ns)
+        self.ctx.publish(
+            "joints",
+            JointState(names=HUMAN.names, positions=q, hand=HUMAN.name, handedness=self.params.handedness),
+            stamp_ns=msg.header.stamp_ns,
+        )
 
 
 class _RobotNode(Node, ABC):
@@ -65,8 +70,9 @@ class _RobotNode(Node, ABC):
             index = {n: i for i, n in enumerate(msg.names)}
             missing = [n for n in HUMAN.names if n not in index]
             if missing:
-                self.ctx.log.error("input JointState lacks human-model joints %s; connect it to "
-                                   "mapping.human_hand", ", ".join(missing))
+                self.ctx.log.error(
+                    "input JointState lacks human-model joints %s; connect it to mapping.human_hand", ", ".join(missing)
+                )
                 return None
             self._order = (list(msg.names), np.array([index[n] for n in HUMAN.names]))
         return msg.positions[self._order[1]]
@@ -76,8 +82,11 @@ class _RobotNode(Node, ABC):
         if q is None:
             return
         model = self.mapping.model
-        self.ctx.publish("joints", JointState(names=model.names, positions=self.mapping.map(q), hand=model.name,
-                                              handedness=msg.handedness), stamp_ns=msg.header.stamp_ns)
+        self.ctx.publish(
+            "joints",
+            JointState(names=model.names, positions=self.mapping.map(q), hand=model.name, handedness=msg.handedness),
+            stamp_ns=msg.header.stamp_ns,
+        )
 
 
 class ShadowHandMappingNode(_RobotNode):

@@ -12,6 +12,7 @@ each session only shifts the four lines to the session's robust extremes (:func:
 Robust extreme (documented choice, :func:`robust_extremes`): the ``support``-th smallest/largest
 value, so a few isolated outliers (the other hand pressing a sensor) are rejected and reported.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass

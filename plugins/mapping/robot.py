@@ -1,30 +1,43 @@
 """Second mapping: human hand model → robot hands (spec glove.md "Second mapping", thesis 3.5).
 
 ShadowHand-like: every joint copies over (same sign conventions, :mod:`.hands`) except the thumb
-base, computed analytically from (α, β) by :func:`plugins.mapping.thumb.thumb_to_shadow`; results
+base, computed analytically from (α, β) by :func:`handflow.plugins.mapping.thumb.thumb_to_shadow`; results
 are clipped to the robot's limits.  Gifu-like (16 DOF): no wrist, palm or thumb sideways joint
 (dropped); thumb base as the ShadowHand's; each finger's PIP and DIP are merged into the one
 coupled DOF by ``merge`` (documented choice ``"mean"``; ``"pip"`` or ``"max"`` swappable).
 """
+
 from __future__ import annotations
 
 import numpy as np
 
-from .hands import GIFU, HUMAN, SHADOW, HandModel
+from handflow.plugins.hands.joints import GIFU, HUMAN, SHADOW, HandModel
+
 from .thumb import thumb_to_shadow
 
 SHADOW_FROM_HUMAN = {
-    "WRJ2": "wrist_yaw", "WRJ1": "wrist_pitch", "LFJ5": "palm_arch",
-    "THJ3": "th_mcp_side", "THJ2": "th_mcp", "THJ1": "th_ip",
-    **{f"{F}J{k}": f"{f}_{j}" for F, f in (("FF", "ff"), ("MF", "mf"), ("RF", "rf"), ("LF", "lf"))
-       for k, j in ((4, "spread"), (3, "mcp"), (2, "pip"), (1, "dip"))},
+    "WRJ2": "wrist_yaw",
+    "WRJ1": "wrist_pitch",
+    "LFJ5": "palm_arch",
+    "THJ3": "th_mcp_side",
+    "THJ2": "th_mcp",
+    "THJ1": "th_ip",
+    **{
+        f"{F}J{k}": f"{f}_{j}"
+        for F, f in (("FF", "ff"), ("MF", "mf"), ("RF", "rf"), ("LF", "lf"))
+        for k, j in ((4, "spread"), (3, "mcp"), (2, "pip"), (1, "dip"))
+    },
 }
 """ShadowHand joint ← human joint (copied); THJ5/THJ4 come from the thumb mapping."""
 
 GIFU_FROM_HUMAN = {
-    "TH_J3": "th_mcp", "TH_J4": "th_ip",
-    **{f"{F}_J{k}": f"{f}_{j}" for F, f in (("FF", "ff"), ("MF", "mf"), ("RF", "rf"), ("LF", "lf"))
-       for k, j in ((1, "spread"), (2, "mcp"))},
+    "TH_J3": "th_mcp",
+    "TH_J4": "th_ip",
+    **{
+        f"{F}_J{k}": f"{f}_{j}"
+        for F, f in (("FF", "ff"), ("MF", "mf"), ("RF", "rf"), ("LF", "lf"))
+        for k, j in ((1, "spread"), (2, "mcp"))
+    },
 }
 """Gifu joint ← human joint (copied); TH_J1/TH_J2 from the thumb mapping, J3 = J4 = merged PIP/DIP."""
 

@@ -16,6 +16,7 @@ thumb.  There ``thumb_to_shadow`` returns Θ0 = ``theta0_at_singularity`` (docum
 or pass the previous Θ0 to keep the robot still).  At α = 0 the human roll β is undefined and
 ``shadow_to_thumb`` returns β = 0.
 """
+
 from __future__ import annotations
 
 import numpy as np

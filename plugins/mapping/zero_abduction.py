@@ -19,6 +19,7 @@ the surface lies *below* a sample weigh ``under_weight`` times more — under-es
 finger crossings), then lifts ``h`` so that a fraction ``cover`` of the samples lies on or under
 the surface (documented choice: ``cover = 1``, the fit bounds its data).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -53,15 +54,18 @@ def zero_level_jacobian(a, b, h: float, lam) -> np.ndarray:
     k = 2 * d / (l4**2 * W_SCALE)  # −∂s0/∂d
     du1 = b / (2 * S_SCALE)
     dd1 = -b - 2 * l2 * S_SCALE * u * du1
-    return np.stack([
-        np.ones_like(u),
-        l6 * du1 - 2 * l5 * S_SCALE * u * du1 - k * dd1,
-        k * S_SCALE * u**2,
-        k,
-        2 * d**2 / (l4**3 * W_SCALE),
-        -S_SCALE * u**2,
-        u,
-    ], axis=-1)
+    return np.stack(
+        [
+            np.ones_like(u),
+            l6 * du1 - 2 * l5 * S_SCALE * u * du1 - k * dd1,
+            k * S_SCALE * u**2,
+            k,
+            2 * d**2 / (l4**3 * W_SCALE),
+            -S_SCALE * u**2,
+            u,
+        ],
+        axis=-1,
+    )
 
 
 @dataclass
@@ -75,8 +79,9 @@ class ZeroAbductionFit:
     rms: float
 
 
-def fit_zero_abduction(a, b, s, h0: float | None = None, lam0=DEFAULT_SHAPE, under_weight: float = 30.0,
-                       cover: float = 1.0) -> ZeroAbductionFit:
+def fit_zero_abduction(
+    a, b, s, h0: float | None = None, lam0=DEFAULT_SHAPE, under_weight: float = 30.0, cover: float = 1.0
+) -> ZeroAbductionFit:
     """Fit the surface to zero-spread samples ``s`` at flex readings ``a``, ``b`` (1-D arrays)."""
     a, b, s = (np.asarray(v, dtype=float).ravel() for v in (a, b, s))
     if not (a.size == b.size == s.size) or a.size < 7:
@@ -111,6 +116,7 @@ def fit_zero_abduction(a, b, s, h0: float | None = None, lam0=DEFAULT_SHAPE, und
 def plot_zero_abduction(a, b, s, h: float, lam, title: str = "", path: str | None = None):
     """Scatter of the samples (a, b, s) over the fitted surface; saved to ``path`` if given."""
     import matplotlib
+
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 

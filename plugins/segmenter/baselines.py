@@ -6,6 +6,7 @@ Both classify observation ``t`` from the causal window of the last ``window`` ob
 training mean and std (documented choice), and both expose per-class scores (higher = better)
 so that a rejection threshold and a reduced class set (left-out experiment) are cheap to apply.
 """
+
 from __future__ import annotations
 
 import numba
@@ -52,9 +53,9 @@ def _sliding_dtw(Y, refs, offsets, window):  # pragma: no cover - compiled
     out = np.empty((N, offsets.shape[0] - 1))
     for t in range(N):
         lo = max(0, t - window + 1)
-        Q = Y[lo: t + 1]
+        Q = Y[lo : t + 1]
         for r in range(offsets.shape[0] - 1):
-            out[t, r] = _subsequence_dtw(Q, refs[offsets[r]: offsets[r + 1]]) / Q.shape[0]
+            out[t, r] = _subsequence_dtw(Q, refs[offsets[r] : offsets[r + 1]]) / Q.shape[0]
     return out
 
 
@@ -91,7 +92,7 @@ class SlidingDTW1NN(_Standardiser):
         self.window = window
         self.threshold = threshold
 
-    def fit(self, sequences_by_class: dict[str, list[np.ndarray]]) -> "SlidingDTW1NN":
+    def fit(self, sequences_by_class: dict[str, list[np.ndarray]]) -> SlidingDTW1NN:
         if not sequences_by_class:
             raise ValueError("need at least one class with training sequences")
         self.classes_ = list(sequences_by_class)
@@ -123,8 +124,15 @@ class PerClassHMM(_Standardiser):
     """One Gaussian HMM (hmmlearn, diagonal covariances) per class; score = mean log-likelihood
     per observation of the causal window ``y_{t−w+1…t}`` (windowed forward algorithm)."""
 
-    def __init__(self, n_states: int = 4, window: int = 10, n_iter: int = 30, min_covar: float = 1e-2,
-                 threshold: float | None = None, random_state: int | None = 0) -> None:
+    def __init__(
+        self,
+        n_states: int = 4,
+        window: int = 10,
+        n_iter: int = 30,
+        min_covar: float = 1e-2,
+        threshold: float | None = None,
+        random_state: int | None = 0,
+    ) -> None:
         self.n_states = n_states
         self.window = window
         self.n_iter = n_iter
@@ -132,7 +140,7 @@ class PerClassHMM(_Standardiser):
         self.threshold = threshold
         self.random_state = random_state
 
-    def fit(self, sequences_by_class: dict[str, list[np.ndarray]]) -> "PerClassHMM":
+    def fit(self, sequences_by_class: dict[str, list[np.ndarray]]) -> PerClassHMM:
         if not sequences_by_class:
             raise ValueError("need at least one class with training sequences")
         self.classes_ = list(sequences_by_class)
@@ -140,8 +148,13 @@ class PerClassHMM(_Standardiser):
         self.models_ = []
         for seqs in sequences_by_class.values():
             Z = [self.standardise(s) for s in seqs]
-            m = GaussianHMM(n_components=self.n_states, covariance_type="diag", n_iter=self.n_iter,
-                            min_covar=self.min_covar, random_state=self.random_state)
+            m = GaussianHMM(
+                n_components=self.n_states,
+                covariance_type="diag",
+                n_iter=self.n_iter,
+                min_covar=self.min_covar,
+                random_state=self.random_state,
+            )
             m.fit(np.vstack(Z), [len(z) for z in Z])
             self.models_.append(m)
         return self

@@ -3,12 +3,13 @@
 A *candidate model* is anything with ``project(Y) -> (latent_time, errors)``: the latent time
 ``x̂_{t,dt}`` of every observation on that model's periodic time axis (period π) and the
 normalised self-reconstruction error ``e_t``.  :class:`UKRCandidate` adapts one trained
-:class:`plugins.manifold.StructuredUKR`; :class:`CandidateSet` holds one model per class and
+:class:`handflow.plugins.manifold.StructuredUKR`; :class:`CandidateSet` holds one model per class and
 projects a sequence onto all of them at once, giving a :class:`Projection` that the
 recognisers consume (projections are computed once and re-used across parameter settings).
 When every candidate is a 1D periodic UKR manifold, :class:`CandidateSet` projects onto all of
 them in one batched call (:mod:`.fast_projection`) instead of one ``transform`` per model.
 """
+
 from __future__ import annotations
 
 import json
@@ -45,20 +46,21 @@ class Projection:
     def __len__(self) -> int:
         return self.latent_time.shape[0]
 
-    def take(self, index) -> "Projection":
+    def take(self, index) -> Projection:
         """Rows ``index`` (slice, index array) — projection is pointwise, so this equals projecting
         the same sub-sampled / cut / reordered observations."""
         return Projection(self.latent_time[index], self.errors[index], list(self.classes))
 
-    def without(self, label: str) -> "Projection":
+    def without(self, label: str) -> Projection:
         """The same projection with candidate ``label`` left out."""
         keep = [i for i, c in enumerate(self.classes) if c != label]
         return Projection(self.latent_time[:, keep], self.errors[:, keep], [self.classes[i] for i in keep])
 
     @staticmethod
-    def concatenate(parts: list["Projection"]) -> "Projection":
-        return Projection(np.vstack([p.latent_time for p in parts]), np.vstack([p.errors for p in parts]),
-                          list(parts[0].classes))
+    def concatenate(parts: list[Projection]) -> Projection:
+        return Projection(
+            np.vstack([p.latent_time for p in parts]), np.vstack([p.errors for p in parts]), list(parts[0].classes)
+        )
 
 
 class UKRCandidate:
@@ -127,8 +129,10 @@ class CandidateSet:
                 from .fast_projection import BatchedPeriodicProjector
 
                 self._batched = BatchedPeriodicProjector(
-                    [m.model.latents_[:, 0] for m in ukr], [m.model.Y_ for m in ukr],
-                    [m.model.kernel_.kernels[0].beta for m in ukr])
+                    [m.model.latents_[:, 0] for m in ukr],
+                    [m.model.Y_ for m in ukr],
+                    [m.model.kernel_.kernels[0].beta for m in ukr],
+                )
         return self._batched or None
 
     @property
@@ -156,12 +160,12 @@ class CandidateSet:
             lt[:, j], e[:, j] = m.project(Y)
         return Projection(lt, e, self.classes)
 
-    def without(self, label: str) -> "CandidateSet":
+    def without(self, label: str) -> CandidateSet:
         return CandidateSet({k: v for k, v in self.models.items() if k != label})
 
 
 def _load_ukr(path: Path):
-    from plugins.manifold import StructuredUKR
+    from handflow.plugins.manifold import StructuredUKR
 
     return StructuredUKR.load(path)
 

@@ -1,4 +1,5 @@
 """Commands ``handflow train-classes`` and ``handflow evaluate segmentation`` (docs/segmentation.md)."""
+
 from __future__ import annotations
 
 import argparse
@@ -18,15 +19,24 @@ def _progress(msg: str) -> None:
 
 
 def _add_dataset_args(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("dataset", help="folder with train/validation/test sub-folders of <label>_*.csv, "
-                                        "or an .npz (see docs/segmentation.md)")
+    parser.add_argument(
+        "dataset",
+        help="folder with train/validation/test sub-folders of <label>_*.csv, or an .npz (see docs/segmentation.md)",
+    )
     parser.add_argument("--classes", help="comma-separated subset of class labels to use")
-    parser.add_argument("--keep-pen-lift", action="store_true",
-                        help="keep the pen-lift tail marked in an .npz's metadata (default: cut it)")
+    parser.add_argument(
+        "--keep-pen-lift",
+        action="store_true",
+        help="keep the pen-lift tail marked in an .npz's metadata (default: cut it)",
+    )
     parser.add_argument("--beta", default="auto", help="periodic UKR bandwidth, or 'auto' = 12·mean_length/45")
     parser.add_argument("--steps", type=int, default=300, help="UKR optimisation steps per class")
-    parser.add_argument("--init", choices=INITS, default="equidistant",
-                        help="latent init of the class manifolds (equidistant over the period, or isomap)")
+    parser.add_argument(
+        "--init",
+        choices=INITS,
+        default="equidistant",
+        help="latent init of the class manifolds (equidistant over the period, or isomap)",
+    )
     parser.add_argument("--seed", type=int, default=0)
 
 
@@ -55,23 +65,34 @@ def register_train_classes(parser: argparse.ArgumentParser) -> None:
 def run_train_classes(args) -> int:
     try:
         ds = _dataset(args)
-        models = train_class_models(ds, beta=_beta(args), n_steps=args.steps, init=args.init,
-                                    random_state=args.seed, progress=_progress)
+        models = train_class_models(
+            ds, beta=_beta(args), n_steps=args.steps, init=args.init, random_state=args.seed, progress=_progress
+        )
     except (DatasetError, ValueError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    out = save_class_models(models, args.out, provenance={"dataset": ds.source, "split": "train",
-                                                           "steps": args.steps, "beta": str(args.beta),
-                                                           "init": args.init})
+    out = save_class_models(
+        models,
+        args.out,
+        provenance={
+            "dataset": ds.source,
+            "split": "train",
+            "steps": args.steps,
+            "beta": str(args.beta),
+            "init": args.init,
+        },
+    )
     _progress(f"wrote {len(models)} models to {out}")
     return 0
 
 
 # -- evaluate segmentation ----------------------------------------------------------------------
 def register_evaluate(parser: argparse.ArgumentParser) -> None:
-    parser.description = ("Run the thesis recognition/segmentation protocol (spec recognition.md §D) for "
-                          "ukr_only, ukr_clm and the dtw_1nn / hmm baselines: validation picks parameters, "
-                          "test reports.")
+    parser.description = (
+        "Run the thesis recognition/segmentation protocol (spec recognition.md §D) for "
+        "ukr_only, ukr_clm and the dtw_1nn / hmm baselines: validation picks parameters, "
+        "test reports."
+    )
     _add_dataset_args(parser)
     parser.add_argument("--models", help="folder written by train-classes (default: train on the train split)")
     parser.add_argument("--json", action="store_true", help="print the full result as JSON on stdout")
@@ -93,16 +114,21 @@ def run_evaluate(args) -> int:
             candidates = load_candidates(args.models)
         else:
             _progress(f"training one manifold per class ({len(ds.classes)} classes)")
-            candidates = candidate_set(train_class_models(ds, beta=_beta(args), n_steps=args.steps,
-                                                          init=args.init, random_state=args.seed, progress=_progress))
-        evaluator = Evaluator(ds, candidates, Protocol.quick() if args.quick else Protocol(),
-                              random_state=args.seed, progress=_progress)
+            candidates = candidate_set(
+                train_class_models(
+                    ds, beta=_beta(args), n_steps=args.steps, init=args.init, random_state=args.seed, progress=_progress
+                )
+            )
+        evaluator = Evaluator(
+            ds, candidates, Protocol.quick() if args.quick else Protocol(), random_state=args.seed, progress=_progress
+        )
     except (DatasetError, ModelsMissingError, ValueError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     result = evaluator.evaluate(methods)
-    result["parameters"].update(steps=args.steps, beta=str(args.beta), init=args.init, quick=bool(args.quick),
-                                seed=args.seed)
+    result["parameters"].update(
+        steps=args.steps, beta=str(args.beta), init=args.init, quick=bool(args.quick), seed=args.seed
+    )
     result["runtime_s"] = round(time.perf_counter() - t0, 2)
     if args.plots:
         write_plots(evaluator, result, Path(args.plots))
@@ -115,14 +141,19 @@ def run_evaluate(args) -> int:
 
 def format_table(result: dict) -> str:
     """Plain-text summary: share ≥ 85 % / share perfect / mean correct per method and experiment."""
-    lines = [f"{'method':10s} " + " ".join(f"{e:>22s}" for e in EXPERIMENTS),
-             f"{'':10s} " + " ".join(f"{'>=85% perfect mean':>22s}" for _ in EXPERIMENTS)]
+    lines = [
+        f"{'method':10s} " + " ".join(f"{e:>22s}" for e in EXPERIMENTS),
+        f"{'':10s} " + " ".join(f"{'>=85% perfect mean':>22s}" for _ in EXPERIMENTS),
+    ]
     for m, exps in result["methods"].items():
         cells = []
         for e in EXPERIMENTS:
             r = exps[e]
-            cells.append("—".rjust(22) if r["mean_correct"] is None else
-                         f"{r['share_ge_85']:6.2f} {r['share_perfect']:7.2f} {r['mean_correct']:6.2f}".rjust(22))
+            cells.append(
+                "—".rjust(22)
+                if r["mean_correct"] is None
+                else f"{r['share_ge_85']:6.2f} {r['share_perfect']:7.2f} {r['mean_correct']:6.2f}".rjust(22)
+            )
         lines.append(f"{m:10s} " + " ".join(cells))
     return "\n".join(lines)
 
@@ -143,13 +174,26 @@ def write_plots(ev: Evaluator, result: dict, folder: Path) -> None:
             if params is None:
                 continue
             labels = ev.predict(method, params, "test", case)
-            plot_labelled_trajectory(Y, labels, ev.classes, folder / f"{exp}_{method}.png",
-                                     f"{method}: {exp} {case.name} H={H}", truth=case.truth)
+            plot_labelled_trajectory(
+                Y,
+                labels,
+                ev.classes,
+                folder / f"{exp}_{method}.png",
+                f"{method}: {exp} {case.name} H={H}",
+                truth=case.truth,
+            )
         if "ukr_only" in result["parameters"]["selected"]:
             proj = ev.projection("test", case)
-            rec = UKROnlyRecognizer(ev.candidates.without(case.left_out) if case.left_out else ev.candidates,
-                                    history=H, **result["parameters"]["selected"]["ukr_only"])
-            plot_compatibilities(rec.compatibilities_projected(proj), proj.classes,
-                                 folder / f"{exp}_compatibilities.png", f"UKR-only C(t): {exp} {case.name}")
+            rec = UKROnlyRecognizer(
+                ev.candidates.without(case.left_out) if case.left_out else ev.candidates,
+                history=H,
+                **result["parameters"]["selected"]["ukr_only"],
+            )
+            plot_compatibilities(
+                rec.compatibilities_projected(proj),
+                proj.classes,
+                folder / f"{exp}_compatibilities.png",
+                f"UKR-only C(t): {exp} {case.name}",
+            )
     plot_summary(result, folder / "summary.png")
     _progress(f"plots written to {folder}")

@@ -17,6 +17,7 @@ the largest activity).  Documented choice ("quench"): as soon as a sweep ends wi
 assignment, ``T`` is set to 0, so the activities settle on the fixed point of the un-annealed
 dynamics instead of tracking the slowly decaying temperature.  The inner loop is numba-compiled.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -105,16 +106,18 @@ def gershgorin_bound(band: np.ndarray, diag: np.ndarray) -> float:
     return float((rows + diag[:, None]).max())
 
 
-def clm_energy(x: np.ndarray, band: np.ndarray, diag: np.ndarray, J: float, inhibition: float,
-               temperature: float = 0.0) -> float:
+def clm_energy(
+    x: np.ndarray, band: np.ndarray, diag: np.ndarray, J: float, inhibition: float, temperature: float = 0.0
+) -> float:
     """``E_T = −J Σ x + ½ I Σ_r (Σ_α x_rα)² − ½ Σ_α x_αᵀ F^α x_α + ½ T Σ x²`` (h_r = 1)."""
     L, N, B = band.shape
     lateral = float(np.sum(diag * np.sum(x * x, axis=1)))
     for k in range(1, min(B, N - 1) + 1):
         lateral += 2.0 * float(np.sum(band[:, : N - k, k - 1] * x[:, : N - k] * x[:, k:]))
     colsum = x.sum(axis=0)
-    return float(-J * x.sum() + 0.5 * inhibition * np.dot(colsum, colsum) - 0.5 * lateral
-                 + 0.5 * temperature * np.sum(x * x))
+    return float(
+        -J * x.sum() + 0.5 * inhibition * np.dot(colsum, colsum) - 0.5 * lateral + 0.5 * temperature * np.sum(x * x)
+    )
 
 
 @dataclass
@@ -154,10 +157,19 @@ class CompetitiveLayerModel:
     random_state : seed or ``numpy.random.Generator``; the run is deterministic given a seed.
     """
 
-    def __init__(self, J: float = 2.0, inhibition: float | None = None, inhibition_margin: float = 1.5,
-                 eta: float = 0.9, temperature: float | None = None, tol: float = 1e-3,
-                 max_sweeps: int = 1000, init_scale: float = 0.01, spectral: str = "eigen",
-                 random_state=None) -> None:
+    def __init__(
+        self,
+        J: float = 2.0,
+        inhibition: float | None = None,
+        inhibition_margin: float = 1.5,
+        eta: float = 0.9,
+        temperature: float | None = None,
+        tol: float = 1e-3,
+        max_sweeps: int = 1000,
+        init_scale: float = 0.01,
+        spectral: str = "eigen",
+        random_state=None,
+    ) -> None:
         self.J = J
         self.inhibition = inhibition
         self.inhibition_margin = inhibition_margin
@@ -174,8 +186,10 @@ class CompetitiveLayerModel:
         band = np.ascontiguousarray(band, dtype=np.float64)
         diag = np.ascontiguousarray(diag, dtype=np.float64).reshape(-1)
         if band.ndim != 3 or band.shape[0] != diag.size:
-            raise ValueError(f"band must be (layers, N, width) with one diagonal value per layer; "
-                             f"got band {band.shape} and {diag.size} diagonal values")
+            raise ValueError(
+                f"band must be (layers, N, width) with one diagonal value per layer; "
+                f"got band {band.shape} and {diag.size} diagonal values"
+            )
         if not (np.isfinite(band).all() and np.isfinite(diag).all()):
             raise ValueError("compatibilities hold NaN/inf; check the candidate projections")
         if not 0.0 < self.eta <= 1.0:
@@ -193,8 +207,14 @@ class CompetitiveLayerModel:
     def initial_activities(self, shape: tuple[int, int]) -> np.ndarray:
         return self._rng.uniform(0.0, self.init_scale, size=shape) + 1e-12
 
-    def solve(self, band: np.ndarray, diag: np.ndarray, x0: np.ndarray | None = None,
-              temperature: float | None = None, lambda_max: float | None = None) -> CLMResult:
+    def solve(
+        self,
+        band: np.ndarray,
+        diag: np.ndarray,
+        x0: np.ndarray | None = None,
+        temperature: float | None = None,
+        lambda_max: float | None = None,
+    ) -> CLMResult:
         """Run the dynamics to convergence from ``x0`` (default: small positive random values).
 
         ``temperature`` overrides the start temperature (used by warm starts); ``lambda_max``
@@ -203,20 +223,39 @@ class CompetitiveLayerModel:
         band, diag = self._validate(band, diag)
         L, N, _ = band.shape
         lam = self.spectral_scale(band, diag) if lambda_max is None else float(lambda_max)
-        inhib = (self.inhibition if self.inhibition is not None
-                 else self.inhibition_margin * max(lam, 0.5 * self.J))
+        inhib = self.inhibition if self.inhibition is not None else self.inhibition_margin * max(lam, 0.5 * self.J)
         if inhib <= diag.max():
             raise ValueError(f"inhibition I={inhib} must exceed every self-excitation (max {diag.max()})")
-        T = temperature if temperature is not None else (self.temperature if self.temperature is not None
-                                                          else max(lam, 0.0))
+        T = (
+            temperature
+            if temperature is not None
+            else (self.temperature if self.temperature is not None else max(lam, 0.0))
+        )
         x = self.initial_activities((L, N)) if x0 is None else np.array(x0, dtype=np.float64, order="C")
         if x.shape != (L, N):
             raise ValueError(f"x0 must have shape {(L, N)}, got {x.shape}")
         colsum = x.sum(axis=0)
         seed = int(self._rng.integers(0, 2**31 - 1))
-        sweeps, converged, T_end = _sweeps(x, colsum, band, diag, float(self.J), float(inhib), float(T),
-                                           float(self.eta), int(self.max_sweeps), float(self.tol), seed)
+        sweeps, converged, T_end = _sweeps(
+            x,
+            colsum,
+            band,
+            diag,
+            float(self.J),
+            float(inhib),
+            float(T),
+            float(self.eta),
+            int(self.max_sweeps),
+            float(self.tol),
+            seed,
+        )
         winners = np.where(x.max(axis=0) > 0.0, x.argmax(axis=0), -1)
-        return CLMResult(activities=x, winners=winners, sweeps=int(sweeps), converged=bool(converged),
-                         energy=clm_energy(x, band, diag, self.J, inhib), inhibition=float(inhib),
-                         temperature=float(T_end))
+        return CLMResult(
+            activities=x,
+            winners=winners,
+            sweeps=int(sweeps),
+            converged=bool(converged),
+            energy=clm_energy(x, band, diag, self.J, inhib),
+            inhibition=float(inhib),
+            temperature=float(T_end),
+        )

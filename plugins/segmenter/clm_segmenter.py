@@ -2,17 +2,17 @@
 
 :class:`CLMSegmenter` turns the projections of a sequence onto the candidate manifolds into banded
 layer compatibilities (:func:`layer_compatibilities`) and runs the
-:class:`~plugins.segmenter.clm.CompetitiveLayerModel` on them.  The winning layer of an
+:class:`~handflow.plugins.segmenter.clm.CompetitiveLayerModel` on them.  The winning layer of an
 observation is its label; the background layer means rejected (−1).
 """
+
 from __future__ import annotations
 
 import numpy as np
 
 from .candidates import CandidateSet, Projection
 from .clm import CLMResult, CompetitiveLayerModel
-from .compatibility import (background_band, candidate_band, order_rating, pair_error,
-                            thesis_background_strength)
+from .compatibility import background_band, candidate_band, order_rating, pair_error, thesis_background_strength
 
 REJECTED = -1
 
@@ -42,11 +42,24 @@ class CLMSegmenter:
     ``activities_`` (L+1, N) and ``result_``.
     """
 
-    def __init__(self, candidates: CandidateSet, history: int = 10, order_rating: str = "sign",
-                 pair_error: str = "mean", background: float | None = None, background_factor: float = 1.0,
-                 background_radius: int | None = None, J: float = 2.0, eta: float = 0.9, tol: float = 1e-3,
-                 max_sweeps: int = 1000, inhibition_margin: float = 1.5, spectral: str = "eigen",
-                 error_scale: float = 1.0, random_state=None) -> None:
+    def __init__(
+        self,
+        candidates: CandidateSet,
+        history: int = 10,
+        order_rating: str = "sign",
+        pair_error: str = "mean",
+        background: float | None = None,
+        background_factor: float = 1.0,
+        background_radius: int | None = None,
+        J: float = 2.0,
+        eta: float = 0.9,
+        tol: float = 1e-3,
+        max_sweeps: int = 1000,
+        inhibition_margin: float = 1.5,
+        spectral: str = "eigen",
+        error_scale: float = 1.0,
+        random_state=None,
+    ) -> None:
         if not error_scale > 0:
             raise ValueError(f"error_scale must be > 0, got {error_scale}")
         self.candidates = candidates
@@ -67,9 +80,15 @@ class CLMSegmenter:
         self.solver_ = self._make_solver(random_state)
 
     def _make_solver(self, random_state) -> CompetitiveLayerModel:
-        return CompetitiveLayerModel(J=self.J, eta=self.eta, tol=self.tol, max_sweeps=self.max_sweeps,
-                                     inhibition_margin=self.inhibition_margin, spectral=self.spectral,
-                                     random_state=random_state)
+        return CompetitiveLayerModel(
+            J=self.J,
+            eta=self.eta,
+            tol=self.tol,
+            max_sweeps=self.max_sweeps,
+            inhibition_margin=self.inhibition_margin,
+            spectral=self.spectral,
+            random_state=random_state,
+        )
 
     @property
     def classes_(self) -> list[str]:
@@ -86,9 +105,14 @@ class CLMSegmenter:
         n = len(proj)
         radius = self.history if self.background_radius is None else int(self.background_radius)
         width = max(self.history, radius - 1)
-        cand = candidate_band(proj.latent_time, proj.errors * self.error_scale, width, order_rating(self.order_rating),
-                              pair_error(self.pair_error))
-        cand[:, :, self.history:] = 0.0
+        cand = candidate_band(
+            proj.latent_time,
+            proj.errors * self.error_scale,
+            width,
+            order_rating(self.order_rating),
+            pair_error(self.pair_error),
+        )
+        cand[:, :, self.history :] = 0.0
         bg, bg_diag = background_band(n, width, self.background_strength(n), radius)
         band = np.concatenate([cand, bg[None]], axis=0)
         diag = np.r_[np.zeros(cand.shape[0]), bg_diag]

@@ -11,9 +11,10 @@ documented choice of the spec is a named, swappable function held in a registry:
 * history weights: ``h = 1…H`` with the current observation as ``h = 1`` (lag ``h − 1``),
   :func:`history_compatibility`.
 """
+
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 
@@ -58,8 +59,9 @@ def order_compatibility(latent_time: np.ndarray, rating: OrderRating = order_rat
     return out
 
 
-def local_compatibility(latent_time: np.ndarray, errors: np.ndarray,
-                        rating: OrderRating = order_rating_cos) -> np.ndarray:
+def local_compatibility(
+    latent_time: np.ndarray, errors: np.ndarray, rating: OrderRating = order_rating_cos
+) -> np.ndarray:
     """``C_local = ½ (C_rec + C_ord)`` (spec §A)."""
     return 0.5 * (reconstruction_compatibility(errors) + order_compatibility(latent_time, rating))
 
@@ -111,7 +113,7 @@ def pair_error_mean(errors: np.ndarray, width: int) -> np.ndarray:
     out = np.full((m, n, width), np.nan)
     for k in range(1, width + 1):
         if k < n:
-            out[:, : n - k, k - 1] = ((cs[k + 1:] - cs[: n - k]) / (k + 1)).T
+            out[:, : n - k, k - 1] = ((cs[k + 1 :] - cs[: n - k]) / (k + 1)).T
     return out
 
 
@@ -136,9 +138,13 @@ def pair_error(name: str) -> PairError:
         raise ValueError(f"pair error must be one of {sorted(PAIR_ERRORS)}, got {name!r}") from None
 
 
-def candidate_band(latent_time: np.ndarray, errors: np.ndarray, width: int,
-                   rating: OrderRating = order_rating_sign,
-                   mean_error: PairError = pair_error_mean) -> np.ndarray:
+def candidate_band(
+    latent_time: np.ndarray,
+    errors: np.ndarray,
+    width: int,
+    rating: OrderRating = order_rating_sign,
+    mean_error: PairError = pair_error_mean,
+) -> np.ndarray:
     """Banded CLM compatibilities ``f^m_ij = ½ (c_loc_ij + c_sre_ij)`` for ``0 < j − i ≤ width``.
 
     ``latent_time`` and ``errors`` are (N, M); returns (M, N, width) with
@@ -168,7 +174,7 @@ def background_band(n: int, width: int, strength: float, radius: int) -> tuple[n
     row = np.where(k < radius, strength * (1.0 - k / radius), 0.0)
     band = np.tile(row, (n, 1))
     for kk in range(1, width + 1):  # no partner past the end of the sequence
-        band[max(n - kk, 0):, kk - 1] = 0.0
+        band[max(n - kk, 0) :, kk - 1] = 0.0
     return band, float(strength)
 
 

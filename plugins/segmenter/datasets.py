@@ -19,6 +19,7 @@ Accepted formats (:func:`load_dataset`):
    the file's test set; per class, the first half of the training cases (file order, rounded up)
    stay training and the second half becomes validation.
 """
+
 from __future__ import annotations
 
 import csv
@@ -72,14 +73,15 @@ class LabelledDataset:
             out.setdefault(t.label, []).append(t.data)
         return out
 
-    def restrict(self, classes: list[str]) -> "LabelledDataset":
+    def restrict(self, classes: list[str]) -> LabelledDataset:
         """The same dataset with only the given classes."""
         missing = sorted(set(classes) - set(self.classes))
         if missing:
             raise DatasetError(f"classes {missing} are not in the dataset (it has {self.classes})")
         keep = set(classes)
-        return LabelledDataset(*[[t for t in self.split(s) if t.label in keep] for s in SPLITS],
-                               columns=self.columns, source=self.source)
+        return LabelledDataset(
+            *[[t for t in self.split(s) if t.label in keep] for s in SPLITS], columns=self.columns, source=self.source
+        )
 
 
 def split_counts(n: int) -> tuple[int, int, int]:
@@ -98,8 +100,10 @@ def load_dataset(path: str | Path, trim_pen_lift: bool = True) -> LabelledDatase
     """Load a dataset folder or .npz (see the module docstring for the formats)."""
     p = Path(path).expanduser()
     if not p.exists():
-        raise DatasetError(f"dataset {p} does not exist; pass a folder with train/validation/test "
-                           "sub-folders of <label>_<anything>.csv files or an .npz file")
+        raise DatasetError(
+            f"dataset {p} does not exist; pass a folder with train/validation/test "
+            "sub-folders of <label>_<anything>.csv files or an .npz file"
+        )
     if p.is_dir():
         ds = _load_folder(p)
     elif p.suffix == ".npz":
@@ -158,8 +162,9 @@ def _read_csv(path: Path) -> tuple[list[str], np.ndarray]:
 def _load_folder(root: Path) -> LabelledDataset:
     missing = [s for s in SPLITS if not (root / s).is_dir()]
     if missing:
-        raise DatasetError(f"dataset folder {root} lacks the sub-folder(s) {missing}; "
-                           "it needs train/, validation/ and test/")
+        raise DatasetError(
+            f"dataset folder {root} lacks the sub-folder(s) {missing}; it needs train/, validation/ and test/"
+        )
     splits, columns = {}, None
     for s in SPLITS:
         trajs = []
@@ -207,8 +212,10 @@ def _load_uea(arrays: dict[str, np.ndarray]) -> LabelledDataset:
 
     def trajectories(part: str) -> list[Trajectory]:
         X, y = arrays[f"X_{part}"], arrays[f"labels_{part}"]
-        return [Trajectory(names[int(c)] if names else str(c), np.asarray(x, dtype=float).T, f"{part}[{i}]")
-                for i, (x, c) in enumerate(zip(X, y))]
+        return [
+            Trajectory(names[int(c)] if names else str(c), np.asarray(x, dtype=float).T, f"{part}[{i}]")
+            for i, (x, c) in enumerate(zip(X, y))
+        ]
 
     train, validation = [], []
     full = trajectories("train")

@@ -26,11 +26,12 @@ background (``3 λ_bg`` with the thesis rule ``λ_bg = 1 − 10/N``, spec §B) u
 experiment: ``share_ge_85`` (cases with ≥ 85 % correct), ``share_perfect`` (100 % correct),
 ``mean_correct`` — all fractions in [0, 1].
 """
+
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable
 
 import numpy as np
 
@@ -58,7 +59,7 @@ class Protocol:
     grid_size: int | None = None  # keep only the first grid points per method (quick runs)
 
     @classmethod
-    def quick(cls) -> "Protocol":
+    def quick(cls) -> Protocol:
         """The reduced protocol for CI and tests."""
         return cls(nths=(1, 2), histories=(10,), runs=2, max_pairs=6, grid_size=2)
 
@@ -109,16 +110,20 @@ def build_cases(trajs: list[Trajectory], classes: list[str], protocol: Protocol)
                 idx = sub(i, nth)
                 truth = np.full(len(idx), cls_index[t.label])
                 cases.append(Case("single", t.name, nth, H, [(i, idx)], truth))
-                cases.append(Case("reversed_rejection", t.name, nth, H, [(i, idx[::-1].copy())],
-                                  np.full(len(idx), -1)))
+                cases.append(Case("reversed_rejection", t.name, nth, H, [(i, idx[::-1].copy())], np.full(len(idx), -1)))
                 if len(classes) > 1:
-                    cases.append(Case("left_out_rejection", t.name, nth, H, [(i, idx)], np.full(len(idx), -1),
-                                      left_out=t.label))
+                    cases.append(
+                        Case("left_out_rejection", t.name, nth, H, [(i, idx)], np.full(len(idx), -1), left_out=t.label)
+                    )
             for experiment, middle in (("concatenated", False), ("middle_halves", True)):
                 for i, j in pairs:
                     parts = [(i, sub(i, nth, middle)), (j, sub(j, nth, middle))]
-                    truth = np.concatenate([np.full(len(parts[0][1]), cls_index[trajs[i].label]),
-                                            np.full(len(parts[1][1]), cls_index[trajs[j].label])])
+                    truth = np.concatenate(
+                        [
+                            np.full(len(parts[0][1]), cls_index[trajs[i].label]),
+                            np.full(len(parts[1][1]), cls_index[trajs[j].label]),
+                        ]
+                    )
                     cases.append(Case(experiment, f"{trajs[i].name}+{trajs[j].name}", nth, H, parts, truth))
     return cases
 
@@ -127,8 +132,11 @@ def summarise(correct: list[float]) -> dict:
     c = np.asarray(correct, dtype=float)
     if c.size == 0:
         return {"share_ge_85": None, "share_perfect": None, "mean_correct": None}
-    return {"share_ge_85": float(np.mean(c >= 0.85)), "share_perfect": float(np.mean(c >= 1.0)),
-            "mean_correct": float(np.mean(c))}
+    return {
+        "share_ge_85": float(np.mean(c >= 0.85)),
+        "share_perfect": float(np.mean(c >= 1.0)),
+        "mean_correct": float(np.mean(c)),
+    }
 
 
 @dataclass
@@ -148,12 +156,14 @@ class Evaluator:
             raise ValueError(f"no trained model for classes {missing}; retrain the models on this dataset")
         self._projections: dict[tuple[str, int], Projection] = {}
         self._scores: dict[tuple, np.ndarray] = {}
-        train = {c: s for c, s in self.dataset.by_class("train").items()}
+        train = dict(self.dataset.by_class("train").items())
         self.progress("fitting baselines (DTW references, per-class HMMs)")
         self.dtw = SlidingDTW1NN().fit(train)
         self.hmm = PerClassHMM(random_state=self.random_state).fit(train)
-        self.cases = {split: build_cases(self.dataset.split(split), self.classes, self.protocol)
-                      for split in ("validation", "test")}
+        self.cases = {
+            split: build_cases(self.dataset.split(split), self.classes, self.protocol)
+            for split in ("validation", "test")
+        }
 
     # -- data of a case ---------------------------------------------------------------------
     def _projection(self, split: str, i: int) -> Projection:
@@ -178,19 +188,25 @@ class Evaluator:
     def grid(self, method: str, split: str = "validation") -> list[dict]:
         """The parameter grid of a method (documented, small; thresholds are data-derived)."""
         if method == "ukr_only":
-            g = [{"lam": lam, "gamma": 0.9, "order_rating": r, "threshold": th}
-                 for th in (None, 0.5, 0.0) for r in ("cos", "sign") for lam in (0.3, 0.5)]
+            g = [
+                {"lam": lam, "gamma": 0.9, "order_rating": r, "threshold": th}
+                for th in (None, 0.5, 0.0)
+                for r in ("cos", "sign")
+                for lam in (0.3, 0.5)
+            ]
         elif method == "ukr_clm":
-            g = [{"background_factor": f, "error_scale": e}
-                 for e in (1.0, 0.1) for f in (1.0, 0.5, 0.25, 0.1, 2.0, 3.0)]
+            g = [
+                {"background_factor": f, "error_scale": e} for e in (1.0, 0.1) for f in (1.0, 0.5, 0.25, 0.1, 2.0, 3.0)
+            ]
         else:
             g = [{"threshold": th} for th in self._baseline_thresholds(method, split)]
         return g[: self.protocol.grid_size] if self.protocol.grid_size else g
 
     def _baseline_thresholds(self, method: str, split: str) -> list[float | None]:
         """None plus the 5 % and 25 % quantiles of the winning score on the split's single cases."""
-        best = np.concatenate([self._baseline_scores(method, split, c).max(axis=1)
-                               for c in self.cases[split] if c.experiment == "single"])
+        best = np.concatenate(
+            [self._baseline_scores(method, split, c).max(axis=1) for c in self.cases[split] if c.experiment == "single"]
+        )
         return [None, float(np.quantile(best, 0.25)), float(np.quantile(best, 0.05))]
 
     def _baseline_scores(self, method: str, split: str, case: Case) -> np.ndarray:
@@ -209,26 +225,42 @@ class Evaluator:
             if method == "ukr_only":
                 labels = UKROnlyRecognizer(cands, history=case.history, **params).predict_projected(proj)
             else:
-                labels = CLMSegmenter(cands, history=case.history, random_state=seed, **params).fit_predict_projected(proj)
+                labels = CLMSegmenter(cands, history=case.history, random_state=seed, **params).fit_predict_projected(
+                    proj
+                )
             return self._to_global(labels, proj.classes)
         scores = self._baseline_scores(method, split, case)
         keep = [k for k, c in enumerate(self.classes) if c != case.left_out]
         labels = decide(scores[:, keep], params.get("threshold"))
         return self._to_global(labels, [self.classes[k] for k in keep])
 
-    def run(self, method: str, params: dict, split: str, runs: int = 1,
-            experiments: tuple[str, ...] = EXPERIMENTS) -> dict:
+    def run(
+        self, method: str, params: dict, split: str, runs: int = 1, experiments: tuple[str, ...] = EXPERIMENTS
+    ) -> dict:
         """Per-experiment summaries and cases of one method and parameter set on one split."""
         per_exp: dict[str, list[dict]] = {e: [] for e in experiments}
         for n, case in enumerate(self.cases[split]):
             if case.experiment not in per_exp:
                 continue
-            shares = [float(np.mean(self.predict(method, params, split, case,
-                                                 seed=self.random_state * 100003 + n * 7 + r) == case.truth))
-                      for r in range(runs)]
-            per_exp[case.experiment].append({"name": case.name, "nth": case.nth, "H": case.history,
-                                             "n_points": int(case.truth.size), "correct": float(np.mean(shares)),
-                                             "std": float(np.std(shares))})
+            shares = [
+                float(
+                    np.mean(
+                        self.predict(method, params, split, case, seed=self.random_state * 100003 + n * 7 + r)
+                        == case.truth
+                    )
+                )
+                for r in range(runs)
+            ]
+            per_exp[case.experiment].append(
+                {
+                    "name": case.name,
+                    "nth": case.nth,
+                    "H": case.history,
+                    "n_points": int(case.truth.size),
+                    "correct": float(np.mean(shares)),
+                    "std": float(np.std(shares)),
+                }
+            )
         return {e: dict(summarise([c["correct"] for c in cs]), cases=cs) for e, cs in per_exp.items()}
 
     def select(self, method: str) -> tuple[dict, float]:
@@ -236,8 +268,9 @@ class Evaluator:
         best, best_score = None, -np.inf
         for params in self.grid(method):
             res = self.run(method, params, "validation", runs=1)
-            score = float(np.mean([res[e]["mean_correct"] for e in SELECTION_EXPERIMENTS
-                                   if res[e]["mean_correct"] is not None]))
+            score = float(
+                np.mean([res[e]["mean_correct"] for e in SELECTION_EXPERIMENTS if res[e]["mean_correct"] is not None])
+            )
             self.progress(f"  {method} validation {params}: {score:.3f}")
             if score > best_score:
                 best, best_score = params, score
@@ -245,10 +278,21 @@ class Evaluator:
 
     def evaluate(self, methods: tuple[str, ...] = METHODS) -> dict:
         """Select on validation, report on test: the JSON structure of ``evaluate segmentation``."""
-        out: dict = {"methods": {}, "parameters": {"protocol": {
-            "nths": list(self.protocol.nths), "histories": list(self.protocol.histories),
-            "runs": self.protocol.runs, "max_pairs": self.protocol.max_pairs},
-            "classes": self.classes, "dataset": self.dataset.source, "selected": {}, "validation_score": {}}}
+        out: dict = {
+            "methods": {},
+            "parameters": {
+                "protocol": {
+                    "nths": list(self.protocol.nths),
+                    "histories": list(self.protocol.histories),
+                    "runs": self.protocol.runs,
+                    "max_pairs": self.protocol.max_pairs,
+                },
+                "classes": self.classes,
+                "dataset": self.dataset.source,
+                "selected": {},
+                "validation_score": {},
+            },
+        }
         for method in methods:
             t0 = time.perf_counter()
             self.progress(f"{method}: selecting parameters on validation")

@@ -15,6 +15,7 @@ Documented choices: ``grid`` = max(256, 4 N_max) (spacing well below the kernel 
 candidates' auto bandwidths), ``n_iter`` = 4; a step is only accepted when it lowers the error,
 so the result is never worse than the grid optimum.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -27,8 +28,14 @@ class BatchedPeriodicProjector:
     observations, ``betas``: inverse bandwidths of the periodic kernels (period π).
     """
 
-    def __init__(self, latents: list[np.ndarray], data: list[np.ndarray], betas: list[float],
-                 grid: int | None = None, n_iter: int = 4) -> None:
+    def __init__(
+        self,
+        latents: list[np.ndarray],
+        data: list[np.ndarray],
+        betas: list[float],
+        grid: int | None = None,
+        n_iter: int = 4,
+    ) -> None:
         m = len(latents)
         if not (m == len(data) == len(betas)) or m == 0:
             raise ValueError("latents, data and betas need one entry per candidate (at least one)")
@@ -50,12 +57,12 @@ class BatchedPeriodicProjector:
 
     def _f(self, x: np.ndarray, jacobian: bool = False):
         """f (B, M, d) and, if asked, ∂f/∂x (B, M, d) at latents x (B, M)."""
-        delta = x[:, :, None] - self.X[None]                           # (B, M, N)
+        delta = x[:, :, None] - self.X[None]  # (B, M, N)
         s = np.sin(delta)
         u = self.half_beta2[None, :, None] * s * s
         u -= np.min(np.where(self.mask[None] > 0, u, np.inf), axis=2, keepdims=True)
         k = np.exp(-u) * self.mask[None]
-        S = k.sum(axis=2)                                              # (B, M)
+        S = k.sum(axis=2)  # (B, M)
         F = np.einsum("bmn,mnd->bmd", k, self.Y) / S[:, :, None]
         if not jacobian:
             return F, None
@@ -67,7 +74,7 @@ class BatchedPeriodicProjector:
         """Latents (B, M) in [0, π) and reconstructions f(g(y)) (B, M, d) of every row of Y."""
         Y = np.atleast_2d(np.asarray(Y, dtype=float))
         dist = self.grid_sq[None] - 2.0 * np.einsum("bd,gmd->bgm", Y, self.grid_images)  # (B, G, M)
-        x = self.grid[np.argmin(dist, axis=1)]                                         # (B, M)
+        x = self.grid[np.argmin(dist, axis=1)]  # (B, M)
         F, J = self._f(x, jacobian=True)
         r = Y[:, None, :] - F
         err = np.einsum("bmd,bmd->bm", r, r)

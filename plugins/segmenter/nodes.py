@@ -6,6 +6,7 @@ re-ordered by the ``joints`` parameter) or ``array`` (Array; flattened) — and 
 (``start``/``end`` when the newest label changes; the CLM node also ``revision`` when later
 evidence changes an earlier label).  Output stamps are the observation's stamp.
 """
+
 from __future__ import annotations
 
 from typing import Literal
@@ -13,8 +14,8 @@ from typing import Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
-from framework.messages import Array, JointState, Label, Message, SegmentEvent
-from framework.plugin import Node
+from handflow.framework.messages import Array, JointState, Label, Message, SegmentEvent
+from handflow.framework.plugin import Node
 
 from .candidates import CandidateSet, load_candidates
 from .online import OnlineCLMSegmenter, SegmentChange, SegmentTracker
@@ -27,8 +28,10 @@ class RecognizerParams(BaseModel):
     model_config = ConfigDict(extra="forbid")
     models: str | list[str] = Field(description="folder written by `handflow train-classes`, or model files")
     history: int = Field(10, ge=1, description="H: history length / CLM neighbourhood")
-    joints: list[str] = Field(default_factory=list, description="joint names to use, in model column order "
-                                                               "(empty: all positions as they come)")
+    joints: list[str] = Field(
+        default_factory=list,
+        description="joint names to use, in model column order (empty: all positions as they come)",
+    )
 
 
 class _RecognizerNode(Node):
@@ -58,9 +61,17 @@ class _RecognizerNode(Node):
 
     def publish_events(self, events: list[SegmentChange], stamp: int) -> None:
         for ev in events:
-            self.ctx.publish("events", SegmentEvent(
-                kind=ev.kind, label=self.name(ev.label), start_index=ev.start, end_index=ev.end,
-                previous_label="" if ev.previous is None else self.name(ev.previous)), stamp_ns=stamp)
+            self.ctx.publish(
+                "events",
+                SegmentEvent(
+                    kind=ev.kind,
+                    label=self.name(ev.label),
+                    start_index=ev.start,
+                    end_index=ev.end,
+                    previous_label="" if ev.previous is None else self.name(ev.previous),
+                ),
+                stamp_ns=stamp,
+            )
 
     def on_message(self, port: str, msg: Message) -> None:
         try:
@@ -88,17 +99,28 @@ class OnlineCLMNode(_RecognizerNode):
     def setup(self) -> None:
         p = self.params
         self.segmenter = OnlineCLMSegmenter(
-            self.load_models(), window=p.window, history=p.history, background=p.background,
-            background_factor=p.background_factor, error_scale=p.error_scale, order_rating=p.order_rating,
-            warm_temperature=p.warm_temperature, max_sweeps=p.max_sweeps, confirm=p.confirm,
-            random_state=p.seed)
+            self.load_models(),
+            window=p.window,
+            history=p.history,
+            background=p.background,
+            background_factor=p.background_factor,
+            error_scale=p.error_scale,
+            order_rating=p.order_rating,
+            warm_temperature=p.warm_temperature,
+            max_sweeps=p.max_sweeps,
+            confirm=p.confirm,
+            random_state=p.seed,
+        )
         self.classes = self.segmenter.classes_
         self.dropped = 0
 
     def recognise(self, y: np.ndarray, stamp: int) -> None:
         up = self.segmenter.update(y)
-        self.ctx.publish("labels", Label(label=self.name(up.label), index=up.index, classes=self.classes,
-                                         scores=up.scores), stamp_ns=stamp)
+        self.ctx.publish(
+            "labels",
+            Label(label=self.name(up.label), index=up.index, classes=self.classes, scores=up.scores),
+            stamp_ns=stamp,
+        )
         self.publish_events(up.events, stamp)
 
 
@@ -113,8 +135,14 @@ class UKROnlyNode(_RecognizerNode):
 
     def setup(self) -> None:
         p = self.params
-        self.recognizer = UKROnlyRecognizer(self.load_models(), lam=p.lam, gamma=p.gamma, history=p.history,
-                                            order_rating=p.order_rating, threshold=p.threshold)
+        self.recognizer = UKROnlyRecognizer(
+            self.load_models(),
+            lam=p.lam,
+            gamma=p.gamma,
+            history=p.history,
+            order_rating=p.order_rating,
+            threshold=p.threshold,
+        )
         self.classes = self.recognizer.classes_
         self.segments = SegmentTracker()
         self.index = 0
@@ -122,7 +150,8 @@ class UKROnlyNode(_RecognizerNode):
 
     def recognise(self, y: np.ndarray, stamp: int) -> None:
         label, C = self.recognizer.update(y)
-        self.ctx.publish("labels", Label(label=self.name(label), index=self.index, classes=self.classes,
-                                         scores=C), stamp_ns=stamp)
+        self.ctx.publish(
+            "labels", Label(label=self.name(label), index=self.index, classes=self.classes, scores=C), stamp_ns=stamp
+        )
         self.publish_events(self.segments.update(self.index, label), stamp)
         self.index += 1

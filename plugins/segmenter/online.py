@@ -13,6 +13,7 @@ consecutive updates, and observations within ``edge`` of the window's oldest end
 to leave and have lost their older neighbours) are never revised.  A confirmed revision moves the
 published segment boundaries (:class:`SegmentTracker`).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -48,7 +49,7 @@ class SegmentTracker:
 
     def __init__(self, memory: int = 1000) -> None:
         self.memory = int(memory)
-        self.first = 0                    # global index of labels[0]
+        self.first = 0  # global index of labels[0]
         self.labels: list[int] = []
         self.current: tuple[int, int] | None = None  # (label, start index) of the running segment
 
@@ -82,7 +83,7 @@ class SegmentTracker:
         a, b = max(start - self.first, 0), min(end - self.first, len(self.labels) - 1)
         if a > b:
             return []
-        self.labels[a: b + 1] = [int(label)] * (b - a + 1)
+        self.labels[a : b + 1] = [int(label)] * (b - a + 1)
         lo, hi = self._run(a)
         g = self.first
         events = []
@@ -135,9 +136,19 @@ class OnlineCLMSegmenter(CLMSegmenter):
     edge : observations this close to the window's oldest end are not revised; ``None`` = H.
     """
 
-    def __init__(self, candidates: CandidateSet, window: int = 200, warm_start: bool = True,
-                 warm_temperature: float = 0.05, warm_bias: float = 1.0, fresh: int | None = None,
-                 cold_every: int | None = 10, confirm: int = 5, edge: int | None = None, **clm_params) -> None:
+    def __init__(
+        self,
+        candidates: CandidateSet,
+        window: int = 200,
+        warm_start: bool = True,
+        warm_temperature: float = 0.05,
+        warm_bias: float = 1.0,
+        fresh: int | None = None,
+        cold_every: int | None = 10,
+        confirm: int = 5,
+        edge: int | None = None,
+        **clm_params,
+    ) -> None:
         clm_params.setdefault("spectral", "gershgorin")
         clm_params.setdefault("max_sweeps", 150)
         super().__init__(candidates, **clm_params)
@@ -164,12 +175,12 @@ class OnlineCLMSegmenter(CLMSegmenter):
         self._errors = np.zeros((self.window, m))
         self._band = np.zeros((m, self.window, self._width))
         self._x: np.ndarray | None = None
-        self._labels = np.zeros(0, dtype=int)     # current CLM labels of the window
+        self._labels = np.zeros(0, dtype=int)  # current CLM labels of the window
         self._published = np.zeros(0, dtype=int)  # labels last reported for the window
-        self._pending = np.zeros(0, dtype=int)    # consecutive updates a differing label held
+        self._pending = np.zeros(0, dtype=int)  # consecutive updates a differing label held
         self._pending_label = np.zeros(0, dtype=int)  # the label those updates held
-        self.n = 0          # observations in the window
-        self.seen = 0       # observations consumed in total
+        self.n = 0  # observations in the window
+        self.seen = 0  # observations consumed in total
         self.segments = SegmentTracker(memory=self.window)
         self.since_cold = 0
 
@@ -210,8 +221,13 @@ class OnlineCLMSegmenter(CLMSegmenter):
         j = self.n - 1
         self._latent[j], self._errors[j] = latent_time, errors
         lo = max(0, j - self._width)
-        recent = candidate_band(self._latent[lo: j + 1], self._errors[lo: j + 1], self._width,
-                                order_rating(self.order_rating), pair_error(self.pair_error))
+        recent = candidate_band(
+            self._latent[lo : j + 1],
+            self._errors[lo : j + 1],
+            self._width,
+            order_rating(self.order_rating),
+            pair_error(self.pair_error),
+        )
         for k in range(1, j - lo + 1):  # pair (j − k, j) sits in row j − k, column k − 1
             self._band[:, j - k, k - 1] = recent[:, j - k - lo, k - 1] if k <= self.history else 0.0
         self.seen += 1
@@ -219,8 +235,12 @@ class OnlineCLMSegmenter(CLMSegmenter):
     def layers(self) -> tuple[np.ndarray, np.ndarray]:
         """Bands and diagonals of all layers over the current window (background last)."""
         n = self.n
-        bg, bg_diag = background_band(n, self._width, self.background_strength(n),
-                                      self.history if self.background_radius is None else int(self.background_radius))
+        bg, bg_diag = background_band(
+            n,
+            self._width,
+            self.background_strength(n),
+            self.history if self.background_radius is None else int(self.background_radius),
+        )
         band = np.concatenate([self._band[:, :n], bg[None]], axis=0)
         return band, np.r_[np.zeros(len(self.candidates)), bg_diag]
 
@@ -235,8 +255,7 @@ class OnlineCLMSegmenter(CLMSegmenter):
         if warm:
             x0 = solver.initial_activities((band.shape[0], self.n))
             x0[:, :-1] += self.warm_bias * self._warm_template()
-            result = solver.solve(band, diag, x0=x0, temperature=self.warm_temperature * max(lam, 0.0),
-                                  lambda_max=lam)
+            result = solver.solve(band, diag, x0=x0, temperature=self.warm_temperature * max(lam, 0.0), lambda_max=lam)
             self.since_cold += 1
         if not warm or (self.cold_every and self.since_cold >= self.cold_every):
             cold = solver.solve(band, diag, lambda_max=lam)
@@ -252,8 +271,14 @@ class OnlineCLMSegmenter(CLMSegmenter):
         self._pending = np.r_[self._pending, 0]
         self._pending_label = np.r_[self._pending_label, newest]
         events += self.segments.update(self.seen - 1, newest)
-        return OnlineUpdate(index=self.seen - 1, label=newest, scores=result.activities[:-1, -1].copy(),
-                            sweeps=result.sweeps, converged=result.converged, events=events)
+        return OnlineUpdate(
+            index=self.seen - 1,
+            label=newest,
+            scores=result.activities[:-1, -1].copy(),
+            sweeps=result.sweeps,
+            converged=result.converged,
+            events=events,
+        )
 
     def _warm_template(self) -> np.ndarray:
         """Bias towards each kept observation's previous winner, scaled by the mean winning activity.
@@ -296,8 +321,7 @@ class OnlineCLMSegmenter(CLMSegmenter):
         base = self.window_start
         for i in np.flatnonzero(ready).tolist():
             last = events[-1] if events else None
-            if (last is not None and last.end == base + i - 1 and last.label == new[i]
-                    and last.previous == old[i]):
+            if last is not None and last.end == base + i - 1 and last.label == new[i] and last.previous == old[i]:
                 last.end = base + i
             else:
                 events.append(SegmentChange("revision", int(new[i]), base + i, base + i, int(old[i])))

@@ -1,5 +1,6 @@
 """Figures like the thesis' (chapter 6): trajectories coloured by assigned label, compatibility
 curves over time, and a summary of the evaluation.  Matplotlib with the Agg backend only."""
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -7,8 +8,8 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
 
 
 def _colours(n: int):
@@ -16,8 +17,14 @@ def _colours(n: int):
     return [cmap(k % cmap.N) for k in range(n)]
 
 
-def plot_labelled_trajectory(Y: np.ndarray, labels: np.ndarray, classes: list[str], path: str | Path,
-                             title: str = "", truth: np.ndarray | None = None) -> Path:
+def plot_labelled_trajectory(
+    Y: np.ndarray,
+    labels: np.ndarray,
+    classes: list[str],
+    path: str | Path,
+    title: str = "",
+    truth: np.ndarray | None = None,
+) -> Path:
     """First two dimensions of Y, each point coloured by its label; rejected points as black crosses."""
     Y = np.asarray(Y, dtype=float)
     fig, ax = plt.subplots(figsize=(5, 4.5))
@@ -39,8 +46,9 @@ def plot_labelled_trajectory(Y: np.ndarray, labels: np.ndarray, classes: list[st
     return _save(fig, path)
 
 
-def plot_compatibilities(C: np.ndarray, classes: list[str], path: str | Path, title: str = "",
-                         ylabel: str = "compatibility C(t)") -> Path:
+def plot_compatibilities(
+    C: np.ndarray, classes: list[str], path: str | Path, title: str = "", ylabel: str = "compatibility C(t)"
+) -> Path:
     """One curve per candidate over the observation index."""
     fig, ax = plt.subplots(figsize=(6, 3))
     for k, (c, col) in enumerate(zip(classes, _colours(len(classes)))):

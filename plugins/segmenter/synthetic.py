@@ -6,6 +6,7 @@ template is one loop, like a letter written in one stroke).  A sample of a class
 template's **timing** (a random monotone phase warp and a random length), **amplitude** (a
 per-dimension scale) and adds white **noise**.  Everything derives from ``random_state``.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -29,9 +30,18 @@ class LetterGenerator:
     random_state : seed; the templates come from it, the samples from a derived stream.
     """
 
-    def __init__(self, n_classes: int = 4, dim: int = 2, harmonics: int = 3, length: int = 80,
-                 length_jitter: float = 0.15, warp: float = 0.1, amplitude_jitter: float = 0.05,
-                 noise: float = 0.01, random_state: int | None = None) -> None:
+    def __init__(
+        self,
+        n_classes: int = 4,
+        dim: int = 2,
+        harmonics: int = 3,
+        length: int = 80,
+        length_jitter: float = 0.15,
+        warp: float = 0.1,
+        amplitude_jitter: float = 0.05,
+        noise: float = 0.01,
+        random_state: int | None = None,
+    ) -> None:
         if not 1 <= n_classes <= 26:
             raise ValueError(f"n_classes must lie in 1..26, got {n_classes}")
         self.n_classes = n_classes
@@ -73,6 +83,7 @@ class LetterGenerator:
         """Train / validation / test samples per class (the thesis protocol's 5/5/5 by default)."""
         splits = []
         for name, count in zip(("train", "validation", "test"), per_split):
-            splits.append([Trajectory(lab, self.sample(lab), f"{name}/{lab}_{i}")
-                           for lab in self.labels_ for i in range(count)])
+            splits.append(
+                [Trajectory(lab, self.sample(lab), f"{name}/{lab}_{i}") for lab in self.labels_ for i in range(count)]
+            )
         return LabelledDataset(*splits, columns=[f"y{i}" for i in range(self.dim)], source="synthetic")

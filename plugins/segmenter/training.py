@@ -1,6 +1,6 @@
 """Train one structured UKR manifold per motion class (issue 7 item 1) and save the model set.
 
-Each class gets a :class:`plugins.manifold.StructuredUKR` with one periodic latent time dimension
+Each class gets a :class:`handflow.plugins.manifold.StructuredUKR` with one periodic latent time dimension
 trained on that class's training trajectories (λ_cseq = 1, λ_pvar = 0 as for the thesis' 1D
 models).  Documented choice for the periodic bandwidth: ``beta="auto"`` scales the thesis'
 best value β = 12 at 45 points per cycle (spec ukr.md §4) with the mean training length,
@@ -16,11 +16,12 @@ with the equidistant init, docs/benchmarks.md).  On the periodic axis the
 stroke's end meets its start (one wrap-around per repetition), which the order ratings treat as
 a forward step.
 """
+
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 
@@ -36,11 +37,17 @@ def auto_beta(sequences: list[np.ndarray]) -> float:
 INITS = ("equidistant", "isomap")
 
 
-def train_class_models(dataset: LabelledDataset, beta: float | str = "auto", lambda_cseq: float = 1.0,
-                       n_steps: int = 300, init: str = "equidistant", random_state: int | None = 0,
-                       progress: Callable[[str], None] | None = None) -> dict:
+def train_class_models(
+    dataset: LabelledDataset,
+    beta: float | str = "auto",
+    lambda_cseq: float = 1.0,
+    n_steps: int = 300,
+    init: str = "equidistant",
+    random_state: int | None = 0,
+    progress: Callable[[str], None] | None = None,
+) -> dict:
     """Fit one StructuredUKR per class of the training split; returns label → fitted model."""
-    from plugins.manifold import StructuredUKR
+    from handflow.plugins.manifold import StructuredUKR
 
     if init not in INITS:
         raise ValueError(f"init must be one of {INITS}, got {init!r}")
@@ -49,9 +56,14 @@ def train_class_models(dataset: LabelledDataset, beta: float | str = "auto", lam
         b = auto_beta(seqs) if beta == "auto" else float(beta)
         if progress:
             progress(f"training '{label}' on {len(seqs)} sequences ({sum(map(len, seqs))} points, beta={b:.1f})")
-        models[label] = StructuredUKR(latent=[{"kernel": "periodic", "beta": b, "time": True}],
-                                      lambda_cseq=lambda_cseq, lambda_pvar=0.0, n_steps=n_steps,
-                                      init=init, random_state=random_state).fit(seqs)
+        models[label] = StructuredUKR(
+            latent=[{"kernel": "periodic", "beta": b, "time": True}],
+            lambda_cseq=lambda_cseq,
+            lambda_pvar=0.0,
+            n_steps=n_steps,
+            init=init,
+            random_state=random_state,
+        ).fit(seqs)
     return models
 
 

@@ -3,6 +3,7 @@
 Inherently online: :meth:`UKROnlyRecognizer.update` takes one observation at a time and gives
 exactly the values :meth:`UKROnlyRecognizer.predict` computes for the whole sequence.
 """
+
 from __future__ import annotations
 
 from collections import deque
@@ -10,8 +11,14 @@ from collections import deque
 import numpy as np
 
 from .candidates import CandidateSet, Projection
-from .compatibility import (history_compatibility, history_weights, local_compatibility, order_rating,
-                            overall_compatibility, reconstruction_compatibility)
+from .compatibility import (
+    history_compatibility,
+    history_weights,
+    local_compatibility,
+    order_rating,
+    overall_compatibility,
+    reconstruction_compatibility,
+)
 
 REJECTED = -1
 
@@ -29,8 +36,15 @@ class UKROnlyRecognizer:
     threshold : optional rejection threshold; observations with ``max C < threshold`` get −1.
     """
 
-    def __init__(self, candidates: CandidateSet, lam: float = 0.3, gamma: float = 0.9, history: int = 10,
-                 order_rating: str = "cos", threshold: float | None = None) -> None:
+    def __init__(
+        self,
+        candidates: CandidateSet,
+        lam: float = 0.3,
+        gamma: float = 0.9,
+        history: int = 10,
+        order_rating: str = "cos",
+        threshold: float | None = None,
+    ) -> None:
         self.candidates = candidates
         self.lam = lam
         self.gamma = gamma

@@ -3,6 +3,7 @@
 Both use the same OpenGL view/projection matrices, so a projected ground-truth point lands where
 pybullet draws it (used to measure the tracker's error, spec production.md §4 closed loop).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -33,8 +34,9 @@ class CameraSpec:
         if width < 8 or height < 8:
             raise ValueError(f"camera image must be at least 8×8 pixels, got {width}×{height}")
         view, proj = self.matrices(width, height)
-        _, _, rgba, _, _ = p.getCameraImage(width, height, view, proj, renderer=p.ER_TINY_RENDERER,
-                                            shadow=0, physicsClientId=client)
+        _, _, rgba, _, _ = p.getCameraImage(
+            width, height, view, proj, renderer=p.ER_TINY_RENDERER, shadow=0, physicsClientId=client
+        )
         return np.asarray(rgba, dtype=np.uint8).reshape(height, width, 4)[:, :, :3].copy()
 
     def project(self, points: np.ndarray, width: int, height: int) -> np.ndarray:

@@ -1,6 +1,6 @@
 """Joint couplings the simulated robot hands' controllers enforce on commanded targets.
 
-``plugins.mapping.hands.HandModel.coupled`` names the coupled joint and its driver; a coupling rule
+``handflow.plugins.hands.joints.HandModel.coupled`` names the coupled joint and its driver; a coupling rule
 turns the commanded (coupled, driver) targets into the target actually sent to the coupled joint.
 Documented choices (both swappable through ``Simulation(coupling=...)``):
 
@@ -9,9 +9,10 @@ Documented choices (both swappable through ``Simulation(coupling=...)``):
   middle target when commanded lower;
 - :func:`distal_equals_middle` — Gifu-like DIP = PIP (thesis 3.1.2, fixed coupling).
 """
+
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 

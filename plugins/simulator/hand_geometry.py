@@ -1,10 +1,10 @@
 """Kinematic skeletons of the three simulated hands, built from documented segment parameters.
 
-Joint names, limits and couplings come from :mod:`plugins.mapping.hands` (the single joint table);
+Joint names, limits and couplings come from :mod:`handflow.plugins.hands.joints` (the single joint table);
 this module adds only geometry: where each joint sits, its axis, and the capsule of the segment it
-moves.  :mod:`plugins.simulator.urdf` turns a :class:`HandSkeleton` into URDF text.
+moves.  :mod:`handflow.plugins.simulator.urdf` turns a :class:`HandSkeleton` into URDF text.
 
-Palm frame ``P`` (right hand, thesis 3.2 sign conventions as in ``plugins.mapping.hands``): origin at
+Palm frame ``P`` (right hand, thesis 3.2 sign conventions as in ``handflow.plugins.hands.joints``): origin at
 the wrist centre, ``+z`` along the fingers, ``+x`` towards the thumb (radial), ``-y`` palmar (the
 side the fingers flex to).  Hence flexion axes are ``+x``; index/middle spread axes ``-y`` (positive
 towards the little finger), ring/little ``+y`` (positive towards the thumb); wrist pitch ``+x``;
@@ -22,6 +22,7 @@ exactly, so a mapped ShadowHand thumb points where the human thumb points.
 Documented choice: finger-to-finger self-collision is off (pybullet's default for one multibody);
 fingers collide with scene objects only.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -29,7 +30,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from plugins.mapping.hands import HAND_MODELS, HandModel
+from handflow.plugins.hands.joints import HAND_MODELS, HandModel
 
 PALM_ARCH_TILT = np.deg2rad(20.0)
 """Tilt of the palm-arch / LFJ5 axis from the palm's long axis towards the little finger."""
@@ -159,18 +160,47 @@ class _Builder:
         self.model = model
         self.joints: list[JointGeom] = []
 
-    def add(self, name: str, parent: str, child: str, origin, axis, length: float, radius: float,
-            rotation: Rotation | None = None, torque: float = 0.5) -> str:
+    def add(
+        self,
+        name: str,
+        parent: str,
+        child: str,
+        origin,
+        axis,
+        length: float,
+        radius: float,
+        rotation: Rotation | None = None,
+        torque: float = 0.5,
+    ) -> str:
         lo, hi = _limits(self.model, name)
-        self.joints.append(JointGeom(
-            name=name, parent=parent, child=child, origin=tuple(float(v) for v in origin),
-            axis=tuple(float(v) for v in axis), length=length, radius=radius,
-            rotation=rotation or Rotation.identity(), lower=lo, upper=hi, max_torque=torque))
+        self.joints.append(
+            JointGeom(
+                name=name,
+                parent=parent,
+                child=child,
+                origin=tuple(float(v) for v in origin),
+                axis=tuple(float(v) for v in axis),
+                length=length,
+                radius=radius,
+                rotation=rotation or Rotation.identity(),
+                lower=lo,
+                upper=hi,
+                max_torque=torque,
+            )
+        )
         return child
 
 
-def _finger(b: _Builder, parent: str, prefix: str, names: tuple[str, str, str, str], fp: FingerParams,
-            origin, spread_axis, torque: float) -> None:
+def _finger(
+    b: _Builder,
+    parent: str,
+    prefix: str,
+    names: tuple[str, str, str, str],
+    fp: FingerParams,
+    origin,
+    spread_axis,
+    torque: float,
+) -> None:
     """Spread + MCP at the knuckle, then PIP and DIP along the finger (capsules along +z)."""
     spread, mcp, pip, dip = names
     l1, l2, l3 = fp.lengths
@@ -263,12 +293,14 @@ def build_skeleton(hand: str, params: HandParams | None = None) -> HandSkeleton:
             arch = "LFJ5" if hand == "shadow" else "palm_arch"
             mx, mz = hp.lf_metacarpal_base
             axis = (-np.sin(PALM_ARCH_TILT), 0.0, np.cos(PALM_ARCH_TILT))
-            parent = b.add(arch, "palm", f"{prefix}_metacarpal", (mx, 0, mz), axis, 0.0, fp.radius,
-                           torque=hp.finger_torque)
+            parent = b.add(
+                arch, "palm", f"{prefix}_metacarpal", (mx, 0, mz), axis, 0.0, fp.radius, torque=hp.finger_torque
+            )
             origin = (fp.knuckle[0] - mx, 0.0, fp.knuckle[1] - mz)
         _finger(b, parent, prefix, names, fp, origin, spread_axis, hp.finger_torque)
-    skeleton = HandSkeleton(model=model, base="forearm" if hp.wrist else "palm", palm_size=hp.palm_size,
-                            joints=tuple(b.joints))
+    skeleton = HandSkeleton(
+        model=model, base="forearm" if hp.wrist else "palm", palm_size=hp.palm_size, joints=tuple(b.joints)
+    )
     missing = set(model.names) - {j.name for j in skeleton.joints}
     if missing:
         raise RuntimeError(f"skeleton of '{hand}' lacks joints {sorted(missing)}")

@@ -5,12 +5,13 @@ it follows the *undirected* line through both balls.  The doubled angle
 ``ψ = 2·atan2(p2 − p1)`` is the same for (p1, p2) and (p2, p1); unwrapped over time, ``ψ / 2``
 is the pair's rotation angle θ and a **swap is half a revolution of the pair, Δθ = π**
 (the balls exchange places by circling around each other).  Works on palm-plane positions from the
-simulator (:meth:`plugins.simulator.scenes.BallsScene.palm_plane_positions`) and on the tracker's
+simulator (:meth:`handflow.plugins.simulator.scenes.BallsScene.palm_plane_positions`) and on the tracker's
 normalised image positions alike (a mirror image only flips the sign of θ).
 
 Documented choice: samples must be dense enough that the pair turns less than π/2 between two
 samples (the doubled angle then unwraps correctly); rows with NaN (a ball not seen) are dropped.
 """
+
 from __future__ import annotations
 
 import numpy as np

@@ -1,4 +1,4 @@
-"""Node ``simulator.pybullet``: the :class:`~plugins.simulator.simulation.Simulation` on the runtime.
+"""Node ``simulator.pybullet``: the :class:`~handflow.plugins.simulator.simulation.Simulation` on the runtime.
 
 Input ``targets`` (JointState, any subset of the hand's joints; unknown names raise a clear error,
 joints not named keep their last target).  Every tick (``rate_hz``) the node steps the physics so
@@ -8,14 +8,15 @@ then publishes ``joints`` (collision-corrected JointState), ``contacts`` (Contac
 ``camera_hz``.  Fail-safe (issue 6): when no targets arrived for ``hold_safe_after_s`` the node
 holds the last command, logs it once and reports ``holding = 1`` until targets resume.
 """
+
 from __future__ import annotations
 
 from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from framework.messages import Array, Contacts, Image, JointState
-from framework.plugin import Node
+from handflow.framework.messages import Array, Contacts, Image, JointState
+from handflow.framework.plugin import Node
 
 from .simulation import Simulation
 
@@ -26,15 +27,21 @@ class SimulatorParams(BaseModel):
     model_config = ConfigDict(extra="forbid")
     hand: str = Field("shadow", description="hand model: human | shadow | gifu")
     scene: str = Field("empty", description="scene: empty | cap | balls | grasp")
-    scene_options: dict[str, Any] = Field(default_factory=dict, description="scene fields, e.g. {radius: 0.02} (cap) or {pushes: [[20, 0.3]]} (balls)")
+    scene_options: dict[str, Any] = Field(
+        default_factory=dict, description="scene fields, e.g. {radius: 0.02} (cap) or {pushes: [[20, 0.3]]} (balls)"
+    )
     physics_hz: float = Field(240.0, gt=0, description="fixed physics rate")
     rate_hz: float = Field(60.0, gt=0, description="publish rate of joints/contacts/scene (tick rate)")
     camera_hz: float = Field(10.0, ge=0, description="image rate; 0 disables the camera")
     camera_width: int = Field(320, ge=8)
     camera_height: int = Field(240, ge=8)
     seed: int = 0
-    hold_safe_after_s: float = Field(0.5, ge=0, description="hold the last command after this long without targets; 0 = never")
-    max_catch_up_s: float = Field(0.25, gt=0, description="at most this much simulated time per tick; a longer stall is skipped")
+    hold_safe_after_s: float = Field(
+        0.5, ge=0, description="hold the last command after this long without targets; 0 = never"
+    )
+    max_catch_up_s: float = Field(
+        0.25, gt=0, description="at most this much simulated time per tick; a longer stall is skipped"
+    )
 
 
 class PybulletSimulatorNode(Node):
@@ -46,8 +53,9 @@ class PybulletSimulatorNode(Node):
 
     def setup(self) -> None:
         prm = self.params
-        self.sim = Simulation(hand=prm.hand, scene=prm.scene, scene_options=prm.scene_options, seed=prm.seed,
-                              physics_hz=prm.physics_hz)
+        self.sim = Simulation(
+            hand=prm.hand, scene=prm.scene, scene_options=prm.scene_options, seed=prm.seed, physics_hz=prm.physics_hz
+        )
         self.t0_ns: int | None = None
         self.last_target_ns: int | None = None
         self.last_image_ns: int | None = None
@@ -69,7 +77,9 @@ class PybulletSimulatorNode(Node):
         due = int((now - self.t0_ns) * self.sim.physics_hz / 1e9 + 1e-4) - self.sim.steps  # tolerate ns rounding
         limit = int(self.params.max_catch_up_s * self.sim.physics_hz)
         if due > limit:
-            self.ctx.log.warning("simulation %d steps behind; skipping %.3f s", due, (due - limit) / self.sim.physics_hz)
+            self.ctx.log.warning(
+                "simulation %d steps behind; skipping %.3f s", due, (due - limit) / self.sim.physics_hz
+            )
             self.t0_ns += int((due - limit) * 1e9 / self.sim.physics_hz)
             due = limit
         self.sim.step(max(due, 0))

@@ -4,13 +4,14 @@ A scene places the hand's base link (``hand_pose``), builds its bodies in a pybu
 them for contact reports, and reports its state (cap angle, ball or object poses) as a flat
 ``{name: value}`` dict.  Positions are in metres, angles in radians.
 
-Hand placements (palm frame ``P`` as in :mod:`plugins.simulator.hand_geometry`, wrist at ``HAND_BASE``):
+Hand placements (palm frame ``P`` as in :mod:`handflow.plugins.simulator.hand_geometry`, wrist at ``HAND_BASE``):
 
 - ``cap``, ``grasp``, ``empty``: palm facing down (palmar ``-y_P`` = world ``-z``), fingers along
   world ``+x``, thumb towards world ``+y``;
 - ``balls``: palm facing up, fingers along world ``+x`` and tilted down by ``tilt_deg`` (thesis
   5.6.1: hand on a robot arm, palm up, tilted), thumb towards world ``-y``.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -81,9 +82,12 @@ class Scene:
         return {}
 
 
-def _cylinder(client: int, radius: float, height: float, rgba, pos, mass: float = 0.0, collide: bool = True,
-              orn=(0, 0, 0, 1)) -> int:
-    col = p.createCollisionShape(p.GEOM_CYLINDER, radius=radius, height=height, physicsClientId=client) if collide else -1
+def _cylinder(
+    client: int, radius: float, height: float, rgba, pos, mass: float = 0.0, collide: bool = True, orn=(0, 0, 0, 1)
+) -> int:
+    col = (
+        p.createCollisionShape(p.GEOM_CYLINDER, radius=radius, height=height, physicsClientId=client) if collide else -1
+    )
     vis = p.createVisualShape(p.GEOM_CYLINDER, radius=radius, length=height, rgbaColor=rgba, physicsClientId=client)
     return p.createMultiBody(mass, col, vis, pos, orn, physicsClientId=client)
 
@@ -133,21 +137,40 @@ class CapScene(Scene):
         neck_r = self.radius  # flush with the cap: no rim a fingertip could hook under
         neck_pos = top - [0, 0, self.height + neck_h / 2]
         neck_col = p.createCollisionShape(p.GEOM_CYLINDER, radius=neck_r, height=neck_h, physicsClientId=client)
-        neck_vis = p.createVisualShape(p.GEOM_CYLINDER, radius=neck_r, length=neck_h, rgbaColor=(0.6, 0.8, 0.9, 1),
-                                       physicsClientId=client)
+        neck_vis = p.createVisualShape(
+            p.GEOM_CYLINDER, radius=neck_r, length=neck_h, rgbaColor=(0.6, 0.8, 0.9, 1), physicsClientId=client
+        )
         cap_col = p.createCollisionShape(p.GEOM_MESH, vertices=_prism(self.radius, self.height), physicsClientId=client)
-        cap_vis = p.createVisualShape(p.GEOM_CYLINDER, radius=self.radius, length=self.height,
-                                      rgbaColor=(0.1, 0.35, 0.9, 1), physicsClientId=client)
+        cap_vis = p.createVisualShape(
+            p.GEOM_CYLINDER,
+            radius=self.radius,
+            length=self.height,
+            rgbaColor=(0.1, 0.35, 0.9, 1),
+            physicsClientId=client,
+        )
         body = p.createMultiBody(
-            0.0, neck_col, neck_vis, neck_pos,
-            linkMasses=[0.03], linkCollisionShapeIndices=[cap_col], linkVisualShapeIndices=[cap_vis],
-            linkPositions=[[0, 0, neck_h / 2 + self.height / 2]], linkOrientations=[[0, 0, 0, 1]],
-            linkInertialFramePositions=[[0, 0, 0]], linkInertialFrameOrientations=[[0, 0, 0, 1]],
-            linkParentIndices=[0], linkJointTypes=[p.JOINT_REVOLUTE], linkJointAxis=[[0, 0, 1]],
-            physicsClientId=client)
-        p.changeDynamics(body, 0, lateralFriction=self.lateral_friction, jointDamping=self.damping, physicsClientId=client)
-        p.setJointMotorControl2(body, 0, p.VELOCITY_CONTROL, targetVelocity=0.0, force=self.friction_torque,
-                                physicsClientId=client)
+            0.0,
+            neck_col,
+            neck_vis,
+            neck_pos,
+            linkMasses=[0.03],
+            linkCollisionShapeIndices=[cap_col],
+            linkVisualShapeIndices=[cap_vis],
+            linkPositions=[[0, 0, neck_h / 2 + self.height / 2]],
+            linkOrientations=[[0, 0, 0, 1]],
+            linkInertialFramePositions=[[0, 0, 0]],
+            linkInertialFrameOrientations=[[0, 0, 0, 1]],
+            linkParentIndices=[0],
+            linkJointTypes=[p.JOINT_REVOLUTE],
+            linkJointAxis=[[0, 0, 1]],
+            physicsClientId=client,
+        )
+        p.changeDynamics(
+            body, 0, lateralFriction=self.lateral_friction, jointDamping=self.damping, physicsClientId=client
+        )
+        p.setJointMotorControl2(
+            body, 0, p.VELOCITY_CONTROL, targetVelocity=0.0, force=self.friction_torque, physicsClientId=client
+        )
         self.bottle = body
         self.bodies = {(body, -1): "bottle", (body, 0): "cap"}
 
@@ -177,7 +200,7 @@ class BallsScene(Scene):
     - ``turns`` — disturbances ``[(time_s, angle_deg), …]``: at the first physics step at or after
       ``time_s`` the ball pair is turned by ``angle_deg`` about the cup centre in the palm plane
       (positive: counter-clockwise in the ``(x_P, z_P)`` plane, i.e. *back* against the clockwise
-      swapping of :mod:`plugins.demo.ball_swap`) and both balls are stopped — a ball pushed back
+      swapping of :mod:`handflow.plugins.demo.ball_swap`) and both balls are stopped — a ball pushed back
       along its circular path by a finger, applied kinematically so it is exactly repeatable.
 
     State: world position of each ball (``ball1_x`` …) and of the two marks, ``pushes_done`` and
@@ -199,8 +222,9 @@ class BallsScene(Scene):
     jitter: float = 0.002
     pushes: tuple[tuple[float, float], ...] = ()
     turns: tuple[tuple[float, float], ...] = ()
-    marks: dict[str, tuple[float, float]] = field(default_factory=lambda: {"mark_a": (0.03, 0.011),
-                                                                           "mark_b": (-0.03, 0.011)})
+    marks: dict[str, tuple[float, float]] = field(
+        default_factory=lambda: {"mark_a": (0.03, 0.011), "mark_b": (-0.03, 0.011)}
+    )
 
     def __post_init__(self) -> None:
         if not 0.01 <= self.ball_radius <= 0.03:
@@ -252,14 +276,20 @@ class BallsScene(Scene):
         rot = self.hand_rotation()
         shapes = dict(shapeTypes=[p.GEOM_BOX] * n, halfExtents=[[seg / 2, self.rim_height / 2, thickness / 2]] * n)
         frames = dict(
-            collisionFramePositions=[list(rot.apply([cx + radius * np.sin(a), surface - self.rim_height / 2,
-                                                     cz + radius * np.cos(a)])) for a in angles],
-            collisionFrameOrientations=[list((rot * Rotation.from_euler("y", a)).as_quat()) for a in angles])
+            collisionFramePositions=[
+                list(rot.apply([cx + radius * np.sin(a), surface - self.rim_height / 2, cz + radius * np.cos(a)]))
+                for a in angles
+            ],
+            collisionFrameOrientations=[list((rot * Rotation.from_euler("y", a)).as_quat()) for a in angles],
+        )
         col = p.createCollisionShapeArray(**shapes, **frames, physicsClientId=client)
-        vis = p.createVisualShapeArray(**shapes, rgbaColors=[[0.4, 0.42, 0.46, 1]] * n,
-                                       visualFramePositions=frames["collisionFramePositions"],
-                                       visualFrameOrientations=frames["collisionFrameOrientations"],
-                                       physicsClientId=client)
+        vis = p.createVisualShapeArray(
+            **shapes,
+            rgbaColors=[[0.4, 0.42, 0.46, 1]] * n,
+            visualFramePositions=frames["collisionFramePositions"],
+            visualFrameOrientations=frames["collisionFrameOrientations"],
+            physicsClientId=client,
+        )
         rim = p.createMultiBody(0.0, col, vis, list(HAND_BASE), physicsClientId=client)
         p.changeDynamics(rim, -1, lateralFriction=0.2, restitution=self.restitution, physicsClientId=client)
         return rim
@@ -276,14 +306,24 @@ class BallsScene(Scene):
         self.balls = []
         cx, cz = self.cup_centre
         for k, side in enumerate((1.0, -1.0)):
-            local = np.array([cx + side * (self.ball_radius + self.cup_gap / 2), surface - self.ball_radius - 0.001, cz])
+            local = np.array(
+                [cx + side * (self.ball_radius + self.cup_gap / 2), surface - self.ball_radius - 0.001, cz]
+            )
             local[[0, 2]] += rng.uniform(-self.jitter, self.jitter, 2)
             pos = self.palm_to_world(local)[0]
             col = p.createCollisionShape(p.GEOM_SPHERE, radius=self.ball_radius, physicsClientId=client)
-            vis = p.createVisualShape(p.GEOM_SPHERE, radius=self.ball_radius, rgbaColor=BALL_COLOUR, physicsClientId=client)
+            vis = p.createVisualShape(
+                p.GEOM_SPHERE, radius=self.ball_radius, rgbaColor=BALL_COLOUR, physicsClientId=client
+            )
             ball = p.createMultiBody(self.ball_mass, col, vis, pos, physicsClientId=client)
-            p.changeDynamics(ball, -1, lateralFriction=self.lateral_friction, rollingFriction=self.rolling_friction,
-                             restitution=self.restitution, physicsClientId=client)
+            p.changeDynamics(
+                ball,
+                -1,
+                lateralFriction=self.lateral_friction,
+                rollingFriction=self.rolling_friction,
+                restitution=self.restitution,
+                physicsClientId=client,
+            )
             self.balls.append(ball)
             self.bodies[(ball, -1)] = f"ball{k + 1}"
         self.pushes_done = self.turns_done = 0
@@ -293,8 +333,9 @@ class BallsScene(Scene):
         """Set ball ``ball_index`` (0 or 1) to the linear velocity ``velocity_world`` (m/s, world frame)."""
         if ball_index not in (0, 1):
             raise ValueError(f"ball_index must be 0 or 1, got {ball_index}")
-        p.resetBaseVelocity(self.balls[ball_index], linearVelocity=[float(v) for v in velocity_world],
-                            physicsClientId=client)
+        p.resetBaseVelocity(
+            self.balls[ball_index], linearVelocity=[float(v) for v in velocity_world], physicsClientId=client
+        )
 
     def palm_plane_velocities(self, client: int) -> np.ndarray:
         """Ball velocities (2, 3) in the world with the palm-normal component removed."""
@@ -340,7 +381,7 @@ class BallsScene(Scene):
         return self.hand_rotation().inv().apply(np.atleast_2d(np.asarray(points, dtype=float)) - HAND_BASE)
 
     def palm_plane_positions(self, client: int) -> np.ndarray:
-        """Ball centres (2, 2) in the palm plane, ``(x_P, z_P)`` (m): the input of :mod:`plugins.simulator.metrics`."""
+        """Ball centres (2, 2) in the palm plane, ``(x_P, z_P)`` (m): the input of :mod:`handflow.plugins.simulator.metrics`."""
         return self.to_palm(self.ball_positions(client))[:, [0, 2]]
 
     def mark_positions(self) -> np.ndarray:
@@ -350,8 +391,9 @@ class BallsScene(Scene):
 
     def state(self, client: int) -> dict[str, float]:
         out: dict[str, float] = {}
-        for name, pos in zip(("ball1", "ball2", "mark_a", "mark_b"),
-                             np.vstack([self.ball_positions(client), self.mark_positions()])):
+        for name, pos in zip(
+            ("ball1", "ball2", "mark_a", "mark_b"), np.vstack([self.ball_positions(client), self.mark_positions()])
+        ):
             out.update({f"{name}_{axis}": float(v) for axis, v in zip("xyz", pos)})
         out["pushes_done"] = float(self.pushes_done)
         out["turns_done"] = float(self.turns_done)
@@ -411,10 +453,16 @@ class GraspScene(Scene):
         pos = self.object_start()
         table_z = pos[2] - height / 2
         table_col = p.createCollisionShape(p.GEOM_BOX, halfExtents=[0.3, 0.3, 0.01], physicsClientId=client)
-        table_vis = p.createVisualShape(p.GEOM_BOX, halfExtents=[0.3, 0.3, 0.01], rgbaColor=(0.8, 0.8, 0.8, 1),
-                                        physicsClientId=client)
-        table = p.createMultiBody(0.0, table_col, table_vis, [pos[0] - self.position[0], pos[1] - self.position[1],
-                                                              table_z - 0.01], physicsClientId=client)
+        table_vis = p.createVisualShape(
+            p.GEOM_BOX, halfExtents=[0.3, 0.3, 0.01], rgbaColor=(0.8, 0.8, 0.8, 1), physicsClientId=client
+        )
+        table = p.createMultiBody(
+            0.0,
+            table_col,
+            table_vis,
+            [pos[0] - self.position[0], pos[1] - self.position[1], table_z - 0.01],
+            physicsClientId=client,
+        )
         col = p.createCollisionShape(kind, physicsClientId=client, **dims)
         vis_dims = {("length" if k == "height" else k): v for k, v in dims.items()}  # visual API names it length
         vis = p.createVisualShape(kind, rgbaColor=(0.85, 0.3, 0.1, 1), physicsClientId=client, **vis_dims)
@@ -427,8 +475,12 @@ class GraspScene(Scene):
     def state(self, client: int) -> dict[str, float]:
         pos, orn = p.getBasePositionAndOrientation(self.object_id, physicsClientId=client)
         rpy = p.getEulerFromQuaternion(orn)
-        return dict(zip(("object_x", "object_y", "object_z", "object_roll", "object_pitch", "object_yaw"),
-                        map(float, (*pos, *rpy))))
+        return dict(
+            zip(
+                ("object_x", "object_y", "object_z", "object_roll", "object_pitch", "object_yaw"),
+                map(float, (*pos, *rpy)),
+            )
+        )
 
 
 SCENES: dict[str, type[Scene]] = {"empty": Scene, "cap": CapScene, "balls": BallsScene, "grasp": GraspScene}

@@ -9,9 +9,10 @@
 
 Headless (``pybullet.DIRECT``), fixed physics rate, position control of every joint with the
 hand's torque limits (``max_torque`` of the skeleton) and :class:`MotorGains`; joint couplings are
-enforced on the commanded targets (:mod:`plugins.simulator.couplings`).  The joint state read back
+enforced on the commanded targets (:mod:`handflow.plugins.simulator.couplings`).  The joint state read back
 after stepping is the *collision-corrected* posture: fingers stop at the objects they touch.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -19,8 +20,8 @@ from dataclasses import dataclass
 import numpy as np
 import pybullet as p
 
-from framework.messages import Contacts, JointState
-from plugins.mapping.hands import HAND_MODELS
+from handflow.framework.messages import Contacts, JointState
+from handflow.plugins.hands.joints import HAND_MODELS
 
 from .couplings import DEFAULT_COUPLING, CouplingRule
 from .hand_geometry import build_skeleton
@@ -46,9 +47,17 @@ class MotorGains:
 class Simulation:
     """A hand model (``human`` | ``shadow`` | ``gifu``) in a scene (``empty`` | ``cap`` | ``balls`` | ``grasp``)."""
 
-    def __init__(self, hand: str = "shadow", scene: str | Scene = "empty", scene_options: dict | None = None,
-                 seed: int | None = 0, physics_hz: float = 240.0, gains: MotorGains = MotorGains(),
-                 coupling: CouplingRule | None = None, urdf_dir: str | None = None) -> None:
+    def __init__(
+        self,
+        hand: str = "shadow",
+        scene: str | Scene = "empty",
+        scene_options: dict | None = None,
+        seed: int | None = 0,
+        physics_hz: float = 240.0,
+        gains: MotorGains = MotorGains(),
+        coupling: CouplingRule | None = None,
+        urdf_dir: str | None = None,
+    ) -> None:
         if hand not in HAND_MODELS:
             raise ValueError(f"unknown hand '{hand}'; choose one of {', '.join(HAND_MODELS)}")
         if not 30.0 <= physics_hz <= 2000.0:
@@ -66,8 +75,14 @@ class Simulation:
             p.setGravity(0, 0, -9.81, physicsClientId=self.client)
             p.setTimeStep(1.0 / self.physics_hz, physicsClientId=self.client)
             pos, orn = self.scene.hand_pose()
-            self.hand_id = p.loadURDF(str(write_urdf(hand, urdf_dir)), pos, orn, useFixedBase=True,
-                                      flags=p.URDF_MAINTAIN_LINK_ORDER, physicsClientId=self.client)
+            self.hand_id = p.loadURDF(
+                str(write_urdf(hand, urdf_dir)),
+                pos,
+                orn,
+                useFixedBase=True,
+                flags=p.URDF_MAINTAIN_LINK_ORDER,
+                physicsClientId=self.client,
+            )
             self._init_joints(coupling)
             self.scene.build(self.client, self.rng)
         except Exception:
@@ -76,8 +91,10 @@ class Simulation:
 
     # -- setup ---------------------------------------------------------------------------------
     def _init_joints(self, coupling: CouplingRule | None) -> None:
-        info = [p.getJointInfo(self.hand_id, i, physicsClientId=self.client)
-                for i in range(p.getNumJoints(self.hand_id, physicsClientId=self.client))]
+        info = [
+            p.getJointInfo(self.hand_id, i, physicsClientId=self.client)
+            for i in range(p.getNumJoints(self.hand_id, physicsClientId=self.client))
+        ]
         by_name = {i[1].decode(): i[0] for i in info}
         self.link_names = {i[0]: i[12].decode() for i in info}
         self.link_names[-1] = self.skeleton.base
@@ -91,7 +108,9 @@ class Simulation:
         self.drivers = np.array([self.index[d] for d in self.model.coupled.values()], dtype=int)
         self.coupling = coupling or DEFAULT_COUPLING.get(self.model.name)
         for jid in self.joint_ids:  # the motor array call has no velocity limit; it is a joint property
-            p.changeDynamics(self.hand_id, int(jid), maxJointVelocity=self.gains.max_velocity, physicsClientId=self.client)
+            p.changeDynamics(
+                self.hand_id, int(jid), maxJointVelocity=self.gains.max_velocity, physicsClientId=self.client
+            )
         self.commanded = self.model.clip(np.zeros(len(self.names)))
         start = self.scene.initial_posture()
         self.set_targets(list(start), list(start.values()))
@@ -111,23 +130,33 @@ class Simulation:
             raise ValueError(f"{len(names)} joint names for {q.size} target positions")
         unknown = [n for n in names if n not in self.index]
         if unknown:
-            raise ValueError(f"hand '{self.model.name}' has no joint(s) {unknown}; its joints are: {', '.join(self.names)}")
+            raise ValueError(
+                f"hand '{self.model.name}' has no joint(s) {unknown}; its joints are: {', '.join(self.names)}"
+            )
         if not np.isfinite(q).all():
-            raise ValueError(f"joint targets must be finite, got NaN/inf for {[n for n, v in zip(names, q) if not np.isfinite(v)]}")
+            raise ValueError(
+                f"joint targets must be finite, got NaN/inf for {[n for n, v in zip(names, q) if not np.isfinite(v)]}"
+            )
         self.commanded[[self.index[n] for n in names]] = q
         self.targets = self.model.clip(self.commanded)
         if self.coupled.size and self.coupling is not None:
             self.targets[self.coupled] = self.coupling(self.targets[self.coupled], self.targets[self.drivers])
             self.targets = self.model.clip(self.targets)
         p.setJointMotorControlArray(
-            self.hand_id, self.joint_ids.tolist(), p.POSITION_CONTROL, targetPositions=self.targets.tolist(),
-            forces=self.max_torque.tolist(), positionGains=[self.gains.position_gain] * len(self.names),
-            velocityGains=[self.gains.velocity_gain] * len(self.names), physicsClientId=self.client)
+            self.hand_id,
+            self.joint_ids.tolist(),
+            p.POSITION_CONTROL,
+            targetPositions=self.targets.tolist(),
+            forces=self.max_torque.tolist(),
+            positionGains=[self.gains.position_gain] * len(self.names),
+            velocityGains=[self.gains.velocity_gain] * len(self.names),
+            physicsClientId=self.client,
+        )
 
     def step(self, n: int = 1) -> None:
         """Advance the physics by ``n`` fixed steps of ``1 / physics_hz`` seconds.
 
-        Before each step the scene's :meth:`~plugins.simulator.scenes.Scene.before_step` hook runs
+        Before each step the scene's :meth:`~handflow.plugins.simulator.scenes.Scene.before_step` hook runs
         at the current simulated time (e.g. the ball scene's scheduled pushes).
         """
         for _ in range(int(n)):
@@ -149,8 +178,12 @@ class Simulation:
     def joint_state(self) -> JointState:
         """Collision-corrected posture after physics (positions and velocities, model order)."""
         states = p.getJointStates(self.hand_id, self.joint_ids.tolist(), physicsClientId=self.client)
-        return JointState(names=list(self.names), positions=np.array([s[0] for s in states]),
-                          velocities=np.array([s[1] for s in states]), hand=self.model.name)
+        return JointState(
+            names=list(self.names),
+            positions=np.array([s[0] for s in states]),
+            velocities=np.array([s[1] for s in states]),
+            hand=self.model.name,
+        )
 
     def contacts(self) -> Contacts:
         """Per touching (hand segment, scene body) pair the summed normal force in N."""
@@ -161,8 +194,9 @@ class Simulation:
             key = (self.link_names[c[3]], self.scene.body_name(c[2], c[4]))
             total[key] = total.get(key, 0.0) + float(c[9])
         keys = sorted(total)
-        return Contacts(segments=[k[0] for k in keys], bodies=[k[1] for k in keys],
-                        forces=np.array([total[k] for k in keys]))
+        return Contacts(
+            segments=[k[0] for k in keys], bodies=[k[1] for k in keys], forces=np.array([total[k] for k in keys])
+        )
 
     def scene_state(self) -> dict[str, float]:
         """The scene's observable state (e.g. ``cap_angle``, ball positions)."""
@@ -179,8 +213,9 @@ class Simulation:
             raise ValueError(f"hand '{self.model.name}' has no link '{link}'; links: {', '.join(sorted(ids))}")
         if ids[link] == -1:
             return np.array(p.getBasePositionAndOrientation(self.hand_id, physicsClientId=self.client)[0])
-        return np.array(p.getLinkState(self.hand_id, ids[link], computeForwardKinematics=True,
-                                       physicsClientId=self.client)[4])
+        return np.array(
+            p.getLinkState(self.hand_id, ids[link], computeForwardKinematics=True, physicsClientId=self.client)[4]
+        )
 
     # -- lifetime ------------------------------------------------------------------------------
     def close(self) -> None:
@@ -188,7 +223,7 @@ class Simulation:
             p.disconnect(self.client)
         self.client = None
 
-    def __enter__(self) -> "Simulation":
+    def __enter__(self) -> Simulation:
         return self
 
     def __exit__(self, *exc) -> None:

@@ -1,4 +1,4 @@
-"""URDF text of a :class:`~plugins.simulator.hand_geometry.HandSkeleton` (the generator is the single source).
+"""URDF text of a :class:`~handflow.plugins.simulator.hand_geometry.HandSkeleton` (the generator is the single source).
 
 Segments are capsules (pybullet's URDF ``<capsule>``) along the joint frame's ``+z``; the palm is a
 box from the wrist to the knuckles; the forearm a box behind the wrist.  Masses follow a uniform
@@ -6,6 +6,7 @@ density (``DENSITY``); joint limits, axes and the effort limits (``max_torque``)
 the URDF, so pybullet enforces the limits.  :func:`write_urdf` caches the file under a content
 hash, so repeated simulations reuse it and a changed generator never reads a stale file.
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -25,17 +26,23 @@ COLOURS = {"human": "0.87 0.72 0.60 1", "shadow": "0.25 0.25 0.28 1", "gifu": "0
 
 
 def _inertial(mass: float, ixx: float, iyy: float, izz: float, z: float = 0.0) -> str:
-    return (f'<inertial><origin xyz="0 0 {z:.6f}"/><mass value="{mass:.6f}"/>'
-            f'<inertia ixx="{ixx:.3e}" iyy="{iyy:.3e}" izz="{izz:.3e}" ixy="0" ixz="0" iyz="0"/></inertial>')
+    return (
+        f'<inertial><origin xyz="0 0 {z:.6f}"/><mass value="{mass:.6f}"/>'
+        f'<inertia ixx="{ixx:.3e}" iyy="{iyy:.3e}" izz="{izz:.3e}" ixy="0" ixz="0" iyz="0"/></inertial>'
+    )
 
 
 def _box_link(name: str, size, centre, colour: str) -> str:
     sx, sy, sz = size
     mass = DENSITY * sx * sy * sz
     shape = f'<origin xyz="{centre[0]:.6f} {centre[1]:.6f} {centre[2]:.6f}"/><geometry><box size="{sx} {sy} {sz}"/></geometry>'
-    inertia = _inertial(mass, mass * (sy**2 + sz**2) / 12, mass * (sx**2 + sz**2) / 12, mass * (sx**2 + sy**2) / 12, centre[2])
-    return (f'<link name="{name}">{inertia}<visual>{shape}<material name="{name}_m"><color rgba="{colour}"/></material></visual>'
-            f'<collision>{shape}</collision></link>')
+    inertia = _inertial(
+        mass, mass * (sy**2 + sz**2) / 12, mass * (sx**2 + sz**2) / 12, mass * (sx**2 + sy**2) / 12, centre[2]
+    )
+    return (
+        f'<link name="{name}">{inertia}<visual>{shape}<material name="{name}_m"><color rgba="{colour}"/></material></visual>'
+        f"<collision>{shape}</collision></link>"
+    )
 
 
 def _capsule_link(name: str, length: float, radius: float, colour: str) -> str:
@@ -44,9 +51,11 @@ def _capsule_link(name: str, length: float, radius: float, colour: str) -> str:
     mass = DENSITY * np.pi * radius**2 * (length + 4 * radius / 3)
     ixx = mass * (3 * radius**2 + length**2) / 12
     shape = f'<origin xyz="0 0 {length / 2:.6f}"/><geometry><capsule radius="{radius:.5f}" length="{length:.5f}"/></geometry>'
-    return (f'<link name="{name}">{_inertial(mass, ixx, ixx, mass * radius**2 / 2, length / 2)}'
-            f'<visual>{shape}<material name="{name}_m"><color rgba="{colour}"/></material></visual>'
-            f'<collision>{shape}</collision></link>')
+    return (
+        f'<link name="{name}">{_inertial(mass, ixx, ixx, mass * radius**2 / 2, length / 2)}'
+        f'<visual>{shape}<material name="{name}_m"><color rgba="{colour}"/></material></visual>'
+        f"<collision>{shape}</collision></link>"
+    )
 
 
 def urdf_text(skeleton: HandSkeleton) -> str:
@@ -54,8 +63,11 @@ def urdf_text(skeleton: HandSkeleton) -> str:
     colour = COLOURS[skeleton.model.name]
     w, t, length = skeleton.palm_size
     palm = _box_link(skeleton.palm_link, (w, t, length * 0.92), (0, 0, length * 0.46 + 0.004), colour)
-    links = [palm if skeleton.base == skeleton.palm_link else
-             _box_link(skeleton.base, (w * 0.7, t * 1.2, 0.08), (0, 0, -0.05), colour)]
+    links = [
+        palm
+        if skeleton.base == skeleton.palm_link
+        else _box_link(skeleton.base, (w * 0.7, t * 1.2, 0.08), (0, 0, -0.05), colour)
+    ]
     joints = []
     for j in skeleton.joints:  # links in joint order: pybullet keeps this order (URDF_MAINTAIN_LINK_ORDER)
         links.append(palm if j.child == skeleton.palm_link else _capsule_link(j.child, j.length, j.radius, colour))
@@ -65,7 +77,8 @@ def urdf_text(skeleton: HandSkeleton) -> str:
             f'<origin xyz="{j.origin[0]:.6f} {j.origin[1]:.6f} {j.origin[2]:.6f}" rpy="{roll:.6f} {pitch:.6f} {yaw:.6f}"/>'
             f'<axis xyz="{j.axis[0]:.6f} {j.axis[1]:.6f} {j.axis[2]:.6f}"/>'
             f'<limit lower="{j.lower:.6f}" upper="{j.upper:.6f}" effort="{j.max_torque}" velocity="3.0"/>'
-            f'<dynamics damping="0.01" friction="0.0"/></joint>')
+            f'<dynamics damping="0.01" friction="0.0"/></joint>'
+        )
     body = "\n".join(links + joints)
     return f'<?xml version="1.0"?>\n<robot name="{skeleton.model.name}_hand">\n{body}\n</robot>\n'
 

@@ -14,6 +14,7 @@ Documented choices:
   association with the previous frame (the assignment with the smaller summed distance; a track
   lost for longer than ``max_lost`` frames or re-found farther than ``max_jump`` px gets a new id).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -34,12 +35,13 @@ class HSVRange:
         lo, hi = np.array(self.lower, np.uint8), np.array(self.upper, np.uint8)
         if lo[0] <= hi[0]:
             return cv2.inRange(hsv, lo, hi)
-        return cv2.inRange(hsv, lo, np.array([179, hi[1], hi[2]], np.uint8)) | \
-            cv2.inRange(hsv, np.array([0, lo[1], lo[2]], np.uint8), hi)
+        return cv2.inRange(hsv, lo, np.array([179, hi[1], hi[2]], np.uint8)) | cv2.inRange(
+            hsv, np.array([0, lo[1], lo[2]], np.uint8), hi
+        )
 
 
 BALL_HSV = HSVRange((15, 120, 70), (35, 255, 255))
-"""Yellow balls of the simulated scene (plugins.simulator.scenes.BALL_COLOUR)."""
+"""Yellow balls of the simulated scene (handflow.plugins.simulator.scenes.BALL_COLOUR)."""
 MARK_A_HSV = HSVRange((170, 120, 70), (8, 255, 255))
 """Red mark A → (−1, 0)."""
 MARK_B_HSV = HSVRange((45, 120, 50), (85, 255, 255))
@@ -153,7 +155,8 @@ class BallTracker:
             if not best or key < best_key:
                 best, best_key = match, key
         pairs: list[tuple[_Track, np.ndarray | None]] = [
-            (t, detections[best[i]] if i in best else None) for i, t in enumerate(alive)]
+            (t, detections[best[i]] if i in best else None) for i, t in enumerate(alive)
+        ]
         for j in sorted(set(range(n)) - set(best.values())):
             pairs.append((_Track(self._next_id, detections[j]), detections[j]))
             self._next_id += 1

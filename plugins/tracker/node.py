@@ -1,15 +1,16 @@
-"""Node ``tracker.color_blobs``: :class:`~plugins.tracker.blobs.BallTracker` on the runtime.
+"""Node ``tracker.color_blobs``: :class:`~handflow.plugins.tracker.blobs.BallTracker` on the runtime.
 
 Input ``image`` (Image, rgb8/rgba8).  Outputs per image: ``balls`` (Points2D, normalised so mark A
 is (−1, 0) and mark B (1, 0); unordered, with track ids; invalid when not seen or when a mark is
 missing) and ``marks`` (Points2D, raw pixel centroids of mark A and mark B, ids 0 and 1).
 """
+
 from __future__ import annotations
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from framework.messages import Image, Points2D
-from framework.plugin import Node
+from handflow.framework.messages import Image, Points2D
+from handflow.framework.plugin import Node
 
 from .blobs import BALL_HSV, MARK_A_HSV, MARK_B_HSV, BallTracker, HSVRange
 
@@ -23,8 +24,12 @@ class TrackerParams(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
     ball_hsv: list[int] = Field(default_factory=lambda: [*BALL_HSV.lower, *BALL_HSV.upper], min_length=6, max_length=6)
-    mark_a_hsv: list[int] = Field(default_factory=lambda: [*MARK_A_HSV.lower, *MARK_A_HSV.upper], min_length=6, max_length=6)
-    mark_b_hsv: list[int] = Field(default_factory=lambda: [*MARK_B_HSV.lower, *MARK_B_HSV.upper], min_length=6, max_length=6)
+    mark_a_hsv: list[int] = Field(
+        default_factory=lambda: [*MARK_A_HSV.lower, *MARK_A_HSV.upper], min_length=6, max_length=6
+    )
+    mark_b_hsv: list[int] = Field(
+        default_factory=lambda: [*MARK_B_HSV.lower, *MARK_B_HSV.upper], min_length=6, max_length=6
+    )
     min_area: float = Field(12.0, gt=0, description="smallest ball blob in px")
     max_jump: float = Field(60.0, gt=0, description="largest frame-to-frame ball motion in px kept on one track id")
 
@@ -38,8 +43,13 @@ class ColorBlobTrackerNode(Node):
 
     def setup(self) -> None:
         prm = self.params
-        self.tracker = BallTracker(ball_hsv=_range(prm.ball_hsv), mark_a_hsv=_range(prm.mark_a_hsv),
-                                   mark_b_hsv=_range(prm.mark_b_hsv), min_area=prm.min_area, max_jump=prm.max_jump)
+        self.tracker = BallTracker(
+            ball_hsv=_range(prm.ball_hsv),
+            mark_a_hsv=_range(prm.mark_a_hsv),
+            mark_b_hsv=_range(prm.mark_b_hsv),
+            min_area=prm.min_area,
+            max_jump=prm.max_jump,
+        )
 
     def on_message(self, port: str, msg: Image) -> None:
         if msg.encoding not in ("rgb8", "rgba8"):

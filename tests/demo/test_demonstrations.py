@@ -1,4 +1,5 @@
 """Demonstration recordings: structure, determinism, the command line, and the shipped examples."""
+
 import argparse
 from collections import Counter
 from pathlib import Path
@@ -6,13 +7,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from framework.recording import read_messages, read_report
-from plugins.demo import load_ball_demonstrations, load_cap_demonstrations
-from plugins.demo.cap_turning import CapTurningDemonstrator
-from plugins.demo.cli import register_demo_record
-from plugins.demo.demonstrations import OBSERVATION_NAMES, record_balls, record_cap
-from plugins.mapping.hands import GIFU, SHADOW
-from plugins.simulator.metrics import count_swaps
+from handflow.framework.recording import read_messages, read_report
+from handflow.plugins.demo import load_ball_demonstrations, load_cap_demonstrations
+from handflow.plugins.demo.cap_turning import CapTurningDemonstrator
+from handflow.plugins.demo.cli import register_demo_record
+from handflow.plugins.demo.demonstrations import OBSERVATION_NAMES, record_balls, record_cap
+from handflow.plugins.hands.joints import GIFU, SHADOW
+from handflow.plugins.simulator.metrics import count_swaps
 
 RECORDINGS = Path(__file__).resolve().parents[2] / "recordings"
 
@@ -56,7 +57,7 @@ def test_ball_recording_has_twenty_dimensional_observations_per_swap_cycle(tmp_p
     assert len(obs) == summary.observations > 30 and summary.swaps >= 1
     assert obs[0].names == OBSERVATION_NAMES and obs[0].data.size == 20
     assert joints[0].names == GIFU.names
-    (meta, observations, names), = load_ball_demonstrations(path)
+    ((meta, observations, names),) = load_ball_demonstrations(path)
     assert names == OBSERVATION_NAMES and observations.shape == (summary.observations, 20)
     assert meta["swap_cycle"] == 0 and set(meta["hand_cycle"]) == {0, 1}
     assert np.all(np.diff(meta["time_s"]) > 0) and 0 < meta["hand_phase"].min() and meta["hand_phase"].max() <= 1

@@ -15,6 +15,7 @@ and ``recordings/`` (so nothing in the repository changes); ``handflow`` and ``p
 interpreter.  ``CMD &`` starts a background job (waited for until its graph's run-file appears),
 ``kill -INT %N`` stops job N and requires exit code 0.
 """
+
 from __future__ import annotations
 
 import json
@@ -32,8 +33,8 @@ from pathlib import Path
 import pytest
 import yaml
 
-from framework.discovery import live_runs
-from framework.graph import load_graph
+from handflow.framework.discovery import live_runs
+from handflow.framework.graph import load_graph
 
 REPO = Path(__file__).resolve().parents[2]
 TESTED_ELSEWHERE = {"recording.md", "monitoring.md"}  # tests/framework/test_recording_docs.py
@@ -139,7 +140,7 @@ def test_foxglove_layout_topics_are_published_by_the_flagship():
     layout = json.loads((REPO / "docs" / "foxglove_layout.json").read_text())
     graph = load_graph(REPO / "configs" / "demo.yaml")
     text = json.dumps(layout["configById"])
-    topics = set(re.findall(r'demo/(\w+)/(\w+)', text))
+    topics = set(re.findall(r"demo/(\w+)/(\w+)", text))
     assert topics
     for node, port in topics:
         assert port in graph.nodes[node].cls.outputs, f"{node}/{port}"
@@ -157,7 +158,7 @@ def workspace(tmp_path, monkeypatch):
     (ws / "out").mkdir()
     shim = tmp_path / "bin"
     shim.mkdir()
-    (shim / "handflow").write_text(f'#!/bin/sh\nexec "{sys.executable}" -m framework.cli "$@"\n')
+    (shim / "handflow").write_text(f'#!/bin/sh\nexec "{sys.executable}" -m handflow.framework.cli "$@"\n')
     (shim / "python").write_text(f'#!/bin/sh\nexec "{sys.executable}" "$@"\n')
     for f in shim.iterdir():
         f.chmod(0o755)
@@ -196,12 +197,20 @@ def test_documented_commands_run(doc, workspace):
                 elif cmd.endswith("&"):
                     name = _graph_name(workspace, cmd)
                     started[name] = started.get(name, 0) + 1
-                    jobs.append(subprocess.Popen(["bash", "-c", f"exec {cmd[:-1]}"], cwd=workspace, text=True,
-                                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE))
+                    jobs.append(
+                        subprocess.Popen(
+                            ["bash", "-c", f"exec {cmd[:-1]}"],
+                            cwd=workspace,
+                            text=True,
+                            stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE,
+                        )
+                    )
                     _wait_started(name, started[name])
                 else:
-                    proc = subprocess.run(["bash", "-c", cmd], cwd=workspace, capture_output=True, text=True,
-                                          timeout=150)
+                    proc = subprocess.run(
+                        ["bash", "-c", cmd], cwd=workspace, capture_output=True, text=True, timeout=150
+                    )
                     assert proc.returncode == 0, f"{where}\n{proc.stdout[-2000:]}\n{proc.stderr[-4000:]}"
     finally:
         for job in jobs:

@@ -1,4 +1,5 @@
 """The flagship graph headless (real processes, Zenoh, pybullet, MCAP) and replay determinism."""
+
 from __future__ import annotations
 
 import json
@@ -7,15 +8,26 @@ import numpy as np
 import pytest
 import yaml
 
-from framework.recording import read_messages
-from plugins.demo.gestures import GestureScript
-
+from handflow.framework.recording import read_messages
+from handflow.plugins.demo.gestures import GestureScript
 from tests.conftest import REPO, handflow
 
 pytestmark = pytest.mark.slow
 
-EXPECTED = ["glove/frames", "glove/status", "human/joints", "shadow/joints", "takeover/out", "controller/targets",
-            "sim/joints", "sim/contacts", "sim/scene", "sim/image", "segmenter/labels", "segmenter/events"]
+EXPECTED = [
+    "glove/frames",
+    "glove/status",
+    "human/joints",
+    "shadow/joints",
+    "takeover/out",
+    "controller/targets",
+    "sim/joints",
+    "sim/contacts",
+    "sim/scene",
+    "sim/image",
+    "segmenter/labels",
+    "segmenter/events",
+]
 
 
 @pytest.fixture(scope="module")
@@ -37,18 +49,18 @@ def test_flagship_records_every_stream(flagship):
     joint_stamps = [m.header.stamp_ns for m, _ in topics["shadow/joints"]]
     labels = [m for m, _ in topics["segmenter/labels"]]
     assert [m.index for m in labels] == list(range(len(labels)))
-    assert [m.header.stamp_ns for m in labels] == joint_stamps[:len(labels)]
+    assert [m.header.stamp_ns for m in labels] == joint_stamps[: len(labels)]
     assert len(labels) >= len(joint_stamps) - 2
     # the mapping chain keeps the glove frame's stamp
     frame_stamps = [m.header.stamp_ns for m, _ in topics["glove/frames"]]
-    assert joint_stamps == frame_stamps[:len(joint_stamps)]
+    assert joint_stamps == frame_stamps[: len(joint_stamps)]
 
 
 def test_flagship_recognises_the_scripted_gestures(flagship):
     _, _, topics = flagship
     labels = [m.label for m, _ in topics["segmenter/labels"]]
-    truth = GestureScript().labels(np.arange(len(labels)) / 50.0)   # glove at 50 Hz, no frame lost
-    settled = slice(50, None)                                        # after the first second
+    truth = GestureScript().labels(np.arange(len(labels)) / 50.0)  # glove at 50 Hz, no frame lost
+    settled = slice(50, None)  # after the first second
     agree = np.mean(np.array(labels[settled]) == np.array(truth[settled]))
     assert agree > 0.7, f"{agree:.2f} of the labels match the script"
 

@@ -1,4 +1,5 @@
 """Gesture classes, the script, and the path that regenerates the flagship's shipped models."""
+
 from __future__ import annotations
 
 import json
@@ -8,12 +9,12 @@ import numpy as np
 import pytest
 import yaml
 
-from plugins.demo import gestures as G
-from plugins.glove.frames_io import load_frames
-from plugins.mapping.hands import DEG, HUMAN
-from plugins.segmenter.candidates import load_candidates
-from plugins.segmenter.cli import register_train_classes
-from plugins.segmenter.datasets import load_dataset
+from handflow.plugins.demo import gestures as G
+from handflow.plugins.glove.frames_io import load_frames
+from handflow.plugins.hands.joints import DEG, HUMAN
+from handflow.plugins.segmenter.candidates import load_candidates
+from handflow.plugins.segmenter.cli import register_train_classes
+from handflow.plugins.segmenter.datasets import load_dataset
 
 REPO = Path(__file__).resolve().parents[2]
 MODELS = REPO / "configs" / "models" / "gestures"
@@ -82,10 +83,15 @@ def test_flagship_graphs_use_the_models_joints():
 
 def test_shipped_models_recognise_the_script_offline():
     """Each gesture of the demo script is reconstructed best by its own manifold (every 8th sample)."""
-    from plugins.mapping.calibration import DEFAULT_CALIBRATION, DEFAULT_PROFILE, load_calibration, load_profile
-    from plugins.mapping.human import HumanHandMapping
-    from plugins.mapping.robot import ShadowHandMapping
-    from plugins.mapping.hands import SHADOW
+    from handflow.plugins.hands.joints import SHADOW
+    from handflow.plugins.mapping.calibration import (
+        DEFAULT_CALIBRATION,
+        DEFAULT_PROFILE,
+        load_calibration,
+        load_profile,
+    )
+    from handflow.plugins.mapping.human import HumanHandMapping
+    from handflow.plugins.mapping.robot import ShadowHandMapping
 
     frames = load_frames(MODELS / "demo_frames.npy")[::8]
     human = HumanHandMapping(load_profile(DEFAULT_PROFILE), load_calibration(DEFAULT_CALIBRATION))
@@ -101,8 +107,24 @@ def test_shipped_models_recognise_the_script_offline():
 def test_regeneration_path_on_a_reduced_scale(tmp_path):
     """record → dataset → handflow train-classes → models the segmenter loads (the documented commands)."""
     rec, ds, models = tmp_path / "gestures.mcap", tmp_path / "gestures.npz", tmp_path / "models"
-    assert G.main(["record", "--out", str(rec), "--sequences", "3", "--duration", "1.2", "--rate", "25",
-                   "--gestures", "grasp,pinch"]) == 0
+    assert (
+        G.main(
+            [
+                "record",
+                "--out",
+                str(rec),
+                "--sequences",
+                "3",
+                "--duration",
+                "1.2",
+                "--rate",
+                "25",
+                "--gestures",
+                "grasp,pinch",
+            ]
+        )
+        == 0
+    )
     assert G.main(["dataset", str(rec), "--out", str(ds)]) == 0
     dataset = load_dataset(ds)
     assert dataset.classes == ["grasp", "pinch"]
@@ -111,6 +133,7 @@ def test_regeneration_path_on_a_reduced_scale(tmp_path):
     assert all(t.data.shape == (30, len(G.SEGMENT_JOINTS)) for t in dataset.train)
 
     import argparse
+
     parser = argparse.ArgumentParser()
     register_train_classes(parser)
     args = parser.parse_args([str(ds), "--out", str(models), "--steps", "5"])
@@ -120,14 +143,14 @@ def test_regeneration_path_on_a_reduced_scale(tmp_path):
 
 
 def test_dataset_from_a_recording_without_segments_says_how_to_record(tmp_path, capsys):
-    from framework.messages import Array
-    from framework.recording import McapWriter
+    from handflow.framework.messages import Array
+    from handflow.framework.recording import McapWriter
 
     path = tmp_path / "other.mcap"
     with McapWriter(path, flush_interval_s=None) as w:
         w.write("handflow/x/a/out", Array(data=[1.0]), 1)
     assert G.main(["dataset", str(path), "--out", str(tmp_path / "d.npz")]) == 2
-    assert "plugins.demo.gestures record" in capsys.readouterr().err
+    assert "handflow.plugins.demo.gestures record" in capsys.readouterr().err
 
 
 def test_record_refuses_too_few_sequences(tmp_path, capsys):

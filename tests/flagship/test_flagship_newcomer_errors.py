@@ -1,4 +1,5 @@
 """Errors a newcomer meets say what to do: no display, ports in use, no glove, no model."""
+
 from __future__ import annotations
 
 import logging
@@ -9,11 +10,10 @@ import sys
 
 import pytest
 
-from framework.testing import NodeHarness
-from plugins.glove.node import CyberGloveNode, serial_ports
-from plugins.segmenter.candidates import ModelsMissingError
-from plugins.segmenter.nodes import OnlineCLMNode
-
+from handflow.framework.testing import NodeHarness
+from handflow.plugins.glove.node import CyberGloveNode, serial_ports
+from handflow.plugins.segmenter.candidates import ModelsMissingError
+from handflow.plugins.segmenter.nodes import OnlineCLMNode
 from tests.conftest import REPO, handflow
 
 GUI_MODULES = ("tkinter", "PyQt5", "PyQt6", "PySide2", "PySide6", "gi", "wx")
@@ -23,12 +23,12 @@ def test_nothing_needs_a_display():
     """Every framework and plugin module imports and plots headless; no GUI toolkit is loaded."""
     code = f"""
 import importlib, pkgutil, sys
-import framework, plugins
-for pkg in (framework, plugins):
+import handflow.framework, handflow.plugins
+for pkg in (handflow.framework, handflow.plugins):
     for m in pkgutil.walk_packages(pkg.__path__, pkg.__name__ + "."):
         importlib.import_module(m.name)
-from plugins.segmenter import plots   # the modules that draw
-from plugins.mapping import zero_abduction
+from handflow.plugins.segmenter import plots   # the modules that draw
+from handflow.plugins.mapping import zero_abduction
 import matplotlib
 assert matplotlib.get_backend().lower() == "agg", matplotlib.get_backend()
 gui = [m for m in {GUI_MODULES!r} if m in sys.modules]
@@ -73,7 +73,7 @@ def test_missing_glove_device_lists_ports_and_suggests_the_emulator(caplog):
 
 
 def test_existing_device_or_emulator_gives_no_such_hint(caplog):
-    from plugins.glove.node import missing_device_message
+    from handflow.plugins.glove.node import missing_device_message
 
     assert missing_device_message("emulator") is None
     assert missing_device_message("bt://00:11:22:33:44:55") is None

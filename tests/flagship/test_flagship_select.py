@@ -1,12 +1,13 @@
 """basic.select: which stream drives the hand, and the one-time takeover switch."""
+
 from __future__ import annotations
 
 import pytest
 from pydantic import ValidationError
 
-from framework.messages import JointState
-from framework.testing import NodeHarness
-from plugins.basic.select import Select
+from handflow.framework.messages import JointState
+from handflow.framework.testing import NodeHarness
+from handflow.plugins.basic.select import Select
 
 
 def js(value: float) -> JointState:
@@ -33,7 +34,7 @@ def test_use_secondary():
 def test_switches_once_after_the_given_time():
     h = NodeHarness(Select, {"switch_after_s": 1.0}).setup()
     t0 = 5_000_000_000
-    h.send("primary", js(1.0), stamp_ns=t0)                 # the clock starts with the first message
+    h.send("primary", js(1.0), stamp_ns=t0)  # the clock starts with the first message
     h.send("secondary", js(2.0), stamp_ns=t0 + 500_000_000)
     h.send("primary", js(3.0), stamp_ns=t0 + 999_000_000)
     h.send("primary", js(4.0), stamp_ns=t0 + 1_000_000_000)  # switched: the glove no longer drives

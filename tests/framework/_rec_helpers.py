@@ -1,4 +1,5 @@
 """Shared helpers of the recording/replay/monitor tests: graphs with unique names, CLI processes."""
+
 from __future__ import annotations
 
 import json
@@ -23,7 +24,10 @@ def write_graph(path: Path, name: str, body: str) -> Path:
 
 def chain(path: Path, name: str, rate: float = 100) -> Path:
     """source (seeded noise) → scale (×2) → sink: a live graph to record or monitor."""
-    return write_graph(path, name, f"""nodes:
+    return write_graph(
+        path,
+        name,
+        f"""nodes:
   - id: source
     plugin: basic.signal
     params: {{kind: noise, rate_hz: {rate}, width: 3, seed: 1}}
@@ -34,17 +38,28 @@ def chain(path: Path, name: str, rate: float = 100) -> Path:
   - id: sink
     plugin: basic.sink
     inputs: {{in: scale/out}}
-""")
+""",
+    )
 
 
 def start(*args: str, cwd: Path = REPO) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, "-m", "framework.cli", *args], cwd=cwd, text=True,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    return subprocess.Popen(
+        [sys.executable, "-m", "handflow.framework.cli", *args],
+        cwd=cwd,
+        text=True,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+    )
 
 
 def handflow(*args: str, cwd: Path = REPO, timeout: float = 90) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "framework.cli", *args], cwd=cwd, capture_output=True, text=True,
-                          timeout=timeout)
+    return subprocess.run(
+        [sys.executable, "-m", "handflow.framework.cli", *args],
+        cwd=cwd,
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+    )
 
 
 def wait_until(pred, timeout: float = 30.0, what: str = "condition") -> None:

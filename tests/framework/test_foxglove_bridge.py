@@ -1,4 +1,5 @@
 """Live view: a graph run with --foxglove advertises its topics to a real Foxglove WebSocket client."""
+
 from __future__ import annotations
 
 import json
@@ -11,7 +12,7 @@ from pathlib import Path
 import pytest
 from websockets.sync.client import connect
 
-from framework.transport import free_tcp_port
+from handflow.framework.transport import free_tcp_port
 
 pytestmark = pytest.mark.slow
 REPO = Path(__file__).resolve().parents[2]
@@ -22,8 +23,9 @@ def advertised_topics(port: int, graph: str, timeout: float = 20.0) -> set[str]:
     deadline = time.time() + timeout
     while True:
         try:
-            ws = connect(f"ws://127.0.0.1:{port}", subprotocols=["foxglove.sdk.v1", "foxglove.websocket.v1"],
-                         open_timeout=2)
+            ws = connect(
+                f"ws://127.0.0.1:{port}", subprotocols=["foxglove.sdk.v1", "foxglove.websocket.v1"], open_timeout=2
+            )
             break
         except OSError:
             if time.time() > deadline:
@@ -45,11 +47,27 @@ def advertised_topics(port: int, graph: str, timeout: float = 20.0) -> set[str]:
 
 def test_run_with_foxglove_streams_topics(tmp_path):
     graph = tmp_path / "g.yaml"
-    graph.write_text("name: fx\nnodes:\n  - id: source\n    plugin: basic.signal\n    params: {rate_hz: 20}\n"
-                     "  - id: sink\n    plugin: basic.sink\n    inputs: {in: source/out}\n")
+    graph.write_text(
+        "name: fx\nnodes:\n  - id: source\n    plugin: basic.signal\n    params: {rate_hz: 20}\n"
+        "  - id: sink\n    plugin: basic.sink\n    inputs: {in: source/out}\n"
+    )
     port = free_tcp_port()
-    proc = subprocess.Popen([sys.executable, "-m", "framework.cli", "run", str(graph), "--duration", "12",
-                             "--foxglove", str(port)], cwd=REPO, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "handflow.framework.cli",
+            "run",
+            str(graph),
+            "--duration",
+            "12",
+            "--foxglove",
+            str(port),
+        ],
+        cwd=REPO,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     try:
         topics = advertised_topics(port, "fx")
     finally:
@@ -72,16 +90,39 @@ def test_port_in_use_is_a_clear_error(tmp_path, run_handflow):
 
 def test_monitor_foxglove_joins_a_running_graph(tmp_path):
     graph = tmp_path / "g.yaml"
-    graph.write_text("name: fxm\nnodes:\n  - id: source\n    plugin: basic.signal\n    params: {rate_hz: 20}\n"
-                     "  - id: sink\n    plugin: basic.sink\n    inputs: {in: source/out}\n")
+    graph.write_text(
+        "name: fxm\nnodes:\n  - id: source\n    plugin: basic.signal\n    params: {rate_hz: 20}\n"
+        "  - id: sink\n    plugin: basic.sink\n    inputs: {in: source/out}\n"
+    )
     env = dict(__import__("os").environ, HANDFLOW_RUN_DIR=str(tmp_path / "runs"))
-    run = subprocess.Popen([sys.executable, "-m", "framework.cli", "run", str(graph), "--duration", "20"], cwd=REPO,
-                           stderr=subprocess.DEVNULL, env=env)
+    run = subprocess.Popen(
+        [sys.executable, "-m", "handflow.framework.cli", "run", str(graph), "--duration", "20"],
+        cwd=REPO,
+        stderr=subprocess.DEVNULL,
+        env=env,
+    )
     port = free_tcp_port()
     time.sleep(2)
-    mon = subprocess.Popen([sys.executable, "-m", "framework.cli", "monitor", "--graph", "fxm", "--once", "--listen", "12",
-                            "--foxglove", str(port)], cwd=REPO, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-                           text=True, env=env)
+    mon = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "handflow.framework.cli",
+            "monitor",
+            "--graph",
+            "fxm",
+            "--once",
+            "--listen",
+            "12",
+            "--foxglove",
+            str(port),
+        ],
+        cwd=REPO,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env,
+    )
     try:
         topics = advertised_topics(port, "fxm")
     finally:

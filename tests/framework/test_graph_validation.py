@@ -1,11 +1,12 @@
 """`handflow validate`: every kind of bad graph gives exit code 2 and a message with its line."""
+
 from __future__ import annotations
 
 import textwrap
 
 import pytest
 
-from framework.graph import load_graph, GraphError, validate_file
+from handflow.framework.graph import GraphError, load_graph, validate_file
 
 GOOD = """\
 name: chain
@@ -24,16 +25,44 @@ nodes:
 BAD = {
     "yaml_syntax": ("name: x\nnodes:\n  - id: a\n   plugin: basic.sink\n", 4, "YAML syntax"),
     "unknown_plugin": ("name: x\nnodes:\n  - id: a\n    plugin: basic.nope\n", 4, "basic.signal"),
-    "param_type": ("name: x\nnodes:\n  - id: a\n    plugin: basic.signal\n    params:\n      rate_hz: fast\n", 6, "rate_hz"),
-    "unknown_param": ("name: x\nnodes:\n  - id: a\n    plugin: basic.signal\n    params:\n      speed: 3\n", 6, "speed"),
-    "duplicate_id": ("name: x\nnodes:\n  - id: a\n    plugin: basic.sink\n  - id: a\n    plugin: basic.sink\n", 5, "duplicate node id"),
-    "missing_node": ("name: x\nnodes:\n  - id: a\n    plugin: basic.sink\n    inputs:\n      in: ghost/out\n", 6, "missing node 'ghost'"),
-    "missing_port": ("name: x\nnodes:\n  - id: s\n    plugin: basic.signal\n  - id: a\n    plugin: basic.sink\n"
-                     "    inputs:\n      in: s/nope\n", 8, "no output 'nope'"),
-    "bad_input_port": ("name: x\nnodes:\n  - id: s\n    plugin: basic.signal\n  - id: a\n    plugin: basic.transform\n"
-                       "    inputs:\n      input: s/out\n", 8, "no input port 'input'"),
-    "type_mismatch": ("name: x\nexternal:\n  glove/joints: JointState\nnodes:\n  - id: a\n    plugin: basic.transform\n"
-                      "    inputs:\n      in: glove/joints\n", 8, "expects handflow.Array"),
+    "param_type": (
+        "name: x\nnodes:\n  - id: a\n    plugin: basic.signal\n    params:\n      rate_hz: fast\n",
+        6,
+        "rate_hz",
+    ),
+    "unknown_param": (
+        "name: x\nnodes:\n  - id: a\n    plugin: basic.signal\n    params:\n      speed: 3\n",
+        6,
+        "speed",
+    ),
+    "duplicate_id": (
+        "name: x\nnodes:\n  - id: a\n    plugin: basic.sink\n  - id: a\n    plugin: basic.sink\n",
+        5,
+        "duplicate node id",
+    ),
+    "missing_node": (
+        "name: x\nnodes:\n  - id: a\n    plugin: basic.sink\n    inputs:\n      in: ghost/out\n",
+        6,
+        "missing node 'ghost'",
+    ),
+    "missing_port": (
+        "name: x\nnodes:\n  - id: s\n    plugin: basic.signal\n  - id: a\n    plugin: basic.sink\n"
+        "    inputs:\n      in: s/nope\n",
+        8,
+        "no output 'nope'",
+    ),
+    "bad_input_port": (
+        "name: x\nnodes:\n  - id: s\n    plugin: basic.signal\n  - id: a\n    plugin: basic.transform\n"
+        "    inputs:\n      input: s/out\n",
+        8,
+        "no input port 'input'",
+    ),
+    "type_mismatch": (
+        "name: x\nexternal:\n  glove/joints: JointState\nnodes:\n  - id: a\n    plugin: basic.transform\n"
+        "    inputs:\n      in: glove/joints\n",
+        8,
+        "expects handflow.Array",
+    ),
     "missing_field": ("name: x\nnodes:\n  - plugin: basic.sink\n", 3, "id: required field"),
 }
 
@@ -53,8 +82,10 @@ def test_good_graph_validates(tmp_path, run_handflow):
 
 
 def test_cycles_are_allowed(tmp_path):
-    text = ("name: loop\nnodes:\n  - id: a\n    plugin: basic.transform\n    inputs: {in: b/out}\n"
-            "  - id: b\n    plugin: basic.transform\n    inputs: {in: a/out}\n")
+    text = (
+        "name: loop\nnodes:\n  - id: a\n    plugin: basic.transform\n    inputs: {in: b/out}\n"
+        "  - id: b\n    plugin: basic.transform\n    inputs: {in: a/out}\n"
+    )
     assert validate_file(write(tmp_path, text))[1] == []
 
 
@@ -69,8 +100,10 @@ def test_bad_graph_reports_line_and_fix(tmp_path, case):
 
 
 def test_validate_cli_exit_code_and_every_problem(tmp_path, run_handflow):
-    text = ("name: x\nnodes:\n  - id: a\n    plugin: basic.nope\n  - id: b\n    plugin: basic.signal\n"
-            "    params: {rate_hz: fast}\n  - id: c\n    plugin: basic.sink\n    inputs: {in: ghost/out}\n")
+    text = (
+        "name: x\nnodes:\n  - id: a\n    plugin: basic.nope\n  - id: b\n    plugin: basic.signal\n"
+        "    params: {rate_hz: fast}\n  - id: c\n    plugin: basic.sink\n    inputs: {in: ghost/out}\n"
+    )
     path = write(tmp_path, text)
     proc = run_handflow("validate", str(path))
     assert proc.returncode == 2

@@ -1,13 +1,29 @@
 """Message schemas and the codec: round trips, and the publisher rejects NaN/inf and bad shapes."""
+
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from framework.messages import (Array, Contacts, GloveFrame, Image, JointState, Label, LatentState, MessageError,
-                                Points2D, SegmentEvent, Status, decode, encode, json_schema, message_types)
-from framework.testing import NodeHarness
-from plugins.basic.transform import GainOffset
+from handflow.framework.messages import (
+    Array,
+    Contacts,
+    GloveFrame,
+    Image,
+    JointState,
+    Label,
+    LatentState,
+    MessageError,
+    Points2D,
+    SegmentEvent,
+    Status,
+    decode,
+    encode,
+    json_schema,
+    message_types,
+)
+from handflow.framework.testing import NodeHarness
+from handflow.plugins.basic.transform import GainOffset
 
 SAMPLES = [
     Array(data=np.arange(6.0).reshape(2, 3), names=list("abcdef")),
@@ -42,14 +58,17 @@ def test_every_type_has_a_json_schema():
         assert schema["title"] == cls.TYPE and "header" in schema["properties"]
 
 
-@pytest.mark.parametrize("bad, needle", [
-    (JointState(names=["a"], positions=[np.nan]), "NaN/inf"),
-    (JointState(names=["a", "b"], positions=[0.0]), "joint names"),
-    (Array(data=[1.0, np.inf]), "NaN/inf"),
-    (Points2D(points=[[np.nan, 0.0]], valid=[True]), "valid point"),
-    (GloveFrame(sensors=[300]), "0..255"),
-    (Image(width=2, height=2, step=6, data=b"\x00" * 5), "needs 12 bytes"),
-])
+@pytest.mark.parametrize(
+    "bad, needle",
+    [
+        (JointState(names=["a"], positions=[np.nan]), "NaN/inf"),
+        (JointState(names=["a", "b"], positions=[0.0]), "joint names"),
+        (Array(data=[1.0, np.inf]), "NaN/inf"),
+        (Points2D(points=[[np.nan, 0.0]], valid=[True]), "valid point"),
+        (GloveFrame(sensors=[300]), "0..255"),
+        (Image(width=2, height=2, step=6, data=b"\x00" * 5), "needs 12 bytes"),
+    ],
+)
 def test_check_rejects(bad, needle):
     with pytest.raises(MessageError, match=needle):
         bad.check()

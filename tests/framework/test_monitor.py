@@ -1,4 +1,5 @@
 """Monitor: gap and restart counting over real Zenoh sessions, and `monitor --once --json` on a live graph."""
+
 from __future__ import annotations
 
 import json
@@ -8,12 +9,11 @@ import time
 import numpy as np
 import pytest
 
-from framework import transport
-from framework.graph import ZenohSettings
-from framework.messages import Array, Header, Status, encode
-from framework.monitor import Monitor, summarize
-from framework.replay import wait_matching
-
+from handflow.framework import transport
+from handflow.framework.graph import ZenohSettings
+from handflow.framework.messages import Array, Header, Status, encode
+from handflow.framework.monitor import Monitor, summarize
+from handflow.framework.replay import wait_matching
 from tests.framework._rec_helpers import chain, handflow, start, unique, wait_until
 
 
@@ -85,7 +85,8 @@ def test_monitor_once_json_on_a_running_graph(tmp_path):
     graph = chain(tmp_path / "g.yaml", name, rate=50)
     proc = start("run", str(graph))
     try:
-        from framework.discovery import live_runs
+        from handflow.framework.discovery import live_runs
+
         wait_until(lambda: any(r.graph == name for r in live_runs()), what="the run-file")
         time.sleep(1.0)  # nodes up and publishing
         mon = handflow("monitor", "--graph", name, "--once", "--json", "--listen", "2")

@@ -1,4 +1,5 @@
 """Recording helpers on real MCAP files: round trip, Foxglove channels, recovery, provenance, inspect."""
+
 from __future__ import annotations
 
 import argparse
@@ -15,11 +16,21 @@ import numpy as np
 import pytest
 from mcap.reader import make_reader
 
-from framework.commands import inspect as inspect_cmd
-from framework.graph import load_graph
-from framework.messages import Array, Header, Image, Label, decode
-from framework.recording import (FOXGLOVE_IMAGE_SUFFIX, GraphRecorder, McapWriter, ReadReport, RecordingError,
-                                 TopicFilter, iter_recording, peek_header, read_messages, read_report)
+from handflow.framework.commands import inspect as inspect_cmd
+from handflow.framework.graph import load_graph
+from handflow.framework.messages import Array, Header, Image, Label, decode
+from handflow.framework.recording import (
+    FOXGLOVE_IMAGE_SUFFIX,
+    GraphRecorder,
+    McapWriter,
+    ReadReport,
+    RecordingError,
+    TopicFilter,
+    iter_recording,
+    peek_header,
+    read_messages,
+    read_report,
+)
 
 TOPIC = "handflow/g/src/out"
 
@@ -92,7 +103,8 @@ def test_topic_filter_globs_and_internal_ports():
 def test_peek_header_matches_full_decode():
     msg = _array(5)
     msg.header.source = 'we"ird'
-    from framework.messages import encode
+    from handflow.framework.messages import encode
+
     hdr = peek_header(encode(msg))
     assert (hdr.type_name, hdr.source, hdr.seq, hdr.stamp_ns) == ("handflow.Array", 'we"ird', 6, 1_000_005)
 
@@ -166,15 +178,15 @@ def test_writer_is_thread_safe(tmp_path):
     per_topic: dict[str, list[int]] = {}
     for topic, msg, _ in read_messages(path):
         per_topic.setdefault(topic, []).append(msg.header.seq)
-    assert {t: s for t, s in per_topic.items()} == {f"handflow/g/n{k}/out": list(range(1, 251)) for k in range(4)}
+    assert dict(per_topic.items()) == {f"handflow/g/n{k}/out": list(range(1, 251)) for k in range(4)}
     with pytest.raises(RecordingError, match="closed"):
         w.write(TOPIC, _array(0))
 
 
 _KILLED_WRITER = """
 import sys, time, numpy as np
-from framework.messages import Array, Header
-from framework.recording import McapWriter
+from handflow.framework.messages import Array, Header
+from handflow.framework.recording import McapWriter
 w = McapWriter(sys.argv[1], chunk_size=1 << 20, flush_interval_s=0.1)
 i = 0
 while True:
@@ -206,7 +218,8 @@ def test_graph_recorder_stores_graph_params_and_named_files(tmp_path):
     graph_file.write_text(
         "name: prov\nnodes:\n"
         "  - id: source\n    plugin: basic.signal\n    params: {kind: csv, csv: rows.csv, rate_hz: 10}\n"
-        "  - id: sink\n    plugin: basic.sink\n    inputs: {in: source/out}\n")
+        "  - id: sink\n    plugin: basic.sink\n    inputs: {in: source/out}\n"
+    )
     graph = load_graph(graph_file)
     rec = GraphRecorder.for_graph(graph, tmp_path / "p.mcap")
     rec.writer.write("handflow/prov/source/out", _array(1))

@@ -1,4 +1,5 @@
 """The console examples of docs/recording.md and docs/monitoring.md, run as written."""
+
 from __future__ import annotations
 
 import re
@@ -10,8 +11,7 @@ import sys
 import pytest
 import yaml
 
-from framework.discovery import live_runs
-
+from handflow.framework.discovery import live_runs
 from tests.framework._rec_helpers import REPO, wait_until
 
 pytestmark = pytest.mark.slow
@@ -25,7 +25,7 @@ def console_commands(doc: str) -> list[str]:
 def _argv(cmd: str) -> list[str]:
     words = shlex.split(cmd)
     assert words[0] == "handflow", cmd
-    return [sys.executable, "-m", "framework.cli", *words[1:]]
+    return [sys.executable, "-m", "handflow.framework.cli", *words[1:]]
 
 
 @pytest.mark.parametrize("doc", ["recording.md", "monitoring.md"])
@@ -45,7 +45,7 @@ def test_documented_commands_run(doc, tmp_path, monkeypatch):
                 argv = _argv(cmd[:-1])
                 name = yaml.safe_load((REPO / argv[-1]).read_text())["name"]
                 jobs.append(subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
-                wait_until(lambda: any(r.graph == name for r in live_runs()), what=f"'{cmd}' to start")
+                wait_until(lambda name=name: any(r.graph == name for r in live_runs()), what=f"'{cmd}' to start")
             else:
                 # outputs (recordings) go to the test's folder, not the repository
                 argv = [a if not a.endswith(".mcap") else str(tmp_path / a) for a in _argv(cmd)]

@@ -1,4 +1,5 @@
 """Recording real graphs: SIGINT during `handflow run --record`, and `handflow record` from outside."""
+
 from __future__ import annotations
 
 import json
@@ -6,9 +7,8 @@ import signal
 
 import pytest
 
-from framework.discovery import live_runs
-from framework.recording import read_report
-
+from handflow.framework.discovery import live_runs
+from handflow.framework.recording import read_report
 from tests.framework._rec_helpers import chain, handflow, start, unique, wait_until
 
 pytestmark = pytest.mark.slow

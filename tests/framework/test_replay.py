@@ -1,4 +1,5 @@
 """Replay: argument checks, key remapping, timed replay into a sink, lock-step determinism under load."""
+
 from __future__ import annotations
 
 import argparse
@@ -8,12 +9,11 @@ import sys
 import numpy as np
 import pytest
 
-from framework.commands import replay as replay_cmd
-from framework.graph import load_graph
-from framework.messages import Array, Header
-from framework.recording import McapWriter
-from framework.replay import external_inputs, remap_key
-
+from handflow.framework.commands import replay as replay_cmd
+from handflow.framework.graph import load_graph
+from handflow.framework.messages import Array, Header
+from handflow.framework.recording import McapWriter
+from handflow.framework.replay import external_inputs, remap_key
 from tests.framework._rec_helpers import handflow, read_jsonl, unique, write_graph
 
 T0 = 1_700_000_000_000_000_000
@@ -43,17 +43,31 @@ def recording(tmp_path):
 
 
 def _args(**kw) -> argparse.Namespace:
-    base = dict(file="x.mcap", speed=1.0, loop=False, topics=None, into=None, lockstep=False, graph=None,
-                connect=None, ready_timeout=30.0, step_timeout=10.0, record=None)
+    base = dict(
+        file="x.mcap",
+        speed=1.0,
+        loop=False,
+        topics=None,
+        into=None,
+        lockstep=False,
+        graph=None,
+        connect=None,
+        ready_timeout=30.0,
+        step_timeout=10.0,
+        record=None,
+    )
     return argparse.Namespace(**{**base, **kw})
 
 
-@pytest.mark.parametrize("kw, message", [
-    ({"speed": 0.0}, "--speed must be > 0"),
-    ({"lockstep": True}, "--lockstep needs --into"),
-    ({"record": "out.mcap"}, "--record needs --into"),
-    ({"file": "/nonexistent/x.mcap"}, "not found"),
-])
+@pytest.mark.parametrize(
+    "kw, message",
+    [
+        ({"speed": 0.0}, "--speed must be > 0"),
+        ({"lockstep": True}, "--lockstep needs --into"),
+        ({"record": "out.mcap"}, "--record needs --into"),
+        ({"file": "/nonexistent/x.mcap"}, "not found"),
+    ],
+)
 def test_bad_arguments_exit_2_with_what_to_change(kw, message, recording, capsys):
     kw.setdefault("file", str(recording))
     assert replay_cmd.run(_args(**kw)) == 2
@@ -68,24 +82,37 @@ def test_replay_without_a_running_graph_says_how_to_target_one(recording, capsys
 def test_remap_and_external_inputs(tmp_path):
     assert remap_key("handflow/field/glove/frames", "seg") == "handflow/seg/glove/frames"
     assert remap_key("handflow/field/glove/frames", None) == "handflow/field/glove/frames"
-    graph = load_graph(write_graph(tmp_path / "g.yaml", "g", """external: {glove/frames: Array}
+    graph = load_graph(
+        write_graph(
+            tmp_path / "g.yaml",
+            "g",
+            """external: {glove/frames: Array}
 nodes:
   - {id: a, plugin: basic.transform, inputs: {in: glove/frames}}
   - {id: b, plugin: basic.sink, inputs: {in: a/out}}
-"""))
+""",
+        )
+    )
     assert external_inputs(graph) == {"glove/frames"}
 
 
 def _into_graph(tmp_path, with_ticker: bool = False):
-    ticker = """  - id: ticker
+    ticker = (
+        """  - id: ticker
     plugin: basic.signal
     params: {kind: sine, rate_hz: 50, width: 2}
   - id: ticks
     plugin: basic.sink
     params: {jsonl: ticks.jsonl}
     inputs: {in: ticker/out}
-""" if with_ticker else ""
-    return write_graph(tmp_path / "into.yaml", unique("into"), f"""external: {{source/out: Array}}
+"""
+        if with_ticker
+        else ""
+    )
+    return write_graph(
+        tmp_path / "into.yaml",
+        unique("into"),
+        f"""external: {{source/out: Array}}
 nodes:
   - id: raw
     plugin: basic.sink
@@ -99,11 +126,13 @@ nodes:
     plugin: basic.sink
     params: {{jsonl: scaled.jsonl}}
     inputs: {{in: scale/out}}
-{ticker}""")
+{ticker}""",
+    )
 
 
 def _recorded_values(recording):
-    from framework.recording import read_messages
+    from handflow.framework.recording import read_messages
+
     return [m for t, m, _ in read_messages(recording, ["source/out"])]
 
 
@@ -147,6 +176,7 @@ def test_lockstep_replay_is_identical_whatever_the_load(tmp_path, recording):
     assert stamps == [T0 + k * 20_000_000 for k in range(1, 30)]
     assert [m["header"]["stamp_ns"] for m in quiet["scaled"]] == [T0 + i * 10_000_000 for i in range(N)]
     # --record kept the replayed graph's outputs: the same messages the sink wrote
-    from framework.recording import read_messages
+    from handflow.framework.recording import read_messages
+
     recorded_scaled = [m.to_dict() for t, m, _ in read_messages(tmp_path / "replayed.mcap") if t.endswith("/scale/out")]
     assert recorded_scaled == quiet["scaled"]

@@ -1,4 +1,5 @@
 """End to end over real Zenoh sessions and real processes: run, supervise, stop, span two launchers."""
+
 from __future__ import annotations
 
 import json
@@ -14,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from framework.transport import free_tcp_port
+from handflow.framework.transport import free_tcp_port
 
 pytestmark = pytest.mark.slow
 REPO = Path(__file__).resolve().parents[2]
@@ -22,7 +23,7 @@ REPO = Path(__file__).resolve().parents[2]
 
 def chain_graph(tmp_path: Path, rate: float = 100, extra_scale: str = "", zenoh: str = "", hosts=("", "", "")) -> Path:
     h = [f"\n    host: {x}" if x else "" for x in hosts]
-    text = f"""name: chain_{tmp_path.name[-8:].replace('-', '_')}
+    text = f"""name: chain_{tmp_path.name[-8:].replace("-", "_")}
 {zenoh}
 nodes:
   - id: source
@@ -43,8 +44,13 @@ nodes:
 
 
 def start(*args: str) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, "-m", "framework.cli", *args], cwd=REPO, text=True,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    return subprocess.Popen(
+        [sys.executable, "-m", "handflow.framework.cli", *args],
+        cwd=REPO,
+        text=True,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+    )
 
 
 def read_sink(path: Path) -> list[dict]:
@@ -117,8 +123,9 @@ def test_two_launchers_share_one_graph_over_tcp(tmp_path):
     graph = chain_graph(tmp_path, zenoh=zenoh_a, hosts=("a", "b", "b"))
     text = graph.read_text()
     graph_b = tmp_path / "graph_b.yaml"
-    graph_b.write_text(text.replace(f"listen: [tcp/127.0.0.1:{port}]\n  connect: []",
-                                    f"listen: []\n  connect: [tcp/127.0.0.1:{port}]"))
+    graph_b.write_text(
+        text.replace(f"listen: [tcp/127.0.0.1:{port}]\n  connect: []", f"listen: []\n  connect: [tcp/127.0.0.1:{port}]")
+    )
     a = start("run", str(graph), "--host", "a", "--duration", "6")
     time.sleep(0.5)
     b = start("run", str(graph_b), "--host", "b", "--duration", "5")

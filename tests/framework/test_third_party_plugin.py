@@ -1,4 +1,5 @@
 """The plugin of docs/pipelines.md, registered through a real entry point, runs in a graph."""
+
 from __future__ import annotations
 
 import json
@@ -34,9 +35,11 @@ def test_doc_plugin_is_listed_and_runs(tmp_path, run_handflow):
     info = {p["name"]: p for p in json.loads(listed.stdout)}
     assert info["mine.threshold"]["inputs"] == {"in": "handflow.Array"}
     graph = tmp_path / "g.yaml"
-    graph.write_text("name: thr\nnodes:\n  - id: src\n    plugin: basic.signal\n    params: {rate_hz: 50}\n"
-                     "  - id: thr\n    plugin: mine.threshold\n    params: {level: 0.0}\n    inputs: {in: src/out}\n"
-                     "  - id: sink\n    plugin: basic.sink\n    params: {jsonl: out.jsonl}\n    inputs: {in: thr/label}\n")
+    graph.write_text(
+        "name: thr\nnodes:\n  - id: src\n    plugin: basic.signal\n    params: {rate_hz: 50}\n"
+        "  - id: thr\n    plugin: mine.threshold\n    params: {level: 0.0}\n    inputs: {in: src/out}\n"
+        "  - id: sink\n    plugin: basic.sink\n    params: {jsonl: out.jsonl}\n    inputs: {in: thr/label}\n"
+    )
     proc = handflow("run", str(graph), "--duration", "2.5", env=env, check=True)
     assert "labelled" in proc.stderr  # the plugin's teardown ran
     labels = {json.loads(line)["msg"]["label"] for line in (tmp_path / "out.jsonl").read_text().splitlines()}

@@ -1,19 +1,20 @@
 """Commands (calibrate, glove-emulator) and node wrappers through NodeHarness."""
+
 import argparse
 import time
 
 import numpy as np
 import pytest
 
-from framework.messages import GloveFrame, JointState
-from framework.testing import NodeHarness
-from plugins.glove.cli import register_calibrate, register_emulator
-from plugins.glove.frames_io import save_frames
-from plugins.glove.node import CyberGloveNode
-from plugins.glove.synthetic import SyntheticGlove
-from plugins.mapping.calibration import load_calibration
-from plugins.mapping.hands import GIFU, HUMAN, SHADOW
-from plugins.mapping.nodes import GifuHandMappingNode, HumanHandMappingNode, ShadowHandMappingNode
+from handflow.framework.messages import GloveFrame, JointState
+from handflow.framework.testing import NodeHarness
+from handflow.plugins.glove.cli import register_calibrate, register_emulator
+from handflow.plugins.glove.frames_io import save_frames
+from handflow.plugins.glove.node import CyberGloveNode
+from handflow.plugins.glove.synthetic import SyntheticGlove
+from handflow.plugins.hands.joints import GIFU, HUMAN, SHADOW
+from handflow.plugins.mapping.calibration import load_calibration
+from handflow.plugins.mapping.nodes import GifuHandMappingNode, HumanHandMappingNode, ShadowHandMappingNode
 
 
 def _cmd(register, argv):
@@ -41,7 +42,9 @@ def test_calibrate_bad_input_exits_2_with_message(tmp_path, capsys):
     bad = tmp_path / "profile.yaml"
     bad.write_text("thumb_m13: [\n")
     np.save(tmp_path / "f.npy", np.full((10, 22), 100))
-    assert _cmd(register_calibrate, ["--recording", str(tmp_path / "f.npy"), "-o", str(out), "--profile", str(bad)]) == 2
+    assert (
+        _cmd(register_calibrate, ["--recording", str(tmp_path / "f.npy"), "-o", str(out), "--profile", str(bad)]) == 2
+    )
     assert "not valid YAML" in capsys.readouterr().err
     assert not out.exists()
 

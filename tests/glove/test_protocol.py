@@ -1,8 +1,9 @@
 """Protocol module: record codec, timestamp escaping, incremental framing with resync (no I/O)."""
+
 import numpy as np
 import pytest
 
-from plugins.glove import protocol as P
+from handflow.plugins.glove import protocol as P
 
 FMT = P.RecordFormat(22, timestamp=True, status=True)
 

@@ -1,13 +1,14 @@
 """Reader against the byte-exact emulator over a real pty, with every injected fault."""
+
 import time
 
 import numpy as np
 import pytest
 import serial
 
-from plugins.glove import protocol as P
-from plugins.glove.emulator import Fault, GloveEmulator, array_source
-from plugins.glove.reader import GloveReader, ReaderConfig
+from handflow.plugins.glove import protocol as P
+from handflow.plugins.glove.emulator import Fault, GloveEmulator, array_source
+from handflow.plugins.glove.reader import GloveReader, ReaderConfig
 
 RATE = 200.0
 PERIOD_TICKS = P.period_words(RATE)[0]
@@ -49,9 +50,11 @@ def _check_integrity(emu, records):
 
 def test_emulator_answers_byte_for_byte():
     with GloveEmulator(period=(1152, 1)) as emu, serial.Serial(emu.path, 115200, timeout=0.5) as port:
+
         def ask(cmd: bytes, n: int) -> bytes:
             port.write(cmd)
             return port.read(n)
+
         assert ask(b"?G", 4) == b"?G\x03\x00"
         assert ask(b"?S", 4) == b"?S\x16\x00"
         assert ask(b"?K", 6) == b"?K\x7f\xff\x7f\x00"
@@ -89,10 +92,18 @@ def test_bursty_jittery_rfcomm_like_link_loses_nothing():
     assert counters["reconnects"] == 0 and counters["gaps"] == 0
 
 
-@pytest.mark.parametrize("fault", [
-    Fault("garbage", 40, 24), Fault("drop_bytes", 40, 3), Fault("truncate", 40),
-    Fault("zero_value", 40), Fault("disconnect", 40, duration_s=0.3), Fault("stall", 40, duration_s=0.6),
-], ids=lambda f: f.kind)
+@pytest.mark.parametrize(
+    "fault",
+    [
+        Fault("garbage", 40, 24),
+        Fault("drop_bytes", 40, 3),
+        Fault("truncate", 40),
+        Fault("zero_value", 40),
+        Fault("disconnect", 40, duration_s=0.3),
+        Fault("stall", 40, duration_s=0.6),
+    ],
+    ids=lambda f: f.kind,
+)
 def test_reader_recovers_from_fault(fault):
     emu, reader, records = _run([fault], 1.6)
     assert emu.fault_log and emu.fault_log[0]["kind"] == fault.kind

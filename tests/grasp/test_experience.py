@@ -1,15 +1,16 @@
 """Experience bases, grasp datasets, hand layout / PCP masks, wrench quality (spec production.md §5)."""
+
 import numpy as np
 import pytest
 
-from plugins.grasp.controller import SHADOW_PREGRASP
-from plugins.grasp.episode import GraspPose
-from plugins.grasp.experience import ExperienceBase, GraspDataset
-from plugins.grasp.generation import FIXED_PREGRASP_RANGES, PREGRASP_RANGES, _jitter, random_pregrasp
-from plugins.grasp.hand_layout import hand_layout
-from plugins.grasp.pcp import best_match_index, pcp_distances
-from plugins.grasp.som import SOM, save_som
-from plugins.grasp.stability import grasp_wrench_quality
+from handflow.plugins.grasp.controller import SHADOW_PREGRASP
+from handflow.plugins.grasp.episode import GraspPose
+from handflow.plugins.grasp.experience import ExperienceBase, GraspDataset
+from handflow.plugins.grasp.generation import FIXED_PREGRASP_RANGES, PREGRASP_RANGES, _jitter, random_pregrasp
+from handflow.plugins.grasp.hand_layout import hand_layout
+from handflow.plugins.grasp.pcp import best_match_index, pcp_distances
+from handflow.plugins.grasp.som import SOM, save_som
+from handflow.plugins.grasp.stability import grasp_wrench_quality
 
 NAMES = hand_layout("shadow").finger_joints
 
@@ -17,8 +18,15 @@ NAMES = hand_layout("shadow").finger_joints
 def dataset(n=12, seed=0):
     rng = np.random.default_rng(seed)
     objs = np.array(["box", "sphere"])[rng.integers(0, 2, n)]
-    return GraspDataset(NAMES, rng.uniform(0, 1, (n, len(NAMES))), objs, rng.uniform(0, 0.05, (n, 4)),
-                        [["FF_distal", "TH_distal"]] * n, rng.uniform(0, 1, n), {"seed": seed})
+    return GraspDataset(
+        NAMES,
+        rng.uniform(0, 1, (n, len(NAMES))),
+        objs,
+        rng.uniform(0, 0.05, (n, 4)),
+        [["FF_distal", "TH_distal"]] * n,
+        rng.uniform(0, 1, n),
+        {"seed": seed},
+    )
 
 
 def test_pcp_distance_counts_only_selected_joints():
@@ -36,8 +44,13 @@ def test_pcp_mask_specifies_joints_between_palm_and_touching_segment():
     assert [n for n, on in s.items() if on] == ["FFJ4", "FFJ3", "FFJ2"]
     s = dict(zip(layout.names, layout.pcp_mask(["TH_metacarpal", "LF_proximal"])))
     assert [n for n, on in s.items() if on] == ["LFJ5", "LFJ4", "LFJ3", "THJ5", "THJ4"]
-    assert {f.name: f.tip for f in layout.fingers} == {"TH": "TH_distal", "FF": "FF_distal", "MF": "MF_distal",
-                                                       "RF": "RF_distal", "LF": "LF_distal"}
+    assert {f.name: f.tip for f in layout.fingers} == {
+        "TH": "TH_distal",
+        "FF": "FF_distal",
+        "MF": "MF_distal",
+        "RF": "RF_distal",
+        "LF": "LF_distal",
+    }
 
 
 def test_dataset_round_trip_and_selection(tmp_path):
@@ -60,7 +73,7 @@ def test_experience_base_loads_a_som_or_a_dataset(tmp_path):
     assert (db.kind, len(db)) == ("database", 30) and (sm.kind, len(sm)) == ("som", 9)
     k, posture = db.best_match(data.postures[7])
     assert k == 7
-    manifold = ExperienceBase(np.vstack([data.postures[:2]]), NAMES)   # e.g. manipulation-manifold postures
+    manifold = ExperienceBase(np.vstack([data.postures[:2]]), NAMES)  # e.g. manipulation-manifold postures
     assert manifold.best_match(data.postures[1])[0] == 1
     with pytest.raises(FileNotFoundError, match="grasp-experience"):
         ExperienceBase.load(tmp_path / "missing.npz")

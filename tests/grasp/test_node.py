@@ -1,13 +1,14 @@
 """Node ``grasp.experience`` in the harness: scripted postures and contacts in, targets out."""
+
 import numpy as np
 import pytest
 
-from framework.messages import Contacts, JointState, Label
-from framework.testing import NodeHarness
-from plugins.grasp.experience import GraspDataset
-from plugins.grasp.hand_layout import hand_layout
-from plugins.grasp.node import ExperienceGraspNode
-from plugins.mapping.hands import HAND_MODELS
+from handflow.framework.messages import Contacts, JointState, Label
+from handflow.framework.testing import NodeHarness
+from handflow.plugins.grasp.experience import GraspDataset
+from handflow.plugins.grasp.hand_layout import hand_layout
+from handflow.plugins.grasp.node import ExperienceGraspNode
+from handflow.plugins.hands.joints import HAND_MODELS
 
 NAMES = HAND_MODELS["shadow"].names
 
@@ -23,10 +24,10 @@ def contacts(*pairs):
 def test_node_closes_holds_and_ignores_table_contacts(tmp_path):
     h = NodeHarness(ExperienceGraspNode, {"pregrasp": {}, "rate_hz": 50}, base_dir=tmp_path).setup()
     h.tick()
-    assert "targets" not in h.published                      # nothing before the first posture
+    assert "targets" not in h.published  # nothing before the first posture
     q = np.zeros(len(NAMES))
     h.send("joints", joints(q))
-    h.send("contacts", contacts(("FF_distal", "table")))    # the table is not the object
+    h.send("contacts", contacts(("FF_distal", "table")))  # the table is not the object
     h.tick(3)
     t = h.published["targets"][-1]
     assert t.names == list(NAMES) and t.positions[NAMES.index("FFJ3")] > 0
@@ -56,13 +57,16 @@ def test_release_trigger_opens_and_grasp_restarts(tmp_path):
 
 def test_node_loads_an_experience_file_relative_to_the_graph(tmp_path):
     names = hand_layout("shadow").finger_joints
-    GraspDataset(names, np.full((2, len(names)), 0.4), ["box", "box"], np.zeros((2, 4)), [[], []],
-                 np.zeros(2)).save(tmp_path / "grasps.npz")
-    h = NodeHarness(ExperienceGraspNode, {"experience": "grasps.npz", "steer_before_contact": True}, base_dir=tmp_path).setup()
+    GraspDataset(names, np.full((2, len(names)), 0.4), ["box", "box"], np.zeros((2, 4)), [[], []], np.zeros(2)).save(
+        tmp_path / "grasps.npz"
+    )
+    h = NodeHarness(
+        ExperienceGraspNode, {"experience": "grasps.npz", "steer_before_contact": True}, base_dir=tmp_path
+    ).setup()
     assert h.node.controller.experience.kind == "database"
     q = h.node.controller.pregrasp
     ff = []
-    for _ in range(30):                                        # the simulator follows the targets exactly
+    for _ in range(30):  # the simulator follows the targets exactly
         h.send("joints", joints(q))
         h.tick()
         q = h.published["targets"][-1].positions

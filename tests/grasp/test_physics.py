@@ -1,17 +1,25 @@
 """Grasping in pybullet: the controller on real contacts, and a stable cylinder grasp (spec §5)."""
+
 from pathlib import Path
 
 import numpy as np
 import pybullet as p
 import pytest
 
-from plugins.grasp.controller import HOLD, ExperienceGraspController
-from plugins.grasp.episode import CENTRED_POSE, EpisodeConfig, remove_table, run_grasp, set_damping, touched_segments
-from plugins.grasp.experience import ExperienceBase
-from plugins.grasp.hand_layout import hand_layout
-from plugins.mapping.hands import HAND_MODELS
-from plugins.simulator.scenes import GraspScene
-from plugins.simulator.simulation import Simulation
+from handflow.plugins.grasp.controller import HOLD, ExperienceGraspController
+from handflow.plugins.grasp.episode import (
+    CENTRED_POSE,
+    EpisodeConfig,
+    remove_table,
+    run_grasp,
+    set_damping,
+    touched_segments,
+)
+from handflow.plugins.grasp.experience import ExperienceBase
+from handflow.plugins.grasp.hand_layout import hand_layout
+from handflow.plugins.hands.joints import HAND_MODELS
+from handflow.plugins.simulator.scenes import GraspScene
+from handflow.plugins.simulator.simulation import Simulation
 
 MODEL = HAND_MODELS["shadow"]
 LAYOUT = hand_layout("shadow")
@@ -22,8 +30,13 @@ SHIPPED_SOM = Path(__file__).resolve().parents[2] / "configs" / "grasp" / "exper
 def test_held_fingers_keep_their_targets_on_real_contacts():
     ctl = ExperienceGraspController(LAYOUT, MODEL.lower, MODEL.upper)
     pose = CENTRED_POSE
-    scene = GraspScene(object="cylinder", position=(pose.x, pose.y), gap_below_palm=pose.gap, yaw_deg=pose.yaw_deg,
-                       start_posture=ctl.config.pregrasp)
+    scene = GraspScene(
+        object="cylinder",
+        position=(pose.x, pose.y),
+        gap_below_palm=pose.gap,
+        yaw_deg=pose.yaw_deg,
+        start_posture=ctl.config.pregrasp,
+    )
     held_at: dict[str, np.ndarray] = {}
     with Simulation(scene=scene) as sim:
         remove_table(sim, scene)
@@ -41,8 +54,8 @@ def test_held_fingers_keep_their_targets_on_real_contacts():
                     held_at.pop(f.name, None)
             sim.set_targets(ctl.names, targets)
             sim.step(4)
-    assert held_at                                          # some finger was held over several cycles
-    assert ctl.phase == "grip" and sum(m == HOLD for m in ctl.mode.values()) >= 3   # most fingers ended on a tip contact
+    assert held_at  # some finger was held over several cycles
+    assert ctl.phase == "grip" and sum(m == HOLD for m in ctl.mode.values()) >= 3  # most fingers ended on a tip contact
 
 
 @pytest.mark.slow
@@ -52,20 +65,31 @@ def test_centred_cylinder_is_grasped_stably(experience):
     ctl = ExperienceGraspController(LAYOUT, MODEL.lower, MODEL.upper, base)
     result = run_grasp("cylinder", CENTRED_POSE, ctl, seed=0)
     assert result.valid and result.stable, result.summary()
-    assert result.shift_m < 0.03 and result.quality > 0      # held under gravity + pushes, force closure
-    assert "MF_distal" in result.touched and any(s.startswith("TH_") for s in result.touched)   # thumb opposes
+    assert result.shift_m < 0.03 and result.quality > 0  # held under gravity + pushes, force closure
+    assert "MF_distal" in result.touched and any(s.startswith("TH_") for s in result.touched)  # thumb opposes
 
 
 @pytest.mark.slow
 def test_grasp_node_drives_the_simulator_node(tmp_path):
     """The two node wrappers wired as in configs/grasp/experience_grasp.yaml, in-process, on the table."""
-    from framework.testing import NodeHarness
-    from plugins.grasp.node import ExperienceGraspNode
-    from plugins.simulator.node import PybulletSimulatorNode
+    from handflow.framework.testing import NodeHarness
+    from handflow.plugins.grasp.node import ExperienceGraspNode
+    from handflow.plugins.simulator.node import PybulletSimulatorNode
 
-    sim = NodeHarness(PybulletSimulatorNode, {"scene": "grasp", "camera_hz": 0, "rate_hz": 60, "scene_options": {
-        "object": "cylinder", "position": [CENTRED_POSE.x, CENTRED_POSE.y], "gap_below_palm": CENTRED_POSE.gap,
-        "yaw_deg": CENTRED_POSE.yaw_deg}}).setup()
+    sim = NodeHarness(
+        PybulletSimulatorNode,
+        {
+            "scene": "grasp",
+            "camera_hz": 0,
+            "rate_hz": 60,
+            "scene_options": {
+                "object": "cylinder",
+                "position": [CENTRED_POSE.x, CENTRED_POSE.y],
+                "gap_below_palm": CENTRED_POSE.gap,
+                "yaw_deg": CENTRED_POSE.yaw_deg,
+            },
+        },
+    ).setup()
     grasp = NodeHarness(ExperienceGraspNode, {"experience": str(SHIPPED_SOM), "rate_hz": 60}).setup()
     try:
         for _ in range(240):
@@ -78,7 +102,7 @@ def test_grasp_node_drives_the_simulator_node(tmp_path):
         assert "C" in phases and phases[-1] == "grip", grasp.node.controller.mode
         c = sim.published["contacts"][-1]
         on_object = {s for s, b in zip(c.segments, c.bodies) if b == "cylinder"}
-        assert len(on_object) >= 3                     # the fingers closed on the object, not on the table
+        assert len(on_object) >= 3  # the fingers closed on the object, not on the table
     finally:
         sim.teardown()
 
@@ -95,6 +119,6 @@ def test_object_damping_makes_a_push_fade_and_is_validated():
             p.resetBaseVelocity(scene.object_id, [0.0, 0.5, 0.0], physicsClientId=sim.client)
             sim.step(240)
             speed[damping] = float(np.linalg.norm(p.getBaseVelocity(scene.object_id, physicsClientId=sim.client)[0]))
-    assert speed[0.04] > 0.45 and speed[0.99] < 0.25      # Bullet multibody damping: dv/dt = −d·v·(1 + |v|)
+    assert speed[0.04] > 0.45 and speed[0.99] < 0.25  # Bullet multibody damping: dv/dt = −d·v·(1 + |v|)
     with pytest.raises(ValueError, match="object_damping"):
         EpisodeConfig(object_damping=1.0)

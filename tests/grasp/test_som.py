@@ -1,8 +1,9 @@
 """SOM grasp manifold: training, topology, associative completion, resume, files (spec production.md §5)."""
+
 import numpy as np
 import pytest
 
-from plugins.grasp.som import SOM, decay, load_som, save_som
+from handflow.plugins.grasp.som import SOM, decay, load_som, save_som
 
 
 def plane_postures(n=300, d=12, seed=0):
@@ -47,9 +48,9 @@ def test_lattice_keeps_the_latent_order():
 def test_pcp_best_match_ignores_unspecified_joints():
     nodes = np.array([[0.0, 0.0, 5.0], [1.0, 1.0, 0.0], [0.0, 0.1, -3.0]])
     som = SOM(rows=1, cols=3, epochs=1, init=nodes, lr=(1e-9, 1e-9), sigma=(1e-3, 1e-3)).fit(nodes)
-    theta = np.array([0.0, 0.0, 100.0])           # the third joint is wildly off …
-    assert som.best_match(theta)[0] == 0          # … and decides the plain match,
-    mask = np.array([1, 1, 0])                    # but the PCP leaves it out
+    theta = np.array([0.0, 0.0, 100.0])  # the third joint is wildly off …
+    assert som.best_match(theta)[0] == 0  # … and decides the plain match,
+    mask = np.array([1, 1, 0])  # but the PCP leaves it out
     assert som.best_match(theta, mask)[0] == 0
     theta2 = np.array([0.0, 0.12, 0.0])
     assert som.best_match(theta2, mask)[0] == 2
@@ -75,7 +76,7 @@ def test_save_and_load_round_trip(tmp_path):
     np.testing.assert_array_equal(loaded.nodes_, som.nodes_)
     np.testing.assert_array_equal(loaded.best_match(X), som.best_match(X))
     assert meta["object"] == "box" and loaded.get_params() == som.get_params()
-    with np.load(tmp_path / "som.npz", allow_pickle=False) as f:   # no pickle anywhere
+    with np.load(tmp_path / "som.npz", allow_pickle=False) as f:  # no pickle anywhere
         assert set(f.files) == {"nodes", "qe_history", "metadata"}
 
 

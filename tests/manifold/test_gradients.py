@@ -1,10 +1,11 @@
 """Analytic gradients vs central finite differences (issue 3: every kernel and penalty,
 periodic and not, LOO on and off)."""
+
 import numpy as np
 import pytest
 
-from plugins.manifold.kernels import KERNEL_NAMES, Kernel, ProductKernel
-from plugins.manifold.objective import Objective, SequenceLayout
+from handflow.plugins.manifold.kernels import KERNEL_NAMES, Kernel, ProductKernel
+from handflow.plugins.manifold.objective import Objective, SequenceLayout
 
 
 def fd_grad(fun, X, h=1e-6):
@@ -24,12 +25,14 @@ def make(names, loo, time_dim=0, lc=0.0, lp=0.0, seed=0):
     kern = ProductKernel([(n, 2.0 if n == "periodic" else 1.0) for n in names])
     X = rng.uniform(0, 1.5, (N, len(names)))
     ids = np.repeat(np.arange(4), N // 4)
-    return Objective(Y, kern, SequenceLayout(ids), time_dim=time_dim, lambda_cseq=lc,
-                     lambda_pvar=lp, loo_cv=loo), X
+    return Objective(Y, kern, SequenceLayout(ids), time_dim=time_dim, lambda_cseq=lc, lambda_pvar=lp, loo_cv=loo), X
 
 
-LAYOUTS = [(n,) for n in KERNEL_NAMES] + [("periodic", "gaussian"), ("gaussian", "quartic"),
-                                         ("periodic", "epanechnikov", "gaussian")]
+LAYOUTS = [(n,) for n in KERNEL_NAMES] + [
+    ("periodic", "gaussian"),
+    ("gaussian", "quartic"),
+    ("periodic", "epanechnikov", "gaussian"),
+]
 
 
 @pytest.mark.parametrize("loo", [True, False])
@@ -62,7 +65,7 @@ def test_total_gradient(loo):
 @pytest.mark.parametrize("name", KERNEL_NAMES)
 def test_kernel_derivative_and_low_rank_matrix(name):
     k = Kernel(name, 1.7)
-    d = np.linspace(-1.2, 1.2, 41) + 0.013      # avoid the Epanechnikov kink exactly at 1
+    d = np.linspace(-1.2, 1.2, 41) + 0.013  # avoid the Epanechnikov kink exactly at 1
     np.testing.assert_allclose(k.derivative(d), (k(d + 1e-6) - k(d - 1e-6)) / 2e-6, atol=1e-6)
     rng = np.random.default_rng(1)
     A, B = rng.uniform(-1, 1, (7, 1)), rng.uniform(-1, 1, (5, 1))

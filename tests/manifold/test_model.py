@@ -1,11 +1,11 @@
 """Behaviour of the StructuredUKR estimator (issue 3)."""
+
 import numpy as np
 import pytest
 
-from plugins.manifold import InvalidInputError, LatentDim, StructuredUKR, toy
-from plugins.manifold.kernels import Kernel, ProductKernel
-from plugins.manifold.objective import Objective, SequenceLayout
-
+from handflow.plugins.manifold import InvalidInputError, LatentDim, StructuredUKR, toy
+from handflow.plugins.manifold.kernels import Kernel, ProductKernel
+from handflow.plugins.manifold.objective import Objective, SequenceLayout
 from tests.manifold.ukr_helpers import CYL_LATENT, RING_LATENT, closed_curves
 
 
@@ -21,8 +21,7 @@ def test_periodic_wrap():
     np.testing.assert_allclose(k(d + np.pi), k(d), atol=1e-12)
     rng = np.random.default_rng(0)
     Y = rng.standard_normal((20, 2))
-    obj = Objective(Y, ProductKernel([k]), SequenceLayout(np.repeat([0, 1], 10)), time_dim=0,
-                    lambda_cseq=1.0)
+    obj = Objective(Y, ProductKernel([k]), SequenceLayout(np.repeat([0, 1], 10)), time_dim=0, lambda_cseq=1.0)
     X = rng.uniform(0, np.pi, (20, 1))
     shifted = X + np.pi * rng.integers(-2, 3, X.shape)
     assert obj(shifted)[0] == pytest.approx(obj(X)[0])
@@ -39,7 +38,8 @@ def test_fit_latents_stay_in_period(ring_model):
 def test_loo_cv_prevents_trivial_solution():
     """Without LOO, R → 0 as the latents separate (and optimisation drives them apart);
     with LOO, separating the points makes R worse and training keeps R_cv away from 0."""
-    from plugins.manifold.optimize import rprop
+    from handflow.plugins.manifold.optimize import rprop
+
     rng = np.random.default_rng(0)
     Y = rng.standard_normal((30, 3))
     X = rng.permutation(np.linspace(-1, 1, 30))[:, None]
@@ -95,8 +95,7 @@ def test_transform_with_mask_ignores_masked_dimensions(ring_model):
     # the unmasked projection is affected by the corruption
     assert np.max(circdist(model.transform(corrupted), model.transform(Y))) > 0.1
     # masked reconstruction error ignores dimension 3 as well
-    np.testing.assert_allclose(model.reconstruction_error(corrupted, mask),
-                               model.reconstruction_error(Y, mask))
+    np.testing.assert_allclose(model.reconstruction_error(corrupted, mask), model.reconstruction_error(Y, mask))
 
 
 def test_reconstruction_error_and_score(ring_model):
@@ -133,8 +132,7 @@ def test_save_load_identical_predictions(cylinder_model, tmp_path):
     loaded = StructuredUKR.load(path)
     Y = np.vstack(train)
     np.testing.assert_array_equal(loaded.transform(Y), model.transform(Y))
-    np.testing.assert_array_equal(loaded.inverse_transform(model.latents_),
-                                  model.inverse_transform(model.latents_))
+    np.testing.assert_array_equal(loaded.inverse_transform(model.latents_), model.inverse_transform(model.latents_))
     np.testing.assert_array_equal(loaded.reconstruction_error(Y), model.reconstruction_error(Y))
     assert loaded.get_params()["latent"] == CYL_LATENT
     assert loaded.provenance_["source"] == "toy"
@@ -143,6 +141,7 @@ def test_save_load_identical_predictions(cylinder_model, tmp_path):
 
 def test_unknown_format_version_refused(cylinder_model, tmp_path):
     import json
+
     model, _ = cylinder_model
     path = tmp_path / "m.npz"
     model.save(path)
@@ -174,8 +173,9 @@ def test_from_latents_without_training():
 
 def test_equidistant_init_and_extend():
     seqs = closed_curves(noise=0.01)
-    model = StructuredUKR(latent=[LatentDim("periodic", 12.0, True)], init="equidistant",
-                          n_steps=60, random_state=0).fit(seqs[:1])
+    model = StructuredUKR(
+        latent=[LatentDim("periodic", 12.0, True)], init="equidistant", n_steps=60, random_state=0
+    ).fit(seqs[:1])
     assert model.n_steps == 60
     x_new = model.transform(seqs[1])
     model.extend(seqs[1:2], n_steps=20)
@@ -183,15 +183,14 @@ def test_equidistant_init_and_extend():
     assert model.latents_.shape == (len(seqs[0]) + len(seqs[1]), 1)
     assert list(np.unique(model.sequence_ids_)) == [0, 1]
     # the new sequence started from its projection and the retraining kept it close
-    assert np.median(circdist(model.latents_[len(seqs[0]):, 0], x_new[:, 0])) < 0.2
+    assert np.median(circdist(model.latents_[len(seqs[0]) :, 0], x_new[:, 0])) < 0.2
 
 
 def test_lbfgs_optimizer_and_sequence_ids_input():
     seqs = closed_curves(noise=0.02)
     Y = np.vstack(seqs)
     ids = np.repeat(np.arange(len(seqs)), [len(s) for s in seqs])
-    model = StructuredUKR(latent=RING_LATENT, optimizer="lbfgs", n_steps=40,
-                          isomap_neighbors=(10,)).fit(Y, ids)
+    model = StructuredUKR(latent=RING_LATENT, optimizer="lbfgs", n_steps=40, isomap_neighbors=(10,)).fit(Y, ids)
     assert model.objective_ < model.history_[0]
     assert np.all((model.latents_ >= 0) & (model.latents_ < np.pi))
 
@@ -220,22 +219,25 @@ def test_deterministic_given_random_state():
 GOOD = closed_curves()
 
 
-@pytest.mark.parametrize("kwargs, data, match", [
-    ({}, [np.r_[GOOD[0][:-1], [[np.nan, 0, 0]]]], "NaN or inf"),
-    ({}, [np.r_[GOOD[0][:-1], [[np.inf, 0, 0]]]], "NaN or inf"),
-    ({"init": "equidistant"}, [GOOD[0][:2]], "fewer points than needed"),
-    ({}, [GOOD[0], GOOD[1][:, :2]], "inconsistent dimensions"),
-    ({"latent": [{"kernel": "cauchy", "beta": 1}]}, GOOD, "unknown kernel 'cauchy'"),
-    ({"latent": RING_LATENT, "time_dim": 3}, GOOD, "time dimension index 3 is out of range"),
-    ({"latent": [{"kernel": "gaussian", "beta": 1}]}, GOOD, "need a time dimension"),
-    ({"latent": [{"kernel": "gaussian", "beta": -1}]}, GOOD, "positive"),
-    ({"latent": CYL_LATENT * 2}, GOOD, "only one latent dimension can be the time"),
-    ({"latent": CYL_LATENT + [{"kernel": "gaussian", "beta": 1}]}, GOOD, "fewer dimensions"),
-    ({"optimizer": "adam"}, GOOD, "unknown optimizer"),
-    ({"init": "pca"}, GOOD, "unknown init"),
-    ({"init": np.zeros((3, 1))}, GOOD, "init latents must have shape"),
-    ({}, [], "no sequences"),
-])
+@pytest.mark.parametrize(
+    "kwargs, data, match",
+    [
+        ({}, [np.r_[GOOD[0][:-1], [[np.nan, 0, 0]]]], "NaN or inf"),
+        ({}, [np.r_[GOOD[0][:-1], [[np.inf, 0, 0]]]], "NaN or inf"),
+        ({"init": "equidistant"}, [GOOD[0][:2]], "fewer points than needed"),
+        ({}, [GOOD[0], GOOD[1][:, :2]], "inconsistent dimensions"),
+        ({"latent": [{"kernel": "cauchy", "beta": 1}]}, GOOD, "unknown kernel 'cauchy'"),
+        ({"latent": RING_LATENT, "time_dim": 3}, GOOD, "time dimension index 3 is out of range"),
+        ({"latent": [{"kernel": "gaussian", "beta": 1}]}, GOOD, "need a time dimension"),
+        ({"latent": [{"kernel": "gaussian", "beta": -1}]}, GOOD, "positive"),
+        ({"latent": CYL_LATENT * 2}, GOOD, "only one latent dimension can be the time"),
+        ({"latent": CYL_LATENT + [{"kernel": "gaussian", "beta": 1}]}, GOOD, "fewer dimensions"),
+        ({"optimizer": "adam"}, GOOD, "unknown optimizer"),
+        ({"init": "pca"}, GOOD, "unknown init"),
+        ({"init": np.zeros((3, 1))}, GOOD, "init latents must have shape"),
+        ({}, [], "no sequences"),
+    ],
+)
 def test_bad_inputs(kwargs, data, match):
     with pytest.raises(InvalidInputError, match=match):
         StructuredUKR(**kwargs).fit(data)
@@ -258,8 +260,16 @@ def test_bad_inputs_after_fit(ring_model):
 def test_toy_measures_sanity(cylinder_model):
     model, train = cylinder_model
     m = toy.evaluate(model, train, random_state=0)
-    assert set(m) == {"nmse_test", "nmse_denoise", "bias", "param_variance", "ring_nvar_map",
-                      "ring_nvar_project", "line_ncmse_map", "line_ncmse_project"}
+    assert set(m) == {
+        "nmse_test",
+        "nmse_denoise",
+        "bias",
+        "param_variance",
+        "ring_nvar_map",
+        "ring_nvar_project",
+        "line_ncmse_map",
+        "line_ncmse_project",
+    }
     assert 0 < m["nmse_test"] < m["nmse_denoise"] < 0.2
     assert all(0 <= m[k] < 0.2 for k in m if k != "bias")
     assert toy.ncmse([0.1, np.pi - 0.1], np.pi) == pytest.approx(0.01 / (np.pi / 2) ** 2)

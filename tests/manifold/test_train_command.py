@@ -1,4 +1,5 @@
 """`handflow train` (register_train/run_train) and the data loaders."""
+
 import argparse
 import json
 
@@ -6,11 +7,11 @@ import numpy as np
 import pytest
 import yaml
 from mcap.writer import Writer
-from tests.manifold.ukr_helpers import closed_curves
 
-from plugins.manifold import StructuredUKR, toy
-from plugins.manifold.cli import register_train
-from plugins.manifold.data import load_csv_dir, load_mcap, load_npz
+from handflow.plugins.manifold import StructuredUKR, toy
+from handflow.plugins.manifold.cli import register_train
+from handflow.plugins.manifold.data import load_csv_dir, load_mcap, load_npz
+from tests.manifold.ukr_helpers import closed_curves
 
 RING = [{"kernel": "periodic", "beta": 12, "time": True}]
 
@@ -23,8 +24,7 @@ def run(*argv):
 
 
 def write_config(tmp_path, data, latent=RING, **training):
-    cfg = {"data": data, "model": {"latent": latent},
-           "training": {"n_steps": 20, "isomap_neighbors": [10], **training}}
+    cfg = {"data": data, "model": {"latent": latent}, "training": {"n_steps": 20, "isomap_neighbors": [10], **training}}
     path = tmp_path / "cfg.yaml"
     path.write_text(yaml.safe_dump(cfg))
     return path
@@ -43,7 +43,7 @@ def write_mcap(path, seqs, topic="/hand/joints", rate_hz=50.0, field="positions"
                 msg = {"header": {"stamp_ns": t}, "names": ["a", "b", "c"], field: row.tolist()}
                 w.add_message(ch, log_time=t, publish_time=t, data=json.dumps(msg).encode())
                 t += int(1e9 / rate_hz)
-            t += int(1e9)                       # 1 s gap between demonstrations
+            t += int(1e9)  # 1 s gap between demonstrations
         w.finish()
 
 
@@ -53,16 +53,16 @@ def csv_dir(tmp_path):
 
 
 def test_train_csv_writes_model_and_plots(tmp_path, csv_dir, capsys):
-    cfg = write_config(tmp_path, {"csv_dir": "rings", "time_column": "t"},
-                       latent=[RING[0], {"kernel": "gaussian", "beta": 4}])
+    cfg = write_config(
+        tmp_path, {"csv_dir": "rings", "time_column": "t"}, latent=[RING[0], {"kernel": "gaussian", "beta": 4}]
+    )
     out, plots = tmp_path / "model.npz", tmp_path / "plots"
     assert run(cfg, "--out", out, "--plot", plots) == 0
     model = StructuredUKR.load(out)
     assert model.latents_.shape == (135, 2) and model.n_features_in_ == 3
     assert len(model.history_) == 21
     assert model.provenance_["sequences"] == ["ring_00", "ring_01", "ring_02"]
-    assert sorted(p.name for p in plots.iterdir()) == ["latents.png", "manifold.png",
-                                                       "objective.png"]
+    assert sorted(p.name for p in plots.iterdir()) == ["latents.png", "manifold.png", "objective.png"]
     assert "objective" in capsys.readouterr().err
 
 
@@ -76,14 +76,14 @@ def test_train_npz_and_steps_override(tmp_path):
 def test_train_mcap_time_ranges(tmp_path):
     seqs = closed_curves(n_seq=3, noise=0.02)
     write_mcap(tmp_path / "rec.mcap", seqs)
-    got, names = load_mcap(tmp_path / "rec.mcap", "/hand/joints", "positions",
-                           [[0, 1.5], [2.0, 3.1]])
+    got, names = load_mcap(tmp_path / "rec.mcap", "/hand/joints", "positions", [[0, 1.5], [2.0, 3.1]])
     np.testing.assert_allclose(got[0], seqs[0])
     np.testing.assert_allclose(got[1], seqs[1])
     whole, _ = load_mcap(tmp_path / "rec.mcap", "/hand/joints")
     assert len(whole) == 1 and len(whole[0]) == sum(map(len, seqs))
-    cfg = write_config(tmp_path, {"mcap": "rec.mcap", "topic": "/hand/joints",
-                                  "time_ranges": [[0, 1.5], [2.0, 3.1], [4.0, 5.2]]})
+    cfg = write_config(
+        tmp_path, {"mcap": "rec.mcap", "topic": "/hand/joints", "time_ranges": [[0, 1.5], [2.0, 3.1], [4.0, 5.2]]}
+    )
     assert run(cfg, "--out", tmp_path / "m.npz", "--quiet") == 0
 
 
@@ -96,13 +96,15 @@ def test_mcap_data_field(tmp_path):
 
 def test_ctrl_c_saves_best_model(tmp_path, csv_dir, monkeypatch):
     cfg = write_config(tmp_path, {"csv_dir": "rings", "time_column": "t"}, n_steps=50)
-    import plugins.manifold.cli as cli
+    import handflow.plugins.manifold.cli as cli
+
     real = cli._Progress.__call__
 
     def interrupting(self, step, value):
         real(self, step, value)
         if step == 3:
             raise KeyboardInterrupt
+
     monkeypatch.setattr(cli._Progress, "__call__", interrupting)
     assert run(cfg, "--out", tmp_path / "m.npz") == 0
     model = StructuredUKR.load(tmp_path / "m.npz")
@@ -154,13 +156,19 @@ def bad_case(tmp_path, kind):
     return path
 
 
-@pytest.mark.parametrize("kind, message", [
-    ("nan", "NaN or inf"), ("few", "fewer points than needed"),
-    ("dims", "inconsistent dimensions"), ("kernel", "unknown kernel 'cosine'"),
-    ("time_dim", "time dimension index 1 is out of range"),
-    ("two_sources", "exactly one of csv_dir, npz, mcap"), ("typo", "time_colum"),
-    ("missing", "does not exist"),
-])
+@pytest.mark.parametrize(
+    "kind, message",
+    [
+        ("nan", "NaN or inf"),
+        ("few", "fewer points than needed"),
+        ("dims", "inconsistent dimensions"),
+        ("kernel", "unknown kernel 'cosine'"),
+        ("time_dim", "time dimension index 1 is out of range"),
+        ("two_sources", "exactly one of csv_dir, npz, mcap"),
+        ("typo", "time_colum"),
+        ("missing", "does not exist"),
+    ],
+)
 def test_bad_input_exit_code_2(tmp_path, capsys, kind, message):
     assert run(bad_case(tmp_path, kind), "--out", tmp_path / "m.npz") == 2
     err = capsys.readouterr().err
@@ -178,7 +186,8 @@ def test_missing_config_and_out_dir(tmp_path, capsys):
 def test_example_configs_are_valid():
     from pathlib import Path
 
-    from plugins.manifold.cli import load_config
+    from handflow.plugins.manifold.cli import load_config
+
     folder = Path(__file__).resolve().parents[2] / "configs" / "train"
     for name in ("toy_cylinder", "motion_class_mcap", "construction_npz"):
         load_config(folder / f"{name}.yaml")

@@ -1,4 +1,5 @@
 """Synthetic cap-turning-like sequences for the manipulation tests (unique module name)."""
+
 import numpy as np
 
 RADII_CM = (1.5, 2.0, 2.5, 3.0, 3.5)
@@ -8,8 +9,14 @@ def posture(phase, radius_cm):
     """A 6-D 'hand posture' on one motion cycle (phase in [0, 1]); closure shrinks with r."""
     a = 2 * np.pi * np.asarray(phase, dtype=float)
     closure = 1.6 - 0.3 * radius_cm
-    return np.c_[np.cos(a), 0.8 * np.sin(a), closure * (0.5 - 0.5 * np.cos(a)),
-                 0.4 * np.sin(2 * a), closure * np.sin(a) ** 2, 0.2 * np.cos(3 * a)]
+    return np.c_[
+        np.cos(a),
+        0.8 * np.sin(a),
+        closure * (0.5 - 0.5 * np.cos(a)),
+        0.4 * np.sin(2 * a),
+        closure * np.sin(a) ** 2,
+        0.2 * np.cos(3 * a),
+    ]
 
 
 def warped_phases(n, rng, warp=0.5):
@@ -42,8 +49,9 @@ def ball_observations(tau):
     twice per ball period, then p1 and p2 opposite each other on a circle (one turn per period)."""
     tau = np.asarray(tau, dtype=float)
     a = 2.0 * tau
-    hand = np.c_[0.6 + 0.3 * np.sin(2 * a), 0.6 + 0.3 * np.cos(2 * a),
-                 0.6 - 0.3 * np.sin(2 * a), 0.6 - 0.3 * np.cos(2 * a)]
+    hand = np.c_[
+        0.6 + 0.3 * np.sin(2 * a), 0.6 + 0.3 * np.cos(2 * a), 0.6 - 0.3 * np.sin(2 * a), 0.6 - 0.3 * np.cos(2 * a)
+    ]
     p1 = 0.5 * np.c_[np.cos(a), np.sin(a)]
     return np.c_[hand, p1, -p1]
 

@@ -1,10 +1,11 @@
 """Manifold by construction (production.md §2) on synthetic radius-labelled sequences."""
+
 import numpy as np
 import pytest
-from tests.manipulation.synthetic import cap_sequences
 
-from plugins.manifold import InvalidInputError
-from plugins.manifold.construction import ManifoldConstruction, monotone_projection
+from handflow.plugins.manifold import InvalidInputError
+from handflow.plugins.manifold.construction import ManifoldConstruction, monotone_projection
+from tests.manipulation.synthetic import cap_sequences
 
 
 def _phase_spread(latent_times, phases, at=(0.2, 0.4, 0.6, 0.8)):
@@ -39,6 +40,7 @@ def test_projected_phase_of_the_same_posture_agrees_across_radii(construction):
     builder, seqs, radii, phases = construction
     # the same-phase posture of every radius projected onto its own radius row
     from tests.manipulation.synthetic import posture
+
     lat = [builder.model_.transform(posture([0.5], r), mask=None)[0] for r in sorted(set(radii))]
     times = np.array([x[0] for x in lat])
     assert np.ptp(times) < 0.1 * np.ptp(builder.model_.latents_[:, 0])

@@ -1,11 +1,12 @@
 """Plain controller classes (production.md §4) on synthetic manifolds."""
+
 import numpy as np
 import pytest
-from tests.manipulation.synthetic import posture
 
-from plugins.manifold.controllers import ClosedLoopController, GraspByNavigation, OpenLoopController
-from plugins.manifold.controllers.feedback_init import CLOSING, TURNING, flexion, open_side
-from plugins.manifold.controllers.latent_time import LatentClock
+from handflow.plugins.manipulation import ClosedLoopController, GraspByNavigation, OpenLoopController
+from handflow.plugins.manipulation.feedback_init import CLOSING, TURNING, flexion, open_side
+from handflow.plugins.manipulation.latent_time import LatentClock
+from tests.manipulation.synthetic import posture
 
 
 def test_open_loop_output_is_f_along_the_commanded_path_and_resets_on_a_constructed_axis(cap_manifold):
@@ -16,7 +17,7 @@ def test_open_loop_output_is_f_along_the_commanded_path_and_resets_on_a_construc
     xs, qs = np.array(xs), np.array(qs)
     assert np.allclose(xs[:, 1], 2.25)
     assert np.allclose(qs, cap_manifold.posture(xs))
-    assert np.all(xs[:, 0] <= hi) and xs[20, 0] == lo      # jumped back after passing the end
+    assert np.all(xs[:, 0] <= hi) and xs[20, 0] == lo  # jumped back after passing the end
     assert np.allclose(np.diff(xs[:20, 0]), delta)
     assert ctl.cycles == 1
 
@@ -30,14 +31,16 @@ def test_open_loop_wraps_smoothly_on_a_periodic_axis(ball_manifold):
 
 
 def test_time_runs_in_the_direction_of_the_demonstrations(ball_manifold):
-    from plugins.manifold.controllers import ManipulationManifold
+    from handflow.plugins.manipulation import ManipulationManifold
+
     model, sign = ball_manifold.model, ball_manifold.time_sign
-    mirrored = type(model).from_latents(model.Y_, np.pi - model.latents_, model.sequence_ids_,
-                                        latent=model.latent, lambda_pvar=0.0)
+    mirrored = type(model).from_latents(
+        model.Y_, np.pi - model.latents_, model.sequence_ids_, latent=model.latent, lambda_pvar=0.0
+    )
     flipped = ManipulationManifold(mirrored, ball_manifold.names, "gifu", ["time"], "ball_swap")
     assert flipped.time_sign == -sign
     x0 = 1.0
-    ctl = OpenLoopController(flipped, [np.pi - x0], 0.05)   # same posture as x0 on the original
+    ctl = OpenLoopController(flipped, [np.pi - x0], 0.05)  # same posture as x0 on the original
     for _ in range(3):
         ctl.step()
     reached = flipped.observation(ctl.x)
@@ -59,15 +62,17 @@ def test_latent_clock_reset_and_lookahead():
 
 def _touching_model(manifold, true_radius):
     """Fingers touch when the commanded closure reaches the closure of the true radius."""
+
     def touching(x):
         ref = np.array([x[0], true_radius])
         return {"TH", "FF", "MF"} if flexion(manifold, x) >= flexion(manifold, ref) - 1e-9 else set()
+
     return touching
 
 
 @pytest.mark.parametrize("true_radius", [1.75, 2.5, 3.25])
 def test_grasp_by_navigation_finds_the_radius_then_turns(cap_manifold, true_radius):
-    assert open_side(cap_manifold) == pytest.approx(3.5)       # the more open border
+    assert open_side(cap_manifold) == pytest.approx(3.5)  # the more open border
     ctl = GraspByNavigation(cap_manifold, delta=0.02, radius_step=0.01, approach_steps=3)
     touching = _touching_model(cap_manifold, true_radius)
     x = ctl.x.copy()
@@ -78,14 +83,13 @@ def test_grasp_by_navigation_finds_the_radius_then_turns(cap_manifold, true_radi
             break
     assert ctl.grasp_complete and abs(ctl.radius - true_radius) < 0.05
     t_before = x[0]
-    x = ctl.update(set())                                        # contacts no longer matter
+    x = ctl.update(set())  # contacts no longer matter
     assert x[1] == ctl.radius and x[0] == pytest.approx(t_before + 0.02)
 
 
 @pytest.mark.parametrize("overshoot, limit", [(0.0, 1.5), (0.25, 1.0)])
 def test_grasp_by_navigation_stops_at_its_limit_without_contact(cap_manifold, overshoot, limit):
-    ctl = GraspByNavigation(cap_manifold, delta=0.02, radius_step=0.2, approach_steps=0,
-                            overshoot=overshoot)
+    ctl = GraspByNavigation(cap_manifold, delta=0.02, radius_step=0.2, approach_steps=0, overshoot=overshoot)
     for _ in range(30):
         ctl.update(set())
     assert ctl.state == TURNING and not ctl.grasp_complete and ctl.radius == pytest.approx(limit)
@@ -94,12 +98,11 @@ def test_grasp_by_navigation_stops_at_its_limit_without_contact(cap_manifold, ov
 def test_postures_beyond_the_radius_border_continue_the_trend(cap_manifold):
     lo, hi = cap_manifold.range(1)
     t = 0.4
-    X = np.array([[t, lo - 0.3], [t, lo], [t, lo + 0.5], [t, hi], [t, hi - 0.5], [t, hi + 0.2],
-                  [t, 2.5]])
+    X = np.array([[t, lo - 0.3], [t, lo], [t, lo + 0.5], [t, hi], [t, hi - 0.5], [t, hi + 0.2], [t, 2.5]])
     plain = cap_manifold.posture(X)
     ext = cap_manifold.posture(X, extrapolate=True)
     assert np.allclose(ext[1:5], plain[1:5]) and np.allclose(ext[6], plain[6])  # inside: f
-    low, high = (plain[1] - plain[2]) / 0.5, (plain[3] - plain[4]) / 0.5      # secants, 0.5 cm
+    low, high = (plain[1] - plain[2]) / 0.5, (plain[3] - plain[4]) / 0.5  # secants, 0.5 cm
     assert np.allclose(ext[0], plain[1] + 0.3 * low) and np.allclose(ext[5], plain[3] + 0.2 * high)
     # kernel regression flattens out beyond the border; the extrapolation keeps the trend
     assert np.linalg.norm(plain[0] - plain[1]) < 0.5 * np.linalg.norm(ext[0] - ext[1])
@@ -116,7 +119,8 @@ def test_grasp_by_navigation_starts_in_the_closed_phase(cap_manifold):
 
 
 def test_posture_projection_recovers_the_radius(cap_manifold):
-    from plugins.manifold.controllers.feedback_init import latent_from_grasp
+    from handflow.plugins.manipulation.feedback_init import latent_from_grasp
+
     y = posture([0.45], 2.5)[0]
     x = latent_from_grasp(cap_manifold, dict(zip(cap_manifold.names, y)))
     assert abs(x[1] - 2.5) < 0.2
@@ -132,7 +136,7 @@ def test_closed_loop_phase_estimate_uses_the_better_ball_assignment(ball_manifol
     model = ball_manifold.model
     swapped = []
     for x, o in zip(model.latents_[::7], model.Y_[::7]):
-        for pts in (o[4:].reshape(2, 2), o[4:].reshape(2, 2)[::-1]):   # both orders
+        for pts in (o[4:].reshape(2, 2), o[4:].reshape(2, 2)[::-1]):  # both orders
             est = ctl.estimate(pts, [True, True])
             swapped.append(est.swapped)
             # identical balls: phases x and x + π/2 show the same observation
@@ -148,15 +152,16 @@ def _balls_at(manifold, x):
 def test_closed_loop_keeps_the_commanded_phase_while_the_balls_agree(ball_manifold):
     ctl = ClosedLoopController(ball_manifold, tolerance=0.05, lag=0.3)
     est = ctl.estimate(_balls_at(ball_manifold, 1.0), [True, True], prior=np.array([1.2]))
-    assert est.x[0] == pytest.approx(1.2)                    # within the lag: the motion goes on
+    assert est.x[0] == pytest.approx(1.2)  # within the lag: the motion goes on
     pure = ClosedLoopController(ball_manifold, tolerance=0.0).estimate(
-        _balls_at(ball_manifold, 1.0), [True, True], prior=np.array([1.2]))
-    assert _circ(pure.x[0], 1.0, np.pi / 2) < 0.03            # thesis: the projection alone
+        _balls_at(ball_manifold, 1.0), [True, True], prior=np.array([1.2])
+    )
+    assert _circ(pure.x[0], 1.0, np.pi / 2) < 0.03  # thesis: the projection alone
 
 
 def test_closed_loop_jumps_back_to_the_phase_of_a_pushed_back_ball(ball_manifold):
     ctl = ClosedLoopController(ball_manifold, tolerance=0.02, lag=0.3)
-    back = 1.0 - 0.6 * ball_manifold.time_sign               # the balls are 0.6 behind the hand
+    back = 1.0 - 0.6 * ball_manifold.time_sign  # the balls are 0.6 behind the hand
     est = ctl.estimate(_balls_at(ball_manifold, back), [True, True], prior=np.array([1.0]))
     assert _circ(est.x[0], back, np.pi / 2) < 0.1 and _circ(est.x[0], 1.0, np.pi) > 0.4
 
@@ -165,7 +170,7 @@ def test_closed_loop_keeps_the_commanded_phase_when_the_balls_are_off_the_manifo
     far = np.array([[3.0, 3.0], [-3.0, 3.0]])
     loose = ClosedLoopController(ball_manifold, tolerance=0.05, lag=0.1, max_error=0.5)
     assert loose.estimate(far, [True, True], prior=np.array([1.0])).x[0] == pytest.approx(1.0)
-    strict = ClosedLoopController(ball_manifold, tolerance=0.05, lag=0.1)   # no max_error
+    strict = ClosedLoopController(ball_manifold, tolerance=0.05, lag=0.1)  # no max_error
     assert strict.estimate(far, [True, True], prior=np.array([1.0])).x[0] != pytest.approx(1.0)
 
 

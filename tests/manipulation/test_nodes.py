@@ -1,13 +1,14 @@
 """Controller nodes through NodeHarness: commands, fail-safe, replay of training data."""
+
 import numpy as np
 import pytest
 
-from framework.messages import Contacts, JointState, Points2D
-from framework.recording import McapWriter, read_messages
-from framework.testing import NodeHarness
-from plugins.manifold import InvalidInputError
-from plugins.manifold.controllers.nodes import ClosedLoopNode, FeedbackInitNode, OpenLoopNode
-from plugins.mapping.hands import GIFU, SHADOW
+from handflow.framework.messages import Contacts, JointState, Points2D
+from handflow.framework.recording import McapWriter, read_messages
+from handflow.framework.testing import NodeHarness
+from handflow.plugins.hands.joints import GIFU, SHADOW
+from handflow.plugins.manifold import InvalidInputError
+from handflow.plugins.manipulation.nodes import ClosedLoopNode, FeedbackInitNode, OpenLoopNode
 
 
 def _open_hand(msg, model):
@@ -16,8 +17,7 @@ def _open_hand(msg, model):
 
 def test_open_loop_node_publishes_f_of_the_latent_it_reports(cap_manifold, manifold_file):
     path = manifold_file(cap_manifold)
-    h = NodeHarness(OpenLoopNode, {"manifold": str(path), "latent": [0.3, 2.0], "delta": 0.01,
-                                   "rate_hz": 50}).setup()
+    h = NodeHarness(OpenLoopNode, {"manifold": str(path), "latent": [0.3, 2.0], "delta": 0.01, "rate_hz": 50}).setup()
     h.tick(5)
     targets, latents = h.published["targets"], h.published["latent"]
     assert len(targets) == 5 and targets[0].names == cap_manifold.joint_names
@@ -44,10 +44,12 @@ def _contacts(*fingers):
 
 def test_feedback_init_node_closes_until_contact_then_turns_and_fails_safe(cap_manifold, manifold_file):
     path = manifold_file(cap_manifold)
-    h = NodeHarness(FeedbackInitNode, {"manifold": str(path), "rate_hz": 20, "radius_step": 0.05,
-                                       "approach_s": 0.1, "stale_after_s": 0.3}).setup()
+    h = NodeHarness(
+        FeedbackInitNode,
+        {"manifold": str(path), "rate_hz": 20, "radius_step": 0.05, "approach_s": 0.1, "stale_after_s": 0.3},
+    ).setup()
     for _ in range(10):
-        h.send("contacts", _contacts("TH", "FF"))          # middle finger missing: keep closing
+        h.send("contacts", _contacts("TH", "FF"))  # middle finger missing: keep closing
         h.tick()
     r_closing = h.published["latent"][-1].coords[1]
     assert r_closing < 3.5
@@ -56,7 +58,7 @@ def test_feedback_init_node_closes_until_contact_then_turns_and_fails_safe(cap_m
     radii = [x.coords[1] for x in h.published["latent"][-3:]]
     assert radii == [radii[0]] * 3 and h.node.controller.grasp_complete
     n = len(h.published["targets"])
-    h.tick(10)                                               # 0.5 s without contacts message
+    h.tick(10)  # 0.5 s without contacts message
     assert _open_hand(h.published["targets"][-1], SHADOW)
     assert len(h.published["targets"]) == n + 10
     h.send("contacts", _contacts())
@@ -66,11 +68,12 @@ def test_feedback_init_node_closes_until_contact_then_turns_and_fails_safe(cap_m
 
 def test_feedback_init_node_grasp_variant_projects_the_posture(cap_manifold, manifold_file):
     from tests.manipulation.synthetic import posture
+
     path = manifold_file(cap_manifold)
     h = NodeHarness(FeedbackInitNode, {"manifold": str(path), "init": "grasp", "rate_hz": 20}).setup()
     h.send("contacts", _contacts())
     h.tick(2)
-    assert not h.published["targets"]                       # waits for the grasp posture
+    assert not h.published["targets"]  # waits for the grasp posture
     y = posture([0.45], 2.5)[0]
     h.send("grasp", JointState(names=cap_manifold.names, positions=y, hand="shadow"))
     h.send("contacts", _contacts())
@@ -85,15 +88,15 @@ def test_closed_loop_phase_follows_a_replayed_recording_of_its_training_data(bal
     rng = np.random.default_rng(1)
     with McapWriter(rec) as w:
         for i, y in enumerate(model.Y_):
-            pts = y[4:].reshape(2, 2)[rng.permutation(2)]     # tracker order is arbitrary
-            w.write("handflow/test/tracker/balls", Points2D(points=pts, valid=[True, True], ids=[0, 1]),
-                    i * 50_000_000)
-    h = NodeHarness(ClosedLoopNode, {"manifold": str(path), "k": 3, "delta": 0.05, "rate_hz": 20,
-                                     "tolerance": 0.0}).setup()
+            pts = y[4:].reshape(2, 2)[rng.permutation(2)]  # tracker order is arbitrary
+            w.write("handflow/test/tracker/balls", Points2D(points=pts, valid=[True, True], ids=[0, 1]), i * 50_000_000)
+    h = NodeHarness(
+        ClosedLoopNode, {"manifold": str(path), "k": 3, "delta": 0.05, "rate_hz": 20, "tolerance": 0.0}
+    ).setup()
     errors = []
-    for (topic, msg, t), x in zip(read_messages(rec), model.latents_):
+    for (_topic, msg, t), x in zip(read_messages(rec), model.latents_):
         h.send("balls", msg, stamp_ns=t)
-        commanded = h.published["latent"][-1].coords         # first planned latent x̂ + Δ
+        commanded = h.published["latent"][-1].coords  # first planned latent x̂ + Δ
         d = np.mod(commanded[0] - 0.05 * ball_manifold.time_sign - x[0], np.pi / 2)
         errors.append(min(d, np.pi / 2 - d))
         assert np.allclose(h.published["targets"][-1].positions, ball_manifold.posture(commanded))
@@ -102,13 +105,14 @@ def test_closed_loop_phase_follows_a_replayed_recording_of_its_training_data(bal
 
 def test_closed_loop_node_actuates_the_plan_in_order_then_fails_safe(ball_manifold, manifold_file):
     path = manifold_file(ball_manifold)
-    h = NodeHarness(ClosedLoopNode, {"manifold": str(path), "k": 3, "delta": 0.05, "rate_hz": 20,
-                                     "stale_after_s": 0.2}).setup()
+    h = NodeHarness(
+        ClosedLoopNode, {"manifold": str(path), "k": 3, "delta": 0.05, "rate_hz": 20, "stale_after_s": 0.2}
+    ).setup()
     y = ball_manifold.model.Y_[0]
     h.send("balls", Points2D(points=y[4:].reshape(2, 2), valid=[True, True]))
     h.tick(2)
     t = [x.coords[0] for x in h.published["latent"]]
     assert np.allclose(np.mod(ball_manifold.time_sign * np.diff(t), np.pi), 0.05)
     h.send("balls", Points2D(points=np.full((2, 2), np.nan), valid=[False, False]))
-    h.tick(4)                                                # plan used up, no valid balls
+    h.tick(4)  # plan used up, no valid balls
     assert _open_hand(h.published["targets"][-1], GIFU)

@@ -1,13 +1,15 @@
 """The construction and learning modes of ``handflow train`` on real demonstration recordings."""
+
 import argparse
 
 import numpy as np
 import pytest
 
-from plugins.demo.demonstrations import record_cap
-from plugins.manifold.cli import run_train
-from plugins.manifold.controllers import ManipulationManifold
-from plugins.manifold.controllers.training import manipulation_mode, run_manipulation_training
+from handflow.plugins.demo.demonstrations import record_cap
+from handflow.plugins.manifold.cli import run_train, train_mode_handler
+from handflow.plugins.manifold.validation import InvalidInputError
+from handflow.plugins.manipulation import ManipulationManifold
+from handflow.plugins.manipulation.training import run_manipulation_training
 
 
 @pytest.fixture(scope="module")
@@ -24,8 +26,8 @@ def _args(config, out, steps=None):
 def test_construction_mode_builds_a_named_time_radius_manifold(tmp_path, cap_demo):
     cfg = tmp_path / "c.yaml"
     cfg.write_text(f"mode: construction\ndata: {{demo: {cap_demo}}}\nconstruction: {{n_steps: 20}}\n")
-    assert manipulation_mode(cfg) == "construction"
-    assert run_train(_args(cfg, tmp_path / "m.npz")) == 0        # `handflow train` dispatches
+    assert train_mode_handler(cfg) is run_manipulation_training  # found by entry point
+    assert run_train(_args(cfg, tmp_path / "m.npz")) == 0  # `handflow train` dispatches
     m = ManipulationManifold.load(tmp_path / "m.npz")
     assert m.kind == "constructed" and m.hand == "shadow" and len(m.joint_names) == 24
     assert m.latent_names == ["time", "radius_cm"] and not m.periodic
@@ -35,9 +37,11 @@ def test_construction_mode_builds_a_named_time_radius_manifold(tmp_path, cap_dem
 
 def test_learning_mode_reports_the_radius_order(tmp_path, cap_demo):
     cfg = tmp_path / "l.yaml"
-    cfg.write_text(f"mode: learning\ndata: {{demo: {cap_demo}}}\nmodel:\n  latent:\n"
-                   "    - {kernel: periodic, beta: 10, time: true}\n    - {kernel: gaussian, beta: 4}\n"
-                   "training: {n_steps: 30, isomap_neighbors: [10]}\n")
+    cfg.write_text(
+        f"mode: learning\ndata: {{demo: {cap_demo}}}\nmodel:\n  latent:\n"
+        "    - {kernel: periodic, beta: 10, time: true}\n    - {kernel: gaussian, beta: 4}\n"
+        "training: {n_steps: 30, isomap_neighbors: [10]}\n"
+    )
     assert run_manipulation_training(_args(cfg, tmp_path / "l.npz")) == 0
     m = ManipulationManifold.load(tmp_path / "l.npz")
     assert m.kind == "learned" and m.periodic
@@ -55,4 +59,7 @@ def test_bad_configs_exit_2_with_what_to_change(tmp_path, cap_demo, capsys):
     assert run_manipulation_training(_args(cfg, tmp_path / "m.npz")) == 2
     assert "handflow demo-record" in capsys.readouterr().err
     cfg.write_text("model: {}\n")
-    assert manipulation_mode(cfg) is None       # a plain UKR config: not handled here
+    assert train_mode_handler(cfg) is None  # a plain UKR config: no mode
+    cfg.write_text("mode: sculpting\n")
+    with pytest.raises(InvalidInputError, match="construction, learning"):
+        train_mode_handler(cfg)

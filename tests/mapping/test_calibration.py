@@ -1,13 +1,20 @@
 """Glove profile / session calibration files and the robust session calibration."""
+
 import json
 
 import numpy as np
 import pytest
 
-from plugins.glove.synthetic import SyntheticGlove
-from plugins.mapping.calibration import (DEFAULT_PROFILE, CalibrationFileError, calibrate_session, load_calibration,
-                                         load_profile, save)
-from plugins.mapping.parallelogram import Parallelogram, fit_intercepts, fit_slopes, robust_extremes
+from handflow.plugins.glove.synthetic import SyntheticGlove
+from handflow.plugins.mapping.calibration import (
+    DEFAULT_PROFILE,
+    CalibrationFileError,
+    calibrate_session,
+    load_calibration,
+    load_profile,
+    save,
+)
+from handflow.plugins.mapping.parallelogram import Parallelogram, fit_intercepts, fit_slopes, robust_extremes
 
 
 def _session(seed=0):
@@ -63,15 +70,31 @@ def test_roundtrip_yaml_and_json(tmp_path):
         assert load_calibration(tmp_path / name) == cal
 
 
-@pytest.mark.parametrize("content, message", [
-    ("s_min: [1, 2\n", "not valid YAML"),
-    ("- just a list\n", "must hold a mapping"),
-    ("s_min: [1, 2]\ns_max: [3, 4]\nthumb_intercepts: [1, 2, 3, 4]\n", "need 22 values"),
-    ("s_min: " + json.dumps([50] * 22) + "\ns_max: " + json.dumps([40] + [200] * 21)
-     + "\nthumb_intercepts: [1, 2, 3, 4]\n", "thumb_roll"),
-    ("s_min: " + json.dumps([50] * 22) + "\ns_max: " + json.dumps([200] * 22) + "\nthumb_intercepts: [1, 2, 3, 4]\n"
-     "colour: blue\n", "colour"),
-])
+@pytest.mark.parametrize(
+    "content, message",
+    [
+        ("s_min: [1, 2\n", "not valid YAML"),
+        ("- just a list\n", "must hold a mapping"),
+        ("s_min: [1, 2]\ns_max: [3, 4]\nthumb_intercepts: [1, 2, 3, 4]\n", "need 22 values"),
+        (
+            "s_min: "
+            + json.dumps([50] * 22)
+            + "\ns_max: "
+            + json.dumps([40] + [200] * 21)
+            + "\nthumb_intercepts: [1, 2, 3, 4]\n",
+            "thumb_roll",
+        ),
+        (
+            "s_min: "
+            + json.dumps([50] * 22)
+            + "\ns_max: "
+            + json.dumps([200] * 22)
+            + "\nthumb_intercepts: [1, 2, 3, 4]\n"
+            "colour: blue\n",
+            "colour",
+        ),
+    ],
+)
 def test_corrupt_calibration_file_gives_clear_error(tmp_path, content, message):
     path = tmp_path / "calib.yaml"
     path.write_text(content)

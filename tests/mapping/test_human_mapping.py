@@ -1,14 +1,15 @@
 """First mapping (raw → human model) properties and the robot mappings."""
+
 import numpy as np
 import pytest
 
-from plugins.glove.sensors import SENSOR_NAMES, sensor_index
-from plugins.glove.synthetic import HandMotion, SyntheticGlove
-from plugins.mapping.calibration import DEFAULT_CALIBRATION, DEFAULT_PROFILE, load_calibration, load_profile
-from plugins.mapping.hands import GIFU, HUMAN, SHADOW
-from plugins.mapping.human import LINEAR_JOINTS, HumanHandMapping
-from plugins.mapping.robot import GifuHandMapping, ShadowHandMapping
-from plugins.mapping.thumb import thumb_to_shadow
+from handflow.plugins.glove.synthetic import HandMotion, SyntheticGlove
+from handflow.plugins.hands.joints import GIFU, HUMAN, SHADOW
+from handflow.plugins.hands.sensors import SENSOR_NAMES, sensor_index
+from handflow.plugins.mapping.calibration import DEFAULT_CALIBRATION, DEFAULT_PROFILE, load_calibration, load_profile
+from handflow.plugins.mapping.human import LINEAR_JOINTS, HumanHandMapping
+from handflow.plugins.mapping.robot import GifuHandMapping, ShadowHandMapping
+from handflow.plugins.mapping.thumb import thumb_to_shadow
 
 
 @pytest.fixture(scope="module")
@@ -54,7 +55,9 @@ def test_thumb_is_monotonic_along_the_parallelogram_axes(mapping):
 def test_index_and_little_spread_equal_in_magnitude(mapping, raw):
     q = mapping.map(raw)
     ff, lf = q[:, HUMAN.index("ff_spread")], q[:, HUMAN.index("lf_spread")]
-    inside = (np.abs(ff) < HUMAN.upper[HUMAN.index("ff_spread")] - 1e-9) & (ff > HUMAN.lower[HUMAN.index("ff_spread")] + 1e-9)
+    inside = (np.abs(ff) < HUMAN.upper[HUMAN.index("ff_spread")] - 1e-9) & (
+        ff > HUMAN.lower[HUMAN.index("ff_spread")] + 1e-9
+    )
     np.testing.assert_allclose(np.abs(ff[inside]), np.abs(lf[inside]), atol=1e-12)
 
 
@@ -62,7 +65,7 @@ def test_spreading_opens_the_hand(mapping):
     raw = np.full((2, 22), 120.0)
     spread = [sensor_index(n) for n in ("index_middle_abduction", "middle_ring_abduction", "ring_little_abduction")]
     raw[0, spread] = 210  # near the zero level: fingers together
-    raw[1, spread] = 60   # unbent: wide spread
+    raw[1, spread] = 60  # unbent: wide spread
     q = mapping.map(raw)
     ff = HUMAN.index("ff_spread")
     assert q[1, ff] < q[0, ff]  # index moves away from the little finger (negative in its convention)
@@ -83,8 +86,9 @@ def test_shadow_mapping_copies_joints_and_maps_thumb():
     s = ShadowHandMapping().map(q)
     np.testing.assert_allclose(s[:, SHADOW.index("FFJ3")], np.clip(q[:, HUMAN.index("ff_mcp")], *np.deg2rad([-15, 90])))
     t0, t1 = thumb_to_shadow(q[:, HUMAN.index("th_abduction")], q[:, HUMAN.index("th_roll")])
-    np.testing.assert_allclose(s[:, SHADOW.index("THJ4")], np.clip(t1, SHADOW.lower[SHADOW.index("THJ4")],
-                                                                   SHADOW.upper[SHADOW.index("THJ4")]))
+    np.testing.assert_allclose(
+        s[:, SHADOW.index("THJ4")], np.clip(t1, SHADOW.lower[SHADOW.index("THJ4")], SHADOW.upper[SHADOW.index("THJ4")])
+    )
 
 
 def test_gifu_mapping_merges_pip_dip():

@@ -1,8 +1,9 @@
 """Analytic ShadowHand thumb mapping: round trip, rotation-matrix agreement, singularity."""
+
 import numpy as np
 
-from plugins.mapping.hands import HUMAN, SHADOW
-from plugins.mapping.thumb import shadow_to_thumb, thumb_axis_human, thumb_axis_shadow, thumb_to_shadow
+from handflow.plugins.hands.joints import HUMAN, SHADOW
+from handflow.plugins.mapping.thumb import shadow_to_thumb, thumb_axis_human, thumb_axis_shadow, thumb_to_shadow
 
 A = HUMAN.index("th_abduction")
 B = HUMAN.index("th_roll")
@@ -23,8 +24,10 @@ def test_round_trip_alpha_beta_over_the_joint_ranges():
 
 
 def test_round_trip_theta_over_the_shadow_ranges():
-    t0, t1 = np.meshgrid(np.linspace(SHADOW.lower[SHADOW.index("THJ5")], SHADOW.upper[SHADOW.index("THJ5")], 101),
-                         np.linspace(1e-3, SHADOW.upper[SHADOW.index("THJ4")], 101))
+    t0, t1 = np.meshgrid(
+        np.linspace(SHADOW.lower[SHADOW.index("THJ5")], SHADOW.upper[SHADOW.index("THJ5")], 101),
+        np.linspace(1e-3, SHADOW.upper[SHADOW.index("THJ4")], 101),
+    )
     t0b, t1b = thumb_to_shadow(*shadow_to_thumb(t0, t1))
     assert np.abs(t0b - t0).max() < 1e-9 and np.abs(t1b - t1).max() < 1e-9
 

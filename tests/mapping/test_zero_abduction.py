@@ -1,9 +1,15 @@
 """Dynamic zero-abduction surface: analytic Jacobian, asymmetric fit, plot."""
+
 import numpy as np
 import pytest
 
-from plugins.mapping.zero_abduction import (DEFAULT_SHAPE, fit_zero_abduction, plot_zero_abduction, zero_level,
-                                            zero_level_jacobian)
+from handflow.plugins.mapping.zero_abduction import (
+    DEFAULT_SHAPE,
+    fit_zero_abduction,
+    plot_zero_abduction,
+    zero_level,
+    zero_level_jacobian,
+)
 
 TRUE_H, TRUE_LAM = 215.0, (1.1, 0.2, 15.0, 1.8, 0.3, 20.0)
 

@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from plugins.segmenter import LetterGenerator, candidate_set, train_class_models
+from handflow.plugins.segmenter import LetterGenerator, candidate_set, train_class_models
 
 
 @pytest.fixture(scope="session")

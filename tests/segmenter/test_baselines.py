@@ -1,6 +1,6 @@
 import numpy as np
 
-from plugins.segmenter import PerClassHMM, SlidingDTW1NN
+from handflow.plugins.segmenter import PerClassHMM, SlidingDTW1NN
 
 
 def test_baselines_classify_clean_synthetic_letters(synthetic):

@@ -4,9 +4,9 @@ import json
 import numpy as np
 import pytest
 
-from plugins.segmenter import EXPERIMENTS, METHODS, load_candidates
-from plugins.segmenter.candidates import ModelsMissingError
-from plugins.segmenter.cli import register_evaluate, register_train_classes
+from handflow.plugins.segmenter import EXPERIMENTS, METHODS, load_candidates
+from handflow.plugins.segmenter.candidates import ModelsMissingError
+from handflow.plugins.segmenter.cli import register_evaluate, register_train_classes
 from tests.segmenter.test_datasets import write_csv_dataset
 
 
@@ -42,8 +42,9 @@ def test_bad_dataset_exits_2(tmp_path, capsys):
 
 @pytest.mark.slow
 def test_quick_evaluation_json_and_plots(tmp_path, csv_dataset, capsys):
-    code = run(register_evaluate, [str(csv_dataset), "--quick", "--json", "--steps", "50",
-                                   "--plots", str(tmp_path / "plots")])
+    code = run(
+        register_evaluate, [str(csv_dataset), "--quick", "--json", "--steps", "50", "--plots", str(tmp_path / "plots")]
+    )
     out = capsys.readouterr()
     assert code == 0
     result = json.loads(out.out)
@@ -57,7 +58,7 @@ def test_quick_evaluation_json_and_plots(tmp_path, csv_dataset, capsys):
     assert set(result["parameters"]["selected"]) == set(METHODS)
     strong = result["methods"]["ukr_clm"]["reversed_rejection"]["strong_background"]
     assert strong["mean_correct"] >= result["methods"]["ukr_clm"]["reversed_rejection"]["mean_correct"]
-    assert "validation" in out.err                               # progress on stderr
+    assert "validation" in out.err  # progress on stderr
     assert (tmp_path / "plots" / "summary.png").stat().st_size > 0
     assert (tmp_path / "plots" / "concatenated_ukr_clm.png").exists()
     assert np.isfinite(result["runtime_s"])

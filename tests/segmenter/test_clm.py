@@ -1,15 +1,15 @@
 import numpy as np
 import pytest
 
-from plugins.segmenter.clm import CompetitiveLayerModel, clm_energy, largest_eigenvalue
-from plugins.segmenter.compatibility import background_band
+from handflow.plugins.segmenter.clm import CompetitiveLayerModel, clm_energy, largest_eigenvalue
+from handflow.plugins.segmenter.compatibility import background_band
 
 
 def random_layers(n=40, width=5, layers=3, seed=0):
     rng = np.random.default_rng(seed)
     band = rng.uniform(-1, 1, size=(layers, n, width))
     for k in range(1, width + 1):
-        band[:, n - k:, k - 1] = 0.0
+        band[:, n - k :, k - 1] = 0.0
     bg, d = background_band(n, width, 0.5, width)
     return np.concatenate([band, bg[None]]), np.r_[np.zeros(layers), d]
 
@@ -77,7 +77,7 @@ def test_solver_rejects_bad_compatibilities():
 
 
 def test_gershgorin_bound_is_above_the_largest_eigenvalue():
-    from plugins.segmenter.clm import gershgorin_bound
+    from handflow.plugins.segmenter.clm import gershgorin_bound
 
     band, diag = random_layers()
     exact = max(largest_eigenvalue(band[a], diag[a]) for a in range(band.shape[0]))
@@ -87,14 +87,14 @@ def test_gershgorin_bound_is_above_the_largest_eigenvalue():
 
 
 def test_error_scale_weakens_the_reconstruction_penalty(candidates, two_letters):
-    from plugins.segmenter import CLMSegmenter
+    from handflow.plugins.segmenter import CLMSegmenter
 
     Y, _ = two_letters
     proj = candidates.project(Y)
     base, _ = CLMSegmenter(candidates, history=5).layer_compatibilities(proj)
     scaled, _ = CLMSegmenter(candidates, history=5, error_scale=0.1).layer_compatibilities(proj)
     live = base[:-1] != 0
-    assert np.all(scaled[:-1][live] >= base[:-1][live] - 1e-12)   # c_sre grows as e shrinks
+    assert np.all(scaled[:-1][live] >= base[:-1][live] - 1e-12)  # c_sre grows as e shrinks
     assert np.any(scaled[:-1][live] > base[:-1][live] + 1e-3)
     with pytest.raises(ValueError, match="error_scale"):
         CLMSegmenter(candidates, error_scale=0.0)

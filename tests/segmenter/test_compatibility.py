@@ -1,9 +1,16 @@
 import numpy as np
 import pytest
 
-from plugins.segmenter.compatibility import (background_band, candidate_band, history_compatibility,
-                                             order_rating_cos, order_rating_sign, pair_error_mean,
-                                             reconstruction_compatibility, thesis_background_strength)
+from handflow.plugins.segmenter.compatibility import (
+    background_band,
+    candidate_band,
+    history_compatibility,
+    order_rating_cos,
+    order_rating_sign,
+    pair_error_mean,
+    reconstruction_compatibility,
+    thesis_background_strength,
+)
 
 
 def test_forward_step_is_plus_one_backward_minus_one():
@@ -37,11 +44,11 @@ def test_candidate_band_on_a_handmade_sequence():
     lt = np.array([[0.0, 0.3], [0.1, 0.2], [0.2, 0.1]])  # candidate 0 forward, candidate 1 backward
     e = np.array([[0.0, 0.0], [0.0, 0.0], [np.log(2) * 3, 0.0]])
     band = candidate_band(lt, e, width=2)
-    assert band[0, 0, 0] == pytest.approx(1.0)                     # forward, perfect fit
-    assert band[1, 0, 0] == pytest.approx(0.0)                     # backward: ½(−1 + 1)
+    assert band[0, 0, 0] == pytest.approx(1.0)  # forward, perfect fit
+    assert band[1, 0, 0] == pytest.approx(0.0)  # backward: ½(−1 + 1)
     # pair (0, 2): mean error over 0…2 is log 2 → c_sre = 0 → f = ½(1 + 0)
     assert band[0, 0, 1] == pytest.approx(0.5)
-    assert band[0, 2].tolist() == [0.0, 0.0]                       # no partner past the end
+    assert band[0, 2].tolist() == [0.0, 0.0]  # no partner past the end
 
 
 def test_pair_error_mean_uses_the_whole_neighbourhood():

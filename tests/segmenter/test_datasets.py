@@ -4,8 +4,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from plugins.segmenter import DatasetError, LetterGenerator, load_dataset
-from plugins.segmenter.datasets import split_counts
+from handflow.plugins.segmenter import DatasetError, LetterGenerator, load_dataset
+from handflow.plugins.segmenter.datasets import split_counts
 
 LETTERS = Path("/work/shared/data/letters_other_xy.npz")
 BASIC = Path("/work/shared/data/basicmotions.npz")
@@ -55,7 +55,7 @@ def test_labelled_npz_uses_the_documented_split(tmp_path):
     np.savez(tmp_path / "d.npz", metadata=np.array(json.dumps(meta)), **arrays)
     ds = load_dataset(tmp_path / "d.npz")
     assert [t.name for t in ds.test] == ["a_4", "b_4"] and [t.name for t in ds.validation] == ["a_3", "b_3"]
-    assert len(ds.train[0].data) == 15                              # pen-lift tail cut
+    assert len(ds.train[0].data) == 15  # pen-lift tail cut
     assert len(load_dataset(tmp_path / "d.npz", trim_pen_lift=False).train[0].data) == 20
     assert split_counts(15) == (5, 5, 5) and split_counts(5) == (3, 1, 1)
     with pytest.raises(DatasetError, match="at least 3"):

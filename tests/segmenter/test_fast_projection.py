@@ -1,7 +1,7 @@
 import numpy as np
 
-from plugins.segmenter.candidates import CandidateSet
-from plugins.segmenter.fast_projection import BatchedPeriodicProjector
+from handflow.plugins.segmenter.candidates import CandidateSet
+from handflow.plugins.segmenter.fast_projection import BatchedPeriodicProjector
 
 
 def test_batched_projection_matches_per_model_transform(candidates, synthetic):

@@ -1,4 +1,5 @@
 """The online segmenter node in a real graph, fed by a replayed MCAP recording (lock-step)."""
+
 import json
 import subprocess
 import sys
@@ -7,9 +8,9 @@ from pathlib import Path
 
 import pytest
 
-from framework.messages import Array, Header
-from framework.recording import McapWriter
-from plugins.segmenter import save_class_models
+from handflow.framework.messages import Array, Header
+from handflow.framework.recording import McapWriter
+from handflow.plugins.segmenter import save_class_models
 
 REPO = Path(__file__).resolve().parents[2]
 T0 = 1_700_000_000_000_000_000
@@ -40,8 +41,13 @@ nodes:
     params: {{jsonl: labels.jsonl}}
     inputs: {{in: seg/labels}}
 """)
-    proc = subprocess.run([sys.executable, "-m", "framework.cli", "replay", str(recording), "--into", str(graph),
-                           "--lockstep"], cwd=REPO, capture_output=True, text=True, timeout=180)
+    proc = subprocess.run(
+        [sys.executable, "-m", "handflow.framework.cli", "replay", str(recording), "--into", str(graph), "--lockstep"],
+        cwd=REPO,
+        capture_output=True,
+        text=True,
+        timeout=180,
+    )
     assert proc.returncode == 0, proc.stderr
     rows = [json.loads(line)["msg"] for line in (tmp_path / "labels.jsonl").read_text().splitlines()]
     assert len(rows) == len(Y)

@@ -1,10 +1,10 @@
 import pytest
 
-from framework.messages import Array, JointState
-from framework.testing import NodeHarness
-from plugins.segmenter import save_class_models
-from plugins.segmenter.candidates import ModelsMissingError
-from plugins.segmenter.nodes import OnlineCLMNode, UKROnlyNode
+from handflow.framework.messages import Array, JointState
+from handflow.framework.testing import NodeHarness
+from handflow.plugins.segmenter import save_class_models
+from handflow.plugins.segmenter.candidates import ModelsMissingError
+from handflow.plugins.segmenter.nodes import OnlineCLMNode, UKROnlyNode
 
 
 @pytest.fixture(scope="module")
@@ -48,7 +48,7 @@ def test_ukr_only_node_takes_joint_states_in_model_order(model_dir, two_letters)
     for y in Y[:60]:
         h.send("joints", JointState(names=["y", "x", "z"], positions=[y[1], y[0], 0.0]))
     assert [m.label for m in h.published["labels"][-10:]] == ["A"] * 10
-    h.send("joints", JointState(names=["x"], positions=[0.0]))      # lacks 'y': dropped, logged
+    h.send("joints", JointState(names=["x"], positions=[0.0]))  # lacks 'y': dropped, logged
     assert len(h.published["labels"]) == 60 and h.node.dropped == 1
 
 
@@ -63,7 +63,7 @@ def test_unknown_parameter_is_refused():
 
 
 def test_published_messages_survive_the_json_codec(model_dir, two_letters):
-    from framework.messages import decode, encode
+    from handflow.framework.messages import decode, encode
 
     Y, _ = two_letters
     h = NodeHarness(OnlineCLMNode, {"models": str(model_dir)}).setup()

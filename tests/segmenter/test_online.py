@@ -1,6 +1,6 @@
 import numpy as np
 
-from plugins.segmenter import CLMSegmenter, OnlineCLMSegmenter
+from handflow.plugins.segmenter import CLMSegmenter, OnlineCLMSegmenter
 
 
 def stream(seg, proj):
@@ -15,7 +15,8 @@ def test_online_equals_batch_on_the_same_window(candidates, synthetic):
     stream(online, proj)
     assert online.n == 200 and online.window_start == len(Y) - 200
     batch = CLMSegmenter(candidates, history=10, spectral="gershgorin", random_state=5).fit_predict_projected(
-        proj.take(slice(online.window_start, None)))
+        proj.take(slice(online.window_start, None))
+    )
     assert np.mean(online.window_labels == batch) >= 0.98
 
 
@@ -36,8 +37,7 @@ def test_warm_start_needs_fewer_sweeps_than_cold_on_a_continuing_motion(candidat
     proj = candidates.project(Y)
     sweeps = {}
     for warm in (True, False):
-        seg = OnlineCLMSegmenter(candidates, window=200, history=10, warm_start=warm, cold_every=None,
-                                 random_state=0)
+        seg = OnlineCLMSegmenter(candidates, window=200, history=10, warm_start=warm, cold_every=None, random_state=0)
         ups = stream(seg, proj)
         sweeps[warm] = np.median([u.sweeps for u in ups[20:]])
         assert np.mean(seg.window_labels == 0) > 0.95
@@ -51,7 +51,7 @@ def test_events_report_segments_and_revisions(candidates, two_letters):
     events = [e for u in stream(seg, proj) for e in u.events]
     starts = [e for e in events if e.kind == "start"]
     assert starts[0].start == 0
-    assert any(e.label == 1 for e in starts)                  # the second letter was announced
+    assert any(e.label == 1 for e in starts)  # the second letter was announced
     b_start = next(e.start for e in starts if e.label == 1)
     assert abs(b_start - int(np.argmax(truth == 1))) <= 15
     for e in events:
@@ -61,17 +61,21 @@ def test_events_report_segments_and_revisions(candidates, two_letters):
 
 
 def test_segment_tracker_moves_boundaries_on_revision():
-    from plugins.segmenter.online import SegmentTracker
+    from handflow.plugins.segmenter.online import SegmentTracker
 
     tr = SegmentTracker()
     for i, lab in enumerate([0, 0, 0, 0, 1, 1, 1]):
         tr.update(i, lab)
-    moved = tr.revise(2, 3, 1)          # the B segment really started at 2
+    moved = tr.revise(2, 3, 1)  # the B segment really started at 2
     assert [(e.kind, e.label, e.start, e.end) for e in moved] == [("end", 0, 0, 1), ("start", 1, 2, 2)]
     assert tr.current == (1, 2)
-    moved = tr.revise(4, 4, -1)         # a rejected point inside the B segment splits it
+    moved = tr.revise(4, 4, -1)  # a rejected point inside the B segment splits it
     assert [(e.kind, e.label, e.start, e.end) for e in moved] == [
-        ("end", 1, 2, 3), ("start", -1, 4, 4), ("end", -1, 4, 4), ("start", 1, 5, 5)]
+        ("end", 1, 2, 3),
+        ("start", -1, 4, 4),
+        ("end", -1, 4, 4),
+        ("start", 1, 5, 5),
+    ]
     assert tr.current == (1, 5)
 
 
@@ -80,13 +84,14 @@ def test_revisions_need_confirmation_and_are_mostly_right(candidates, two_letter
     proj = candidates.project(Y)
     counts = {}
     for confirm in (1, 5):
-        seg = OnlineCLMSegmenter(candidates, window=200, history=10, confirm=confirm, edge=0 if confirm == 1 else None,
-                                 random_state=0)
+        seg = OnlineCLMSegmenter(
+            candidates, window=200, history=10, confirm=confirm, edge=0 if confirm == 1 else None, random_state=0
+        )
         revs = [e for u in stream(seg, proj) for e in u.events if e.kind == "revision"]
         counts[confirm] = len(revs)
         if confirm == 5:
-            right = sum(int(np.sum(truth[e.start: e.end + 1] == e.label)) for e in revs)
-            wrong = sum(int(np.sum(truth[e.start: e.end + 1] == e.previous)) for e in revs)
+            right = sum(int(np.sum(truth[e.start : e.end + 1] == e.label)) for e in revs)
+            wrong = sum(int(np.sum(truth[e.start : e.end + 1] == e.previous)) for e in revs)
             assert right > 2 * wrong
             # every published label equals the current one unless its change is still unconfirmed
             assert np.mean(seg.published_labels == seg.window_labels) > 0.95

@@ -1,8 +1,8 @@
 import numpy as np
 import pytest
 
-from plugins.segmenter import CLMSegmenter, UKROnlyRecognizer
-from plugins.segmenter.candidates import training_direction
+from handflow.plugins.segmenter import CLMSegmenter, UKROnlyRecognizer
+from handflow.plugins.segmenter.candidates import training_direction
 
 
 def test_candidate_time_runs_forward_along_its_own_class(candidates, synthetic):
@@ -51,7 +51,7 @@ def test_clm_segments_two_concatenated_letters(candidates, two_letters):
 def test_strong_background_rejects_a_reversed_letter(candidates, synthetic):
     a = next(t.data for t in synthetic.test if t.label == "A")
     weak = CLMSegmenter(candidates, history=10, background_factor=1.0, random_state=0)
-    assert np.mean(weak.fit_predict(a) == 0) > 0.9          # the forward letter is accepted …
+    assert np.mean(weak.fit_predict(a) == 0) > 0.9  # the forward letter is accepted …
     strong = CLMSegmenter(candidates, history=10, background_factor=3.0, random_state=0)
     assert np.mean(strong.fit_predict(a[::-1]) == -1) > 0.9  # … its reversal is rejected
 
@@ -71,7 +71,7 @@ def test_nan_observations_get_a_clear_error(candidates, two_letters):
 
 
 def test_training_rejects_an_unknown_init(synthetic):
-    from plugins.segmenter import train_class_models
+    from handflow.plugins.segmenter import train_class_models
 
     with pytest.raises(ValueError, match="init must be one of"):
         train_class_models(synthetic, n_steps=0, init="tsne")

@@ -1,14 +1,14 @@
 """Ball scene: the open-loop motion really swaps the balls; scheduled pushes; the scene hook."""
+
 import numpy as np
 import pytest
 
-from framework.testing import NodeHarness
-from plugins.demo.ball_swap import BallSwapMotion, keyframes, run_open_loop_swaps
-from plugins.simulator.metrics import count_swaps
-from plugins.simulator.node import PybulletSimulatorNode
-from plugins.simulator.scenes import BallsScene, Scene
-from plugins.simulator.simulation import Simulation
-
+from handflow.framework.testing import NodeHarness
+from handflow.plugins.demo.ball_swap import BallSwapMotion, keyframes, run_open_loop_swaps
+from handflow.plugins.simulator.metrics import count_swaps
+from handflow.plugins.simulator.node import PybulletSimulatorNode
+from handflow.plugins.simulator.scenes import BallsScene, Scene
+from handflow.plugins.simulator.simulation import Simulation
 
 
 @pytest.mark.parametrize("seed", [0, 3])
@@ -76,8 +76,10 @@ def test_simulation_calls_the_scene_hook_before_every_step():
 
 
 def test_node_scene_options_schedule_pushes():
-    h = NodeHarness(PybulletSimulatorNode, {"hand": "gifu", "scene": "balls", "camera_hz": 0, "rate_hz": 20,
-                                            "scene_options": {"pushes": [[0.1, 0.2]]}}).setup()
+    h = NodeHarness(
+        PybulletSimulatorNode,
+        {"hand": "gifu", "scene": "balls", "camera_hz": 0, "rate_hz": 20, "scene_options": {"pushes": [[0.1, 0.2]]}},
+    ).setup()
     try:
         h.tick(5)
         scene = h.published["scene"][-1]
@@ -87,20 +89,22 @@ def test_node_scene_options_schedule_pushes():
 
 
 def test_a_turn_rotates_the_ball_pair_back_once_and_stops_the_balls():
-    from plugins.simulator.metrics import pair_rotation
+    from handflow.plugins.simulator.metrics import pair_rotation
+
     with Simulation("gifu", "balls", {"turns": [[0.5, 90.0]]}, seed=0) as sim:
         sim.step(119)
         before = sim.scene.palm_plane_positions(sim.client)
         centre = np.array(sim.scene.cup_centre)
-        sim.step(2)                                   # the step starting at t = 0.5 s turns the pair
+        sim.step(2)  # the step starting at t = 0.5 s turns the pair
         after = sim.scene.palm_plane_positions(sim.client)
         assert sim.scene_state()["turns_done"] == 1
         sim.step(240)
         assert sim.scene_state()["turns_done"] == 1
     turned = pair_rotation(np.array([before[0], after[0]]), np.array([before[1], after[1]]))[1]
-    assert turned == pytest.approx(np.pi / 2, abs=0.05)            # counter-clockwise = back
-    np.testing.assert_allclose(np.linalg.norm(after - centre, axis=1),
-                               np.linalg.norm(before - centre, axis=1), atol=2e-3)
+    assert turned == pytest.approx(np.pi / 2, abs=0.05)  # counter-clockwise = back
+    np.testing.assert_allclose(
+        np.linalg.norm(after - centre, axis=1), np.linalg.norm(before - centre, axis=1), atol=2e-3
+    )
 
 
 def test_bad_turns_are_rejected_with_the_expected_form():

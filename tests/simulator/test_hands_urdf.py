@@ -1,11 +1,12 @@
 """Generated URDFs: they load, carry the mapping table's names/limits, and realise the spec's thumb geometry."""
+
 import numpy as np
 import pybullet as p
 import pytest
 
-from plugins.mapping.hands import HAND_MODELS
-from plugins.simulator.simulation import Simulation
-from plugins.simulator.urdf import write_urdf
+from handflow.plugins.hands.joints import HAND_MODELS
+from handflow.plugins.simulator.simulation import Simulation
+from handflow.plugins.simulator.urdf import write_urdf
 
 
 @pytest.mark.parametrize("hand", sorted(HAND_MODELS))
@@ -13,7 +14,9 @@ def test_urdf_loads_with_table_names_and_limits(hand, tmp_path):
     client = p.connect(p.DIRECT)
     try:
         body = p.loadURDF(str(write_urdf(hand, tmp_path)), useFixedBase=True, physicsClientId=client)
-        info = [p.getJointInfo(body, i, physicsClientId=client) for i in range(p.getNumJoints(body, physicsClientId=client))]
+        info = [
+            p.getJointInfo(body, i, physicsClientId=client) for i in range(p.getNumJoints(body, physicsClientId=client))
+        ]
         joints = {i[1].decode(): (i[8], i[9]) for i in info if i[2] == p.JOINT_REVOLUTE}
         model = HAND_MODELS[hand]
         assert sorted(joints) == sorted(model.names)
@@ -32,13 +35,16 @@ def test_urdf_cache_is_keyed_on_content_so_changed_limits_regenerate(tmp_path, m
     """Changing a limit in the mapping table (e.g. th_abduction 20°…100°) must not reuse a stale URDF."""
     import dataclasses
 
-    from plugins.simulator import hand_geometry
+    from handflow.plugins.simulator import hand_geometry
+
     human = HAND_MODELS["human"]
     before = write_urdf("human", tmp_path)
     joints = tuple(dataclasses.replace(j, upper=j.upper - 0.1) if j.name == "th_abduction" else j for j in human.joints)
     monkeypatch.setitem(hand_geometry.HAND_MODELS, "human", dataclasses.replace(human, joints=joints))
     after = write_urdf("human", tmp_path)
-    assert after != before and f'upper="{human.joints[human.index("th_abduction")].upper - 0.1:.6f}"' in after.read_text()
+    assert (
+        after != before and f'upper="{human.joints[human.index("th_abduction")].upper - 0.1:.6f}"' in after.read_text()
+    )
 
 
 def _axis_z(sim, link):

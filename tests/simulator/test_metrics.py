@@ -1,8 +1,9 @@
-"""Swap counter on hand-made ball trajectories (plugins.simulator.metrics)."""
+"""Swap counter on hand-made ball trajectories (handflow.plugins.simulator.metrics)."""
+
 import numpy as np
 import pytest
 
-from plugins.simulator.metrics import count_swaps, pair_rotation, swap_progress, swap_times, swaps_per_minute
+from handflow.plugins.simulator.metrics import count_swaps, pair_rotation, swap_progress, swap_times, swaps_per_minute
 
 
 def _circling(angles, centre=(0.0, 0.07), radius=0.02):

@@ -1,16 +1,27 @@
 """The simulator.pybullet node driven by the in-process harness (lock-step virtual time)."""
+
 import pytest
 
-from framework.messages import JointState
-from framework.testing import NodeHarness
-from plugins.simulator.node import PybulletSimulatorNode
+from handflow.framework.messages import JointState
+from handflow.framework.testing import NodeHarness
+from handflow.plugins.simulator.node import PybulletSimulatorNode
 
 
 @pytest.fixture
 def harness():
-    h = NodeHarness(PybulletSimulatorNode, {"hand": "shadow", "scene": "cap", "scene_options": {"radius": 0.02},
-                                            "rate_hz": 60, "camera_hz": 20, "camera_width": 64, "camera_height": 48,
-                                            "hold_safe_after_s": 0.1})
+    h = NodeHarness(
+        PybulletSimulatorNode,
+        {
+            "hand": "shadow",
+            "scene": "cap",
+            "scene_options": {"radius": 0.02},
+            "rate_hz": 60,
+            "camera_hz": 20,
+            "camera_width": 64,
+            "camera_height": 48,
+            "hold_safe_after_s": 0.1,
+        },
+    )
     h.setup()
     yield h
     h.teardown()
@@ -37,7 +48,10 @@ def test_unknown_target_names_raise_a_clear_error(harness):
 def test_holds_the_last_command_when_targets_stop_and_resumes(harness):
     harness.send("targets", JointState(names=["FFJ3"], positions=[0.7]))
     harness.tick(3)
-    holding = lambda: harness.published["scene"][-1].data[harness.published["scene"][-1].names.index("holding")]
+
+    def holding():
+        return harness.published["scene"][-1].data[harness.published["scene"][-1].names.index("holding")]
+
     assert holding() == 0.0
     harness.tick(12)  # 0.2 s without targets
     assert holding() == 1.0

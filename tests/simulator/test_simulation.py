@@ -1,10 +1,11 @@
 """Physics behaviour of the plain Simulation: limits, couplings, collision correction, cap turning."""
+
 import numpy as np
 import pytest
 
-from plugins.demo.cap_turning import CapTurningDemonstrator
-from plugins.mapping.hands import GIFU, SHADOW
-from plugins.simulator.simulation import Simulation
+from handflow.plugins.demo.cap_turning import CapTurningDemonstrator
+from handflow.plugins.hands.joints import GIFU, SHADOW
+from handflow.plugins.simulator.simulation import Simulation
 
 FLEX = [f"{f}J{k}" for f in ("FF", "MF", "RF", "LF") for k in (3, 2, 1)]
 
@@ -103,8 +104,10 @@ def test_render_draws_the_scene_at_the_requested_size():
     assert img.std() > 10  # not a blank frame
 
 
-@pytest.mark.parametrize("scene, opts, key", [("grasp", {"object": "cylinder", "position": [0.01, 0.0]}, "object_z"),
-                                              ("balls", {}, "ball2_z")])
+@pytest.mark.parametrize(
+    "scene, opts, key",
+    [("grasp", {"object": "cylinder", "position": [0.01, 0.0]}, "object_z"), ("balls", {}, "ball2_z")],
+)
 def test_scene_state_reports_object_poses(scene, opts, key):
     with Simulation("gifu" if scene == "balls" else "shadow", scene, opts) as sim:
         sim.step(60)

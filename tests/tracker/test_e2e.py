@@ -1,11 +1,12 @@
 """simulator.pybullet → tracker.color_blobs through the real runtime (Zenoh, one process per node)."""
+
 import subprocess
 import sys
 from collections import Counter
 
 import pytest
 
-from framework.recording import read_messages
+from handflow.framework.recording import read_messages
 
 GRAPH = """name: sim_e2e
 nodes:
@@ -23,8 +24,12 @@ def test_simulated_camera_feeds_the_tracker(tmp_path):
     graph = tmp_path / "balls.yaml"
     graph.write_text(GRAPH)
     rec = tmp_path / "rec.mcap"
-    proc = subprocess.run([sys.executable, "-m", "framework.cli", "run", str(graph), "--duration", "4",
-                           "--record", str(rec)], capture_output=True, text=True, timeout=120)
+    proc = subprocess.run(
+        [sys.executable, "-m", "handflow.framework.cli", "run", str(graph), "--duration", "4", "--record", str(rec)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert proc.returncode == 0, proc.stderr[-2000:]
     counts, balls = Counter(), []
     for topic, msg, _ in read_messages(rec):

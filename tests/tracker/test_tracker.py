@@ -1,13 +1,14 @@
 """Colour-blob tracker on images rendered by the simulator, against projected ground truth."""
+
 import numpy as np
 import pybullet as p
 import pytest
 
-from framework.messages import Image
-from framework.testing import NodeHarness
-from plugins.simulator.simulation import Simulation
-from plugins.tracker.blobs import BallTracker, normalise_points
-from plugins.tracker.node import ColorBlobTrackerNode
+from handflow.framework.messages import Image
+from handflow.framework.testing import NodeHarness
+from handflow.plugins.simulator.simulation import Simulation
+from handflow.plugins.tracker.blobs import BallTracker, normalise_points
+from handflow.plugins.tracker.node import ColorBlobTrackerNode
 
 ERROR_BOUND = 0.02
 """Documented accuracy bound (normalised units; marks are 2 apart) for unoccluded balls at 320×240."""

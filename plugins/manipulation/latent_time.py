@@ -4,6 +4,7 @@ A periodic time axis (learned manifolds, period π) wraps smoothly; a constructe
 two ends, so the time jumps back to the start when it passes the end (the visible jerk of the
 thesis, 5.2.1).  Every pass over the end counts one motion cycle.
 """
+
 from __future__ import annotations
 
 import numpy as np

@@ -20,11 +20,12 @@ Documented choices (both swappable through the constructor):
   postures there are extrapolated linearly (``ManipulationManifold.posture(extrapolate=True)``);
   ``overshoot=0`` stops at the border (the thesis' manifold has no postures beyond it).
 """
+
 from __future__ import annotations
 
 import numpy as np
 
-from plugins.mapping.hands import HAND_MODELS
+from handflow.plugins.hands.joints import HAND_MODELS
 
 from .latent_time import LatentClock
 from .manifold_file import ManipulationManifold
@@ -35,8 +36,10 @@ APPROACH, CLOSING, TURNING = "approach", "closing", "turning"
 def _other_dim(manifold: ManipulationManifold) -> int:
     dims = [d for d in range(manifold.q) if d != manifold.time_dim]
     if len(dims) != 1:
-        raise ValueError(f"feedback-initialised control needs a 2D (time, radius) manifold; this "
-                         f"one has latent dimensions {manifold.latent_names}")
+        raise ValueError(
+            f"feedback-initialised control needs a 2D (time, radius) manifold; this "
+            f"one has latent dimensions {manifold.latent_names}"
+        )
     return dims[0]
 
 
@@ -61,8 +64,7 @@ def open_side(manifold: ManipulationManifold, n_grid: int = 64) -> float:
     return manifold.range(r)[int(np.argmin(means))]
 
 
-def closure_time(manifold: ManipulationManifold, radius: float, fraction: float = 0.9,
-                 n_grid: int = 200) -> float:
+def closure_time(manifold: ManipulationManifold, radius: float, fraction: float = 0.9, n_grid: int = 200) -> float:
     """Latent time in the middle of the closed phase at latent ``radius``: the centre of the
     contiguous time interval around the maximal closure where the closure stays at least
     ``fraction`` of its maximum."""
@@ -73,7 +75,7 @@ def closure_time(manifold: ManipulationManifold, radius: float, fraction: float 
     flex = flexion(manifold, X)
     peak = int(np.argmax(flex))
     high = flex >= fraction * flex[peak]
-    lo = peak - int(np.argmin(high[peak::-1])) + 1 if not high[:peak + 1].all() else 0
+    lo = peak - int(np.argmin(high[peak::-1])) + 1 if not high[: peak + 1].all() else 0
     hi = peak + int(np.argmin(high[peak:])) - 1 if not high[peak:].all() else n_grid - 1
     return float(X[(lo + hi) // 2, t])
 
@@ -90,10 +92,17 @@ class GraspByNavigation:
     ``grasp_complete`` stays False.
     """
 
-    def __init__(self, manifold: ManipulationManifold, delta: float, radius_step: float,
-                 required=("TH", "FF", "MF"), approach_steps: int = 30,
-                 contact_time: float | None = None, start_radius: float | None = None,
-                 overshoot: float = 0.25) -> None:
+    def __init__(
+        self,
+        manifold: ManipulationManifold,
+        delta: float,
+        radius_step: float,
+        required=("TH", "FF", "MF"),
+        approach_steps: int = 30,
+        contact_time: float | None = None,
+        start_radius: float | None = None,
+        overshoot: float = 0.25,
+    ) -> None:
         self.manifold = manifold
         self.t_dim, self.r_dim = manifold.time_dim, _other_dim(manifold)
         self.delta = float(delta) * manifold.time_sign
@@ -102,8 +111,7 @@ class GraspByNavigation:
         r0 = open_side(manifold) if start_radius is None else float(start_radius)
         if not overshoot >= 0:
             raise ValueError(f"overshoot must be >= 0, got {overshoot}")
-        self.r_end = lo - overshoot * (hi - lo) if abs(r0 - hi) <= abs(r0 - lo) \
-            else hi + overshoot * (hi - lo)
+        self.r_end = lo - overshoot * (hi - lo) if abs(r0 - hi) <= abs(r0 - lo) else hi + overshoot * (hi - lo)
         self.radius_step = abs(float(radius_step)) * np.sign(self.r_end - r0)
         t0 = closure_time(manifold, r0) if contact_time is None else float(contact_time)
         self.clock = LatentClock(*manifold.range(self.t_dim), manifold.periodic, start=t0)
@@ -150,8 +158,7 @@ class GraspByNavigation:
 
 def touching_fingers(contacts, fingers=("TH", "FF", "MF"), body: str = "cap") -> set[str]:
     """Which of ``fingers`` (segment-name prefixes) touch ``body`` in a Contacts message."""
-    return {f for f in fingers for seg, b in zip(contacts.segments, contacts.bodies)
-            if b == body and seg.startswith(f)}
+    return {f for f in fingers for seg, b in zip(contacts.segments, contacts.bodies) if b == body and seg.startswith(f)}
 
 
 def latent_from_grasp(manifold: ManipulationManifold, joints: dict[str, float]) -> np.ndarray:

@@ -23,6 +23,7 @@ inside of the hand*:
 Coupling: ShadowHand-like J1/J2 of FF/MF/RF/LF are coupled in the robot (distal follows middle);
 Gifu-like DIP equals PIP.  ``HandModel.coupled`` maps the coupled joint to its driver.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field

@@ -6,10 +6,10 @@
   k-step plan (5.6.3);
 - :class:`~.manifold_file.ManipulationManifold` — a UKR model with named observation dimensions.
 """
+
 from .closed_loop import ClosedLoopController
 from .feedback_init import GraspByNavigation
 from .manifold_file import BALL_NAMES, ManipulationManifold
 from .open_loop import OpenLoopController
 
-__all__ = ["BALL_NAMES", "ClosedLoopController", "GraspByNavigation", "ManipulationManifold",
-           "OpenLoopController"]
+__all__ = ["BALL_NAMES", "ClosedLoopController", "GraspByNavigation", "ManipulationManifold", "OpenLoopController"]

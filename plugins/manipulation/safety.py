@@ -4,12 +4,13 @@ Documented choice: "open" = every joint of the hand model at 0 rad (extended fin
 thumb and wrist), clipped to the joint limits; ``overrides`` (joint name → rad) change single
 joints, e.g. a wider thumb.
 """
+
 from __future__ import annotations
 
 import numpy as np
 
-from framework.messages import JointState
-from plugins.mapping.hands import HAND_MODELS
+from handflow.framework.messages import JointState
+from handflow.plugins.hands.joints import HAND_MODELS
 
 
 def open_hand(hand: str, overrides: dict[str, float] | None = None) -> JointState:

@@ -1,6 +1,6 @@
 """Headless evaluation of the manipulation controllers (issue 6 "Measure"; production.md §4).
 
-The plain controller classes drive the plain :class:`~plugins.simulator.simulation.Simulation`
+The plain controller classes drive the plain :class:`~handflow.plugins.simulator.simulation.Simulation`
 (no Zenoh): a control step every ``physics_hz / control_hz`` physics steps.
 
 - Cap turning: :class:`GraspByNavigation` per cap radius; cap rotation per motion cycle (deg,
@@ -12,13 +12,14 @@ The plain controller classes drive the plain :class:`~plugins.simulator.simulati
   Observations come from the camera + colour-blob tracker (``camera=True``) or, documented
   choice for ``--quick``, from the ideal tracker (:func:`ideal_balls`: ground-truth positions
   projected with the same camera and normalised to the marks).  Swaps are counted on the
-  ground-truth palm-plane positions with :mod:`plugins.simulator.metrics` (net half-turns of the
+  ground-truth palm-plane positions with :mod:`handflow.plugins.simulator.metrics` (net half-turns of the
   ball pair).  **Recovery** (documented definition, :func:`recoveries`): a disturbance at ``t``
   is recovered when, within ``recovery_within_s`` (10 s) after it, there is a window of
   ``recovery_window_s`` (4 s) in which the pair progresses at least ``recovery_fraction`` (50 %)
   of the same controller's calm swap rate.
 - Control-loop latency: observation → command through :class:`~.nodes.ClosedLoopNode` code.
 """
+
 from __future__ import annotations
 
 import time
@@ -26,11 +27,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from framework.messages import Points2D
-from framework.testing import NodeHarness
-from plugins.simulator.metrics import swap_progress, swaps_per_minute
-from plugins.simulator.simulation import Simulation
-from plugins.tracker.blobs import BallTracker, normalise_points
+from handflow.framework.messages import Points2D
+from handflow.framework.testing import NodeHarness
+from handflow.plugins.simulator.metrics import swap_progress, swaps_per_minute
+from handflow.plugins.simulator.simulation import Simulation
+from handflow.plugins.tracker.blobs import BallTracker, normalise_points
 
 from .closed_loop import ClosedLoopController
 from .feedback_init import TURNING, GraspByNavigation, touching_fingers
@@ -56,8 +57,9 @@ class CapSettings:
     max_closing_s: float = 10.0
 
 
-def cap_turning(manifold: ManipulationManifold, radius_cm: float, settings: CapSettings = CapSettings(),
-                seed: int = 0) -> dict:
+def cap_turning(
+    manifold: ManipulationManifold, radius_cm: float, settings: CapSettings = CapSettings(), seed: int = 0
+) -> dict:
     """Grasp by navigation then turn ``settings.cycles`` cycles; returns deg_per_cycle and
     found_radius (the frozen latent radius: cm on a constructed manifold, latent units on a
     learned one)."""
@@ -66,11 +68,14 @@ def cap_turning(manifold: ManipulationManifold, radius_cm: float, settings: CapS
     delta = (hi - lo) / (settings.cycle_s * settings.control_hz)
     per_control = int(round(settings.physics_hz / settings.control_hz))
     r_lo, r_hi = manifold.range(1 - t_dim)
-    ctl = GraspByNavigation(manifold, delta, settings.radius_step_fraction * (r_hi - r_lo),
-                            approach_steps=int(settings.approach_s * settings.control_hz))
+    ctl = GraspByNavigation(
+        manifold,
+        delta,
+        settings.radius_step_fraction * (r_hi - r_lo),
+        approach_steps=int(settings.approach_s * settings.control_hz),
+    )
     turning_steps = int(round(settings.cycles * (hi - lo) / delta))
-    with Simulation("shadow", "cap", {"radius": radius_cm / 100.0}, seed=seed,
-                    physics_hz=settings.physics_hz) as sim:
+    with Simulation("shadow", "cap", {"radius": radius_cm / 100.0}, seed=seed, physics_hz=settings.physics_hz) as sim:
         max_grasp = int((settings.approach_s + settings.max_closing_s) * settings.control_hz)
         for _ in range(max_grasp):
             x = ctl.update(touching_fingers(sim.contacts()))
@@ -84,8 +89,11 @@ def cap_turning(manifold: ManipulationManifold, radius_cm: float, settings: CapS
             sim.set_targets(manifold.joint_names, ctl.posture(x))
             sim.step(per_control)
         turned = sim.scene_state()["cap_angle"] - start
-    return {"deg_per_cycle": float(np.degrees(turned) / settings.cycles),
-            "found_radius": float(ctl.radius), "grasp_complete": bool(ctl.grasp_complete)}
+    return {
+        "deg_per_cycle": float(np.degrees(turned) / settings.cycles),
+        "found_radius": float(ctl.radius),
+        "grasp_complete": bool(ctl.grasp_complete),
+    }
 
 
 # -- ball swapping -----------------------------------------------------------------------------
@@ -126,20 +134,21 @@ class BallSettings:
 
 def ball_swap(manifold: ManipulationManifold, closed_loop: bool, settings: BallSettings) -> dict:
     """One run; returns swaps_per_min, times (s) and swap progress (signed swaps, see
-    :func:`plugins.simulator.metrics.swap_progress`) per control step."""
+    :func:`handflow.plugins.simulator.metrics.swap_progress`) per control step."""
     t_lo, t_hi = manifold.range(manifold.time_dim)
     delta = (t_hi - t_lo) / (settings.period_s * settings.control_hz)
     per_control = int(round(settings.physics_hz / settings.control_hz))
     per_camera = max(int(round(settings.control_hz / settings.camera_hz)), 1)
     tracker = BallTracker()
-    options = {"pushes": [[t, settings.push_speed] for t in settings.push_times_s],
-               "turns": [[t, settings.turn_deg] for t in settings.turn_times_s]}
-    with Simulation("gifu", "balls", options, seed=settings.seed,
-                    physics_hz=settings.physics_hz) as sim:
+    options = {
+        "pushes": [[t, settings.push_speed] for t in settings.push_times_s],
+        "turns": [[t, settings.turn_deg] for t in settings.turn_times_s],
+    }
+    with Simulation("gifu", "balls", options, seed=settings.seed, physics_hz=settings.physics_hz) as sim:
         open_ctl = OpenLoopController(manifold, [t_lo], delta)
-        closed = ClosedLoopController(manifold, settings.k, delta, settings.mask,
-                                      settings.tolerance, settings.lag,
-                                      settings.max_error)
+        closed = ClosedLoopController(
+            manifold, settings.k, delta, settings.mask, settings.tolerance, settings.lag, settings.max_error
+        )
         plan: list = []
         last = None
         positions, times = [], []
@@ -163,12 +172,23 @@ def ball_swap(manifold: ManipulationManifold, closed_loop: bool, settings: BallS
             positions.append(sim.scene.palm_plane_positions(sim.client))
             times.append(sim.time)
     P, times = np.asarray(positions), np.asarray(times)
-    return {"swaps_per_min": swaps_per_minute(times, P[:, 0], P[:, 1]), "times": times,
-            "progress": swap_progress(P[:, 0], P[:, 1])}
+    return {
+        "swaps_per_min": swaps_per_minute(times, P[:, 0], P[:, 1]),
+        "times": times,
+        "progress": swap_progress(P[:, 0], P[:, 1]),
+    }
 
 
-def recoveries(times, progress, disturbances_s, calm_swaps_per_min: float, within_s: float = 10.0,
-               window_s: float = 4.0, fraction: float = 0.5, direction: float = 1.0) -> int:
+def recoveries(
+    times,
+    progress,
+    disturbances_s,
+    calm_swaps_per_min: float,
+    within_s: float = 10.0,
+    window_s: float = 4.0,
+    fraction: float = 0.5,
+    direction: float = 1.0,
+) -> int:
     """How many disturbances were recovered: within ``within_s`` after the disturbance some
     ``window_s`` window shows swap progress (in ``direction``, ±1) of at least ``fraction`` of the
     calm rate.  A calm rate of 0 (a controller that never swaps) recovers nothing."""
@@ -215,17 +235,15 @@ class EvalPlan:
     disturb_every_s: float = 15.0
 
     @classmethod
-    def quick(cls) -> "EvalPlan":
-        return cls(cap=CapSettings(cycles=1),
-                   balls=BallSettings(duration_s=30.0, camera=False), disturb_every_s=12.0)
+    def quick(cls) -> EvalPlan:
+        return cls(cap=CapSettings(cycles=1), balls=BallSettings(duration_s=30.0, camera=False), disturb_every_s=12.0)
 
     def disturbances(self) -> tuple[float, ...]:
         end = self.balls.duration_s - 1e-9
         return tuple(np.arange(self.first_disturbance_s, end, self.disturb_every_s).tolist())
 
 
-BALL_CONTROLLERS = {"open_loop": (False, None), "closed_loop": (True, None),
-                    "closed_loop_thesis": (True, 0.0)}
+BALL_CONTROLLERS = {"open_loop": (False, None), "closed_loop": (True, None), "closed_loop_thesis": (True, 0.0)}
 """Evaluation name → (closed loop?, tolerance override: None = the plan's, 0 = pure projection)."""
 
 
@@ -235,34 +253,44 @@ def ball_swap_report(manifold: ManipulationManifold, plan: EvalPlan, progress=la
     times = plan.disturbances()
     out = {}
     for name, (closed, tolerance) in BALL_CONTROLLERS.items():
-        base = BallSettings(**{**plan.balls.__dict__,
-                               "tolerance": plan.balls.tolerance if tolerance is None else tolerance})
+        base = BallSettings(
+            **{**plan.balls.__dict__, "tolerance": plan.balls.tolerance if tolerance is None else tolerance}
+        )
         calm = ball_swap(manifold, closed, base)
         direction = 1.0 if calm["progress"][-1] >= 0 else -1.0
         row = {"swaps_per_min": calm["swaps_per_min"]}
         for key, field_name in (("", "turn_times_s"), ("_pushed", "push_times_s")):
             run = ball_swap(manifold, closed, BallSettings(**{**base.__dict__, field_name: times}))
             row[f"swaps_per_min_disturbed{key}"] = run["swaps_per_min"]
-            row[f"recoveries{key}"] = recoveries(run["times"], run["progress"], times,
-                                                 calm["swaps_per_min"], direction=direction)
+            row[f"recoveries{key}"] = recoveries(
+                run["times"], run["progress"], times, calm["swaps_per_min"], direction=direction
+            )
         row["disturbances"] = len(times)
         out[name] = row
         progress(f"ball swap {name}: {row}")
     return out
 
 
-def evaluate(constructed: ManipulationManifold, learned: ManipulationManifold,
-             balls: ManipulationManifold, plan: EvalPlan, ball_path,
-             progress=lambda line: None) -> dict:
+def evaluate(
+    constructed: ManipulationManifold,
+    learned: ManipulationManifold,
+    balls: ManipulationManifold,
+    plan: EvalPlan,
+    ball_path,
+    progress=lambda line: None,
+) -> dict:
     """The JSON of ``handflow evaluate manipulation``."""
     cap = {}
     for key, manifold in (("cap_turning", constructed), ("cap_turning_learned", learned)):
         cap[key] = {}
         for r in sorted(plan.radii_cm):
             res = cap[key][f"{r:g}"] = cap_turning(manifold, r, plan.cap)
-            progress(f"{key} r={r:g} cm: {res['deg_per_cycle']:.1f} deg/cycle, found radius "
-                     f"{res['found_radius']:.2f}")
+            progress(f"{key} r={r:g} cm: {res['deg_per_cycle']:.1f} deg/cycle, found radius {res['found_radius']:.2f}")
     report = learned.model.provenance_
-    return {**cap, "ball_swap": ball_swap_report(balls, plan, progress),
-            "radius_spearman": report.get("spearman"), "radius_separation": report.get("separation"),
-            "loop_latency_ms": loop_latency_ms(ball_path, k=plan.balls.k)}
+    return {
+        **cap,
+        "ball_swap": ball_swap_report(balls, plan, progress),
+        "radius_spearman": report.get("spearman"),
+        "radius_separation": report.get("separation"),
+        "loop_latency_ms": loop_latency_ms(ball_path, k=plan.balls.k),
+    }

@@ -6,6 +6,7 @@ Stored inside the UKR model file's provenance under the key ``manipulation`` (no
 nothing executable).  Observation names are joint names of the hand model and, for the
 ball-swapping manifold, :data:`BALL_NAMES`.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -13,10 +14,9 @@ from pathlib import Path
 
 import numpy as np
 
-from plugins.mapping.hands import HAND_MODELS
-
-from ..model import StructuredUKR
-from ..validation import InvalidInputError, parse_latent
+from handflow.plugins.hands.joints import HAND_MODELS
+from handflow.plugins.manifold.model import StructuredUKR
+from handflow.plugins.manifold.validation import InvalidInputError, parse_latent
 
 BALL_NAMES = ("p1_x", "p1_y", "p2_x", "p2_y")
 """Observation names of the two normalised ball positions (p1, p2) of the ball-swap manifold."""
@@ -36,13 +36,16 @@ class ManipulationManifold:
         if self.hand not in HAND_MODELS:
             raise InvalidInputError(f"unknown hand {self.hand!r}; use one of {', '.join(HAND_MODELS)}")
         if len(self.names) != self.model.n_features_in_:
-            raise InvalidInputError(f"{len(self.names)} observation names for a model with "
-                                    f"{self.model.n_features_in_} dimensions")
+            raise InvalidInputError(
+                f"{len(self.names)} observation names for a model with {self.model.n_features_in_} dimensions"
+            )
         hand_joints = set(HAND_MODELS[self.hand].names)
         unknown = [n for n in self.names if n not in hand_joints and n not in BALL_NAMES]
         if unknown:
-            raise InvalidInputError(f"observation names {unknown} are neither joints of hand "
-                                    f"'{self.hand}' nor ball coordinates {BALL_NAMES}")
+            raise InvalidInputError(
+                f"observation names {unknown} are neither joints of hand "
+                f"'{self.hand}' nor ball coordinates {BALL_NAMES}"
+            )
         self.joint_index = np.array([i for i, n in enumerate(self.names) if n in hand_joints])
         self.joint_names = [self.names[i] for i in self.joint_index]
         self.ball_index = np.array([self.names.index(n) for n in BALL_NAMES if n in self.names])
@@ -128,31 +131,37 @@ class ManipulationManifold:
                 y[self.names.index(name)] = value
                 mask[self.names.index(name)] = 1.0
         if not mask.any():
-            raise InvalidInputError(f"none of the posture's joints {sorted(joints)} is a "
-                                    f"dimension of this manifold ({', '.join(self.joint_names)})")
+            raise InvalidInputError(
+                f"none of the posture's joints {sorted(joints)} is a "
+                f"dimension of this manifold ({', '.join(self.joint_names)})"
+            )
         return self.model.transform(y, mask)
 
     # -- persistence -----------------------------------------------------------------------------
     def save(self, path, provenance: dict | None = None) -> None:
-        meta = {"names": list(self.names), "hand": self.hand,
-                "latent_names": list(self.latent_names), "kind": self.kind}
+        meta = {
+            "names": list(self.names),
+            "hand": self.hand,
+            "latent_names": list(self.latent_names),
+            "kind": self.kind,
+        }
         self.model.save(path, provenance={**(provenance or {}), "manipulation": meta})
 
     @classmethod
-    def load(cls, path) -> "ManipulationManifold":
+    def load(cls, path) -> ManipulationManifold:
         """Read a manifold written by :meth:`save`; a plain UKR file gets a clear error."""
         path = Path(path)
         if not path.is_file():
-            raise InvalidInputError(f"manifold file {path} not found; train it first (see "
-                                    f"docs/manipulation.md)")
+            raise InvalidInputError(f"manifold file {path} not found; train it first (see docs/manipulation.md)")
         try:
             model = StructuredUKR.load(path)
         except ValueError as exc:
             raise InvalidInputError(str(exc)) from None
         meta = (model.provenance_ or {}).get("manipulation")
         if not isinstance(meta, dict):
-            raise InvalidInputError(f"{path} is a UKR model without manipulation metadata "
-                                    f"(observation names, hand); build it with "
-                                    f"`handflow train configs/train/cap_*.yaml`")
-        return cls(model, list(meta["names"]), meta["hand"], list(meta["latent_names"]),
-                   meta["kind"])
+            raise InvalidInputError(
+                f"{path} is a UKR model without manipulation metadata "
+                f"(observation names, hand); build it with "
+                f"`handflow train configs/train/cap_*.yaml`"
+            )
+        return cls(model, list(meta["names"]), meta["hand"], list(meta["latent_names"]), meta["kind"])

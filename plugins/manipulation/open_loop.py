@@ -4,6 +4,7 @@ The sequence parameters (e.g. the radius) are fixed; the latent time advances by
 control step in the demonstrations' direction (:attr:`ManipulationManifold.time_sign`); the
 command is the joint part of ``f(x)``.  Speed = ``delta``.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -18,8 +19,9 @@ class OpenLoopController:
     def __init__(self, manifold: ManipulationManifold, latent, delta: float) -> None:
         x = np.asarray(latent, dtype=float).reshape(-1)
         if x.shape != (manifold.q,):
-            raise ValueError(f"latent start must have {manifold.q} coordinates "
-                             f"({', '.join(manifold.latent_names)}), got {x.size}")
+            raise ValueError(
+                f"latent start must have {manifold.q} coordinates ({', '.join(manifold.latent_names)}), got {x.size}"
+            )
         self.manifold = manifold
         self.delta = float(delta) * manifold.time_sign
         t = manifold.time_dim

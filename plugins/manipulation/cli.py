@@ -7,6 +7,7 @@ training configs ``configs/train/cap_construction.yaml``, ``cap_learning.yaml`` 
 ``ball_swap.yaml`` are run (again whenever a recording is newer than its cached manifold).
 Exit codes: 0 ok, 2 bad input, 1 failure.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -14,17 +15,20 @@ import json
 import sys
 from pathlib import Path
 
-from ..validation import InvalidInputError
+from handflow.framework.resources import shipped
+from handflow.plugins.manifold.validation import InvalidInputError
+
 from .evaluation import EvalPlan, evaluate
 from .manifold_file import ManipulationManifold
 from .training import load_config, train_manifold
 
-REPO = Path(__file__).resolve().parents[3]
-TRAIN_CONFIGS = REPO / "configs" / "train"
-CONFIGS_MODELS = REPO / "configs" / "models"
-MODELS = {"constructed": ("cap_construction.yaml", "cap_constructed.npz"),
-          "learned": ("cap_learning.yaml", "cap_learned.npz"),
-          "balls": ("ball_swap.yaml", "ball_swap.npz")}
+TRAIN_CONFIGS = shipped("train")
+CONFIGS_MODELS = shipped("models")
+MODELS = {
+    "constructed": ("cap_construction.yaml", "cap_constructed.npz"),
+    "learned": ("cap_learning.yaml", "cap_learned.npz"),
+    "balls": ("ball_swap.yaml", "ball_swap.npz"),
+}
 """Manifold name → (training config, cached model file)."""
 
 
@@ -35,7 +39,8 @@ def _say(line: str) -> None:
 def _record_if_missing(demo: Path, say) -> None:
     if demo.is_file():
         return
-    from plugins.demo.demonstrations import record_balls, record_cap
+    from handflow.plugins.demo.demonstrations import record_balls, record_cap
+
     say(f"recording demonstrations into {demo} …")
     demo.parent.mkdir(parents=True, exist_ok=True)
     (record_balls if "ball" in demo.name else record_cap)(demo, progress=say)
@@ -57,25 +62,30 @@ def ensure_manifold(name: str, models_dir: Path, say=_say) -> Path:
 
     def progress(*a):
         step, value = a[-2], a[-1]
-        if len(a) == 4 and step == steps:       # construction: one line per sequence
+        if len(a) == 4 and step == steps:  # construction: one line per sequence
             say(f"  radius {a[0]:g} cm, sequence {a[1] + 1}: objective {value:.5g}")
         elif len(a) == 2 and step % every == 0:
             say(f"  step {step}/{steps}  objective {value:.5g}")
+
     manifold, info = train_manifold(cfg, callback=progress)
     models_dir.mkdir(parents=True, exist_ok=True)
-    manifold.save(path, provenance={"config": str(TRAIN_CONFIGS / config), "mode": cfg.mode,
-                                    "demo": str(cfg.data.demo), **info})
+    manifold.save(
+        path, provenance={"config": str(TRAIN_CONFIGS / config), "mode": cfg.mode, "demo": str(cfg.data.demo), **info}
+    )
     return path
 
 
 def register_evaluate(parser: argparse.ArgumentParser) -> None:
     """Entry point ``evaluate.manipulation`` of group ``handflow.commands``."""
-    parser.description = ("Evaluate the manipulation controllers headless: cap turning per radius, "
-                          "ball swapping open vs closed loop, control-loop latency.")
+    parser.description = (
+        "Evaluate the manipulation controllers headless: cap turning per radius, "
+        "ball swapping open vs closed loop, control-loop latency."
+    )
     parser.add_argument("--quick", action="store_true", help="reduced run (< 2 min), same keys")
     parser.add_argument("--json", action="store_true", help="print the results as JSON on stdout")
-    parser.add_argument("--models", type=Path, default=CONFIGS_MODELS,
-                        help="folder of cached manifolds (built on first use)")
+    parser.add_argument(
+        "--models", type=Path, default=CONFIGS_MODELS, help="folder of cached manifolds (built on first use)"
+    )
     parser.set_defaults(func=run_evaluate)
 
 
@@ -88,9 +98,10 @@ def run_evaluate(args: argparse.Namespace) -> int:
         return 2
     plan = EvalPlan.quick() if args.quick else EvalPlan()
     try:
-        result = evaluate(manifolds["constructed"], manifolds["learned"], manifolds["balls"], plan,
-                          paths["balls"], progress=_say)
-    except Exception as exc:   # noqa: BLE001 - a failing scenario is a runtime failure (exit 1)
+        result = evaluate(
+            manifolds["constructed"], manifolds["learned"], manifolds["balls"], plan, paths["balls"], progress=_say
+        )
+    except Exception as exc:
         print(f"handflow evaluate manipulation: failed: {type(exc).__name__}: {exc}", file=sys.stderr)
         return 1
     if args.json:
@@ -102,18 +113,20 @@ def run_evaluate(args: argparse.Namespace) -> int:
 
 def _print_table(result: dict) -> None:
     print("cap turning (feedback-initialised): constructed manifold | learned manifold")
-    print(f"  {'radius cm':>9}  {'deg/cycle':>9}  {'found cm':>8} | {'deg/cycle':>9}  "
-          f"{'found latent':>12}")
+    print(f"  {'radius cm':>9}  {'deg/cycle':>9}  {'found cm':>8} | {'deg/cycle':>9}  {'found latent':>12}")
     for r, v in result["cap_turning"].items():
         w = result["cap_turning_learned"][r]
-        print(f"  {r:>9}  {v['deg_per_cycle']:9.1f}  {v['found_radius']:8.2f} | "
-              f"{w['deg_per_cycle']:9.1f}  {w['found_radius']:12.2f}")
+        print(
+            f"  {r:>9}  {v['deg_per_cycle']:9.1f}  {v['found_radius']:8.2f} | "
+            f"{w['deg_per_cycle']:9.1f}  {w['found_radius']:12.2f}"
+        )
     print("ball swapping (swaps/min; recoveries of the turn-backs | of the pushes)")
     for name, v in result["ball_swap"].items():
-        print(f"  {name:<18} calm {v['swaps_per_min']:6.2f}  turned back "
-              f"{v['swaps_per_min_disturbed']:6.2f}  pushed {v['swaps_per_min_disturbed_pushed']:6.2f}"
-              f"  recoveries {v['recoveries']}/{v['disturbances']} | "
-              f"{v['recoveries_pushed']}/{v['disturbances']}")
-    print(f"learned radius: Spearman {result['radius_spearman']}, separation "
-          f"{result['radius_separation']}")
+        print(
+            f"  {name:<18} calm {v['swaps_per_min']:6.2f}  turned back "
+            f"{v['swaps_per_min_disturbed']:6.2f}  pushed {v['swaps_per_min_disturbed_pushed']:6.2f}"
+            f"  recoveries {v['recoveries']}/{v['disturbances']} | "
+            f"{v['recoveries_pushed']}/{v['disturbances']}"
+        )
+    print(f"learned radius: Spearman {result['radius_spearman']}, separation {result['radius_separation']}")
     print(f"control-loop latency ms (median, p99): {result['loop_latency_ms']}")

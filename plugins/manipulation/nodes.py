@@ -10,14 +10,15 @@ Fail-safe (declared): when the controller's observations go stale (nothing on it
 blind, until observations resume; at shutdown the runtime publishes :meth:`safe_output` (the
 open hand).  The open-loop controller has no observations, so only the shutdown case applies.
 """
+
 from __future__ import annotations
 
 from typing import Literal, Optional
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from framework.messages import Contacts, JointState, LatentState, Points2D
-from framework.plugin import Node
+from handflow.framework.messages import Contacts, JointState, LatentState, Points2D
+from handflow.framework.plugin import Node
 
 from .closed_loop import MASKS, ClosedLoopController
 from .feedback_init import GraspByNavigation, latent_from_grasp, touching_fingers
@@ -31,8 +32,9 @@ class _ControllerParams(BaseModel):
     manifold: str = Field(description="manifold file (.npz, from `handflow train`), relative to the graph")
     rate_hz: float = Field(30.0, gt=0, description="control rate (one command per tick)")
     delta: float = Field(0.02, gt=0, description="latent time step per control tick (speed)")
-    safe_posture: dict[str, float] = Field(default_factory=dict,
-                                           description="joint overrides of the open-hand fail-safe posture")
+    safe_posture: dict[str, float] = Field(
+        default_factory=dict, description="joint overrides of the open-hand fail-safe posture"
+    )
 
 
 class _ManifoldController(Node):
@@ -47,13 +49,13 @@ class _ManifoldController(Node):
         self.stale = False
 
     def safe_output(self):
-        return {"targets": open_hand(self.manifold.hand, self.params.safe_posture)} \
-            if hasattr(self, "manifold") else {}
+        return {"targets": open_hand(self.manifold.hand, self.params.safe_posture)} if hasattr(self, "manifold") else {}
 
     def publish_command(self, x, joints, error: float = 0.0) -> None:
         self.last_x = x
-        self.ctx.publish("targets", JointState(names=self.manifold.joint_names, positions=joints,
-                                               hand=self.manifold.hand))
+        self.ctx.publish(
+            "targets", JointState(names=self.manifold.joint_names, positions=joints, hand=self.manifold.hand)
+        )
         self.ctx.publish("latent", LatentState(manifold=self.manifold.kind, coords=x, error=error))
 
     def input_seen(self) -> None:
@@ -66,25 +68,29 @@ class _ManifoldController(Node):
         """True (and the open hand published) when observations are older than ``stale_after_s``."""
         now = self.ctx.now_ns()
         if self.last_input_ns is None:
-            self.last_input_ns = now          # the grace period starts with the first tick
+            self.last_input_ns = now  # the grace period starts with the first tick
         if now - self.last_input_ns <= self.params.stale_after_s * 1e9:
             return False
         if not self.stale:
-            self.ctx.log.warning("no observation for %.2f s: publishing the open hand",
-                                 (now - self.last_input_ns) / 1e9)
+            self.ctx.log.warning(
+                "no observation for %.2f s: publishing the open hand", (now - self.last_input_ns) / 1e9
+            )
             self.stale = True
         self.ctx.publish("targets", open_hand(self.manifold.hand, self.params.safe_posture))
         return True
 
 
 class OpenLoopParams(_ControllerParams):
-    latent: list[float] = Field(description="start latent (one value per latent dimension); its "
-                                            "non-time coordinates stay fixed (e.g. the radius)")
+    latent: list[float] = Field(
+        description="start latent (one value per latent dimension); its "
+        "non-time coordinates stay fixed (e.g. the radius)"
+    )
 
 
 class OpenLoopNode(_ManifoldController):
     """Open-loop latent navigation: fixed latent parameter, time advances by delta per tick."""
 
+    plugin_name = "manipulation.open_loop"
     Params = OpenLoopParams
 
     def setup(self) -> None:
@@ -97,41 +103,52 @@ class OpenLoopNode(_ManifoldController):
 
 class FeedbackInitParams(_ControllerParams):
     init: Literal["navigation", "grasp"] = Field(
-        "navigation", description="navigation: grasp by closing along the radius (5.5.2); grasp: "
-                                  "project the posture on input 'grasp' (5.5.1)")
+        "navigation",
+        description="navigation: grasp by closing along the radius (5.5.2); grasp: "
+        "project the posture on input 'grasp' (5.5.1)",
+    )
     radius_step: float = Field(0.01, gt=0, description="latent radius per tick while closing")
-    required_fingers: list[str] = Field(default_factory=lambda: ["TH", "FF", "MF"],
-                                        description="segment-name prefixes that must touch")
+    required_fingers: list[str] = Field(
+        default_factory=lambda: ["TH", "FF", "MF"], description="segment-name prefixes that must touch"
+    )
     contact_body: str = Field("cap", description="body name in the contacts that counts")
-    contact_time: Optional[float] = Field(None, description="latent start time; default: the "
-                                                            "time of maximal closure")
+    contact_time: Optional[float] = Field(None, description="latent start time; default: the time of maximal closure")
     approach_s: float = Field(1.0, ge=0, description="hold the start posture this long first")
-    overshoot: float = Field(0.25, ge=0, description="closing may go this fraction of the radius range "
-                                                     "past the small-radius border (extrapolated postures)")
+    overshoot: float = Field(
+        0.25,
+        ge=0,
+        description="closing may go this fraction of the radius range "
+        "past the small-radius border (extrapolated postures)",
+    )
     stale_after_s: float = Field(0.5, gt=0, description="fail-safe: no contacts message for this long")
 
 
 class FeedbackInitNode(_ManifoldController):
     """Feedback-initialised open loop (bottle cap): grasp by navigation or by posture projection, then turn."""
 
+    plugin_name = "manipulation.feedback_init"
     Params = FeedbackInitParams
     inputs = {"contacts": Contacts, "grasp": JointState}
 
     def setup(self) -> None:
         super().setup()
         prm = self.params
-        self.controller = GraspByNavigation(self.manifold, prm.delta, prm.radius_step,
-                                            required=prm.required_fingers,
-                                            approach_steps=int(round(prm.approach_s * prm.rate_hz)),
-                                            contact_time=prm.contact_time, overshoot=prm.overshoot)
+        self.controller = GraspByNavigation(
+            self.manifold,
+            prm.delta,
+            prm.radius_step,
+            required=prm.required_fingers,
+            approach_steps=int(round(prm.approach_s * prm.rate_hz)),
+            contact_time=prm.contact_time,
+            overshoot=prm.overshoot,
+        )
         self.touching: set[str] = set()
         self.waiting_for_grasp = prm.init == "grasp"
 
     def on_message(self, port: str, msg) -> None:
         if port == "contacts":
             self.input_seen()
-            self.touching = touching_fingers(msg, self.params.required_fingers,
-                                             self.params.contact_body)
+            self.touching = touching_fingers(msg, self.params.required_fingers, self.params.contact_body)
         elif self.waiting_for_grasp:
             x = latent_from_grasp(self.manifold, dict(zip(msg.names, msg.positions.tolist())))
             self.controller.x[:] = x
@@ -150,26 +167,33 @@ class FeedbackInitNode(_ManifoldController):
 class ClosedLoopParams(_ControllerParams):
     k: int = Field(5, ge=1, description="planned steps per observation (horizon k·delta)")
     mask: Literal[MASKS] = Field("ball1", description="partial projection on ball-1 dims (thesis) or both balls")
-    tolerance: float = Field(0.05, ge=0, description="ball error above the best that still counts as "
-                                                     "consistent (0 = the thesis' pure projection)")
-    lag: float = Field(0.5, ge=0, description="keep the commanded phase while a consistent phase lies "
-                                              "within this latent distance")
-    max_error: float = Field(0.1, gt=0, description="ball error above which the balls are off the "
-                                                    "manifold and the commanded phase is kept")
+    tolerance: float = Field(
+        0.05,
+        ge=0,
+        description="ball error above the best that still counts as consistent (0 = the thesis' pure projection)",
+    )
+    lag: float = Field(
+        0.5, ge=0, description="keep the commanded phase while a consistent phase lies within this latent distance"
+    )
+    max_error: float = Field(
+        0.1, gt=0, description="ball error above which the balls are off the manifold and the commanded phase is kept"
+    )
     stale_after_s: float = Field(0.5, gt=0, description="fail-safe: no ball observation for this long")
 
 
 class ClosedLoopNode(_ManifoldController):
     """Closed-loop ball swapping: project observed balls, plan k steps of delta, actuate in order."""
 
+    plugin_name = "manipulation.closed_loop"
     Params = ClosedLoopParams
     inputs = {"balls": Points2D}
 
     def setup(self) -> None:
         super().setup()
         prm = self.params
-        self.controller = ClosedLoopController(self.manifold, prm.k, prm.delta, prm.mask,
-                                               prm.tolerance, prm.lag, prm.max_error)
+        self.controller = ClosedLoopController(
+            self.manifold, prm.k, prm.delta, prm.mask, prm.tolerance, prm.lag, prm.max_error
+        )
         self.plan: list = []
 
     def on_message(self, port: str, msg: Points2D) -> None:

@@ -16,6 +16,7 @@ The written model file is a :class:`~.manifold_file.ManipulationManifold` (obser
 hand, latent names).  Learning on cap data also reports how well the learned radius coordinate
 orders the sequences by true radius (:func:`radius_order`).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -28,10 +29,11 @@ import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 from scipy.stats import spearmanr
 
-from ..cli import ModelConfig, TrainingConfig, _Progress, check_train_args
-from ..construction import ManifoldConstruction
-from ..model import StructuredUKR
-from ..validation import InvalidInputError
+from handflow.plugins.manifold.cli import ModelConfig, TrainingConfig, _Progress, check_train_args
+from handflow.plugins.manifold.construction import ManifoldConstruction
+from handflow.plugins.manifold.model import StructuredUKR
+from handflow.plugins.manifold.validation import InvalidInputError
+
 from .demos import Demonstrations, load_demonstrations
 from .manifold_file import ManipulationManifold
 
@@ -70,16 +72,6 @@ class LearningConfig(_Strict):
     training: TrainingConfig = Field(default_factory=TrainingConfig)
 
 
-def manipulation_mode(path) -> Optional[str]:
-    """The ``mode`` of a training config if it is one of :data:`MODES`, else None."""
-    try:
-        raw = yaml.safe_load(Path(path).read_text())
-    except (OSError, yaml.YAMLError):
-        return None
-    mode = raw.get("mode") if isinstance(raw, dict) else None
-    return mode if mode in MODES else None
-
-
 def load_config(path):
     path = Path(path)
     raw = yaml.safe_load(path.read_text())
@@ -87,10 +79,8 @@ def load_config(path):
     try:
         cfg = cls.model_validate(raw)
     except ValidationError as exc:
-        lines = [f"  {'.'.join(str(p) for p in e['loc']) or '(top level)'}: {e['msg']}"
-                 for e in exc.errors()]
-        raise InvalidInputError(f"{path}: invalid config — change:\n" + "\n".join(lines)) \
-            from None
+        lines = [f"  {'.'.join(str(p) for p in e['loc']) or '(top level)'}: {e['msg']}" for e in exc.errors()]
+        raise InvalidInputError(f"{path}: invalid config — change:\n" + "\n".join(lines)) from None
     if not cfg.data.demo.is_absolute():
         cfg.data.demo = path.parent / cfg.data.demo
     return cfg
@@ -99,33 +89,35 @@ def load_config(path):
 def _select(demos: Demonstrations, limit: Optional[int]) -> Demonstrations:
     if limit is None or demos.radii_cm is None:
         return demos
-    keep = [i for i, r in enumerate(demos.radii_cm)
-            if np.sum(demos.radii_cm[:i] == r) < limit]
-    return Demonstrations([demos.sequences[i] for i in keep], demos.names, demos.hand,
-                          demos.task, demos.radii_cm[keep])
+    keep = [i for i, r in enumerate(demos.radii_cm) if np.sum(demos.radii_cm[:i] == r) < limit]
+    return Demonstrations([demos.sequences[i] for i in keep], demos.names, demos.hand, demos.task, demos.radii_cm[keep])
 
 
 def construct(demos: Demonstrations, params: ConstructionParams, callback=None):
     """The constructed (time, radius_cm) manifold of cap demonstrations."""
     if demos.radii_cm is None:
-        raise InvalidInputError("construction needs radius-labelled cap demonstrations "
-                                "(`handflow demo-record cap`)")
-    builder = ManifoldConstruction(**params.model_dump()).fit(demos.sequences, demos.radii_cm,
-                                                              callback=callback)
-    manifold = ManipulationManifold(builder.model_, demos.names, demos.hand,
-                                    ["time", "radius_cm"], "constructed")
+        raise InvalidInputError("construction needs radius-labelled cap demonstrations (`handflow demo-record cap`)")
+    builder = ManifoldConstruction(**params.model_dump()).fit(demos.sequences, demos.radii_cm, callback=callback)
+    manifold = ManipulationManifold(builder.model_, demos.names, demos.hand, ["time", "radius_cm"], "constructed")
     return manifold, {"sequence_radius_cm": builder.sequence_radius_.tolist()}
 
 
-def learn(demos: Demonstrations, model_cfg: ModelConfig, train_cfg: TrainingConfig,
-          n_steps=None, callback=None):
+def learn(demos: Demonstrations, model_cfg: ModelConfig, train_cfg: TrainingConfig, n_steps=None, callback=None):
     """Structured UKR on the demonstrations (the radius is not given to the learner)."""
     m, t = model_cfg, train_cfg
-    model = StructuredUKR(latent=[d.model_dump() for d in m.latent], time_dim=m.time_dim,
-                          lambda_cseq=m.lambda_cseq, lambda_pvar=m.lambda_pvar, loo_cv=m.loo_cv,
-                          optimizer=t.optimizer, n_steps=t.n_steps if n_steps is None else n_steps,
-                          init=t.init, isomap_neighbors=tuple(t.isomap_neighbors),
-                          projection_steps=t.projection_steps, random_state=t.random_state)
+    model = StructuredUKR(
+        latent=[d.model_dump() for d in m.latent],
+        time_dim=m.time_dim,
+        lambda_cseq=m.lambda_cseq,
+        lambda_pvar=m.lambda_pvar,
+        loo_cv=m.loo_cv,
+        optimizer=t.optimizer,
+        n_steps=t.n_steps if n_steps is None else n_steps,
+        init=t.init,
+        isomap_neighbors=tuple(t.isomap_neighbors),
+        projection_steps=t.projection_steps,
+        random_state=t.random_state,
+    )
     model.fit(demos.sequences, callback=callback)
     q = model.latents_.shape[1]
     time_dim = model.time_dim_
@@ -156,16 +148,14 @@ def radius_order(model: StructuredUKR, radii_cm) -> dict:
     groups = [coord[point_r == r] for r in np.unique(radii)]
     within = np.mean([g.var() for g in groups])
     between = np.var([g.mean() for g in groups])
-    return {"spearman": rho, "separation": float(between / max(within, 1e-300)),
-            "sequence_means": means.tolist()}
+    return {"spearman": rho, "separation": float(between / max(within, 1e-300)), "sequence_means": means.tolist()}
 
 
 def train_manifold(cfg, n_steps=None, callback=None):
     """Build the manifold of a validated config; returns ``(manifold, info)``."""
     demos = _select(load_demonstrations(cfg.data.demo), cfg.data.max_sequences_per_radius)
     if cfg.mode == "construction":
-        params = cfg.construction if n_steps is None else cfg.construction.model_copy(
-            update={"n_steps": n_steps})
+        params = cfg.construction if n_steps is None else cfg.construction.model_copy(update={"n_steps": n_steps})
         return construct(demos, params, callback)
     return learn(demos, cfg.model, cfg.training, n_steps, callback)
 
@@ -175,15 +165,24 @@ def run_manipulation_training(args: argparse.Namespace) -> int:
     try:
         cfg = load_config(args.config)
         check_train_args(args)
-        steps = args.steps if args.steps is not None else (
-            cfg.construction.n_steps if cfg.mode == "construction" else cfg.training.n_steps)
+        steps = (
+            args.steps
+            if args.steps is not None
+            else (cfg.construction.n_steps if cfg.mode == "construction" else cfg.training.n_steps)
+        )
         with _Progress(steps, args.quiet) as progress:
-            cb = progress if cfg.mode == "learning" else (
-                lambda r, n, step, value: progress(step, value))
+            cb = progress if cfg.mode == "learning" else (lambda r, n, step, value: progress(step, value))
             manifold, info = train_manifold(cfg, args.steps, cb)
-        manifold.save(args.out, provenance={"config": str(args.config), "mode": cfg.mode,
-                                            "config_content": cfg.model_dump(mode="json"),
-                                            "demo": str(cfg.data.demo), **info})
+        manifold.save(
+            args.out,
+            provenance={
+                "config": str(args.config),
+                "mode": cfg.mode,
+                "config_content": cfg.model_dump(mode="json"),
+                "demo": str(cfg.data.demo),
+                **info,
+            },
+        )
     except InvalidInputError as exc:
         print(f"handflow train: error: {exc}", file=sys.stderr)
         return 2
@@ -192,6 +191,5 @@ def run_manipulation_training(args: argparse.Namespace) -> int:
         return 1
     if not args.quiet:
         extra = "".join(f", {k} {info[k]:.3f}" for k in ("spearman", "separation") if k in info)
-        print(f"saved {args.out} ({cfg.mode}, {len(manifold.model.Y_)} points{extra})",
-              file=sys.stderr)
+        print(f"saved {args.out} ({cfg.mode}, {len(manifold.model.Y_)} points{extra})", file=sys.stderr)
     return 0

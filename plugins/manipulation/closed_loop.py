@@ -32,6 +32,7 @@
 With only one valid ball it is tried in both slots (mask on that slot); with none there is no
 estimate (the node's stale-input fail-safe takes over).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -56,23 +57,29 @@ class PhaseEstimate:
 class ClosedLoopController:
     """``update(points, valid)`` → planned latents (k, q) and joint targets (k, n_joints)."""
 
-    def __init__(self, manifold: ManipulationManifold, k: int = 5, delta: float = 0.05,
-                 mask: str = "ball1", tolerance: float = 0.0, lag: float = 0.5,
-                 max_error: float = np.inf, grid_size: int = 512) -> None:
+    def __init__(
+        self,
+        manifold: ManipulationManifold,
+        k: int = 5,
+        delta: float = 0.05,
+        mask: str = "ball1",
+        tolerance: float = 0.0,
+        lag: float = 0.5,
+        max_error: float = np.inf,
+        grid_size: int = 512,
+    ) -> None:
         if manifold.ball_index.size != 4:
-            raise ValueError("closed-loop ball control needs a manifold with ball dimensions "
-                             "(p1_x, p1_y, p2_x, p2_y)")
+            raise ValueError("closed-loop ball control needs a manifold with ball dimensions (p1_x, p1_y, p2_x, p2_y)")
         if mask not in MASKS:
             raise ValueError(f"mask must be one of {MASKS}, got {mask!r}")
         if int(k) < 1:
             raise ValueError(f"k must be >= 1, got {k}")
         if manifold.q != 1:
-            raise ValueError(f"closed-loop control needs a 1D (phase) manifold, got "
-                             f"{manifold.latent_names}")
+            raise ValueError(f"closed-loop control needs a 1D (phase) manifold, got {manifold.latent_names}")
         if not (tolerance >= 0 and lag >= 0):
             raise ValueError(f"tolerance and lag must be >= 0, got {tolerance} and {lag}")
         self.manifold, self.k, self.mask = manifold, int(k), mask
-        self.delta = float(delta) * manifold.time_sign      # the demonstrations' direction
+        self.delta = float(delta) * manifold.time_sign  # the demonstrations' direction
         self.slot1, self.slot2 = manifold.ball_index[:2], manifold.ball_index[2:]
         self.clock = LatentClock(*manifold.range(manifold.time_dim), manifold.periodic)
         self.tolerance, self.lag, self.max_error = float(tolerance), float(lag), float(max_error)
@@ -122,9 +129,9 @@ class ClosedLoopController:
         if cand is None:
             return None
         Y, W, S, swapped = cand
-        R2 = (Y[:, None, :] - self.grid_obs[None, :, :]) ** 2                  # (c, grid, d)
+        R2 = (Y[:, None, :] - self.grid_obs[None, :, :]) ** 2  # (c, grid, d)
         if self.tolerance > 0 and prior is not None:
-            err = np.einsum("cgd,cd->cg", R2, S)                               # both balls
+            err = np.einsum("cgd,cd->cg", R2, S)  # both balls
             dist = np.where(err <= err.min() + self.tolerance, self._distance(prior)[None, :], np.inf)
             c, g = np.unravel_index(int(np.argmin(dist)), dist.shape)
             keep = dist[c, g] <= self.lag or err.min() > self.max_error

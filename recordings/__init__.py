@@ -1,0 +1,1 @@
+"""Small MCAP recordings made by the project itself (demonstrations the shipped models were trained on)."""

@@ -23,12 +23,12 @@ import json
 
 import cv2
 import numpy as np
-import pybullet as p
 from timing import median_time
 
 from handflow.plugins.demo.ball_swap import run_open_loop_swaps
 from handflow.plugins.demo.cap_turning import CapTurningDemonstrator
 from handflow.plugins.hands.joints import SHADOW
+from handflow.plugins.simulator.bullet import pybullet as p
 from handflow.plugins.simulator.metrics import count_swaps
 from handflow.plugins.simulator.simulation import Simulation
 from handflow.plugins.tracker.blobs import BALL_HSV, BallTracker, normalise_points

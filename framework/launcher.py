@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 from . import discovery, transport
 from .graph import Graph, RestartPolicy
 from .messages import MessageError, Status, decode
+from .runner import START_WAIT_S
 
 log = logging.getLogger("handflow.launcher")
 
@@ -72,6 +73,7 @@ class Launcher:
         self._health_sub = self.session.declare_subscriber(
             transport.topic_key(graph.name, "*", "_health"), self._on_health
         )
+        self._start_pub = self.session.declare_publisher(transport.start_key(graph.name))
 
     def _on_health(self, sample) -> None:
         try:
@@ -79,6 +81,14 @@ class Launcher:
         except MessageError:
             return
         self.health[status.header.source] = status
+
+    def all_ready(self) -> bool:
+        """Every node this launcher runs has reported (it has set up and subscribed its inputs)."""
+        return all(nid in self.health for u in self.units for nid in u.node_ids)
+
+    def signal_start(self) -> None:
+        """Let the nodes tick; repeated while running so that a restarted unit starts too."""
+        self._start_pub.put(b"start")
 
     # -- processes --------------------------------------------------------------------------
     def _spawn(self, unit: Unit) -> None:
@@ -166,6 +176,7 @@ class Launcher:
     def close(self) -> None:
         discovery.remove_run_file(self.run_file)
         self._health_sub.undeclare()
+        self._start_pub.undeclare()
         self.session.close()
         self._state_dir.cleanup()
 
@@ -210,12 +221,26 @@ def run_graph(
     old = {s: signal.signal(s, _stop) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
         launcher.start()
-        t_end = None if duration_s is None else time.monotonic() + duration_s
+        t_launch = time.monotonic()
+        t_end = None  # the duration counts from the moment every node is ready
         while not stop["flag"] and (t_end is None or time.monotonic() < t_end):
             launcher.poll()
             if not launcher.alive():
                 log.info("all nodes have exited")
                 break
+            ready = lockstep or launcher.all_ready()
+            if t_end is None and duration_s is not None:
+                waited = time.monotonic() - t_launch
+                if ready or waited > START_WAIT_S:
+                    t_end = time.monotonic() + duration_s
+                    log.log(
+                        logging.INFO if ready else logging.WARNING,
+                        "%s after %.1fs",
+                        "all nodes ready" if ready else "not every node ready",
+                        waited,
+                    )
+            if ready and not lockstep:
+                launcher.signal_start()
             time.sleep(0.05)
         launcher.stop()
     finally:

@@ -41,6 +41,7 @@ from .testing import check_publish
 log = logging.getLogger("handflow.runner")
 
 HEARTBEAT_S = 0.5
+START_WAIT_S = 60.0  # without a start signal (no launcher), tick anyway after this long
 _STATE_SLOTS = 128
 
 
@@ -139,6 +140,7 @@ class GroupRuntime:
         self.inbox: queue.SimpleQueue = queue.SimpleQueue()  # lock-step clock events; None wakes the loop
         self._lock = threading.Lock()
         self.failure: str | None = None
+        self.started = threading.Event()
         self.slots = [_NodeSlot(self, graph.nodes[nid], state_dir) for nid in node_ids]
         self._subs = []
         self._health_pubs = {
@@ -175,6 +177,18 @@ class GroupRuntime:
                     transport.clock_key(g), lambda sample: self.inbox.put(sample.payload.to_bytes())
                 )
             )
+        else:
+            self._subs.append(self.session.declare_subscriber(transport.start_key(g), lambda _: self.started.set()))
+
+    def _await_start(self) -> None:
+        """Report ready (heartbeats) until the launcher's start signal: no source ticks before every node listens."""
+        deadline = time.monotonic() + START_WAIT_S
+        while not (self.started.is_set() or self.stop_requested):
+            self._publish_health()
+            if time.monotonic() >= deadline:
+                log.warning("no start signal from a launcher within %.0fs; starting anyway", START_WAIT_S)
+                return
+            self.started.wait(HEARTBEAT_S / 5)
 
     def _on_sample(self, slot: _NodeSlot, port: str, payload: bytes) -> None:
         """Zenoh callback: handle the message right here, serialised with ticks by the lock."""
@@ -196,6 +210,8 @@ class GroupRuntime:
         for slot in self.slots:
             slot.node.setup()
         self._subscribe()
+        if not self.lockstep:
+            self._await_start()
         start = time.monotonic()
         ticks: list[tuple[int, int]] = []  # (due ns, slot index)
         t0 = time.time_ns()

@@ -29,6 +29,11 @@ def clock_key(graph: str) -> str:
     return f"{PREFIX}/{graph}/_clock"
 
 
+def start_key(graph: str) -> str:
+    """The launcher's start signal: nodes tick only once every node of the graph has reported ready."""
+    return f"{PREFIX}/{graph}/_start"
+
+
 def split_key(key: str) -> tuple[str, str, str] | None:
     """``handflow/<graph>/<node>/<port>`` → (graph, node, port), else None."""
     parts = str(key).split("/")

@@ -72,4 +72,11 @@ def run(args: argparse.Namespace) -> int:
         with open(args.summary_json, "w") as f:
             json.dump(launcher.summary(), f, indent=2)
     launcher.close()
+    if recorder is not None and recorder.writer.message_count == 0:
+        print(
+            f"warning: the recording {recorder.writer.path} holds no messages; check the graph's 'record.topics' "
+            "and that its nodes publish (a longer --duration helps if start-up is slow)",
+            file=sys.stderr,
+        )
+        return 1
     return 0

@@ -26,11 +26,11 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
-import pybullet as p
 
 from handflow.plugins.simulator.scenes import GRASP_OBJECTS, GraspScene
 from handflow.plugins.simulator.simulation import Simulation
 
+from ..simulator.bullet import pybullet as p
 from .controller import ExperienceGraspController
 from .stability import DisturbanceTest, grasp_wrench_quality, object_contacts, random_directions, rotation_angle_deg
 

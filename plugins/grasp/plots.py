@@ -15,13 +15,13 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
-import pybullet as p
 from matplotlib.collections import LineCollection
 from matplotlib.colors import LinearSegmentedColormap
 
 from handflow.plugins.simulator.camera import CameraSpec
 from handflow.plugins.simulator.simulation import Simulation
 
+from ..simulator.bullet import pybullet as p
 from .som import SOM
 
 POSTURE_CAMERA = CameraSpec(eye=(0.19, -0.17, 0.2), target=(0.08, 0.0, 0.27), up=(0.0, 0.0, 1.0), fov_deg=40.0)

@@ -21,8 +21,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import pybullet as p
 from scipy.spatial import ConvexHull, QhullError
+
+from ..simulator.bullet import pybullet as p
 
 
 @dataclass(frozen=True)

@@ -17,9 +17,9 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-import pybullet as p
 from scipy.spatial.transform import Rotation
 
+from .bullet import pybullet as p
 from .camera import CameraSpec
 
 HAND_BASE = np.array([0.0, 0.0, 0.30])

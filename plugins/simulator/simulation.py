@@ -18,11 +18,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import pybullet as p
 
 from handflow.framework.messages import Contacts, JointState
 from handflow.plugins.hands.joints import HAND_MODELS
 
+from .bullet import pybullet as p
 from .couplings import DEFAULT_COUPLING, CouplingRule
 from .hand_geometry import build_skeleton
 from .scenes import Scene, make_scene

@@ -8,7 +8,7 @@ import signal
 import pytest
 
 from handflow.framework.discovery import live_runs
-from handflow.framework.recording import read_report
+from handflow.framework.recording import read_messages, read_report
 from tests.framework._rec_helpers import chain, handflow, start, unique, wait_until
 
 pytestmark = pytest.mark.slow
@@ -63,3 +63,24 @@ def test_record_command_joins_a_running_graph(tmp_path):
     assert summary["recovered"] is False and summary["topics"][0]["count"] >= 100
     assert summary["topics"][0]["rate_hz"] == pytest.approx(100, rel=0.25)
     assert "graph.yaml" in summary["attachments"]  # provenance found through the run-file
+
+
+def test_duration_counts_from_every_node_ready(tmp_path):
+    # start-up takes seconds; a one-second run still records about a second of a 100 Hz source
+    graph = chain(tmp_path / "g.yaml", unique("recdur"))
+    out = tmp_path / "short.mcap"
+    res = handflow("run", str(graph), "--duration", "1", "--record", str(out))
+    assert res.returncode == 0, res.stderr
+    counts: dict[str, int] = {}
+    for topic, _, _ in read_messages(out):
+        counts[topic] = counts.get(topic, 0) + 1
+    assert len(counts) == 2 and min(counts.values()) >= 50, counts
+
+
+def test_a_recording_that_ends_empty_warns_and_fails(tmp_path):
+    graph = chain(tmp_path / "g.yaml", unique("recnone"))
+    graph.write_text(graph.read_text() + "record:\n  topics: [nobody/out]\n")
+    out = tmp_path / "empty.mcap"
+    res = handflow("run", str(graph), "--duration", "0.5", "--record", str(out))
+    assert res.returncode == 1
+    assert "holds no messages" in res.stderr and "record.topics" in res.stderr

@@ -9,8 +9,10 @@ import time
 from pathlib import Path
 
 from .candidates import ModelsMissingError, load_candidates
+from .continuous import is_continuous
 from .datasets import DatasetError, load_dataset
 from .evaluation import EXPERIMENTS, METHODS, Evaluator, Protocol
+from .stream_cli import run_stream_evaluation
 from .training import INITS, candidate_set, save_class_models, train_class_models
 
 
@@ -98,14 +100,27 @@ def register_evaluate(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--json", action="store_true", help="print the full result as JSON on stdout")
     parser.add_argument("--plots", help="folder for figures (labelled trajectories, compatibilities, summary)")
     parser.add_argument("--quick", action="store_true", help="reduced protocol (N^th 1,2; H 10; 2 CLM runs; 6 pairs)")
-    parser.add_argument("--methods", default=",".join(METHODS), help=f"subset of {','.join(METHODS)}")
+    parser.add_argument(
+        "--methods",
+        help=f"subset of {','.join(METHODS)} (continuous recordings: also ukr_clm_online, minirocket; default all)",
+    )
+    parser.add_argument(
+        "--cv",
+        default="leave-one-recording-out",
+        help="continuous recordings: cross-validation scheme (leave-one-recording-out)",
+    )
+    parser.add_argument(
+        "--known", help="continuous recordings: comma-separated classes to model; frames of others must be rejected"
+    )
     parser.set_defaults(func=run_evaluate)
 
 
 def run_evaluate(args) -> int:
+    if is_continuous(args.dataset):
+        return run_stream_evaluation(args, _progress)
     t0 = time.perf_counter()
     try:
-        methods = tuple(m for m in args.methods.split(",") if m)
+        methods = tuple(m for m in (args.methods or ",".join(METHODS)).split(",") if m)
         unknown = sorted(set(methods) - set(METHODS))
         if unknown:
             raise DatasetError(f"unknown method(s) {unknown}; choose from {list(METHODS)}")

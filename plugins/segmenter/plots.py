@@ -83,3 +83,63 @@ def _save(fig, path: str | Path) -> Path:
     fig.savefig(p, dpi=110)
     plt.close(fig)
     return p
+
+
+def plot_label_ribbons(
+    truth: np.ndarray, labels: dict[str, np.ndarray], classes: list[str], path: str | Path, title: str = ""
+) -> Path:
+    """One ribbon per row: the true labels, then every method's labels over time (rejected = black)."""
+    colours = np.array([*_colours(len(classes)), (0, 0, 0, 1), (1, 1, 1, 1)])  # …, rejected, unlabelled
+    rows = [("truth", truth), *labels.items()]
+    img = np.stack(
+        [np.where(r == -1, len(classes), r) if n != "truth" else np.where(r < 0, len(classes) + 1, r) for n, r in rows]
+    )
+    fig, ax = plt.subplots(figsize=(10, 0.45 * len(rows) + 1.2))
+    ax.imshow(colours[img], aspect="auto", interpolation="nearest")
+    ax.set_yticks(range(len(rows)), [n for n, _ in rows])
+    ax.set_xlabel("frame")
+    handles = [plt.Rectangle((0, 0), 1, 1, color=colours[k]) for k in range(len(classes) + 1)]
+    ax.legend(
+        handles,
+        [*classes, "rejected"],
+        ncol=min(8, len(classes) + 1),
+        fontsize=7,
+        loc="upper center",
+        bbox_to_anchor=(0.5, -0.25 if len(rows) > 3 else -0.5),
+    )
+    ax.set_title(title)
+    return _save(fig, path)
+
+
+def plot_confusion(truth: np.ndarray, pred: np.ndarray, classes: list[str], path: str | Path, title: str = "") -> Path:
+    """Row-normalised confusion matrix of the labelled frames; the last column counts rejections."""
+    keep = truth >= 0
+    n = len(classes)
+    M = np.zeros((n, n + 1))
+    np.add.at(M, (truth[keep], np.where(pred[keep] < 0, n, pred[keep])), 1)
+    M /= np.maximum(M.sum(axis=1, keepdims=True), 1)
+    fig, ax = plt.subplots(figsize=(0.5 * n + 3, 0.45 * n + 2))
+    ax.imshow(M, cmap="Blues", vmin=0, vmax=1)
+    ax.set_xticks(range(n + 1), [*classes, "rej."], rotation=60, fontsize=7)
+    ax.set_yticks(range(n), classes, fontsize=7)
+    for (i, j), v in np.ndenumerate(M):
+        if v >= 0.01:
+            ax.text(j, i, f"{v:.2f}", ha="center", va="center", fontsize=6, color="white" if v > 0.5 else "black")
+    ax.set_xlabel("predicted")
+    ax.set_ylabel("true")
+    ax.set_title(title)
+    return _save(fig, path)
+
+
+def plot_tradeoff(curves: dict[str, dict], path: str | Path, title: str = "") -> Path:
+    """Known-class accuracy against unknown rejection as each method's rejection parameter varies."""
+    fig, ax = plt.subplots(figsize=(5, 4.5))
+    for name, c in curves.items():
+        ax.plot(c["unknown_rejection"], c["known_accuracy"], marker=".", label=f"{name} (area {c['auc']:.2f})")
+    ax.set_xlabel("unknown rejection")
+    ax.set_ylabel("known accuracy")
+    ax.set_xlim(0, 1)
+    ax.set_ylim(0, 1)
+    ax.legend(fontsize=7)
+    ax.set_title(title)
+    return _save(fig, path)

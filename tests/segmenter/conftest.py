@@ -1,7 +1,12 @@
+import os
+from pathlib import Path
+
 import numpy as np
 import pytest
 
 from handflow.plugins.segmenter import LetterGenerator, candidate_set, train_class_models
+
+SHARED = Path(os.environ.get("HANDFLOW_SHARED_DATA", "/work/shared/data"))  # real datasets; tests skip without them
 
 
 @pytest.fixture(scope="session")

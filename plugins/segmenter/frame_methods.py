@@ -1,0 +1,248 @@
+"""Every recogniser as a frame labeller for continuous recordings (docs/segmentation.md).
+
+A :class:`FrameMethod` is fitted on training segments per known class (global class indices),
+then labels a recording in two stages: :meth:`~FrameMethod.prepare` does the expensive part once
+(projection onto the class manifolds, window scores), :meth:`~FrameMethod.labels` applies one
+value of the method's *rejection parameter* — a score threshold for the classifiers, the
+background strength for the UKR/CLM — optionally with one class removed from the model set (the
+pseudo-unknown of the calibration).  Labels are global class indices, ``−1`` = rejected.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .baselines import PerClassHMM, SlidingDTW1NN
+from .candidates import CandidateSet, Projection
+from .clm_segmenter import CLMSegmenter
+from .openset import REJECTED, score_thresholds, threshold_labels
+from .training import auto_beta, candidate_set
+from .ukr_only import UKROnlyRecognizer
+
+WINDOWS_PER_SEGMENT = 12  # MiniRocket training windows per segment
+MAX_POINTS_PER_CLASS = 400  # UKR training points per class (documented choice: every k-th frame above it)
+
+
+@dataclass
+class Fitted:
+    """A fitted model over the known classes ``classes`` (global indices, model column order)."""
+
+    model: object
+    classes: list[int]
+    params: dict
+
+
+def _columns(fitted: Fitted, drop: int | None) -> list[int]:
+    return [k for k, c in enumerate(fitted.classes) if c != drop]
+
+
+def _to_global(local: np.ndarray, classes: list[int]) -> np.ndarray:
+    lut = np.r_[np.asarray(classes, dtype=int), REJECTED]
+    return lut[np.where(local < 0, len(classes), local)]
+
+
+class ScoreMethod:
+    """Methods with per-frame class scores; rejection = a threshold on the winning score."""
+
+    name = ""
+
+    def grid(self, quick: bool) -> list[dict]:
+        raise NotImplementedError
+
+    def fit(self, segments: dict[int, list[np.ndarray]], params: dict, seed: int) -> Fitted:
+        raise NotImplementedError
+
+    def prepare(self, fitted: Fitted, X: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
+
+    def labels(self, fitted: Fitted, state: np.ndarray, reject: float, drop: int | None = None) -> np.ndarray:
+        cols = _columns(fitted, drop)
+        return _to_global(threshold_labels(state[:, cols], reject), [fitted.classes[k] for k in cols])
+
+    def reject_grid(self, fitted: Fitted, states: list[np.ndarray]) -> np.ndarray:
+        return score_thresholds(np.concatenate([s.max(axis=1) for s in states]))
+
+
+class DTWMethod(ScoreMethod):
+    """Sliding-window subsequence DTW 1-NN (:class:`SlidingDTW1NN`); parameter: the window."""
+
+    name = "dtw_1nn"
+
+    def grid(self, quick: bool) -> list[dict]:
+        return [{"window": w} for w in ((20,) if quick else (10, 30))]
+
+    def fit(self, segments, params, seed) -> Fitted:
+        classes = sorted(segments)
+        model = SlidingDTW1NN(window=params["window"]).fit({c: _thin(segments[c], 4) for c in classes})
+        return Fitted(model, classes, params)
+
+    def prepare(self, fitted, X):
+        return fitted.model.scores(X)
+
+
+class HMMMethod(ScoreMethod):
+    """Per-class Gaussian HMMs, windowed log-likelihood (:class:`PerClassHMM`); states and window."""
+
+    name = "hmm"
+
+    def grid(self, quick: bool) -> list[dict]:
+        return [{"n_states": s, "window": w} for s in ((4,) if quick else (3, 6)) for w in (20,)]
+
+    def fit(self, segments, params, seed) -> Fitted:
+        classes = sorted(segments)
+        model = PerClassHMM(n_states=params["n_states"], window=params["window"], random_state=seed)
+        return Fitted(model.fit({c: segments[c] for c in classes}), classes, params)
+
+    def prepare(self, fitted, X):
+        return fitted.model.scores(X)
+
+
+class MiniRocketMethod(ScoreMethod):
+    """MiniRocket features of the causal window ending at each frame + a ridge classifier (aeon).
+
+    Training windows end at up to ``WINDOWS_PER_SEGMENT`` evenly spaced frames of each segment (a
+    window reaching before a segment's start repeats its first frame; documented choice that keeps
+    the ridge fit affordable).  Scores are the ridge decision values.  With a class
+    dropped (calibration), its column is removed from the decision values (the ridge is not
+    refitted: documented approximation).
+    """
+
+    name = "minirocket"
+
+    def grid(self, quick: bool) -> list[dict]:
+        return [{"window": w} for w in ((32,) if quick else (16, 48))]
+
+    def fit(self, segments, params, seed) -> Fitted:
+        MiniRocket, RidgeClassifierCV = _aeon()
+        w = params["window"]
+        classes = sorted(segments)
+        windows, targets = [], []
+        for c in classes:
+            for seg in segments[c]:
+                ends = np.unique(np.linspace(0, len(seg) - 1, WINDOWS_PER_SEGMENT).astype(int))
+                windows.append(_windows(seg, ends, w))
+                targets.append(np.full(len(ends), c))
+        transform = MiniRocket(random_state=seed)
+        F = transform.fit_transform(np.concatenate(windows))
+        ridge = RidgeClassifierCV(alphas=np.logspace(-3, 3, 10)).fit(F, np.concatenate(targets))
+        return Fitted((transform, ridge), list(ridge.classes_.astype(int)), params)
+
+    def prepare(self, fitted, X):
+        transform, ridge = fitted.model
+        F = transform.transform(_windows(X, np.arange(len(X)), fitted.params["window"]))
+        d = ridge.decision_function(F)
+        return d if d.ndim == 2 else np.c_[-d, d]
+
+
+def _aeon():
+    try:
+        from aeon.transformations.collection.convolution_based import MiniRocket
+    except ImportError:
+        raise ImportError(
+            "the MiniRocket baseline needs aeon: pip install 'handflow[minirocket]' (or leave 'minirocket' out)"
+        ) from None
+    from sklearn.linear_model import RidgeClassifierCV
+
+    return MiniRocket, RidgeClassifierCV
+
+
+def _windows(X: np.ndarray, ends: np.ndarray, width: int) -> np.ndarray:
+    """(len(ends), channels, width) causal windows ending at ``ends``; the first frame pads the start."""
+    idx = np.clip(ends[:, None] - np.arange(width - 1, -1, -1)[None], 0, None)
+    return np.ascontiguousarray(X[idx].transpose(0, 2, 1))
+
+
+def _thin(seqs: list[np.ndarray], k: int) -> list[np.ndarray]:
+    """Every k-th frame of long references (documented choice: keeps DTW affordable; ≥ 8 frames)."""
+    return [s[::k] if len(s) >= 8 * k else s for s in seqs]
+
+
+class UKRMethod:
+    """Shared part of the manifold methods: one periodic structured UKR per class on its segments."""
+
+    name = ""
+    steps = 150
+
+    def _fit_candidates(self, segments, seed) -> CandidateSet:
+        from handflow.plugins.manifold import StructuredUKR
+
+        models = {}
+        for c in sorted(segments):
+            seqs = [s for s in segments[c] if len(s) >= 4]
+            total = sum(map(len, seqs))
+            k = max(1, int(np.ceil(total / MAX_POINTS_PER_CLASS)))
+            seqs = [s[::k] for s in seqs if len(s) >= 4 * k] or [max(segments[c], key=len)[::k]]
+            models[str(c)] = StructuredUKR(
+                latent=[{"kernel": "periodic", "beta": auto_beta(seqs), "time": True}],
+                lambda_cseq=1.0,
+                lambda_pvar=0.0,
+                n_steps=self.steps,
+                init="equidistant",
+                random_state=seed,
+            ).fit(seqs)
+        return candidate_set(models)
+
+    def prepare(self, fitted: Fitted, X: np.ndarray) -> Projection:
+        return fitted.model.project(X)
+
+    @staticmethod
+    def _view(fitted: Fitted, proj: Projection, drop: int | None) -> tuple[CandidateSet, Projection, list[int]]:
+        if drop is None or drop not in fitted.classes:
+            return fitted.model, proj, fitted.classes
+        return fitted.model.without(str(drop)), proj.without(str(drop)), [c for c in fitted.classes if c != drop]
+
+
+class UKRCLMMethod(UKRMethod):
+    """The UKR/CLM segmenter over the whole recording; rejection = the background factor."""
+
+    name = "ukr_clm"
+    history = 10
+
+    def grid(self, quick: bool) -> list[dict]:
+        return [{"error_scale": e} for e in ((1.0,) if quick else (1.0, 0.1))]
+
+    def fit(self, segments, params, seed) -> Fitted:
+        return Fitted(self._fit_candidates(segments, seed), sorted(segments), params)
+
+    def labels(self, fitted, state, reject, drop=None):
+        cands, proj, classes = self._view(fitted, state, drop)
+        seg = CLMSegmenter(
+            cands,
+            history=self.history,
+            background_factor=reject,
+            error_scale=fitted.params["error_scale"],
+            max_sweeps=300,
+            random_state=0,
+        )
+        return _to_global(seg.fit_predict_projected(proj), classes)
+
+    def reject_grid(self, fitted, states) -> np.ndarray:
+        return np.array([0.0, 0.05, 0.1, 0.25, 0.5, 1.0, 2.0, 4.0, 8.0])
+
+
+class UKROnlyMethod(UKRMethod):
+    """Winner-take-all over the UKR compatibilities; rejection = a threshold on the winning C."""
+
+    name = "ukr_only"
+
+    def grid(self, quick: bool) -> list[dict]:
+        return [{"lam": lam, "order_rating": "cos"} for lam in ((0.5,) if quick else (0.3, 0.5))]
+
+    def fit(self, segments, params, seed) -> Fitted:
+        return Fitted(self._fit_candidates(segments, seed), sorted(segments), params)
+
+    def _compat(self, fitted, proj, cands) -> np.ndarray:
+        rec = UKROnlyRecognizer(cands, lam=fitted.params["lam"], order_rating=fitted.params["order_rating"])
+        return rec.compatibilities_projected(proj)
+
+    def labels(self, fitted, state, reject, drop=None):
+        cands, proj, classes = self._view(fitted, state, drop)
+        return _to_global(threshold_labels(self._compat(fitted, proj, cands), reject), classes)
+
+    def reject_grid(self, fitted, states) -> np.ndarray:
+        return score_thresholds(np.concatenate([self._compat(fitted, s, fitted.model).max(axis=1) for s in states]))
+
+
+METHODS = {m.name: m for m in (UKRCLMMethod(), UKROnlyMethod(), DTWMethod(), HMMMethod(), MiniRocketMethod())}

@@ -1,0 +1,91 @@
+"""Open-set frame metrics, the rejection trade-off and its calibration (docs/segmentation.md).
+
+Frames carry a true class index (``−1`` = unlabelled, ignored), a predicted index (``−1`` =
+rejected) and a set of *known* classes; labelled frames of any other class are *unknown* and
+must be rejected.  All figures are fractions in [0, 1]; a figure without frames is ``None``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable
+
+import numpy as np
+
+REJECTED = -1
+
+
+def frame_metrics(truth: np.ndarray, pred: np.ndarray, known: Iterable[int]) -> dict:
+    """``known_accuracy``, ``unknown_rejection``, ``open_set_accuracy`` and ``macro_f1``."""
+    truth, pred = np.asarray(truth), np.asarray(pred)
+    known = sorted({int(k) for k in known})
+    labelled = truth >= 0
+    is_known = labelled & np.isin(truth, known)
+    is_unknown = labelled & ~is_known
+    correct_known = is_known & (pred == truth)
+    rejected_unknown = is_unknown & (pred == REJECTED)
+    f1 = []
+    for c in known:
+        tp = np.sum(correct_known & (truth == c))
+        fp = np.sum(labelled & (pred == c) & (truth != c))
+        fn = np.sum(is_known & (truth == c) & (pred != c))
+        if tp + fp + fn:
+            f1.append(2 * tp / (2 * tp + fp + fn))
+    return {
+        "known_accuracy": _share(correct_known.sum(), is_known.sum()),
+        "unknown_rejection": _share(rejected_unknown.sum(), is_unknown.sum()),
+        "open_set_accuracy": _share(correct_known.sum() + rejected_unknown.sum(), labelled.sum()),
+        "macro_f1": float(np.mean(f1)) if f1 else None,
+    }
+
+
+def _share(num, den) -> float | None:
+    return float(num) / float(den) if den else None
+
+
+def threshold_labels(scores: np.ndarray, threshold: float) -> np.ndarray:
+    """Winner per row of ``scores`` (higher = better); ``−1`` where the best score < ``threshold``."""
+    return np.where(scores.max(axis=1) < threshold, REJECTED, np.argmax(scores, axis=1))
+
+
+def tradeoff_curve(known_accuracy: Iterable[float], unknown_rejection: Iterable[float]) -> tuple[list, list, float]:
+    """Points of a rejection sweep, closed at rejection 0 and 1, and their trapezoidal area.
+
+    The sweep's points are sorted by rejection; the curve is extended to rejection 0 with the
+    accuracy of the least-rejecting point and to rejection 1 with accuracy 0 (everything rejected)
+    when the sweep does not reach those ends itself.
+    """
+    pts = sorted(zip(unknown_rejection, known_accuracy))
+    rej = [p[0] for p in pts]
+    acc = [p[1] for p in pts]
+    if rej[0] > 0:
+        rej.insert(0, 0.0)
+        acc.insert(0, acc[0])
+    if rej[-1] < 1:
+        rej.append(1.0)
+        acc.append(0.0)
+    return rej, acc, float(np.trapezoid(acc, rej))
+
+
+def score_thresholds(confidence: np.ndarray, n: int = 41) -> np.ndarray:
+    """A threshold sweep over a confidence's range: ``−inf`` (keep all), quantiles, ``+inf`` (reject all)."""
+    qs = np.quantile(confidence[np.isfinite(confidence)], np.linspace(0, 1, n)) if confidence.size else []
+    return np.unique(np.r_[-np.inf, qs, np.inf])
+
+
+def calibrate(
+    known_accuracy_at: Callable[[float], float],
+    pseudo_rejection_at: Callable[[float], float],
+    candidates: Iterable[float],
+) -> tuple[float, float]:
+    """The rejection parameter maximising ``(known_accuracy + pseudo-unknown rejection) / 2``.
+
+    ``pseudo_rejection_at`` measures rejection of frames whose class was left out of the model —
+    the validation stand-in for unknown motion.  Ties go to the first candidate.  Returns
+    ``(parameter, objective)``.
+    """
+    best, best_j = None, -np.inf
+    for value in candidates:
+        j = 0.5 * (known_accuracy_at(value) + pseudo_rejection_at(value))
+        if j > best_j:
+            best, best_j = value, j
+    return best, float(best_j)

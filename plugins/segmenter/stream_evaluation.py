@@ -1,0 +1,210 @@
+"""Leave-one-recording-out evaluation on continuous recordings (docs/segmentation.md).
+
+For each held-out recording: the other recordings are the training data.  Parameters of every
+method — its hyper-parameters (:meth:`grid`) and its rejection parameter — are chosen on inner
+splits of those only, by the mean of
+``known_accuracy`` and the rejection of pseudo-unknowns (each known class in turn removed from the
+model set, its frames then count as unknown), pooled over inner folds that each hold out one of
+the last ``INNER_FOLDS`` training recordings.  The method is refitted on all training recordings
+and labels the held-out one frame by frame.  Frames of labels outside ``known`` are never used for
+training or calibration; every figure is computed on frames pooled over the folds.
+
+Every recording is z-scored with the mean and standard deviation of the fold's training frames,
+for every method alike.  ``ukr_clm_online`` feeds the held-out recording sample by sample through
+:class:`OnlineCLMSegmenter` with the parameters selected for ``ukr_clm`` and keeps each sample's
+final published label; its ``agreement`` is the share of frames equal to the batch ``ukr_clm``.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from .continuous import Recording, RecordingSet, segments
+from .frame_methods import METHODS, Fitted
+from .openset import calibrate, frame_metrics, tradeoff_curve
+
+INNER_FOLDS = 3  # validation recordings of the inner split (each validated by a fit on the others)
+DEFAULT_METHODS = ("ukr_clm", "ukr_clm_online", "ukr_only", "dtw_1nn", "hmm", "minirocket")
+
+
+@dataclass
+class FoldResult:
+    recording: str
+    truth: np.ndarray
+    labels: dict[str, np.ndarray]
+    selected: dict[str, dict]
+    sweeps: dict[str, list[np.ndarray]]  # per method: labels at every rejection value of its sweep
+
+
+def _zscore(train: list[Recording], recs: list[Recording]) -> list[Recording]:
+    Y = np.vstack([r.X for r in train])
+    mu, sd = Y.mean(axis=0), Y.std(axis=0)
+    sd = np.where(sd > 0, sd, 1.0)
+    return [Recording(r.name, (r.X - mu) / sd, r.y) for r in recs]
+
+
+class StreamEvaluator:
+    """Runs the leave-one-recording-out protocol for the chosen methods."""
+
+    def __init__(
+        self,
+        data: RecordingSet,
+        known: list[str] | None = None,
+        methods: tuple[str, ...] = DEFAULT_METHODS,
+        quick: bool = False,
+        random_state: int = 0,
+        progress: Callable[[str], None] = lambda msg: None,
+    ) -> None:
+        unknown_names = sorted(set(known or []) - set(data.class_names))
+        if unknown_names:
+            raise ValueError(f"--known names classes {unknown_names} that the data lacks; it has {data.class_names}")
+        bad = sorted(set(methods) - set(METHODS) - {"ukr_clm_online"})
+        if bad:
+            raise ValueError(f"unknown methods {bad}; choose from {sorted(METHODS) + ['ukr_clm_online']}")
+        if "ukr_clm_online" in methods and "ukr_clm" not in methods:
+            methods = ("ukr_clm", *methods)
+        if len(data.recordings) < 3:
+            raise ValueError("leave-one-recording-out needs at least 3 recordings (2 to train and validate, 1 to test)")
+        self.data = data
+        self.known = [data.class_names.index(k) for k in known] if known else list(range(len(data.class_names)))
+        self.methods = methods
+        self.quick = quick
+        self.random_state = random_state
+        self.progress = progress
+
+    # -- one fold ---------------------------------------------------------------------------
+    def _segments(self, recs: list[Recording]) -> dict[int, list[np.ndarray]]:
+        segs = segments(recs, self.known)
+        empty = [self.data.class_names[c] for c, s in segs.items() if not s]
+        if empty:
+            raise ValueError(f"known classes {empty} have no training segment in {[r.name for r in recs]}")
+        return segs
+
+    def _select(self, name: str, train: list[Recording]) -> tuple[dict, float, float]:
+        """Hyper-parameters and rejection value of one method, chosen on inner splits of ``train``."""
+        method = METHODS[name]
+        folds = [(r, [t for t in train if t is not r]) for r in train[-INNER_FOLDS:]]
+        truth = np.concatenate([np.where(np.isin(v.y, self.known), v.y, -1) for v, _ in folds])
+        present = [c for c in self.known if np.any(truth == c)]
+        best = (None, None, -np.inf)
+        for params in method.grid(self.quick):
+            fits = [(method.fit(self._segments(rest), params, self.random_state), v) for v, rest in folds]
+            states = [(f, method.prepare(f, v.X)) for f, v in fits]
+            grid = method.reject_grid(fits[0][0], [s for _, s in states])
+
+            def pred(r, drop=None, states=states):
+                return np.concatenate([method.labels(f, s, r, drop=drop) for f, s in states])
+
+            def known_acc(r):
+                return frame_metrics(truth, pred(r), self.known)["known_accuracy"] or 0.0
+
+            def pseudo_rej(r):
+                return float(np.mean([np.mean(pred(r, drop=c)[truth == c] == -1) for c in present]))
+
+            value, score = calibrate(known_acc, pseudo_rej, grid)
+            self.progress(f"    {name} {params}: reject={value:.4g} objective={score:.3f}")
+            if score > best[2]:
+                best = (params, value, score)
+        return best
+
+    def run_fold(self, held: str) -> FoldResult:
+        train = self.data.without(held)
+        recs = _zscore(train, self.data.recordings)
+        by_name = {r.name: r for r in recs}
+        train = [by_name[r.name] for r in train]
+        test = by_name[held]
+        segs = self._segments(train)
+        labels, selected, sweeps = {}, {}, {}
+        for name in self.methods:
+            if name == "ukr_clm_online":
+                continue
+            t0 = time.perf_counter()
+            params, reject, score = self._select(name, train)
+            method = METHODS[name]
+            fitted = method.fit(segs, params, self.random_state)
+            state = method.prepare(fitted, test.X)
+            labels[name] = method.labels(fitted, state, reject)
+            sweeps[name] = [method.labels(fitted, state, r) for r in method.reject_grid(fitted, [state])]
+            selected[name] = {**params, "reject": float(reject), "validation_objective": score}
+            if name == "ukr_clm" and "ukr_clm_online" in self.methods:
+                labels["ukr_clm_online"] = self._online(fitted, reject, test.X)
+                selected["ukr_clm_online"] = selected[name]
+            self.progress(f"  {held}: {name} {selected[name]} in {time.perf_counter() - t0:.1f}s")
+        return FoldResult(held, test.y, labels, selected, sweeps)
+
+    def _online(self, fitted: Fitted, reject: float, X: np.ndarray) -> np.ndarray:
+        from .online import OnlineCLMSegmenter
+
+        seg = OnlineCLMSegmenter(
+            fitted.model,
+            history=METHODS["ukr_clm"].history,
+            background_factor=reject,
+            error_scale=fitted.params["error_scale"],
+            random_state=0,
+        )
+        published = np.full(len(X), -1)
+        for y in X:  # each sample's final published label: on arrival, then confirmed revisions
+            update = seg.update(y)
+            published[update.index] = update.label
+            for ev in update.events:
+                if ev.kind == "revision":
+                    published[ev.start : ev.end + 1] = ev.label
+        lut = np.r_[np.asarray(fitted.classes), -1]
+        return lut[np.where(published < 0, len(fitted.classes), published)]
+
+    # -- all folds --------------------------------------------------------------------------
+    def evaluate(self) -> dict:
+        folds = []
+        for k, rec in enumerate(self.data.recordings):
+            self.progress(f"fold {k + 1}/{len(self.data.recordings)}: holding out '{rec.name}'")
+            folds.append(self.run_fold(rec.name))
+        truth = np.concatenate([f.truth for f in folds])
+        out: dict = {"methods": {}, "parameters": self._parameters()}
+        for name in self.methods:
+            pred = np.concatenate([f.labels[name] for f in folds])
+            res = frame_metrics(truth, pred, self.known)
+            res["tradeoff_auc"] = None
+            if name in folds[0].sweeps and res["unknown_rejection"] is not None:
+                res["tradeoff"] = self._tradeoff(folds, name, truth)
+                res["tradeoff_auc"] = res["tradeoff"]["auc"]
+            res["folds"] = [
+                {
+                    "recording": f.recording,
+                    "selected": f.selected[name],
+                    **frame_metrics(f.truth, f.labels[name], self.known),
+                }
+                for f in folds
+            ]
+            if name == "ukr_clm_online":
+                batch = np.concatenate([f.labels["ukr_clm"] for f in folds])
+                res["agreement"] = float(np.mean(pred == batch))
+            out["methods"][name] = res
+        self.folds_ = folds
+        return out
+
+    def _tradeoff(self, folds: list[FoldResult], name: str, truth: np.ndarray) -> dict:
+        n = min(len(f.sweeps[name]) for f in folds)
+        acc, rej = [], []
+        for i in range(n):  # the i-th value of every fold's own sweep (sweeps run from keep-all to reject-all)
+            pred = np.concatenate([f.sweeps[name][round(i * (len(f.sweeps[name]) - 1) / max(n - 1, 1))] for f in folds])
+            m = frame_metrics(truth, pred, self.known)
+            acc.append(m["known_accuracy"] or 0.0)
+            rej.append(m["unknown_rejection"] or 0.0)
+        r, a, auc = tradeoff_curve(acc, rej)
+        return {"unknown_rejection": r, "known_accuracy": a, "auc": auc}
+
+    def _parameters(self) -> dict:
+        return {
+            "protocol": f"leave-one-recording-out; inner folds hold out each of the last {INNER_FOLDS} training recordings",
+            "known": [self.data.class_names[c] for c in self.known],
+            "classes": self.data.class_names,
+            "recordings": self.data.names(),
+            "dataset": self.data.source,
+            "normalisation": "z-score with the fold's training frames (every method)",
+            "quick": self.quick,
+            "grids": {n: METHODS[n].grid(self.quick) for n in self.methods if n in METHODS},
+        }

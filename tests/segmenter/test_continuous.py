@@ -1,0 +1,152 @@
+"""Continuous recordings: loaders with clear errors, open-set metrics and the rejection calibration."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from handflow.plugins.segmenter.continuous import (
+    basicmotions_continuous,
+    is_continuous,
+    load_recordings,
+    segments,
+)
+from handflow.plugins.segmenter.datasets import DatasetError
+from handflow.plugins.segmenter.frame_methods import DTWMethod
+from handflow.plugins.segmenter.openset import calibrate, frame_metrics, tradeoff_curve
+from handflow.plugins.segmenter.stream_evaluation import StreamEvaluator
+from tests.segmenter.conftest import SHARED
+
+CSV = "x,y,label\n0,1,walk\n1,2,walk\n2,3,\n3,4,run\n"
+
+
+def _write(tmp_path, text, name="r1.csv"):
+    (tmp_path / name).write_text(text)
+    return tmp_path
+
+
+def test_csv_folder_loads_labels_and_unlabelled_rows(tmp_path):
+    _write(tmp_path, CSV)
+    _write(tmp_path, CSV.replace("run", "jump"), "r2.csv")
+    assert is_continuous(tmp_path)
+    rs = load_recordings(tmp_path)
+    assert rs.class_names == ["jump", "run", "walk"]
+    assert rs.get("r1").y.tolist() == [2, 2, -1, 1]
+    assert rs.columns == ["x", "y"]
+
+
+@pytest.mark.parametrize(
+    "text, needle",
+    [
+        ("x,y\n0,1\n", "last column must be 'label'"),
+        ("x,y,label\n0,nan,walk\n1,2,walk\n", "NaN/inf in row 0"),
+        ("x,y,label\n0,1,walk\n1,walk\n", "r1.csv:3: 2 values, the header has 3"),
+        ("x,y,label\n0,a,walk\n1,2,walk\n", "non-numeric"),
+        ("x,y,label\n", "at least one data row"),
+    ],
+)
+def test_bad_csv_recordings_get_clear_errors(tmp_path, text, needle):
+    _write(tmp_path, text)
+    with pytest.raises(DatasetError, match=needle.replace("(", r"\(")):
+        load_recordings(tmp_path)
+
+
+def test_npz_recordings_and_their_errors(tmp_path):
+    good = {"class_names": np.array(["a", "b"]), "X_r": np.zeros((4, 2)), "y_r": np.array([0, 0, 1, -1])}
+    np.savez(tmp_path / "ok.npz", **good, t_r=np.arange(4.0))
+    assert is_continuous(tmp_path / "ok.npz")
+    assert load_recordings(tmp_path / "ok.npz").get("r").y.tolist() == [0, 0, 1, -1]
+    for bad, needle in [
+        ({**good, "y_r": np.array([0, 0, 1])}, "one integer label per row"),
+        ({**good, "y_r": np.array([0, 0, 5, 1])}, "outside -1"),
+        ({"X_r": good["X_r"], "y_r": good["y_r"]}, "class_names"),
+        ({**good, "X_r": np.full((4, 2), np.inf)}, "NaN/inf"),
+    ]:
+        np.savez(tmp_path / "bad.npz", **bad)
+        with pytest.raises(DatasetError, match=needle):
+            load_recordings(tmp_path / "bad.npz")
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(st.binary(max_size=300))
+def test_mutated_csv_never_crashes_the_loader(tmp_path, junk):
+    text = CSV.encode() + junk
+    (tmp_path / "r1.csv").write_bytes(text)
+    try:
+        rs = load_recordings(tmp_path)
+    except (DatasetError, UnicodeDecodeError):
+        return
+    assert all(np.isfinite(r.X).all() for r in rs.recordings)
+
+
+def test_segments_are_runs_of_known_labels_only():
+    from handflow.plugins.segmenter.continuous import Recording
+
+    rec = Recording("r", np.arange(10.0)[:, None], np.array([0, 0, 0, 1, 1, -1, 0, 0, 2, 2]))
+    segs = segments([rec], [0, 2])
+    assert [s.ravel().tolist() for s in segs[0]] == [[0, 1, 2], [6, 7]]
+    assert [s.ravel().tolist() for s in segs[2]] == [[8, 9]]
+    assert 1 not in segs
+
+
+def test_frame_metrics_follow_their_definitions():
+    truth = np.array([0, 0, 1, 1, 2, 2, -1])  # class 2 unknown, last frame unlabelled
+    pred = np.array([0, -1, 1, 0, -1, 1, 0])
+    m = frame_metrics(truth, pred, known=[0, 1])
+    assert m["known_accuracy"] == pytest.approx(2 / 4)
+    assert m["unknown_rejection"] == pytest.approx(1 / 2)
+    assert m["open_set_accuracy"] == pytest.approx(3 / 6)
+    # F1 class 0: tp 1, fp 1, fn 1 → 0.5; class 1: tp 1, fp 1 (the unknown frame), fn 1 → 0.5
+    assert m["macro_f1"] == pytest.approx(0.5)
+    assert frame_metrics(truth[:4], pred[:4], [0, 1])["unknown_rejection"] is None
+
+
+def test_tradeoff_curve_is_closed_and_its_area_trapezoidal():
+    rej, acc, auc = tradeoff_curve([0.9, 0.5], [0.2, 0.6])
+    assert rej == [0.0, 0.2, 0.6, 1.0] and acc == [0.9, 0.9, 0.5, 0.0]
+    assert auc == pytest.approx(0.2 * 0.9 + 0.4 * 0.7 + 0.4 * 0.25)
+
+
+def test_calibration_picks_the_point_that_keeps_known_and_rejects_pseudo_unknowns():
+    value, score = calibrate(lambda t: 1.0 - t / 10, lambda t: min(1.0, t / 2), [0, 1, 2, 3, 10])
+    assert value == 2 and score == pytest.approx(0.9)
+
+
+def _synthetic_recordings(seed: int):
+    """Three smooth motion classes (distinct sinusoid shapes) concatenated in random order."""
+    rng = np.random.default_rng(seed)
+    shapes = [
+        lambda t: np.c_[np.sin(t), np.cos(t)],
+        lambda t: np.c_[np.sin(2 * t), 0.3 * t % 1],
+        lambda t: np.c_[-np.abs(np.sin(t)), np.sin(3 * t)],
+    ]
+    X, y = [], []
+    for c in rng.permutation(np.repeat([0, 1, 2], 2)):
+        t = np.linspace(0, 2 * np.pi, int(rng.integers(40, 60)))
+        X.append(shapes[c](t) + rng.normal(0, 0.02, (len(t), 2)))
+        y.append(np.full(len(t), c))
+    return np.vstack(X), np.concatenate(y)
+
+
+def test_open_set_selection_rejects_a_held_out_class(tmp_path):
+    arrays = {"class_names": np.array(["a", "b", "c"])}
+    for k in range(5):
+        arrays[f"X_r{k}"], arrays[f"y_r{k}"] = _synthetic_recordings(k)
+    np.savez(tmp_path / "s.npz", **arrays)
+    ev = StreamEvaluator(load_recordings(tmp_path / "s.npz"), known=["a", "b"], methods=("dtw_1nn",), quick=True)
+    res = ev.evaluate()["methods"]["dtw_1nn"]
+    assert res["unknown_rejection"] > 0.5  # class c was never seen: most of its frames are rejected
+    assert res["known_accuracy"] > 0.5
+    assert 0 <= res["tradeoff_auc"] <= 1
+    assert DTWMethod().grid(quick=True)
+
+
+@pytest.mark.skipif(not (SHARED / "basicmotions.npz").exists(), reason="shared BasicMotions data absent")
+def test_basicmotions_made_continuous_keeps_every_case(tmp_path):
+    arrays = basicmotions_continuous(SHARED / "basicmotions.npz")
+    np.savez(tmp_path / "bm.npz", **arrays)
+    rs = load_recordings(tmp_path / "bm.npz")
+    assert len(rs.recordings) == 8 and all(len(r.X) == 1000 for r in rs.recordings)
+    assert np.bincount(np.concatenate([r.y for r in rs.recordings])).tolist() == [2000] * 4

@@ -168,6 +168,10 @@ class StreamEvaluator:
             pred = np.concatenate([f.labels[name] for f in folds])
             res = frame_metrics(truth, pred, self.known)
             res["tradeoff_auc"] = None
+            if name in folds[0].sweeps:  # the first value of every sweep keeps every frame
+                res["no_rejection"] = frame_metrics(
+                    truth, np.concatenate([f.sweeps[name][0] for f in folds]), self.known
+                )
             if name in folds[0].sweeps and res["unknown_rejection"] is not None:
                 res["tradeoff"] = self._tradeoff(folds, name, truth)
                 res["tradeoff_auc"] = res["tradeoff"]["auc"]

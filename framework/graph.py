@@ -297,8 +297,31 @@ def _input_problems(graph: Graph, rn: ResolvedNode, port: str, source: str, line
     return []
 
 
+def graph_path(argument: str | Path) -> Path:
+    """A graph argument as a file: a path, or the name of a shipped graph (no ``/``, no ``.yaml`` suffix).
+
+    ``handflow run demo`` runs the ``demo.yaml`` shipped in ``handflow.configs``
+    (docs/pipelines.md); anything that looks like a path is taken as one.
+    """
+    text = str(argument)
+    if "/" in text or text.endswith((".yaml", ".yml")) or Path(text).exists():
+        return Path(text)
+    from .resources import shipped
+
+    return shipped(f"{text}.yaml")
+
+
+def shipped_graphs() -> list[str]:
+    """Names of the graphs shipped with the package."""
+    from .resources import shipped
+
+    return sorted(p.stem for p in shipped().glob("*.yaml"))
+
+
 def validate_file(path: str | Path) -> tuple[Graph | None, list[Problem]]:
-    path = Path(path)
+    path = graph_path(path)
+    if not path.exists() and path.parent == graph_path("x").parent:
+        return None, [Problem(1, f"no shipped graph '{path.stem}'; shipped graphs: {', '.join(shipped_graphs())}")]
     try:
         text = path.read_text()
     except OSError as exc:
@@ -310,7 +333,7 @@ def load_graph(path: str | Path) -> Graph:
     """A validated :class:`Graph`, or :class:`GraphError` with every problem."""
     graph, problems = validate_file(path)
     if problems or graph is None:
-        raise GraphError(Path(path), problems)
+        raise GraphError(graph_path(path), problems)
     return graph
 
 

@@ -49,7 +49,11 @@ class Context(Protocol):
         """Current time in ns: wall clock live, virtual time of the replayed stream in lock-step."""
 
     def resolve_path(self, path: str | Path) -> Path:
-        """A path from the params, made absolute relative to the graph file's folder."""
+        """An input path from the params (model, calibration), made absolute relative to the graph file's folder."""
+
+    def output_path(self, path: str | Path) -> Path:
+        """An output path from the params (log, recording), made absolute relative to the current directory;
+        its folder is created."""
 
 
 class Node:

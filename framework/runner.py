@@ -94,6 +94,11 @@ class NodeContext:
         p = Path(path).expanduser()
         return p if p.is_absolute() else (self._rt.graph.base_dir / p).resolve()
 
+    def output_path(self, path: str | Path) -> Path:
+        p = Path(path).expanduser().resolve()
+        p.parent.mkdir(parents=True, exist_ok=True)
+        return p
+
 
 class _NodeSlot:
     """Runtime bookkeeping of one node: instance, context, counters, next tick."""

@@ -42,6 +42,11 @@ class HarnessContext:
         p = Path(path).expanduser()
         return p if p.is_absolute() else (self.base_dir / p).resolve()
 
+    def output_path(self, path: str | Path) -> Path:
+        p = Path(path).expanduser().resolve()
+        p.parent.mkdir(parents=True, exist_ok=True)
+        return p
+
 
 def check_publish(node_id: str, outputs: dict[str, type[Message]], port: str, msg: Message) -> None:
     """The publisher-side checks shared by the runtime and the harness."""

@@ -14,7 +14,7 @@ from ..transport import EndpointInUse
 
 def register(parser: argparse.ArgumentParser) -> None:
     """Run a graph: one process per node (or group), supervised, until Ctrl-C or --duration."""
-    parser.add_argument("graph", help="YAML graph file")
+    parser.add_argument("graph", help="YAML graph file, or the name of a shipped graph (e.g. demo)")
     parser.add_argument("--duration", type=float, help="stop after this many seconds (orderly, exit 0)")
     parser.add_argument(
         "--record", metavar="FILE.mcap", help="record the graph's 'record.topics' (default all) to MCAP"
@@ -52,7 +52,7 @@ def run(args: argparse.Namespace) -> int:
         if record_path:
             from ..recording import GraphRecorder
 
-            recorder = GraphRecorder.for_graph(graph, graph.base_dir / record_path if not args.record else record_path)
+            recorder = GraphRecorder.for_graph(graph, record_path)  # outputs are relative to the current directory
             recorder.attach(launcher.session)
 
     try:

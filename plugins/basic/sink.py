@@ -25,7 +25,7 @@ class Sink(Node):
 
     def setup(self) -> None:
         self.count = 0
-        self.file = open(self.ctx.resolve_path(self.params.jsonl), "a", buffering=1) if self.params.jsonl else None
+        self.file = open(self.ctx.output_path(self.params.jsonl), "a", buffering=1) if self.params.jsonl else None
 
     def on_message(self, port: str, msg: Message) -> None:
         self.count += 1

@@ -84,3 +84,23 @@ def test_a_recording_that_ends_empty_warns_and_fails(tmp_path):
     res = handflow("run", str(graph), "--duration", "0.5", "--record", str(out))
     assert res.returncode == 1
     assert "holds no messages" in res.stderr and "record.topics" in res.stderr
+
+
+def test_outputs_land_relative_to_the_current_directory_not_the_graph(tmp_path):
+    graphs, work = tmp_path / "graphs", tmp_path / "work"
+    graphs.mkdir()
+    work.mkdir()
+    graph = chain(graphs / "g.yaml", unique("reccwd"))
+    text = graph.read_text().replace("plugin: basic.sink", "plugin: basic.sink\n    params: {jsonl: out/sink.jsonl}")
+    graph.write_text(text + "record:\n  path: out/run.mcap\n")
+    res = handflow("run", str(graph), "--duration", "1", cwd=work)
+    assert res.returncode == 0, res.stderr
+    assert (work / "out" / "run.mcap").is_file() and (work / "out" / "sink.jsonl").is_file()
+    assert not (graphs / "out").exists()
+
+
+def test_a_shipped_graph_runs_by_name_from_anywhere(tmp_path):
+    res = handflow("validate", "basic_chain", cwd=tmp_path)
+    assert res.returncode == 0, res.stderr
+    missing = handflow("validate", "no_such_graph", cwd=tmp_path)
+    assert missing.returncode == 2 and "shipped graphs: " in missing.stderr and "demo" in missing.stderr

@@ -73,10 +73,15 @@ class UKRCandidate:
     run against the chronological order.  Documented choice: ``direction`` is the sign of the mean
     ``sin(2 Δx)`` over consecutive training latents (period π), and latent times are multiplied by
     it, so forward motion always means increasing latent time.
+
+    ``error_reference`` divides ``e_t`` (default 1 = the thesis' definition); the continuous
+    evaluation sets it to the median ``e_t`` of the model's own training frames, so that the errors
+    of a tight and of a loose class model are on one scale (docs/segmentation.md).
     """
 
-    def __init__(self, model) -> None:
+    def __init__(self, model, error_reference: float = 1.0) -> None:
         self.model = model
+        self.error_reference = float(error_reference)
         self.time_dim = int(getattr(model, "time_dim_", 0) or 0)
         self.direction = training_direction(model.latents_[:, self.time_dim], model.sequence_ids_)
 
@@ -89,7 +94,7 @@ class UKRCandidate:
     def normalised_errors(self, Y: np.ndarray, reconstruction: np.ndarray) -> np.ndarray:
         """``e_t`` of observations Y (N, d) given their reconstructions ``f(g(y))``."""
         residual = Y - reconstruction
-        return np.sum(residual * residual / self.model.train_variance_, axis=1)
+        return np.sum(residual * residual / self.model.train_variance_, axis=1) / self.error_reference
 
     def project(self, Y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         Y = np.asarray(Y, dtype=float)

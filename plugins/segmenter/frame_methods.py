@@ -17,12 +17,14 @@ import numpy as np
 from .baselines import PerClassHMM, SlidingDTW1NN
 from .candidates import CandidateSet, Projection
 from .clm_segmenter import CLMSegmenter
+from .cycles import phase_direction, split_cycles
 from .openset import REJECTED, score_thresholds, threshold_labels
 from .training import auto_beta, candidate_set
 from .ukr_only import UKROnlyRecognizer
 
 WINDOWS_PER_SEGMENT = 12  # MiniRocket training windows per segment
-MAX_POINTS_PER_CLASS = 400  # UKR training points per class (documented choice: every k-th frame above it)
+MAX_POINTS_PER_CLASS = 400
+MIN_PERIOD = 5  # frames; shortest cycle the class models look for  # UKR training points per class (documented choice: every k-th frame above it)
 
 
 @dataclass
@@ -160,7 +162,9 @@ def _thin(seqs: list[np.ndarray], k: int) -> list[np.ndarray]:
 
 
 class UKRMethod:
-    """Shared part of the manifold methods: one periodic structured UKR per class on its segments."""
+    """Shared part of the manifold methods: one periodic structured UKR per class, trained on the
+    cycles of its segments (:func:`split_cycles`; a segment without a period stays whole); each
+    model's errors are divided by their median over its own training frames (``error_reference``)."""
 
     name = ""
     steps = 150
@@ -170,7 +174,8 @@ class UKRMethod:
 
         models = {}
         for c in sorted(segments):
-            seqs = [s for s in segments[c] if len(s) >= 4]
+            direction = phase_direction(np.vstack(segments[c]))
+            seqs = [cyc for s in segments[c] for cyc in split_cycles(s, direction, MIN_PERIOD) if len(cyc) >= 4]
             total = sum(map(len, seqs))
             k = max(1, int(np.ceil(total / MAX_POINTS_PER_CLASS)))
             seqs = [s[::k] for s in seqs if len(s) >= 4 * k] or [max(segments[c], key=len)[::k]]
@@ -182,7 +187,10 @@ class UKRMethod:
                 init="equidistant",
                 random_state=seed,
             ).fit(seqs)
-        return candidate_set(models)
+        cands = candidate_set(models)
+        for j, (c, cand) in enumerate(zip(sorted(segments), cands.models.values())):
+            cand.error_reference = float(np.median(cands.project(np.vstack(segments[c])).errors[:, j])) or 1.0
+        return cands
 
     def prepare(self, fitted: Fitted, X: np.ndarray) -> Projection:
         return fitted.model.project(X)
@@ -201,7 +209,7 @@ class UKRCLMMethod(UKRMethod):
     history = 10
 
     def grid(self, quick: bool) -> list[dict]:
-        return [{"error_scale": e} for e in ((1.0,) if quick else (1.0, 0.1))]
+        return [{"error_scale": e} for e in ((0.03,) if quick else (0.1, 0.03, 0.01))]
 
     def fit(self, segments, params, seed) -> Fitted:
         return Fitted(self._fit_candidates(segments, seed), sorted(segments), params)

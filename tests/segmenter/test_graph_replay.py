@@ -4,7 +4,6 @@ import json
 import subprocess
 import sys
 import uuid
-from pathlib import Path
 
 import pytest
 
@@ -12,7 +11,6 @@ from handflow.framework.messages import Array, Header
 from handflow.framework.recording import McapWriter
 from handflow.plugins.segmenter import save_class_models
 
-REPO = Path(__file__).resolve().parents[2]
 T0 = 1_700_000_000_000_000_000
 
 
@@ -43,7 +41,7 @@ nodes:
 """)
     proc = subprocess.run(
         [sys.executable, "-m", "handflow.framework.cli", "replay", str(recording), "--into", str(graph), "--lockstep"],
-        cwd=REPO,
+        cwd=tmp_path,  # outputs (the sink's jsonl) land relative to the current directory
         capture_output=True,
         text=True,
         timeout=180,

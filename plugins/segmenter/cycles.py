@@ -12,7 +12,9 @@ segment into its cycles so that each cycle becomes one training sequence:
    the minimum within ``[0.6 P, 1.4 P]`` after the previous cut, so the cycle length follows the
    speed of each repetition.
 
-A segment shorter than two periods, or without a period, stays one sequence.
+The pieces are the whole cycles between the first and the last cut (the partial cycles at both
+ends are left out): k repetitions starting mid-cycle give k − 1 cycles.  A segment shorter than
+two periods, or without a period, stays one sequence.
 """
 
 from __future__ import annotations
@@ -63,10 +65,13 @@ def split_cycles(Y: np.ndarray, direction: np.ndarray | None = None, min_period:
     u = (Y - Y.mean(axis=0)) @ (phase_direction(Y) if direction is None else direction)
     cuts = [int(np.argmin(u[:P]))]
     while True:
-        lo, hi = cuts[-1] + int(SPAN[0] * P), cuts[-1] + int(np.ceil(SPAN[1] * P))
-        if hi >= len(Y):
+        lo, hi = cuts[-1] + int(SPAN[0] * P), min(cuts[-1] + int(np.ceil(SPAN[1] * P)), len(Y) - 1)
+        if lo >= hi:
             break
-        cuts.append(lo + int(np.argmin(u[lo : hi + 1])))
+        cut = lo + int(np.argmin(u[lo : hi + 1]))
+        if cut == len(Y) - 1:  # the minimum at the very end: the recording stopped mid-cycle
+            break
+        cuts.append(cut)
     if len(cuts) < 2:
         return [Y]
     return [Y[a:b] for a, b in zip(cuts[:-1], cuts[1:])]

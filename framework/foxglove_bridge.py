@@ -13,9 +13,13 @@ from __future__ import annotations
 import logging
 import threading
 
-import foxglove
 import zenoh
-from foxglove.messages import RawImage, Timestamp
+
+try:  # the optional extra 'foxglove'
+    import foxglove
+    from foxglove.messages import RawImage, Timestamp
+except ImportError:
+    foxglove = None
 
 from .messages import Image, MessageError, decode, json_schema
 from .transport import PREFIX
@@ -23,12 +27,18 @@ from .transport import PREFIX
 log = logging.getLogger("handflow.foxglove")
 
 
-class PortInUse(OSError):
+class BridgeError(OSError):
+    """The live view cannot start; the message says what to do."""
+
+
+class PortInUse(BridgeError):
     """The Foxglove port is taken by another program."""
 
 
 def start_bridge(session: zenoh.Session, graph: str, host: str, port: int) -> FoxgloveBridge:
-    """A running bridge, or :class:`PortInUse` with what to do."""
+    """A running bridge, or :class:`BridgeError` with what to do."""
+    if foxglove is None:
+        raise BridgeError("the Foxglove live view needs foxglove-sdk: pip install 'handflow[foxglove]'")
     try:
         return FoxgloveBridge(session, graph, host, port)
     except Exception as exc:  # foxglove-sdk reports bind failures as a generic error

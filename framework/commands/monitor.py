@@ -8,7 +8,7 @@ import sys
 import time
 
 from ..discovery import DiscoveryError, join
-from ..foxglove_bridge import PortInUse, start_bridge
+from ..foxglove_bridge import BridgeError, start_bridge
 from ..monitor import WINDOW_S, Monitor, render
 
 
@@ -45,7 +45,7 @@ def run(args: argparse.Namespace) -> int:
     if args.foxglove is not None:
         try:
             bridge = start_bridge(session, graph or "*", "127.0.0.1", args.foxglove)
-        except PortInUse as exc:
+        except BridgeError as exc:
             session.close()
             print(f"error: {exc}", file=sys.stderr)
             return 2

@@ -6,7 +6,7 @@ import argparse
 import json
 import sys
 
-from ..foxglove_bridge import PortInUse, start_bridge
+from ..foxglove_bridge import BridgeError, start_bridge
 from ..graph import FoxgloveSettings, GraphError, load_graph
 from ..launcher import run_graph
 from ..transport import EndpointInUse
@@ -60,7 +60,7 @@ def run(args: argparse.Namespace) -> int:
     except ValueError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    except (PortInUse, EndpointInUse) as exc:
+    except (BridgeError, EndpointInUse) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     finally:

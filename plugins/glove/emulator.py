@@ -32,7 +32,6 @@ import shutil
 import tempfile
 import threading
 import time
-import tty
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -170,6 +169,13 @@ class GloveEmulator:
         return int((t - self._t0) * P.TICK_HZ) & 0xFFFFFFFF
 
     def _open_pty(self) -> None:
+        if not hasattr(os, "openpty"):
+            raise RuntimeError(
+                "the glove emulator needs pseudo-terminals (POSIX: Linux or macOS); "
+                "on this platform connect a real glove with 'port: <serial device>'"
+            )
+        import tty
+
         self._master, self._slave = os.openpty()
         tty.setraw(self._slave)
         os.set_blocking(self._master, False)

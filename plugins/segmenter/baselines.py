@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import numba
 import numpy as np
-from hmmlearn.hmm import GaussianHMM
 from scipy.special import logsumexp
 
 REJECTED = -1
@@ -143,6 +142,10 @@ class PerClassHMM(_Standardiser):
     def fit(self, sequences_by_class: dict[str, list[np.ndarray]]) -> PerClassHMM:
         if not sequences_by_class:
             raise ValueError("need at least one class with training sequences")
+        try:
+            from hmmlearn.hmm import GaussianHMM
+        except ImportError:
+            raise ImportError("the HMM baseline needs hmmlearn: pip install 'handflow[hmm]'") from None
         self.classes_ = list(sequences_by_class)
         self.fit_from([s for seqs in sequences_by_class.values() for s in seqs])
         self.models_ = []
@@ -160,12 +163,12 @@ class PerClassHMM(_Standardiser):
         return self
 
     @staticmethod
-    def _emission_logprob(m: GaussianHMM, Z: np.ndarray) -> np.ndarray:
+    def _emission_logprob(m, Z: np.ndarray) -> np.ndarray:
         var = np.diagonal(m.covars_, axis1=1, axis2=2)  # (K, d)
         diff = Z[:, None, :] - m.means_[None]
         return -0.5 * (np.sum(diff * diff / var, axis=2) + np.sum(np.log(2 * np.pi * var), axis=1))
 
-    def _window_loglik(self, m: GaussianHMM, Z: np.ndarray) -> np.ndarray:
+    def _window_loglik(self, m, Z: np.ndarray) -> np.ndarray:
         logB = self._emission_logprob(m, Z)
         logA = np.log(np.maximum(m.transmat_, 1e-300))
         N = Z.shape[0]

@@ -32,6 +32,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
@@ -156,14 +157,20 @@ class Evaluator:
             raise ValueError(f"no trained model for classes {missing}; retrain the models on this dataset")
         self._projections: dict[tuple[str, int], Projection] = {}
         self._scores: dict[tuple, np.ndarray] = {}
-        train = dict(self.dataset.by_class("train").items())
-        self.progress("fitting baselines (DTW references, per-class HMMs)")
-        self.dtw = SlidingDTW1NN().fit(train)
-        self.hmm = PerClassHMM(random_state=self.random_state).fit(train)
         self.cases = {
             split: build_cases(self.dataset.split(split), self.classes, self.protocol)
             for split in ("validation", "test")
         }
+
+    @cached_property
+    def dtw(self) -> SlidingDTW1NN:
+        self.progress("fitting the DTW baseline's references")
+        return SlidingDTW1NN().fit(dict(self.dataset.by_class("train").items()))
+
+    @cached_property
+    def hmm(self) -> PerClassHMM:
+        self.progress("fitting the per-class HMMs")
+        return PerClassHMM(random_state=self.random_state).fit(dict(self.dataset.by_class("train").items()))
 
     # -- data of a case ---------------------------------------------------------------------
     def _projection(self, split: str, i: int) -> Projection:

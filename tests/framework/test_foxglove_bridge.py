@@ -131,3 +131,11 @@ def test_monitor_foxglove_joins_a_running_graph(tmp_path):
         mon.wait(timeout=30)
         run.wait(timeout=30)
     assert {"fxm/source/out", "fxm/sink/_health"} <= topics
+
+
+def test_without_the_foxglove_extra_the_live_view_says_what_to_install(monkeypatch):
+    from handflow.framework import foxglove_bridge
+
+    monkeypatch.setattr(foxglove_bridge, "foxglove", None)
+    with pytest.raises(foxglove_bridge.BridgeError, match=r"pip install 'handflow\[foxglove\]'"):
+        foxglove_bridge.start_bridge(None, "g", "127.0.0.1", 0)

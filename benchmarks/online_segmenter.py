@@ -1,15 +1,15 @@
 """Online UKR/CLM segmenter: per-sample latency, sweeps warm vs cold, label revisions per minute.
 
-4 candidate manifolds + background, sliding window 200, a stream "recorded" at 100 Hz (letters of
-the 4 classes one after another, so the stream holds transitions).  Every sample is processed
-exactly as the node does (batched projection onto the 4 manifolds + warm-started CLM).  Baselines
+``--classes`` candidate manifolds (default 4) + background, sliding window 200, a stream "recorded" at 100 Hz (letters of
+the classes one after another, so the stream holds transitions).  Every sample is processed
+exactly as the node does (batched projection onto all manifolds + warm-started CLM).  Baselines
 in the same run: the same stream with cold starts only (``warm_start=False``); the per-model
 projection (one ``StructuredUKR.transform`` per candidate, the path before the batched
 projector); and revisions counted the old way (every change of an earlier label, ``confirm=1``,
 ``edge=0``).  BLAS is limited to one
 thread (one core); numba code is single-threaded.
 
-    python benchmarks/online_segmenter.py [--seconds 20] [--dataset letters.npz] [--json]
+    python benchmarks/online_segmenter.py [--seconds 20] [--dataset letters.npz] [--classes 16] [--json]
 """
 
 from __future__ import annotations
@@ -40,9 +40,9 @@ RATE_HZ = 100.0
 def make_stream(args):
     if args.dataset:
         ds = load_dataset(args.dataset)
-        ds = ds.restrict(ds.classes[:4])
+        ds = ds.restrict(ds.classes[: args.classes])
     else:
-        ds = LetterGenerator(n_classes=4, random_state=args.seed, noise=0.01).dataset((5, 5, 5))
+        ds = LetterGenerator(n_classes=args.classes, random_state=args.seed, noise=0.01).dataset((5, 5, 5))
     cands = candidate_set(train_class_models(ds, n_steps=200, random_state=args.seed))
     pool = ds.test + ds.validation
     rng = np.random.default_rng(args.seed)
@@ -118,7 +118,8 @@ def run(cands, Y, truth, warm: bool, seed: int, cold_every: int | None = 10, con
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seconds", type=float, default=20.0, help="stream length in seconds at 100 Hz")
-    ap.add_argument("--dataset", help="labelled dataset (first 4 classes); default synthetic letters")
+    ap.add_argument("--dataset", help="labelled dataset (its first --classes classes); default synthetic letters")
+    ap.add_argument("--classes", type=int, default=4, help="number of candidate manifolds (16 = all real letters)")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument(
         "--cold-every", type=int, default=10, help="energy check against a cold solve every N warm updates (0 = never)"

@@ -42,9 +42,13 @@ class ZenohSettings(_Strict):
 
 
 class RestartPolicy(_Strict):
-    policy: Literal["never", "on-failure"] = "never"
-    max_restarts: int = Field(3, ge=0)
-    backoff_s: float = Field(0.5, ge=0)
+    """Supervision of a node's process (docs/pipelines.md): restarted on failure by default."""
+
+    policy: Literal["never", "on-failure"] = "on-failure"
+    max_restarts: int = Field(5, ge=0, description="more failures than this within window_s is a crash loop")
+    backoff_s: float = Field(0.5, ge=0, description="first restart delay, doubled per recent failure")
+    max_backoff_s: float = Field(10.0, ge=0, description="cap of the restart delay")
+    window_s: float = Field(60.0, gt=0, description="failures older than this are forgotten")
 
 
 class NodeSpec(_Strict):

@@ -1,29 +1,34 @@
-"""Launch and supervise a graph: one process per node or per group (spec handflow.framework.md, "Runtime").
+"""Launch and supervise a graph: one process per node or per group (docs/pipelines.md, "Running").
 
 The launcher opens the hub Zenoh session, starts a :mod:`handflow.framework.runner` process per unit,
-restarts crashed units according to their restart policy (``never`` | ``on-failure`` with a maximum
-count and exponential backoff), optionally records topics to MCAP, and on Ctrl-C, SIGTERM or the
-end of ``--duration`` stops every unit in order (their teardown runs) and exits 0.
+restarts crashed units according to their restart policy (default ``on-failure``: capped
+exponential backoff; more than ``max_restarts`` failures within ``window_s`` is a crash loop,
+reported with the unit's last log lines, after which it stays down), publishes every restart and
+crash loop as a :class:`RuntimeEvent`, and on Ctrl-C, SIGTERM or the end of ``--duration`` stops
+every unit in order (their teardown runs).
 """
 
 from __future__ import annotations
 
+import collections
 import logging
 import signal
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from dataclasses import dataclass, field
 
 from . import discovery, transport
 from .graph import Graph, RestartPolicy
-from .messages import MessageError, Status, decode
+from .messages import Header, MessageError, RuntimeEvent, Status, decode, encode
 from .runner import START_WAIT_S
 
 log = logging.getLogger("handflow.launcher")
 
 STOP_GRACE_S = 8.0
+LOG_TAIL = 20  # lines of a unit's log kept for a crash report
 
 
 @dataclass
@@ -37,6 +42,9 @@ class Unit:
     restarts: int = 0
     restart_at: float | None = None
     exit_codes: list[int] = field(default_factory=list)
+    failures: list[float] = field(default_factory=list)  # monotonic times of recent failures
+    gave_up: str | None = None  # why supervision stopped restarting it (a crash loop)
+    log_tail: collections.deque = field(default_factory=lambda: collections.deque(maxlen=LOG_TAIL))
 
 
 def plan_units(graph: Graph, host: str | None = None) -> list[Unit]:
@@ -74,6 +82,8 @@ class Launcher:
             transport.topic_key(graph.name, "*", "_health"), self._on_health
         )
         self._start_pub = self.session.declare_publisher(transport.start_key(graph.name))
+        self._event_pub = self.session.declare_publisher(transport.topic_key(graph.name, "_runtime", "events"))
+        self._event_seq = 0
 
     def _on_health(self, sample) -> None:
         try:
@@ -108,12 +118,26 @@ class Launcher:
         ]
         if self.lockstep:
             cmd.append("--lockstep")
-        unit.proc = subprocess.Popen(cmd, start_new_session=True)
+        unit.proc = subprocess.Popen(
+            cmd, start_new_session=True, stderr=subprocess.PIPE, text=True, errors="replace", bufsize=1
+        )
+        threading.Thread(target=_forward_log, args=(unit.proc.stderr, unit.log_tail), daemon=True).start()
         log.info("started %s (pid %d)", unit.name, unit.proc.pid)
 
     def start(self) -> None:
         for unit in self.units:
             self._spawn(unit)
+
+    def event(self, kind: str, unit: Unit, detail: str) -> None:
+        """Publish a :class:`RuntimeEvent` (seen by monitor, written into recordings)."""
+        msg = RuntimeEvent(kind=kind, node=",".join(unit.node_ids), detail=detail)
+        msg.header = Header("_launcher", self._event_seq, time.time_ns())
+        self._event_seq += 1
+        self._event_pub.put(encode(msg))
+
+    @property
+    def crash_loops(self) -> list[str]:
+        return [u.gave_up for u in self.units if u.gave_up]
 
     def poll(self) -> None:
         """Reap exited units and restart them per policy."""
@@ -126,24 +150,24 @@ class Launcher:
                     log.info("%s exited normally", unit.name)
                     continue
                 why = f"killed by signal {-code}" if code < 0 else f"exit code {code}"
-                if unit.policy.policy == "on-failure" and unit.restarts < unit.policy.max_restarts:
-                    delay = unit.policy.backoff_s * (2**unit.restarts)
-                    unit.restart_at = now + delay
-                    log.warning(
-                        "%s failed (%s); restarting in %.2fs (%d/%d)",
-                        unit.name,
-                        why,
-                        delay,
-                        unit.restarts + 1,
-                        unit.policy.max_restarts,
-                    )
-                else:
+                unit.failures = [t for t in unit.failures if now - t <= unit.policy.window_s] + [now]
+                if unit.policy.policy == "never":
                     log.error(
-                        "%s failed (%s); restart policy '%s' gives up; the rest of the graph keeps running",
-                        unit.name,
-                        why,
-                        unit.policy.policy,
+                        "%s failed (%s); restart policy 'never': the rest of the graph keeps running", unit.name, why
                     )
+                elif len(unit.failures) > unit.policy.max_restarts:
+                    unit.gave_up = (
+                        f"{unit.name} failed {len(unit.failures)} times within {unit.policy.window_s:.0f}s "
+                        f"(last: {why}); not restarted again"
+                    )
+                    tail = "\n".join(f"    {line}" for line in unit.log_tail)
+                    log.error("crash loop: %s; its last log lines:\n%s", unit.gave_up, tail)
+                    self.event("crash_loop", unit, unit.gave_up)
+                else:
+                    delay = min(unit.policy.max_backoff_s, unit.policy.backoff_s * 2 ** (len(unit.failures) - 1))
+                    unit.restart_at = now + delay
+                    log.warning("%s failed (%s); restarting in %.2fs", unit.name, why, delay)
+                    self.event("restart", unit, f"{why}; restart in {delay:.2f}s")
             if unit.proc is None and unit.restart_at is not None and now >= unit.restart_at:
                 unit.restart_at = None
                 unit.restarts += 1
@@ -177,6 +201,7 @@ class Launcher:
         discovery.remove_run_file(self.run_file)
         self._health_sub.undeclare()
         self._start_pub.undeclare()
+        self._event_pub.undeclare()
         self.session.close()
         self._state_dir.cleanup()
 
@@ -196,6 +221,13 @@ class Launcher:
             }
             for u in self.units
         }
+
+
+def _forward_log(stream, tail: collections.deque) -> None:
+    """Copy a node process's log to ours, keeping its last lines for a crash report."""
+    for line in stream:
+        sys.stderr.write(line)
+        tail.append(line.rstrip("\n"))
 
 
 def run_graph(

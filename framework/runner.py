@@ -41,6 +41,8 @@ from .testing import check_publish
 log = logging.getLogger("handflow.runner")
 
 HEARTBEAT_S = 0.5
+ORPHAN_POLL_S = 0.2
+ORPHAN_GRACE_S = 1.5
 START_WAIT_S = 60.0  # without a start signal (no launcher), tick anyway after this long
 _STATE_SLOTS = 128
 
@@ -314,6 +316,17 @@ class GroupRuntime:
                 log.error("teardown of node '%s' failed:\n%s", slot.id, traceback.format_exc())
 
 
+def _exit_with_parent(parent: int) -> None:
+    """No node outlives its launcher: when the parent process is gone (even SIGKILLed), stop in order,
+    and exit hard if that takes longer than ``ORPHAN_GRACE_S`` (docs/pipelines.md)."""
+    while os.getppid() == parent:
+        time.sleep(ORPHAN_POLL_S)
+    log.warning("the launcher (pid %d) is gone; stopping", parent)
+    os.kill(os.getpid(), signal.SIGTERM)
+    time.sleep(ORPHAN_GRACE_S)
+    os._exit(1)
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(
         prog="python -m handflow.framework.runner", description="Run nodes of a graph (used by the launcher)."
@@ -336,6 +349,7 @@ def main(argv: list[str] | None = None) -> int:
 
     signal.signal(signal.SIGTERM, _stop)
     signal.signal(signal.SIGINT, _stop)
+    threading.Thread(target=_exit_with_parent, args=(os.getppid(),), daemon=True).start()
     faulthandler.register(signal.SIGUSR1, all_threads=True)  # the launcher asks for stacks before a kill
     code = 0
     try:

@@ -29,6 +29,7 @@ def register(parser: argparse.ArgumentParser) -> None:
         help="live view: stream every topic to Foxglove on ws://127.0.0.1:PORT (default 8765)",
     )
     parser.add_argument("--summary-json", metavar="FILE", help="write per-process restarts and exit codes as JSON")
+    parser.epilog = "exit codes: 0 ok, 1 empty recording, 2 bad graph or arguments, 3 a node in a crash loop"
     parser.set_defaults(func=run)
 
 
@@ -72,6 +73,10 @@ def run(args: argparse.Namespace) -> int:
         with open(args.summary_json, "w") as f:
             json.dump(launcher.summary(), f, indent=2)
     launcher.close()
+    if launcher.crash_loops:
+        for why in launcher.crash_loops:
+            print(f"error: crash loop: {why} (see its log above)", file=sys.stderr)
+        return 3
     if recorder is not None and recorder.writer.message_count == 0:
         print(
             f"warning: the recording {recorder.writer.path} holds no messages; check the graph's 'record.topics' "

@@ -139,7 +139,7 @@ def _recorded_values(recording):
 @pytest.mark.slow
 def test_replay_into_a_sink_reproduces_the_recorded_values(tmp_path, recording):
     graph = _into_graph(tmp_path)
-    proc = handflow("replay", str(recording), "--into", str(graph), "--speed", "2")
+    proc = handflow("replay", str(recording), "--into", str(graph), "--speed", "2", cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr
     assert f"replayed {N} message(s) on 1 topic(s)" in proc.stdout  # 'other/out' is not an input of the graph
     recorded = _recorded_values(recording)
@@ -154,7 +154,7 @@ def _lockstep_outputs(tmp_path, recording, *extra: str) -> dict[str, list[dict]]
     graph = _into_graph(tmp_path, with_ticker=True)
     for f in ("raw", "scaled", "ticks"):
         (tmp_path / f"{f}.jsonl").unlink(missing_ok=True)
-    proc = handflow("replay", str(recording), "--into", str(graph), "--lockstep", *extra)
+    proc = handflow("replay", str(recording), "--into", str(graph), "--lockstep", *extra, cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr
     assert "(lock-step)" in proc.stdout
     return {f: [r["msg"] for r in read_jsonl(tmp_path / f"{f}.jsonl")] for f in ("raw", "scaled", "ticks")}

@@ -35,7 +35,7 @@ nodes:
     inputs: {{in: source/out}}{h[1]}{extra_scale}
   - id: sink
     plugin: basic.sink
-    params: {{jsonl: sink.jsonl}}
+    params: {{jsonl: {tmp_path / "sink.jsonl"}}}
     inputs: {{in: scale/out}}{h[2]}
 """
     path = tmp_path / "graph.yaml"
@@ -135,3 +135,44 @@ def test_two_launchers_share_one_graph_over_tcp(tmp_path):
     assert "started source" in err_a and "started source" not in err_b
     rows = read_sink(tmp_path / "sink.jsonl")
     assert len(rows) > 100  # source on launcher a reached scale and sink on launcher b
+
+
+def test_a_node_that_keeps_failing_is_a_crash_loop_with_its_log_and_exit_code_3(tmp_path):
+    graph = chain_graph(tmp_path)  # crashes at setup: a CSV source whose file is missing
+    graph.write_text(
+        graph.read_text().replace(
+            "params: {kind: sine, rate_hz: 100, width: 4}",
+            "params: {kind: csv, csv: missing.csv, rate_hz: 100}\n    restart: {max_restarts: 2, backoff_s: 0.1}",
+        )
+    )
+    proc = start("run", str(graph), "--duration", "4")
+    _, err = proc.communicate(timeout=90)
+    assert proc.returncode == 3, err
+    assert "crash loop: source failed 3 times" in err
+    assert "missing.csv" in err.split("crash loop:")[1]  # the node's own last log lines are in the report
+
+
+def test_no_node_outlives_a_killed_launcher(tmp_path):
+    graph = chain_graph(tmp_path)
+    proc = start("run", str(graph))
+    try:
+        deadline = time.monotonic() + 60
+        while not read_sink(tmp_path / "sink.jsonl") and time.monotonic() < deadline:
+            time.sleep(0.2)
+        children = [
+            int(p)
+            for p in subprocess.run(["pgrep", "-P", str(proc.pid)], capture_output=True, text=True).stdout.split()
+        ]
+        assert len(children) == 3
+    finally:
+        proc.kill()  # SIGKILL: no chance to stop the nodes itself
+        proc.wait()
+    time.sleep(2.5)
+    alive = []
+    for pid in children:
+        try:
+            os.kill(pid, 0)
+            alive.append(pid)
+        except ProcessLookupError:
+            pass
+    assert not alive, f"node processes {alive} outlived the launcher"

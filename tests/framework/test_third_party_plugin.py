@@ -40,7 +40,7 @@ def test_doc_plugin_is_listed_and_runs(tmp_path, run_handflow):
         "  - id: thr\n    plugin: mine.threshold\n    params: {level: 0.0}\n    inputs: {in: src/out}\n"
         "  - id: sink\n    plugin: basic.sink\n    params: {jsonl: out.jsonl}\n    inputs: {in: thr/label}\n"
     )
-    proc = handflow("run", str(graph), "--duration", "2.5", env=env, check=True)
+    proc = handflow("run", str(graph), "--duration", "2.5", env=env, check=True, cwd=tmp_path)
     assert "labelled" in proc.stderr  # the plugin's teardown ran
     labels = {json.loads(line)["msg"]["label"] for line in (tmp_path / "out.jsonl").read_text().splitlines()}
     assert labels == {"high", "low"}

@@ -150,16 +150,23 @@ class WireHeader:
 
 
 def peek_header(data: bytes) -> WireHeader:
-    """The message type and header of :func:`encode` bytes (fast path on the fixed key order)."""
-    m = _HEADER_RX.match(data[:512])
-    if m:
-        return WireHeader(m.group(1).decode(), json.loads(b'"' + m.group(2) + b'"'), int(m.group(3)), int(m.group(4)))
+    """The message type and header of :func:`encode` bytes (fast path on the fixed key order).
+
+    Any other bytes raise :class:`MessageError`; the payload itself is not validated (:func:`decode` does).
+    """
     try:
+        m = _HEADER_RX.match(data[:512])
+        if m:
+            source = json.loads(b'"' + m.group(2) + b'"')
+            return WireHeader(m.group(1).decode(), source, int(m.group(3)), int(m.group(4)))
         d = json.loads(bytes(data))
-        h = d.get("header", {})
-        return WireHeader(str(d["type"]), str(h.get("source", "")), int(h.get("seq", 0)), int(h.get("stamp_ns", 0)))
-    except (ValueError, KeyError, TypeError, AttributeError) as exc:
-        raise MessageError(f"not a handflow message: {exc}") from exc
+        h = d["header"] if "header" in d else {}
+        seq, stamp = h.get("seq", 0), h.get("stamp_ns", 0)
+        if type(d["type"]) is not str or type(seq) is not int or type(stamp) is not int:
+            raise TypeError("type, header.seq and header.stamp_ns must be a string and integers")
+        return WireHeader(d["type"], str(h.get("source", "")), seq, stamp)
+    except (ValueError, KeyError, TypeError, AttributeError, RecursionError) as exc:
+        raise MessageError(f"not a handflow message: {str(exc)[:200]}") from None
 
 
 # ----------------------------------------------------------------------------------------------

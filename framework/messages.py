@@ -252,8 +252,8 @@ def _wire_header(value: Any) -> Header:
         _wire_int("header.seq", value.get("seq", 0)),
         _wire_int("header.stamp_ns", value.get("stamp_ns", 0)),
     )
-    if h.seq < 0:
-        raise MessageError(f"header.seq must not be negative, got {h.seq}")
+    if h.seq < 0 or h.stamp_ns < 0:
+        raise MessageError(f"header.seq and header.stamp_ns must not be negative, got {h.seq}, {h.stamp_ns}")
     return h
 
 

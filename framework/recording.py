@@ -416,8 +416,8 @@ class GraphRecorder:
     ``GraphRecorder.for_graph(graph, path)`` also stores the graph's provenance
     (:func:`graph_provenance`); ``attach(session)`` subscribes to ``handflow/<graph>/**`` and keeps
     the topics matching the ``record.topics`` globs; ``close()`` finalises the file.
-    Payloads are stored as received (never re-encoded); undecodable payloads are counted in
-    ``skipped`` and logged once per topic.
+    Payloads are validated by :func:`decode` and stored as received (never re-encoded); invalid
+    payloads are counted in ``skipped`` and logged once per topic.
     """
 
     def __init__(self, writer: McapWriter, graph_name: str, topics: Iterable[str] | None = None) -> None:
@@ -450,8 +450,8 @@ class GraphRecorder:
             return
         data = sample.payload.to_bytes()
         try:
-            hdr = peek_header(data)
-            self.writer.write_encoded(key, hdr.type_name, data, None, hdr.stamp_ns, hdr.seq)
+            msg = decode(data)  # what replay and Foxglove read back must be valid (docs/robustness.md)
+            self.writer.write_encoded(key, msg.TYPE, data, None, msg.header.stamp_ns, msg.header.seq)
         except (MessageError, RecordingError) as exc:
             if key not in self.skipped:
                 log.warning("not recording a payload on %s: %s", key, exc)

@@ -167,6 +167,11 @@ def _wire_float(name: str, value: Any) -> float:
 def _wire_str(name: str, value: Any) -> str:
     if type(value) is not str:
         raise MessageError(f"field '{name}' must be a string, got {_brief(value)}")
+    if not value.isascii():
+        try:
+            value.encode()
+        except UnicodeEncodeError:
+            raise MessageError(f"field '{name}' holds a lone surrogate (not Unicode text)") from None
     return value
 
 

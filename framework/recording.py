@@ -221,7 +221,7 @@ class McapWriter:
         self.foxglove_images = foxglove_images and encoding == "json"  # Foxglove shows sensor_msgs/Image itself
         self._lock = threading.Lock()
         self._schemas: dict[str, int] = {}
-        self._channels: dict[str, int] = {}
+        self._channels: dict[tuple[str, str], int] = {}  # (topic, type): a second type on a topic gets its own channel
         self.counts: dict[str, int] = {}
         self._dirty = False
         self._closed = False
@@ -246,7 +246,7 @@ class McapWriter:
         return self._schemas[ros]
 
     def _channel_id(self, topic: str, type_name: str) -> int:
-        cid = self._channels.get(topic)
+        cid = self._channels.get((topic, type_name))
         if cid is None:
             cls = message_types().get(type_name)
             if cls is None:
@@ -259,16 +259,16 @@ class McapWriter:
             else:
                 sid = self._schema_id(type_name, json_schema(cls))
                 cid = self._writer.register_channel(topic, MESSAGE_ENCODING, sid, {TYPE_KEY: type_name})
-            self._channels[topic] = cid
+            self._channels[(topic, type_name)] = cid
         return cid
 
     def _view_channel_id(self, topic: str) -> int:
         view = topic + FOXGLOVE_IMAGE_SUFFIX
-        cid = self._channels.get(view)
+        cid = self._channels.get((view, ""))
         if cid is None:
             sid = self._schema_id("foxglove.RawImage", FOXGLOVE_RAW_IMAGE_SCHEMA)
             cid = self._writer.register_channel(view, MESSAGE_ENCODING, sid, {VIEW_KEY: topic})
-            self._channels[view] = cid
+            self._channels[(view, "")] = cid
         return cid
 
     # -- writing ----------------------------------------------------------------------------

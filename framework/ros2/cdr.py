@@ -73,7 +73,10 @@ class CdrWriter:
             raise MessageError(f"value {value!r} does not fit a CDR {ftype}: {exc}") from None
 
     def string(self, value: str) -> None:
-        raw = value.encode()
+        try:
+            raw = value.encode()
+        except UnicodeEncodeError as exc:
+            raise MessageError(f"a string is not Unicode text: {exc}") from None
         self.primitive("uint32", len(raw) + 1)
         self.buf += raw
         self.buf += b"\x00"

@@ -293,3 +293,12 @@ def test_migrate_rewrites_a_json_recording_as_rosbag2_cdr(tmp_path):
         [sys.executable, "-m", "handflow.framework.cli", "migrate", str(out), str(out)], capture_output=True, text=True
     )
     assert same.returncode == 2 and "new file" in same.stderr
+
+
+def test_a_second_type_on_a_topic_gets_its_own_channel(tmp_path):
+    path = tmp_path / "a.mcap"
+    with McapWriter(path) as w:
+        w.write(TOPIC, _array(1))
+        w.write(TOPIC, Label(label="stray"))  # e.g. published by an outside peer
+        w.write(TOPIC, _array(2))
+    assert [type(m).__name__ for _, m, _ in read_messages(path)] == ["Array", "Label", "Array"]

@@ -6,14 +6,19 @@ JSON bytes (``{"type": ..., "header": ..., <fields>}``) and :func:`decode` back.
 recordings readable by Foxglove (JSON-schema channels, see :func:`json_schema`).
 
 Validation (:meth:`Message.check`) rejects NaN/inf and wrongly shaped payloads; the publisher calls
-it and names the node and port in the error.
+it and names the node and port in the error.  :func:`decode` is hardened for payloads from outside the
+process (docs/robustness.md): every field is checked against its declared type (JSON kind, int64
+range, array dtype and dimensions, finite floats) and the decoded message passes :meth:`Message.check`,
+so any payload either decodes to a valid message or raises :class:`MessageError` — nothing else.
 """
 
 from __future__ import annotations
 
 import base64
+import binascii
 import dataclasses
 import json
+import math
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
@@ -75,6 +80,11 @@ class Message:
             if meta["finite"] and arr.dtype.kind == "f" and not np.isfinite(arr).all():
                 bad = int((~np.isfinite(arr)).sum())
                 raise MessageError(f"field '{f.name}' holds {bad} NaN/inf value(s)")
+        for name in _finite_scalar_fields(type(self)):
+            value = getattr(self, name)
+            values = value.values() if isinstance(value, dict) else (value,)
+            if not all(math.isfinite(v) for v in values):
+                raise MessageError(f"field '{name}' holds NaN/inf")
         self._check_shapes()
 
     def _check_shapes(self) -> None:
@@ -96,18 +106,20 @@ class Message:
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> Message:
-        kwargs = {k: v for k, v in d.items() if k not in ("type", "header") and k in cls.__dataclass_fields__}
+        """Build a message from decoded JSON, checking every field's kind (raises :class:`MessageError`)."""
+        kwargs = {}
         for f in dataclasses.fields(cls):
-            if f.type in ("bytes", bytes) and isinstance(kwargs.get(f.name), str):
-                kwargs[f.name] = base64.b64decode(kwargs[f.name])
-            if f.metadata.get("array") and f.name in kwargs:
-                meta = f.metadata
-                arr = np.asarray(kwargs[f.name], dtype=meta["array"])
-                if arr.size == 0 and meta["ndim"] == 2:
-                    arr = arr.reshape(0, meta["cols"] or 0)
-                kwargs[f.name] = arr
-        msg = cls(**kwargs)
-        msg.header = Header(**d.get("header", {}))
+            if f.name == "header" or f.name not in d:
+                continue
+            if f.metadata.get("array"):
+                kwargs[f.name] = _wire_array(f.name, d[f.name], f.metadata)
+            else:
+                kwargs[f.name] = _wire_value(f.name, d[f.name], _annotation(f))
+        try:
+            msg = cls(**kwargs)
+        except (TypeError, ValueError, OverflowError) as exc:  # a subclass's own __post_init__ rules
+            raise MessageError(f"invalid {cls.TYPE}: {exc}") from None
+        msg.header = _wire_header(d.get("header", {}))
         return msg
 
 
@@ -117,6 +129,142 @@ def _array_fields(cls: type) -> list[dataclasses.Field]:
         cached = [f for f in dataclasses.fields(cls) if f.metadata.get("array")]
         cls._array_fields_cache = cached
     return cached
+
+
+def _annotation(f: dataclasses.Field) -> str:
+    return f.type if isinstance(f.type, str) else getattr(f.type, "__name__", str(f.type))
+
+
+def _finite_scalar_fields(cls: type) -> list[str]:
+    cached = cls.__dict__.get("_finite_scalars_cache")
+    if cached is None:
+        cached = [f.name for f in dataclasses.fields(cls) if _annotation(f) in ("float", "dict[str, float]")]
+        cls._finite_scalars_cache = cached
+    return cached
+
+
+# --------------------------------------------------------------------------------------------
+# Checked conversion of wire values (JSON) to field values
+# --------------------------------------------------------------------------------------------
+INT64_MIN, INT64_MAX = -(2**63), 2**63 - 1
+
+
+def _wire_int(name: str, value: Any) -> int:
+    if type(value) is not int or not INT64_MIN <= value <= INT64_MAX:
+        raise MessageError(f"field '{name}' must be an int64 integer, got {_brief(value)}")
+    return value
+
+
+def _wire_float(name: str, value: Any) -> float:
+    if type(value) not in (int, float):
+        raise MessageError(f"field '{name}' must be a number, got {_brief(value)}")
+    out = float(value) if abs(value) < 2**1023 else math.inf  # an int too large for a float
+    if not math.isfinite(out):
+        raise MessageError(f"field '{name}' must be finite, got {_brief(value)}")
+    return out
+
+
+def _wire_str(name: str, value: Any) -> str:
+    if type(value) is not str:
+        raise MessageError(f"field '{name}' must be a string, got {_brief(value)}")
+    if not value.isascii():
+        try:
+            value.encode()
+        except UnicodeEncodeError:
+            raise MessageError(f"field '{name}' holds a lone surrogate (not Unicode text)") from None
+    return value
+
+
+def _wire_bool(name: str, value: Any) -> bool:
+    if type(value) is not bool:
+        raise MessageError(f"field '{name}' must be true or false, got {_brief(value)}")
+    return value
+
+
+def _wire_list(name: str, value: Any, item: Any) -> list:
+    if type(value) is not list:
+        raise MessageError(f"field '{name}' must be a list, got {_brief(value)}")
+    return [item(f"{name}[{i}]", v) for i, v in enumerate(value)]
+
+
+def _wire_bytes(name: str, value: Any) -> bytes:
+    try:
+        return base64.b64decode(_wire_str(name, value), validate=True)
+    except (binascii.Error, ValueError) as exc:
+        raise MessageError(f"field '{name}' must be base64 text: {exc}") from None
+
+
+def _wire_float_dict(name: str, value: Any) -> dict[str, float]:
+    if type(value) is not dict:
+        raise MessageError(f"field '{name}' must be an object of numbers, got {_brief(value)}")
+    return {k: _wire_float(f"{name}.{k}", v) for k, v in value.items()}
+
+
+_WIRE_VALUE = {
+    "str": _wire_str,
+    "int": _wire_int,
+    "float": _wire_float,
+    "bool": _wire_bool,
+    "bytes": _wire_bytes,
+    "list[str]": lambda name, v: _wire_list(name, v, _wire_str),
+    "list[int]": lambda name, v: _wire_list(name, v, _wire_int),
+    "dict[str, float]": _wire_float_dict,
+    "int | None": lambda name, v: None if v is None else _wire_int(name, v),
+    "float | None": lambda name, v: None if v is None else _wire_float(name, v),
+    "str | None": lambda name, v: None if v is None else _wire_str(name, v),
+}
+
+
+def _wire_value(name: str, value: Any, annotation: str) -> Any:
+    """A scalar/list/dict field from JSON, checked against its annotation (others pass unchanged)."""
+    convert = _WIRE_VALUE.get(annotation)
+    return value if convert is None else convert(name, value)
+
+
+# array dtype kind → JSON element kinds numpy may infer for it ("b" bool, "i"/"u" int, "f" float)
+_ARRAY_SOURCE_KINDS = {"f": "biuf", "i": "iu", "u": "iu", "b": "b"}
+
+
+def _wire_array(name: str, value: Any, meta: dict[str, Any]) -> np.ndarray:
+    """A (nested) JSON list as a numpy array of the field's dtype and dimensions."""
+    dtype = np.dtype(meta["array"])
+    if type(value) is not list:
+        raise MessageError(f"field '{name}' must be a list, got {_brief(value)}")
+    try:
+        arr = np.asarray(value)
+    except (ValueError, TypeError, OverflowError, RecursionError) as exc:
+        raise MessageError(f"field '{name}' is not a regular array: {str(exc)[:120]}") from None
+    ndim, cols = meta["ndim"], meta["cols"]
+    if arr.size == 0:
+        return np.zeros((0,) * ndim if cols is None else (0, cols), dtype=dtype)
+    if arr.dtype.kind not in _ARRAY_SOURCE_KINDS[dtype.kind]:
+        raise MessageError(f"field '{name}' must hold {dtype.name} values, got {arr.dtype.name} elements")
+    if arr.ndim != ndim:
+        raise MessageError(f"field '{name}' must have {ndim} dimension(s), got shape {arr.shape}")
+    if dtype.kind in "iu":
+        info = np.iinfo(dtype)
+        if arr.min() < info.min or arr.max() > info.max:
+            raise MessageError(f"field '{name}' holds values outside the {dtype.name} range")
+    with np.errstate(over="ignore"):
+        return arr.astype(dtype)
+
+
+def _wire_header(value: Any) -> Header:
+    if type(value) is not dict:
+        raise MessageError(f"header must be an object, got {_brief(value)}")
+    h = Header(
+        _wire_str("header.source", value.get("source", "")),
+        _wire_int("header.seq", value.get("seq", 0)),
+        _wire_int("header.stamp_ns", value.get("stamp_ns", 0)),
+    )
+    if h.seq < 0 or h.stamp_ns < 0:
+        raise MessageError(f"header.seq and header.stamp_ns must not be negative, got {h.seq}, {h.stamp_ns}")
+    return h
+
+
+def _brief(value: Any) -> str:
+    text = repr(value)
+    return f"{type(value).__name__} {text[:40]}{'…' if len(text) > 40 else ''}"
 
 
 # --------------------------------------------------------------------------------------------
@@ -138,7 +286,7 @@ class Array(Message):
         self.data = arr.reshape(-1)
 
     def _check_shapes(self) -> None:
-        if int(np.prod(self.shape)) != self.data.size:
+        if any(n < 0 for n in self.shape) or math.prod(self.shape) != self.data.size:
             raise MessageError(f"shape {self.shape} does not match {self.data.size} values")
         if self.names and len(self.names) != self.data.size:
             raise MessageError(f"{len(self.names)} names for {self.data.size} values")
@@ -219,8 +367,13 @@ class Points2D(Message):
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> Message:
-        d = dict(d, points=[[np.nan, np.nan] if p is None else p for p in d.get("points", [])])
+        points = d.get("points", [])
+        if type(points) is list:
+            d = dict(d, points=[[np.nan, np.nan] if p is None else p for p in points])
         return super().from_dict(d)
+
+
+IMAGE_ENCODINGS = {"mono8": 1, "rgb8": 3, "bgr8": 3, "rgba8": 4, "bgra8": 4, "mono16": 2}  # bytes per pixel
 
 
 @dataclass
@@ -236,6 +389,15 @@ class Image(Message):
     frame_id: str = "camera"
 
     def _check_shapes(self) -> None:
+        if min(self.width, self.height, self.step) < 0:
+            raise MessageError(
+                f"width, height and step must not be negative, got {self.width}, {self.height}, {self.step}"
+            )
+        pixel = IMAGE_ENCODINGS.get(self.encoding)
+        if pixel is not None and self.step < self.width * pixel:
+            raise MessageError(
+                f"{self.encoding} rows of {self.width} pixels need a step ≥ {self.width * pixel}, got {self.step}"
+            )
         if self.step * self.height != len(self.data):
             raise MessageError(
                 f"image of {self.height} rows × step {self.step} needs {self.step * self.height} bytes, got {len(self.data)}"
@@ -250,8 +412,9 @@ class Image(Message):
         return cls(width=w, height=h, encoding=enc, step=w * channels, data=rgb.tobytes(), frame_id=frame_id)
 
     def to_array(self) -> np.ndarray:
-        channels = self.step // max(self.width, 1)
-        arr = np.frombuffer(self.data, dtype=np.uint8).reshape(self.height, self.width, channels)
+        channels = IMAGE_ENCODINGS.get(self.encoding) or self.step // max(self.width, 1)
+        rows = np.frombuffer(self.data, dtype=np.uint8).reshape(self.height, self.step)
+        arr = rows[:, : self.width * channels].reshape(self.height, self.width, channels)
         return arr[:, :, 0] if channels == 1 else arr
 
 
@@ -345,13 +508,32 @@ def encode(msg: Message) -> bytes:
 
 
 def decode(data: bytes | bytearray | memoryview) -> Message:
-    """Inverse of :func:`encode`; raises :class:`MessageError` on unknown type or broken bytes."""
+    """Inverse of :func:`encode`: a valid, checked message, or :class:`MessageError` saying what is wrong.
+
+    Safe on any bytes from the wire (docs/robustness.md): JSON's ``NaN``/``Infinity`` literals,
+    wrong field kinds, out-of-range integers, ragged arrays and failed :meth:`Message.check` rules
+    are all rejected with :class:`MessageError`.
+    """
     try:
-        d = json.loads(bytes(data))
-        cls = _REGISTRY[d["type"]]
-    except (ValueError, KeyError, TypeError) as exc:
-        raise MessageError(f"cannot decode message: {exc}") from exc
-    return cls.from_dict(d)
+        d = json.loads(bytes(data), parse_constant=_no_constant)
+    except (ValueError, TypeError, RecursionError) as exc:  # UnicodeDecodeError is a ValueError
+        raise MessageError(f"cannot decode message: {str(exc)[:200]}") from None
+    if type(d) is not dict:
+        raise MessageError(f"cannot decode message: expected a JSON object, got {type(d).__name__}")
+    type_name = d.get("type")
+    cls = _REGISTRY.get(type_name) if type(type_name) is str else None
+    if cls is None:
+        raise MessageError(f"cannot decode message: unknown message type {_brief(type_name)}")
+    msg = cls.from_dict(d)
+    try:
+        msg.check()
+    except (TypeError, ValueError, OverflowError, IndexError) as exc:  # incl. check rules of plugin-defined types
+        raise MessageError(f"invalid {cls.TYPE}: {exc}") from None
+    return msg
+
+
+def _no_constant(name: str) -> float:
+    raise ValueError(f"{name} is not allowed (messages carry finite numbers)")
 
 
 _JSON_TYPES = {"int": "integer", "float": "number", "str": "string", "bool": "boolean"}

@@ -7,7 +7,9 @@ sliding window of arrival times and end-to-end latencies (arrival wall clock −
 *back* — a replay loop or a fresh graph — restarts the count without a gap; the runner keeps
 numbering across node restarts, so a restart is not a gap) and the last payload (decoded only when
 a snapshot is taken).  Node health comes from the ``_health`` heartbeats: alive if one arrived
-within :data:`ALIVE_S`; restarts are seen as a change of the heartbeat's pid.
+within :data:`ALIVE_S`; restarts are seen as a change of the heartbeat's pid.  Payloads a node dropped
+(``dropped`` :class:`RuntimeEvent` on ``_runtime/events``, docs/robustness.md) are added to the
+``dropped`` count of the topic they arrived on.
 """
 
 from __future__ import annotations
@@ -22,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from . import transport
-from .messages import Array, Message, MessageError, Status, decode
+from .messages import Array, Message, MessageError, RuntimeEvent, Status, decode
 from .recording import peek_header
 
 ALIVE_S = 2.0  # a node is alive if its last heartbeat is younger than this
@@ -35,6 +37,7 @@ class TopicStats:
     type_name: str = ""
     count: int = 0
     gaps: int = 0
+    dropped: int = 0
     last_seq: int = 0
     last_data: bytes = b""
     arrivals: deque = field(default_factory=deque)  # (monotonic s, latency ns)
@@ -122,6 +125,8 @@ class Monitor:
         if parts[2] == "_health":
             self._on_health(parts[0], parts[1], data, now_m)
             return
+        if (parts[1], parts[2]) == ("_runtime", "events"):
+            self._on_event(data)
         try:
             hdr = peek_header(data)
         except MessageError:
@@ -132,6 +137,18 @@ class Monitor:
                 stats = self.topics[key] = TopicStats(key, hdr.type_name)
             stats.note(now_m, now_wall - hdr.stamp_ns, hdr.seq, self.window_s)
             stats.last_data = data
+
+    def _on_event(self, data: bytes) -> None:
+        try:
+            event = decode(data)
+        except MessageError:
+            return
+        if isinstance(event, RuntimeEvent) and event.kind == "dropped":
+            with self._lock:
+                stats = self.topics.get(event.topic)
+                if stats is None:
+                    stats = self.topics[event.topic] = TopicStats(event.topic)
+                stats.dropped += event.count
 
     def _on_health(self, graph: str, node: str, data: bytes, now_m: float) -> None:
         try:
@@ -160,7 +177,7 @@ class Monitor:
         out_topics = []
         for t in sorted(topics, key=lambda t: t.key):
             try:
-                last = summarize(decode(lasts[t.key]))
+                last = summarize(decode(lasts[t.key])) if lasts[t.key] else "-"
             except MessageError as exc:
                 last = f"(undecodable: {exc})"
             lat = t.latency_ms()
@@ -171,6 +188,7 @@ class Monitor:
                     "rate_hz": round(t.rate_hz(), 2),
                     "latency_ms": None if lat is None else round(lat, 3),
                     "gaps": t.gaps,
+                    "dropped": t.dropped,
                     "count": t.count,
                     "last": last,
                 }
@@ -186,7 +204,7 @@ class Monitor:
                     "last_heartbeat_s": round(now_m - h.last_seen, 2),
                     "pid": h.pid,
                     "restarts_seen": h.restarts,
-                    "errors": int(c.get("errors", 0)),
+                    "dropped": int(sum(v for k, v in c.items() if k.startswith("dropped."))),
                     "input_gaps": int(sum(v for k, v in c.items() if k.startswith("gaps."))),
                     "handled": int(sum(v for k, v in c.items() if k.startswith("handled."))),
                     "published": int(sum(v for k, v in c.items() if k.startswith("published."))),
@@ -209,20 +227,21 @@ def render(snapshot: dict[str, Any], title: str = "handflow monitor", graph: str
         ("type", {}),
         ("rate Hz", {"justify": "right"}),
         ("latency ms", {"justify": "right"}),
-        ("gaps", {"justify": "right"}),
+        ("gaps/dropped", {"justify": "right"}),
         ("count", {"justify": "right"}),
         ("last value", {"overflow": "ellipsis"}),
     ):
         topics.add_column(col, **kw)
     for t in snapshot["topics"]:
         lat = "-" if t["latency_ms"] is None else f"{t['latency_ms']:.2f}"
-        gaps = f"[red]{t['gaps']}[/red]" if t["gaps"] else "0"
+        lost = f"{t['gaps']}/{t['dropped']}"
+        lost = f"[red]{lost}[/red]" if t["gaps"] or t["dropped"] else lost
         name = t["topic"].removeprefix(f"{transport.PREFIX}/{graph}/") if graph else t["topic"]
         topics.add_row(
-            name, t["type"].removeprefix("handflow."), f"{t['rate_hz']:.1f}", lat, gaps, str(t["count"]), t["last"]
+            name, t["type"].removeprefix("handflow."), f"{t['rate_hz']:.1f}", lat, lost, str(t["count"]), t["last"]
         )
     nodes = Table(title="nodes", expand=True)
-    for col in ("graph", "node", "alive", "pid", "restarts seen", "errors", "input gaps", "handled", "published"):
+    for col in ("graph", "node", "alive", "pid", "restarts seen", "dropped", "input gaps", "handled", "published"):
         nodes.add_column(col)
     for n in snapshot["nodes"]:
         alive = "[green]yes[/green]" if n["alive"] else f"[red]no ({n['last_heartbeat_s']:.0f}s)[/red]"
@@ -232,7 +251,7 @@ def render(snapshot: dict[str, Any], title: str = "handflow monitor", graph: str
             alive,
             str(n["pid"]),
             str(n["restarts_seen"]),
-            str(n["errors"]),
+            str(n["dropped"]),
             str(n["input_gaps"]),
             str(n["handled"]),
             str(n["published"]),

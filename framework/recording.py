@@ -3,7 +3,12 @@
 Spec handflow.framework.md ("Runtime expectations": recordings open in Foxglove, are readable after a hard
 kill, keep the publish time) and issue 2 item 7.
 
-File layout (what :class:`McapWriter` writes):
+File layout (what :class:`McapWriter` writes, docs/recording.md).  Default ``encoding="cdr"``: a
+rosbag2-compatible MCAP (profile ``ros2``, one ``ros2msg`` schema per ROS 2 type, ``cdr`` messages
+from :mod:`handflow.framework.ros2.types`, channel metadata ``handflow.type`` and
+``offered_qos_profiles``) that ``rosbags``, ``ros2 bag`` and Foxglove read natively; ``log_time`` =
+receive time, ``publish_time`` = header ``stamp_ns``, ``sequence`` = header seq (the source node is
+the topic's node).  ``encoding="json"`` writes the earlier handflow JSON dialect:
 
 - one channel per topic (topic = Zenoh key ``handflow/<graph>/<node>/<port>``), message encoding
   ``json``, schema encoding ``jsonschema``, schema name = message ``TYPE`` with
@@ -48,11 +53,21 @@ from mcap.writer import CompressionType, Writer
 
 from . import transport
 from .messages import Image, Message, MessageError, decode, encode, json_schema, message_types
+from .ros2.types import decode_cdr, encode_cdr, handflow_type, ros_type, schema_text
 
 log = logging.getLogger("handflow.recording")
 
 SCHEMA_ENCODING = "jsonschema"
 MESSAGE_ENCODING = "json"
+ENCODINGS = ("cdr", "json")
+# what rosbag2 records for a reliable, volatile, keep-last publisher (ros2 bag play offers the same)
+DEFAULT_QOS = (
+    "- history: 3\n  depth: 0\n  reliability: 1\n  durability: 2\n"
+    "  deadline:\n    sec: 2147483647\n    nsec: 4294967295\n"
+    "  lifespan:\n    sec: 2147483647\n    nsec: 4294967295\n  liveliness: 1\n"
+    "  liveliness_lease_duration:\n    sec: 2147483647\n    nsec: 4294967295\n"
+    "  avoid_ros_namespace_conventions: false"
+)
 TYPE_KEY = "handflow.type"  # channel metadata: the handflow message type
 VIEW_KEY = "handflow.view_of"  # channel metadata of a Foxglove view channel: the source topic
 FOXGLOVE_IMAGE_SUFFIX = "/foxglove_image"
@@ -150,26 +165,33 @@ class WireHeader:
 
 
 def peek_header(data: bytes) -> WireHeader:
-    """The message type and header of :func:`encode` bytes (fast path on the fixed key order)."""
-    m = _HEADER_RX.match(data[:512])
-    if m:
-        return WireHeader(m.group(1).decode(), json.loads(b'"' + m.group(2) + b'"'), int(m.group(3)), int(m.group(4)))
+    """The message type and header of :func:`encode` bytes (fast path on the fixed key order).
+
+    Any other bytes raise :class:`MessageError`; the payload itself is not validated (:func:`decode` does).
+    """
     try:
+        m = _HEADER_RX.match(data[:512])
+        if m:
+            source = json.loads(b'"' + m.group(2) + b'"')
+            return WireHeader(m.group(1).decode(), source, int(m.group(3)), int(m.group(4)))
         d = json.loads(bytes(data))
-        h = d.get("header", {})
-        return WireHeader(str(d["type"]), str(h.get("source", "")), int(h.get("seq", 0)), int(h.get("stamp_ns", 0)))
-    except (ValueError, KeyError, TypeError, AttributeError) as exc:
-        raise MessageError(f"not a handflow message: {exc}") from exc
+        h = d["header"] if "header" in d else {}
+        seq, stamp = h.get("seq", 0), h.get("stamp_ns", 0)
+        if type(d["type"]) is not str or type(seq) is not int or type(stamp) is not int:
+            raise TypeError("type, header.seq and header.stamp_ns must be a string and integers")
+        return WireHeader(d["type"], str(h.get("source", "")), seq, stamp)
+    except (ValueError, KeyError, TypeError, AttributeError, RecursionError) as exc:
+        raise MessageError(f"not a handflow message: {str(exc)[:200]}") from None
 
 
 # ----------------------------------------------------------------------------------------------
 # Writer
 # ----------------------------------------------------------------------------------------------
 class McapWriter:
-    """Thread-safe MCAP writer of handflow messages (JSON-schema channels, chunked, crash-tolerant).
+    """Thread-safe MCAP writer of handflow messages (rosbag2 CDR or JSON channels, chunked, crash-tolerant).
 
     ``write(topic, msg, log_time_ns)`` encodes and stores a message; ``write_encoded`` stores bytes
-    already produced by :func:`encode` (the recorder uses it: nothing is re-encoded).  ``log_time_ns``
+    already in the writer's ``encoding`` (:func:`encode_cdr` or :func:`encode`).  ``log_time_ns``
     defaults to the wall clock at the call; ``publish_time_ns`` defaults to the header's ``stamp_ns``.
     """
 
@@ -181,21 +203,25 @@ class McapWriter:
         flush_interval_s: float | None = 1.0,
         foxglove_images: bool = True,
         compression: str = "zstd",
+        encoding: str = "cdr",
     ) -> None:
         self.path = Path(path)
         if compression not in ("zstd", "lz4", "none"):
             raise RecordingError(f"compression must be 'zstd', 'lz4' or 'none', got {compression!r}")
+        if encoding not in ENCODINGS:
+            raise RecordingError(f"encoding must be 'cdr' (rosbag2) or 'json', got {encoding!r}")
+        self.encoding = encoding
         try:
             self.path.parent.mkdir(parents=True, exist_ok=True)
             self._file = open(self.path, "wb")
         except OSError as exc:
             raise RecordingError(f"cannot write recording {self.path}: {exc.strerror}; choose a writable path") from exc
         self._writer = Writer(self._file, chunk_size=chunk_size, compression=CompressionType[compression.upper()])
-        self._writer.start(profile="", library="handflow")
-        self.foxglove_images = foxglove_images
+        self._writer.start(profile="ros2" if encoding == "cdr" else "", library="handflow")
+        self.foxglove_images = foxglove_images and encoding == "json"  # Foxglove shows sensor_msgs/Image itself
         self._lock = threading.Lock()
         self._schemas: dict[str, int] = {}
-        self._channels: dict[str, int] = {}
+        self._channels: dict[tuple[str, str], int] = {}  # (topic, type): a second type on a topic gets its own channel
         self.counts: dict[str, int] = {}
         self._dirty = False
         self._closed = False
@@ -213,27 +239,36 @@ class McapWriter:
             self._schemas[name] = self._writer.register_schema(name, SCHEMA_ENCODING, json.dumps(schema).encode())
         return self._schemas[name]
 
+    def _ros_schema_id(self, type_name: str) -> int:
+        ros = ros_type(type_name)
+        if ros not in self._schemas:
+            self._schemas[ros] = self._writer.register_schema(ros, "ros2msg", schema_text(type_name).encode())
+        return self._schemas[ros]
+
     def _channel_id(self, topic: str, type_name: str) -> int:
-        cid = self._channels.get(topic)
+        cid = self._channels.get((topic, type_name))
         if cid is None:
             cls = message_types().get(type_name)
             if cls is None:
                 raise RecordingError(
                     f"topic '{topic}': unknown message type '{type_name}'; known: {', '.join(sorted(message_types()))}"
                 )
-            cid = self._writer.register_channel(
-                topic, MESSAGE_ENCODING, self._schema_id(type_name, json_schema(cls)), {TYPE_KEY: type_name}
-            )
-            self._channels[topic] = cid
+            if self.encoding == "cdr":
+                meta = {TYPE_KEY: type_name, "offered_qos_profiles": DEFAULT_QOS}
+                cid = self._writer.register_channel(topic, "cdr", self._ros_schema_id(type_name), meta)
+            else:
+                sid = self._schema_id(type_name, json_schema(cls))
+                cid = self._writer.register_channel(topic, MESSAGE_ENCODING, sid, {TYPE_KEY: type_name})
+            self._channels[(topic, type_name)] = cid
         return cid
 
     def _view_channel_id(self, topic: str) -> int:
         view = topic + FOXGLOVE_IMAGE_SUFFIX
-        cid = self._channels.get(view)
+        cid = self._channels.get((view, ""))
         if cid is None:
             sid = self._schema_id("foxglove.RawImage", FOXGLOVE_RAW_IMAGE_SCHEMA)
             cid = self._writer.register_channel(view, MESSAGE_ENCODING, sid, {VIEW_KEY: topic})
-            self._channels[view] = cid
+            self._channels[(view, "")] = cid
         return cid
 
     # -- writing ----------------------------------------------------------------------------
@@ -244,7 +279,7 @@ class McapWriter:
         self.write_encoded(
             topic,
             msg.TYPE,
-            encode(msg),
+            encode_cdr(msg) if self.encoding == "cdr" else encode(msg),
             log_time_ns,
             msg.header.stamp_ns if publish_time_ns is None else publish_time_ns,
             msg.header.seq,
@@ -259,7 +294,7 @@ class McapWriter:
         publish_time_ns: int = 0,
         sequence: int = 0,
     ) -> None:
-        """Store already-encoded message bytes (type from :func:`peek_header` or the sender)."""
+        """Store message bytes already in this writer's ``encoding`` (type named by the sender)."""
         with self._lock:
             if self._closed:
                 raise RecordingError(f"recording {self.path} is closed; open a new McapWriter")
@@ -409,8 +444,8 @@ class GraphRecorder:
     ``GraphRecorder.for_graph(graph, path)`` also stores the graph's provenance
     (:func:`graph_provenance`); ``attach(session)`` subscribes to ``handflow/<graph>/**`` and keeps
     the topics matching the ``record.topics`` globs; ``close()`` finalises the file.
-    Payloads are stored as received (never re-encoded); undecodable payloads are counted in
-    ``skipped`` and logged once per topic.
+    Payloads are validated by :func:`decode` and stored as received (never re-encoded); invalid
+    payloads are counted in ``skipped`` and logged once per topic.
     """
 
     def __init__(self, writer: McapWriter, graph_name: str, topics: Iterable[str] | None = None) -> None:
@@ -443,8 +478,11 @@ class GraphRecorder:
             return
         data = sample.payload.to_bytes()
         try:
-            hdr = peek_header(data)
-            self.writer.write_encoded(key, hdr.type_name, data, None, hdr.stamp_ns, hdr.seq)
+            msg = decode(data)  # what replay and Foxglove read back must be valid (docs/robustness.md)
+            if self.writer.encoding == "json":
+                self.writer.write_encoded(key, msg.TYPE, data, None, msg.header.stamp_ns, msg.header.seq)
+            else:
+                self.writer.write(key, msg)
         except (MessageError, RecordingError) as exc:
             if key not in self.skipped:
                 log.warning("not recording a payload on %s: %s", key, exc)
@@ -468,7 +506,7 @@ class GraphRecorder:
 # ----------------------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class RecordedMessage:
-    """One stored message: its topic, type, the encoded bytes and both times."""
+    """One stored message: its topic, handflow type, the stored bytes (``encoding`` cdr or json) and both times."""
 
     topic: str
     type_name: str
@@ -476,9 +514,18 @@ class RecordedMessage:
     log_time_ns: int
     publish_time_ns: int
     sequence: int
+    encoding: str = MESSAGE_ENCODING
 
     def decode(self) -> Message:
-        return decode(self.data)
+        """The message, with header source (the topic's node) and seq (the MCAP sequence) for CDR records."""
+        if self.encoding == MESSAGE_ENCODING:
+            return decode(self.data)
+        parts = transport.split_key(self.topic)
+        return decode_cdr(self.data, self.type_name, parts[1] if parts else "", self.sequence)
+
+    def wire(self) -> bytes:
+        """The bytes to publish on the handflow wire (JSON) for this record."""
+        return self.data if self.encoding == MESSAGE_ENCODING else encode(self.decode())
 
 
 @dataclass
@@ -529,7 +576,7 @@ def iter_recording(
     except OSError as exc:
         raise RecordingError(f"cannot read recording {path}: {exc.strerror}") from exc
     schemas: dict[int, Schema] = {}
-    channels: dict[int, tuple[Channel, bool, bool]] = {}  # id → (channel, is data, selected)
+    channels: dict[int, tuple[Channel, bool, bool, str]] = {}  # id → (channel, is data, selected, handflow type)
     with f:
         records = StreamReader(f, validate_crcs=True).records
         while True:
@@ -553,11 +600,12 @@ def iter_recording(
                 channel = ch[0]
                 yield RecordedMessage(
                     channel.topic,
-                    channel.metadata.get(TYPE_KEY, "") or schemas[channel.schema_id].name,
+                    ch[3],
                     rec.data,
                     rec.log_time,
                     rec.publish_time,
                     rec.sequence,
+                    channel.message_encoding,
                 )
             elif isinstance(rec, Schema):
                 schemas[rec.id] = rec
@@ -566,10 +614,10 @@ def iter_recording(
                     continue
                 is_view = VIEW_KEY in rec.metadata
                 schema = schemas.get(rec.schema_id)
-                type_name = rec.metadata.get(TYPE_KEY) or (schema.name if schema else "")
-                is_data = not is_view and type_name in message_types()
+                type_name = rec.metadata.get(TYPE_KEY) or _type_of_schema(schema)
+                is_data = not is_view and type_name in message_types() and rec.message_encoding in ENCODINGS
                 selected = (is_data or (is_view and include_views)) and (keep is None or keep(rec.topic))
-                channels[rec.id] = (rec, is_data, selected)
+                channels[rec.id] = (rec, is_data, selected, type_name)
                 report.channels[rec.topic] = {
                     "type": type_name,
                     "schema": schema.name if schema else "",
@@ -581,6 +629,18 @@ def iter_recording(
                 report.attachments[rec.name] = rec
             elif isinstance(rec, Footer):
                 report.complete = True
+
+
+def _type_of_schema(schema: Schema | None) -> str:
+    """The handflow type of a channel without ``handflow.type`` metadata (e.g. written by ROS 2 tools)."""
+    if schema is None:
+        return ""
+    if schema.encoding != "ros2msg":
+        return schema.name
+    try:
+        return handflow_type(schema.name).TYPE
+    except MessageError:
+        return ""
 
 
 def _describe_read_error(exc: Exception, f: Any) -> str:

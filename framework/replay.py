@@ -245,7 +245,7 @@ class TimedReplayer:
                 due = wall0 + (rm.log_time_ns - log0) / 1e9 / self.speed
                 if self.stop.wait(max(0.0, due - time.monotonic())):
                     break
-                self.pubs[key].put(rm.data)
+                self.pubs[key].put(rm.wire())
                 stats.published[key] += 1
             stats.loops += 1
             if not self.loop or stats.report.messages == 0:
@@ -338,7 +338,7 @@ class LockstepReplayer:
             source = f"{parts[1]}/{parts[2]}"
             with self.watcher.cond:
                 self.sent[source] += 1
-            self.pubs[key].put(rm.data)
+            self.pubs[key].put(rm.wire())
             stats.published[key] += 1
             self._settle(f"message #{stats.total} on {key}")
         stats.loops = 1

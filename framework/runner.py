@@ -9,6 +9,11 @@ Sequence numbers and the last sequence seen per input survive a restart through 
 per node (written in place, so a ``kill -9`` loses nothing): a restarted node continues its
 numbering and counts the messages it missed while down as gaps.
 
+Robustness (docs/robustness.md): a payload that does not decode to a valid message of the input's
+type, or that makes ``on_message`` raise :class:`MessageError`, is dropped, counted per input
+(``dropped.<port>`` in the heartbeat), logged at a limited rate and reported as a ``dropped``
+:class:`RuntimeEvent` on ``handflow/<graph>/_runtime/events``; the node keeps running.
+
 Lock-step mode (``--lockstep``): no wall-clock ticks; the replayer publishes the virtual time on
 ``_clock``, nodes run the ticks due up to it and report their per-port counters on ``_progress``
 after every event, so the replayer can release the next message only when the graph is quiet.
@@ -33,6 +38,7 @@ from pathlib import Path
 import numpy as np
 
 from . import transport
+from .drops import DropLedger
 from .graph import Graph, ResolvedNode, load_graph
 from .messages import Header, Message, MessageError, Status, decode, encode
 from .plugin import Node
@@ -114,7 +120,11 @@ class _NodeSlot:
         self.node: Node = rn.cls(rn.params, self.ctx)
         self.handled = dict.fromkeys(rn.spec.inputs, 0)
         self.gaps = dict.fromkeys(rn.spec.inputs, 0)
-        self.errors = 0
+        topics = {
+            port: transport.topic_key(rt.graph.name, *source.partition("/")[::2])
+            for port, source in rn.spec.inputs.items()
+        }
+        self.drops = DropLedger(self.id, topics, self.ctx.log)
         rate = self.node.tick_rate_hz()
         self.period_ns = int(1e9 / rate) if rate else 0
         self.ticks = 0
@@ -126,9 +136,10 @@ class _NodeSlot:
         self.state.set("in:" + port, seq)
 
     def health(self) -> Status:
-        counters: dict[str, float] = {"ticks": self.ticks, "errors": self.errors}
+        counters: dict[str, float] = {"ticks": self.ticks}
         counters.update({f"handled.{p}": n for p, n in self.handled.items()})
         counters.update({f"gaps.{p}": n for p, n in self.gaps.items()})
+        counters.update({f"dropped.{p}": n for p, n in self.drops.counts().items()})
         counters.update({f"published.{p}": n for p, n in self.ctx.published.items()})
         return Status(state="ok", counters=counters, text=f"pid {os.getpid()}")
 
@@ -153,6 +164,7 @@ class GroupRuntime:
         self._health_pubs = {
             s.id: self.session.declare_publisher(transport.topic_key(graph.name, s.id, "_health")) for s in self.slots
         }
+        self._events_pub = self.session.declare_publisher(transport.events_key(graph.name))
         self._progress_pubs = (
             {
                 s.id: self.session.declare_publisher(transport.topic_key(graph.name, s.id, "_progress"))
@@ -274,16 +286,22 @@ class GroupRuntime:
             heapq.heappush(ticks, (nxt, i))
 
     def _deliver(self, slot: _NodeSlot, port: str, payload: bytes) -> None:
+        expected = slot.rn.cls.inputs.get(port, Message)
         try:
             msg = decode(payload)
+            if not isinstance(msg, expected):
+                raise MessageError(f"input '{port}' takes {expected.TYPE}, got {msg.TYPE}")
         except MessageError as exc:
-            slot.errors += 1
-            slot.ctx.log.error("dropped undecodable message on input '%s': %s", port, exc)
+            slot.drops.note(port, str(exc))
             return
         slot.note_seq(port, msg.header.seq)
         if self.lockstep:
             self.virtual_ns = max(self.virtual_ns, msg.header.stamp_ns)
-        slot.node.on_message(port, msg)
+        try:
+            slot.node.on_message(port, msg)
+        except MessageError as exc:  # the node cannot use this payload (or its output from it)
+            slot.drops.note(port, str(exc))
+            return
         slot.handled[port] += 1
 
     def _publish_health(self) -> None:
@@ -291,6 +309,11 @@ class GroupRuntime:
             status = slot.health()
             status.header = Header(slot.id, 0, time.time_ns())
             self._health_pubs[slot.id].put(encode(status))
+            with self._lock:
+                events = slot.drops.report()
+            for event in events:
+                event.header = Header(slot.id, 0, time.time_ns())
+                self._events_pub.put(encode(event))
 
     def _publish_progress(self, slot: _NodeSlot, clock: int | None = None) -> None:
         body = {"handled": slot.handled, "published": slot.ctx.published, "clock": clock}

@@ -62,7 +62,11 @@ def check_publish(node_id: str, outputs: dict[str, type[Message]], port: str, ms
 
 
 class NodeHarness:
-    """``h = NodeHarness(MyNode, {"gain": 2}); h.setup(); h.send("in", msg); h.published["out"]``."""
+    """``h = NodeHarness(MyNode, {"gain": 2}); h.setup(); h.send("in", msg); h.published["out"]``.
+
+    As in the runtime, a :class:`MessageError` raised while handling a message drops that message:
+    ``h.dropped`` lists ``(port, reason)`` (docs/robustness.md).
+    """
 
     def __init__(
         self,
@@ -73,6 +77,7 @@ class NodeHarness:
     ) -> None:
         self.ctx = HarnessContext(node_id, Path(base_dir).resolve(), node_cls.outputs)
         self.node = node_cls(node_cls.Params.model_validate(params or {}), self.ctx)
+        self.dropped: list[tuple[str, str]] = []
 
     @property
     def published(self) -> dict[str, list[Message]]:
@@ -88,7 +93,11 @@ class NodeHarness:
         if stamp_ns is not None:
             self.ctx.clock_ns = stamp_ns
         msg.header.stamp_ns = self.ctx.clock_ns
-        self.node.on_message(port, msg)
+        try:
+            self.node.on_message(port, msg)
+        except MessageError as exc:
+            self.dropped.append((port, str(exc)))
+            self.ctx.log.warning("dropped a payload on input '%s': %s", port, exc)
 
     def tick(self, n: int = 1, advance_ns: int | None = None) -> None:
         rate = self.node.tick_rate_hz()

@@ -34,6 +34,11 @@ def start_key(graph: str) -> str:
     return f"{PREFIX}/{graph}/_start"
 
 
+def events_key(graph: str) -> str:
+    """Where the runtime publishes :class:`handflow.framework.messages.RuntimeEvent` messages."""
+    return f"{PREFIX}/{graph}/_runtime/events"
+
+
 def split_key(key: str) -> tuple[str, str, str] | None:
     """``handflow/<graph>/<node>/<port>`` → (graph, node, port), else None."""
     parts = str(key).split("/")

@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
-from handflow.framework.messages import Contacts, JointState, Label, Status
+from handflow.framework.messages import Contacts, JointState, Label, MessageError, Status
 from handflow.framework.plugin import Node
 from handflow.plugins.hands.joints import HAND_MODELS
 
@@ -82,7 +82,7 @@ class ExperienceGraspNode(Node):
             where = {n: k for k, n in enumerate(msg.names)}
             missing = [n for n in self.controller.names if n not in where]
             if missing:
-                raise ValueError(
+                raise MessageError(
                     f"joint state lacks joints {missing} of hand '{self.params.hand}'; "
                     f"connect the simulator's 'joints' output of the same hand"
                 )

@@ -5,7 +5,7 @@
   configs/glove/).
 - ``mapping.shadow_hand`` / ``mapping.gifu_hand``: ``joints`` human JointState → ``joints`` robot
   JointState.  Input joints are matched by name (any order); a message lacking a human joint is
-  rejected with a logged error naming it.
+  dropped by the runtime with a rate-limited error naming it (docs/robustness.md).
 
 Every output message carries the joint names and keeps the input's stamp.
 """
@@ -17,9 +17,10 @@ from abc import ABC, abstractmethod
 import numpy as np
 from pydantic import BaseModel, ConfigDict
 
-from handflow.framework.messages import GloveFrame, JointState
+from handflow.framework.messages import GloveFrame, JointState, MessageError
 from handflow.framework.plugin import Node
 from handflow.plugins.hands.joints import HUMAN
+from handflow.plugins.hands.sensors import N_SENSORS
 
 from .calibration import DEFAULT_CALIBRATION, DEFAULT_PROFILE, load_calibration, load_profile
 from .human import HumanHandMapping
@@ -45,6 +46,8 @@ class HumanHandMappingNode(Node):
         )
 
     def on_message(self, port: str, msg: GloveFrame) -> None:
+        if msg.sensors.size != N_SENSORS:  # the runtime drops and counts it (docs/robustness.md)
+            raise MessageError(f"a glove frame needs {N_SENSORS} sensor values, got {msg.sensors.size}")
         q = self.mapping.map(msg.sensors)
         self.ctx.publish(
             "joints",
@@ -65,22 +68,19 @@ class _RobotNode(Node, ABC):
         self.mapping = self._make()
         self._order: tuple[list[str], np.ndarray] | None = None
 
-    def _human_vector(self, msg: JointState) -> np.ndarray | None:
+    def _human_vector(self, msg: JointState) -> np.ndarray:
         if self._order is None or self._order[0] != msg.names:
             index = {n: i for i, n in enumerate(msg.names)}
             missing = [n for n in HUMAN.names if n not in index]
             if missing:
-                self.ctx.log.error(
-                    "input JointState lacks human-model joints %s; connect it to mapping.human_hand", ", ".join(missing)
+                raise MessageError(
+                    f"input JointState lacks human-model joints {', '.join(missing)}; connect it to mapping.human_hand"
                 )
-                return None
             self._order = (list(msg.names), np.array([index[n] for n in HUMAN.names]))
         return msg.positions[self._order[1]]
 
     def on_message(self, port: str, msg: JointState) -> None:
         q = self._human_vector(msg)
-        if q is None:
-            return
         model = self.mapping.model
         self.ctx.publish(
             "joints",

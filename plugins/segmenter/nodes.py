@@ -14,7 +14,7 @@ from typing import Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
-from handflow.framework.messages import Array, JointState, Label, Message, SegmentEvent
+from handflow.framework.messages import Array, JointState, Label, Message, MessageError, SegmentEvent
 from handflow.framework.plugin import Node
 
 from .candidates import CandidateSet, load_candidates
@@ -77,9 +77,8 @@ class _RecognizerNode(Node):
         try:
             y = self.observation(port, msg)
             self.recognise(y, msg.header.stamp_ns)
-        except ValueError as exc:
-            self.dropped += 1
-            self.ctx.log.error("observation %d dropped: %s", self.dropped, exc)
+        except ValueError as exc:  # the runtime drops, counts and logs it (docs/robustness.md)
+            raise MessageError(f"observation dropped: {exc}") from None
 
 
 class OnlineCLMNode(_RecognizerNode):
@@ -112,7 +111,6 @@ class OnlineCLMNode(_RecognizerNode):
             random_state=p.seed,
         )
         self.classes = self.segmenter.classes_
-        self.dropped = 0
 
     def recognise(self, y: np.ndarray, stamp: int) -> None:
         up = self.segmenter.update(y)
@@ -146,7 +144,6 @@ class UKROnlyNode(_RecognizerNode):
         self.classes = self.recognizer.classes_
         self.segments = SegmentTracker()
         self.index = 0
-        self.dropped = 0
 
     def recognise(self, y: np.ndarray, stamp: int) -> None:
         label, C = self.recognizer.update(y)

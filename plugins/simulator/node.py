@@ -15,7 +15,7 @@ from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from handflow.framework.messages import Array, Contacts, Image, JointState
+from handflow.framework.messages import Array, Contacts, Image, JointState, MessageError
 from handflow.framework.plugin import Node
 
 from .simulation import Simulation
@@ -62,7 +62,10 @@ class PybulletSimulatorNode(Node):
         self.holding = False
 
     def on_message(self, port: str, msg: JointState) -> None:
-        self.sim.set_targets(msg.names, msg.positions)
+        try:
+            self.sim.set_targets(msg.names, msg.positions)
+        except ValueError as exc:  # unknown joint names: the runtime drops the message (docs/robustness.md)
+            raise MessageError(str(exc)) from None
         self.last_target_ns = self.ctx.now_ns()
         if self.t0_ns is None:  # simulated time starts with the first event (message or tick)
             self.t0_ns = self.last_target_ns

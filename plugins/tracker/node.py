@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from handflow.framework.messages import Image, Points2D
+from handflow.framework.messages import Image, MessageError, Points2D
 from handflow.framework.plugin import Node
 
 from .blobs import BALL_HSV, MARK_A_HSV, MARK_B_HSV, BallTracker, HSVRange
@@ -53,7 +53,7 @@ class ColorBlobTrackerNode(Node):
 
     def on_message(self, port: str, msg: Image) -> None:
         if msg.encoding not in ("rgb8", "rgba8"):
-            raise ValueError(f"tracker.color_blobs needs rgb8 or rgba8 images, got encoding '{msg.encoding}'")
+            raise MessageError(f"tracker.color_blobs needs rgb8 or rgba8 images, got encoding '{msg.encoding}'")
         rgb = msg.to_array()[:, :, :3]
         res = self.tracker.update(rgb)
         stamp = msg.header.stamp_ns or None

@@ -11,7 +11,7 @@ import pytest
 
 from handflow.framework import transport
 from handflow.framework.graph import ZenohSettings
-from handflow.framework.messages import Array, Header, Status, encode
+from handflow.framework.messages import Array, Header, RuntimeEvent, Status, encode
 from handflow.framework.monitor import Monitor, summarize
 from handflow.framework.replay import wait_matching
 from tests.framework._rec_helpers import chain, handflow, start, unique, wait_until
@@ -39,7 +39,7 @@ def _array(seq: int, stamp: int) -> bytes:
 
 
 def _status(pid: int) -> bytes:
-    msg = Status(counters={"errors": 1, "gaps.in": 3, "handled.in": 10, "published.out": 9}, text=f"pid {pid}")
+    msg = Status(counters={"dropped.in": 1, "gaps.in": 3, "handled.in": 10, "published.out": 9}, text=f"pid {pid}")
     msg.header = Header("node", 0, time.time_ns())
     return encode(msg)
 
@@ -64,7 +64,27 @@ def test_gaps_restarts_latency_and_health_from_real_zenoh_traffic(sessions):
     assert topic["last"] == "[3, 6] (2)"
     (node,) = snap["nodes"]
     assert node["id"] == "node" and node["alive"] and node["restarts_seen"] == 1
-    assert (node["errors"], node["input_gaps"], node["handled"], node["published"]) == (1, 3, 10, 9)
+    assert (node["dropped"], node["input_gaps"], node["handled"], node["published"]) == (1, 3, 10, 9)
+    mon.close()
+
+
+def test_dropped_events_count_on_the_topic_they_arrived_on(sessions):
+    hub, peer = sessions
+    mon = Monitor(peer, "g")
+    events = hub.declare_publisher("handflow/g/_runtime/events")
+    assert wait_matching([events], 10)
+    for count in (4, 2):
+        event = RuntimeEvent(kind="dropped", node="human", topic="handflow/g/glove/frames", count=count, detail="bad")
+        event.header = Header("human", 0, time.time_ns())
+        events.put(encode(event))
+    events.put(b"\xff garbage")  # the monitor itself survives garbage
+    wait_until(
+        lambda: mon.topics.get("handflow/g/glove/frames", None) and mon.topics["handflow/g/glove/frames"].dropped == 6,
+        10,
+        "events",
+    )
+    rows = {t["topic"]: t for t in mon.snapshot()["topics"]}
+    assert rows["handflow/g/glove/frames"]["dropped"] == 6 and rows["handflow/g/glove/frames"]["count"] == 0
     mon.close()
 
 

@@ -11,6 +11,7 @@ import subprocess
 import sys
 import threading
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -18,7 +19,7 @@ from mcap.reader import make_reader
 
 from handflow.framework.commands import inspect as inspect_cmd
 from handflow.framework.graph import load_graph
-from handflow.framework.messages import Array, Header, Image, Label, decode
+from handflow.framework.messages import Array, Header, Image, Label
 from handflow.framework.recording import (
     FOXGLOVE_IMAGE_SUFFIX,
     GraphRecorder,
@@ -52,7 +53,7 @@ def test_round_trip_keeps_values_times_and_json_schemas(tmp_path):
     path = tmp_path / "a.mcap"
     img = Image.from_array(np.arange(4 * 5 * 3, dtype=np.uint8).reshape(4, 5, 3))
     img.header = Header("cam", 7, 2_500_000_123)
-    with McapWriter(path) as w:
+    with McapWriter(path, encoding="json") as w:  # the earlier JSON dialect stays writable and readable
         for i in range(5):
             w.write(TOPIC, _array(i), log_time_ns=100 + i)
         w.write("handflow/g/cam/image", img, log_time_ns=200)
@@ -82,9 +83,43 @@ def test_round_trip_keeps_values_times_and_json_schemas(tmp_path):
     assert base64.b64decode(pic["data"]) == img.data
 
 
+def test_default_recording_is_rosbag2_cdr_read_by_rosbags_and_mcap_ros2(tmp_path):
+    rosbags = pytest.importorskip("rosbags.highlevel")
+    typesys = pytest.importorskip("rosbags.typesys")
+    mcap_ros2 = pytest.importorskip("mcap_ros2.reader")
+    path = tmp_path / "a.mcap"
+    img = Image.from_array(np.arange(4 * 5 * 3, dtype=np.uint8).reshape(4, 5, 3))
+    img.header = Header("cam", 7, 2_500_000_123)
+    with McapWriter(path) as w:
+        for i in range(5):
+            w.write(TOPIC, _array(i), log_time_ns=100 + i)
+        w.write("handflow/g/cam/image", img, log_time_ns=200)
+    got = list(read_messages(path))
+    assert [t for t, _, _ in got] == [TOPIC] * 5 + ["handflow/g/cam/image"]
+    np.testing.assert_array_equal(got[3][1].data, _array(3).data)
+    assert got[3][1].header.seq == 4 and got[3][1].header.source == "src" and got[3][2] == 103
+    assert got[5][1].header == img.header and np.array_equal(got[5][1].to_array(), img.to_array())
+    with open(path, "rb") as f:
+        reader = make_reader(f)
+        assert reader.get_header().profile == "ros2"
+        summary = reader.get_summary()
+        assert {c.message_encoding for c in summary.channels.values()} == {"cdr"}
+        assert {s.encoding for s in summary.schemas.values()} == {"ros2msg"}
+        names = {s.name for s in summary.schemas.values()}
+        assert names == {"handflow_msgs/msg/Array", "sensor_msgs/msg/Image"}  # no second copy of the pixels
+        assert summary.chunk_indexes and {c.compression for c in summary.chunk_indexes} == {"zstd"}
+    store = typesys.get_typestore(typesys.Stores.ROS2_JAZZY)
+    with rosbags.AnyReader([path], default_typestore=store) as r:
+        seen = [(c.topic, r.deserialize(raw, c.msgtype)) for c, _, raw in r.messages()]
+    assert [t for t, _ in seen] == [TOPIC] * 5 + ["handflow/g/cam/image"]
+    assert list(seen[3][1].data) == list(_array(3).data) and seen[5][1].data.tobytes() == img.data
+    decoded = [(m.channel.topic, m.ros_msg) for m in mcap_ros2.read_ros2_messages(str(path))]
+    assert decoded[5][1].header.stamp.sec == 2 and decoded[5][1].header.stamp.nanosec == 500_000_123
+
+
 def test_images_without_foxglove_view(tmp_path):
     path = tmp_path / "a.mcap"
-    with McapWriter(path, foxglove_images=False) as w:
+    with McapWriter(path, foxglove_images=False, encoding="json") as w:
         w.write("handflow/g/cam/image", Image.from_array(np.zeros((2, 2), np.uint8)))
     assert list(read_report(path).channels) == ["handflow/g/cam/image"]
 
@@ -207,7 +242,7 @@ def test_kill_9_during_writing_leaves_a_recoverable_file(tmp_path):
     os.kill(proc.pid, signal.SIGKILL)
     proc.wait()
     report = ReadReport(path)
-    seqs = [decode(rm.data).header.seq for rm in iter_recording(path, report=report)]
+    seqs = [rm.decode().header.seq for rm in iter_recording(path, report=report)]
     assert report.recovered and len(seqs) >= 50
     assert seqs == list(range(1, len(seqs) + 1))
 
@@ -232,3 +267,38 @@ def test_graph_recorder_stores_graph_params_and_named_files(tmp_path):
     assert report.attachments["files/rows.csv"].data == b"a,b\n1,2\n3,4\n"
     assert report.attachments["graph.yaml"].data == graph_file.read_bytes()
     assert report.messages == 1
+
+
+def test_migrate_rewrites_a_json_recording_as_rosbag2_cdr(tmp_path):
+    from handflow.recordings import __file__ as shipped
+
+    src = Path(shipped).parent / "gestures.mcap"
+    out = tmp_path / "new.mcap"
+    proc = subprocess.run(
+        [sys.executable, "-m", "handflow.framework.cli", "migrate", str(src), str(out)], capture_output=True, text=True
+    )
+    assert proc.returncode == 0 and "rosbag2 CDR" in proc.stdout, proc.stderr
+    old, new = list(iter_recording(src)), list(iter_recording(out))
+    assert {rm.encoding for rm in old} == {"json"} and {rm.encoding for rm in new} == {"cdr"}
+    assert [(a.topic, a.log_time_ns, a.publish_time_ns, a.sequence) for a in old] == [
+        (b.topic, b.log_time_ns, b.publish_time_ns, b.sequence) for b in new
+    ]
+    for a, b in zip(old[::50], new[::50]):
+        da, db = a.decode().to_dict(), b.decode().to_dict()
+        assert db["header"].pop("source") == a.topic.split("/")[2]  # CDR records: the topic's node
+        da["header"].pop("source")
+        assert da == db
+    assert read_report(out).metadata == read_report(src).metadata
+    same = subprocess.run(
+        [sys.executable, "-m", "handflow.framework.cli", "migrate", str(out), str(out)], capture_output=True, text=True
+    )
+    assert same.returncode == 2 and "new file" in same.stderr
+
+
+def test_a_second_type_on_a_topic_gets_its_own_channel(tmp_path):
+    path = tmp_path / "a.mcap"
+    with McapWriter(path) as w:
+        w.write(TOPIC, _array(1))
+        w.write(TOPIC, Label(label="stray"))  # e.g. published by an outside peer
+        w.write(TOPIC, _array(2))
+    assert [type(m).__name__ for _, m, _ in read_messages(path)] == ["Array", "Label", "Array"]

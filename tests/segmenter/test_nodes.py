@@ -49,7 +49,7 @@ def test_ukr_only_node_takes_joint_states_in_model_order(model_dir, two_letters)
         h.send("joints", JointState(names=["y", "x", "z"], positions=[y[1], y[0], 0.0]))
     assert [m.label for m in h.published["labels"][-10:]] == ["A"] * 10
     h.send("joints", JointState(names=["x"], positions=[0.0]))  # lacks 'y': dropped, logged
-    assert len(h.published["labels"]) == 60 and h.node.dropped == 1
+    assert len(h.published["labels"]) == 60 and len(h.dropped) == 1
 
 
 def test_missing_models_fail_setup_with_the_training_hint(tmp_path):

@@ -1,0 +1,72 @@
+"""Garbage from an outside Zenoh peer onto every input of the flagship: every node stays alive (docs/robustness.md)."""
+
+from __future__ import annotations
+
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+import yaml
+
+from handflow.framework.discovery import join, live_runs
+from handflow.framework.messages import RuntimeEvent
+from handflow.framework.recording import read_messages
+from tests.conftest import REPO
+from tests.garbage import GarbagePeer
+
+pytestmark = pytest.mark.slow
+
+
+def _wait(pred, timeout: float, what: str) -> None:
+    deadline = time.monotonic() + timeout
+    while not pred():
+        if time.monotonic() > deadline:
+            raise AssertionError(f"timed out waiting for {what}")
+        time.sleep(0.2)
+
+
+def test_every_node_survives_garbage_on_every_input(tmp_path, monkeypatch):
+    monkeypatch.setenv("HANDFLOW_RUN_DIR", str(tmp_path / "runs"))
+    spec = yaml.safe_load((REPO / "configs/demo.yaml").read_text())
+    graph = spec["name"]
+    inputs = sorted({f"handflow/{graph}/{src}" for n in spec["nodes"] for src in (n.get("inputs") or {}).values()})
+    node_ids = [n["id"] for n in spec["nodes"]]
+    rec = tmp_path / "demo.mcap"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "handflow.framework.cli", "run", "configs/demo.yaml", "--record", str(rec)],
+        cwd=REPO,
+        text=True,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+    )
+    try:
+        _wait(lambda: live_runs() or proc.poll() is not None, 60, "the run-file")
+        session, _ = join(graph)
+        peer = GarbagePeer(session, graph, inputs)
+        _wait(lambda: peer.ready(len(node_ids)) or proc.poll() is not None, 120, "all nodes up and real payloads")
+        assert proc.poll() is None
+        before = peer.nodes()
+        sent = peer.publish(per_topic=400, seed=3)
+        time.sleep(3.0)  # heartbeats and drop reports of the garbage arrive
+        after = peer.nodes()
+        peer.close()
+        session.close()
+    finally:
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=90)
+    assert sent == 400 * len(inputs)
+    assert proc.returncode == 0, err[-3000:]
+    assert "Traceback" not in err and "failed in on_message" not in err, err[-3000:]
+    for nid in node_ids:
+        assert after[nid]["alive"] and after[nid]["pid"] == before[nid]["pid"], (nid, after[nid])
+        assert after[nid]["restarts_seen"] == 0
+    consumers = {n["id"] for n in spec["nodes"] if n.get("inputs")}
+    for nid in consumers:
+        assert after[nid]["dropped"] > before[nid]["dropped"], (nid, after[nid])
+        assert after[nid]["handled"] > before[nid]["handled"]  # real traffic still flows
+    events = [msg for topic, msg, _ in read_messages(rec) if topic == f"handflow/{graph}/_runtime/events"]
+    dropped = [e for e in events if isinstance(e, RuntimeEvent) and e.kind == "dropped"]
+    assert {e.topic for e in dropped} == set(inputs)
+    assert sum(e.count for e in dropped) >= len(inputs) * 100

@@ -1,0 +1,71 @@
+"""An outside Zenoh peer that joins a running graph and publishes garbage onto its inputs (docs/robustness.md)."""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections import defaultdict
+
+import numpy as np
+
+from handflow.framework.fuzzing import malformed_payloads, sample_messages
+from handflow.framework.messages import encode
+from handflow.framework.monitor import Monitor
+
+# the issue's original killer: a glove frame whose sensors are all 1e308
+HUGE_GLOVE = (
+    b'{"type":"handflow.GloveFrame","header":{"source":"x","seq":1,"stamp_ns":1},"sensors":['
+    + b",".join([b"1e308"] * 22)
+    + b"]}"
+)
+
+
+class GarbagePeer:
+    """Collects real payloads of ``topics`` from the graph, then publishes mutated ones onto them."""
+
+    def __init__(self, session, graph: str, topics: list[str]) -> None:
+        self.session = session
+        self.topics = topics
+        self.real: dict[str, list[bytes]] = defaultdict(list)
+        self._lock = threading.Lock()
+        self._subs = [session.declare_subscriber(t, self._collect) for t in topics]
+        self.monitor = Monitor(session, graph)
+
+    def _collect(self, sample) -> None:
+        with self._lock:
+            bucket = self.real[str(sample.key_expr)]
+            if len(bucket) < 20:
+                bucket.append(sample.payload.to_bytes())
+
+    def ready(self, nodes: int) -> bool:
+        with self._lock:
+            have_all = all(len(self.real[t]) >= 5 for t in self.topics)
+        snap = self.monitor.snapshot()
+        return have_all and sum(n["alive"] for n in snap["nodes"]) >= nodes
+
+    def nodes(self) -> dict[str, dict]:
+        return {n["id"]: n for n in self.monitor.snapshot()["nodes"]}
+
+    def publish(self, per_topic: int, seed: int = 0) -> int:
+        """``per_topic`` payloads per topic: mutated real payloads, other message types, random bytes."""
+        others = [encode(m) for m in sample_messages()]
+        rng = np.random.default_rng(seed)
+        pubs = {t: self.session.declare_publisher(t) for t in self.topics}
+        sent = 0
+        for k, (topic, pub) in enumerate(pubs.items()):
+            with self._lock:
+                real = list(self.real[topic])
+            payloads = [HUGE_GLOVE, *others, rng.bytes(64)]
+            payloads += list(malformed_payloads(per_topic - len(payloads), seed + k, real))
+            for p in payloads:
+                pub.put(p)
+                sent += 1
+                time.sleep(0.001)
+        for pub in pubs.values():
+            pub.undeclare()
+        return sent
+
+    def close(self) -> None:
+        for s in self._subs:
+            s.undeclare()
+        self.monitor.close()

@@ -6,11 +6,11 @@ with ``sequences`` a list of finite ``(n_i, d)`` float arrays in chronological o
 from __future__ import annotations
 
 import csv
-import json
 from pathlib import Path
 
 import numpy as np
-from mcap.reader import make_reader
+
+from handflow.framework.recording import read_messages
 
 from .validation import InvalidInputError, check_array
 
@@ -65,24 +65,22 @@ def load_npz(path):
 
 
 def load_mcap(path, topic, field="positions", time_ranges=None):
-    """Messages of ``topic`` (JSON, e.g. ``{"header":…, "names":[…], "positions":[…]}`` or
-    ``{"data":[…]}``); ``field`` selects the numeric list.  ``time_ranges``: list of
-    ``[start_s, end_s]`` in seconds relative to the first message on the topic (log time);
-    each range is one sequence; without ranges the whole topic is one sequence.
+    """Messages of ``topic`` in a recording (either encoding, docs/recording.md); ``field`` names the
+    numeric array of the message class (``positions`` of a JointState, ``data`` of an Array).
+    ``time_ranges``: list of ``[start_s, end_s]`` in seconds relative to the first message on the
+    topic (log time); each range is one sequence; without ranges the whole topic is one sequence.
     """
     p = _exists(path, "mcap")
     times, rows = [], []
-    with open(p, "rb") as fh:
-        for _, _, msg in make_reader(fh).iter_messages(topics=[topic]):
-            try:
-                value = json.loads(msg.data)[field]
-            except (ValueError, KeyError, TypeError):
-                raise InvalidInputError(
-                    f"{p.name}: a message on {topic} has no numeric field "
-                    f"{field!r}; set field: to one of its list fields"
-                ) from None
-            times.append(msg.log_time)
-            rows.append(np.ravel(np.asarray(value, dtype=float)))
+    for _, msg, log_time in read_messages(p, topics=[topic]):
+        value = getattr(msg, field, None)
+        if not isinstance(value, np.ndarray) or not np.issubdtype(value.dtype, np.number):
+            arrays = [k for k, v in vars(msg).items() if isinstance(v, np.ndarray)]
+            raise InvalidInputError(
+                f"{p.name}: a {msg.TYPE} on {topic} has no numeric field {field!r}; set field: to one of {arrays}"
+            )
+        times.append(log_time)
+        rows.append(np.ravel(value.astype(float)))
     if not rows:
         raise InvalidInputError(f"{p.name}: no messages on topic {topic!r}")
     if len({len(r) for r in rows}) > 1:

@@ -152,6 +152,14 @@ def test_a_node_that_keeps_failing_is_a_crash_loop_with_its_log_and_exit_code_3(
     assert "missing.csv" in err.split("crash loop:")[1]  # the node's own last log lines are in the report
 
 
+def _running(pid: int) -> bool:
+    """Whether a process exists and is not a zombie (an exited child nobody reaped yet)."""
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
+    except (FileNotFoundError, ProcessLookupError):
+        return False
+
+
 def test_no_node_outlives_a_killed_launcher(tmp_path):
     graph = chain_graph(tmp_path)
     proc = start("run", str(graph))
@@ -167,12 +175,7 @@ def test_no_node_outlives_a_killed_launcher(tmp_path):
     finally:
         proc.kill()  # SIGKILL: no chance to stop the nodes itself
         proc.wait()
-    time.sleep(2.5)
-    alive = []
-    for pid in children:
-        try:
-            os.kill(pid, 0)
-            alive.append(pid)
-        except ProcessLookupError:
-            pass
+    deadline = time.monotonic() + 15  # the watchdog polls every 0.2 s and gives 1.5 s to stop in order
+    while (alive := [pid for pid in children if _running(pid)]) and time.monotonic() < deadline:
+        time.sleep(0.2)
     assert not alive, f"node processes {alive} outlived the launcher"

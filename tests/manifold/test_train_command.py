@@ -1,13 +1,13 @@
 """`handflow train` (register_train/run_train) and the data loaders."""
 
 import argparse
-import json
 
 import numpy as np
 import pytest
 import yaml
-from mcap.writer import Writer
 
+from handflow.framework.messages import Array, JointState
+from handflow.framework.recording import McapWriter
 from handflow.plugins.manifold import StructuredUKR, toy
 from handflow.plugins.manifold.cli import register_train
 from handflow.plugins.manifold.data import load_csv_dir, load_mcap, load_npz
@@ -30,21 +30,20 @@ def write_config(tmp_path, data, latent=RING, **training):
     return path
 
 
-def write_mcap(path, seqs, topic="/hand/joints", rate_hz=50.0, field="positions"):
-    with open(path, "wb") as fh:
-        w = Writer(fh)
-        w.start()
-        schema = w.register_schema("handflow.JointState", "jsonschema", b"{}")
-        ch = w.register_channel(topic, "json", schema)
-        w.register_channel("/other", "json", schema)
-        t = 0
+def write_mcap(path, seqs, topic="handflow/rec/hand/joints", rate_hz=50.0, field="positions"):
+    """A handflow recording: JointStates (``positions``) or Arrays (``data``) with a 1 s gap between sequences."""
+    t = 0
+    with McapWriter(path, flush_interval_s=None) as w:
         for seq in seqs:
             for row in seq:
-                msg = {"header": {"stamp_ns": t}, "names": ["a", "b", "c"], field: row.tolist()}
-                w.add_message(ch, log_time=t, publish_time=t, data=json.dumps(msg).encode())
+                if field == "positions":
+                    msg = JointState(names=["a", "b", "c"], positions=row)
+                else:
+                    msg = Array(data=row)
+                w.write(topic, msg, log_time_ns=t)
+                w.write("handflow/rec/other/data", Array(data=row), log_time_ns=t)
                 t += int(1e9 / rate_hz)
             t += int(1e9)  # 1 s gap between demonstrations
-        w.finish()
 
 
 @pytest.fixture
@@ -76,13 +75,13 @@ def test_train_npz_and_steps_override(tmp_path):
 def test_train_mcap_time_ranges(tmp_path):
     seqs = closed_curves(n_seq=3, noise=0.02)
     write_mcap(tmp_path / "rec.mcap", seqs)
-    got, names = load_mcap(tmp_path / "rec.mcap", "/hand/joints", "positions", [[0, 1.5], [2.0, 3.1]])
+    got, names = load_mcap(tmp_path / "rec.mcap", "handflow/rec/hand/joints", "positions", [[0, 1.5], [2.0, 3.1]])
     np.testing.assert_allclose(got[0], seqs[0])
     np.testing.assert_allclose(got[1], seqs[1])
-    whole, _ = load_mcap(tmp_path / "rec.mcap", "/hand/joints")
+    whole, _ = load_mcap(tmp_path / "rec.mcap", "handflow/rec/hand/joints")
     assert len(whole) == 1 and len(whole[0]) == sum(map(len, seqs))
     cfg = write_config(
-        tmp_path, {"mcap": "rec.mcap", "topic": "/hand/joints", "time_ranges": [[0, 1.5], [2.0, 3.1], [4.0, 5.2]]}
+        tmp_path, {"mcap": "rec.mcap", "topic": "handflow/rec/hand/joints", "time_ranges": [[0, 1.5], [2.0, 3.1], [4.0, 5.2]]}
     )
     assert run(cfg, "--out", tmp_path / "m.npz", "--quiet") == 0
 
@@ -90,7 +89,7 @@ def test_train_mcap_time_ranges(tmp_path):
 def test_mcap_data_field(tmp_path):
     seqs = closed_curves(n_seq=1)
     write_mcap(tmp_path / "rec.mcap", seqs, field="data")
-    got, _ = load_mcap(tmp_path / "rec.mcap", "/hand/joints", field="data")
+    got, _ = load_mcap(tmp_path / "rec.mcap", "handflow/rec/hand/joints", field="data")
     np.testing.assert_allclose(got[0], seqs[0])
 
 

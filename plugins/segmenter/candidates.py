@@ -7,7 +7,8 @@ normalised self-reconstruction error ``e_t``.  :class:`UKRCandidate` adapts one 
 projects a sequence onto all of them at once, giving a :class:`Projection` that the
 recognisers consume (projections are computed once and re-used across parameter settings).
 When every candidate is a 1D periodic UKR manifold, :class:`CandidateSet` projects onto all of
-them in one batched call (:mod:`.fast_projection`) instead of one ``transform`` per model.
+them in one batched call (:mod:`.fast_projection`) instead of one ``transform`` per model
+(provided they share one channel scaling, :mod:`.scaling`).
 """
 
 from __future__ import annotations
@@ -18,6 +19,8 @@ from pathlib import Path
 from typing import Protocol, runtime_checkable
 
 import numpy as np
+
+from .scaling import ChannelScaling
 
 INDEX_FILE = "classes.json"
 TRAIN_HINT = "train them with `handflow train-classes DATASET --out DIR`"
@@ -73,10 +76,14 @@ class UKRCandidate:
     run against the chronological order.  Documented choice: ``direction`` is the sign of the mean
     ``sin(2 Δx)`` over consecutive training latents (period π), and latent times are multiplied by
     it, so forward motion always means increasing latent time.
+
+    A model trained on scaled channels (:mod:`.scaling`, stored in its provenance) scales every
+    observation the same way before projecting.
     """
 
     def __init__(self, model) -> None:
         self.model = model
+        self.scaling = ChannelScaling.from_model(model)
         self.time_dim = int(getattr(model, "time_dim_", 0) or 0)
         self.direction = training_direction(model.latents_[:, self.time_dim], model.sequence_ids_)
 
@@ -91,8 +98,13 @@ class UKRCandidate:
         residual = Y - reconstruction
         return np.sum(residual * residual / self.model.train_variance_, axis=1)
 
-    def project(self, Y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def scaled(self, Y: np.ndarray) -> np.ndarray:
+        """Observations in the channel scaling the model was trained in."""
         Y = np.asarray(Y, dtype=float)
+        return Y if self.scaling is None else self.scaling.transform(Y)
+
+    def project(self, Y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        Y = self.scaled(Y)
         X = self.model.transform(Y)
         errors = self.normalised_errors(Y, self.model.inverse_transform(X))
         return np.mod(self.direction * X[:, self.time_dim], np.pi), errors
@@ -123,7 +135,9 @@ class CandidateSet:
         """The batched projector over all candidates, or None when some are not 1D periodic UKR."""
         if self._batched is None:
             ukr = [m for m in self.models.values() if isinstance(m, UKRCandidate) and m.periodic_1d]
-            if len(ukr) != len(self.models):
+            first = ukr[0].scaling if ukr else None
+            shared = all((m.scaling is None) if first is None else first.same_as(m.scaling) for m in ukr)
+            if len(ukr) != len(self.models) or not shared:
                 self._batched = False
             else:
                 from .fast_projection import BatchedPeriodicProjector
@@ -151,6 +165,7 @@ class CandidateSet:
         e = np.empty_like(lt)
         batched = self._batched_projector()
         if batched is not None:
+            Y = next(iter(self.models.values())).scaled(Y)
             X, F = batched.project(Y)
             for j, m in enumerate(self.models.values()):
                 lt[:, j] = np.mod(m.direction * X[:, j], np.pi)

@@ -138,24 +138,50 @@ def pair_error(name: str) -> PairError:
         raise ValueError(f"pair error must be one of {sorted(PAIR_ERRORS)}, got {name!r}") from None
 
 
+def unwrapped_latent(latent_time: np.ndarray) -> np.ndarray:
+    """Latent path with every consecutive step wrapped into ``[−π/2, π/2)`` and summed (axis 0)."""
+    lt = np.asarray(latent_time, dtype=float)
+    steps = np.mod(np.diff(lt, axis=0) + 0.5 * np.pi, np.pi) - 0.5 * np.pi
+    return np.concatenate([np.zeros((1,) + lt.shape[1:]), np.cumsum(steps, axis=0)])
+
+
+ORDER_PATHS = ("unwrapped", "direct")
+
+
 def candidate_band(
     latent_time: np.ndarray,
     errors: np.ndarray,
     width: int,
     rating: OrderRating = order_rating_sign,
     mean_error: PairError = pair_error_mean,
+    order_path: str = "direct",
 ) -> np.ndarray:
     """Banded CLM compatibilities ``f^m_ij = ½ (c_loc_ij + c_sre_ij)`` for ``0 < j − i ≤ width``.
 
     ``latent_time`` and ``errors`` are (N, M); returns (M, N, width) with
     ``band[m, i, k − 1] = f^m(i, i + k)`` and 0 where ``i + k ≥ N``.  The matrix is symmetric
     with a zero diagonal (spec §B), so the band holds all of it.
+
+    ``order_path="direct"`` rates ``x̂_j − x̂_i`` (spec §B).  ``"unwrapped"`` (documented choice,
+    docs/segmentation.md) rates the *net progress* along the path, the sum of the consecutive
+    steps ``i…j`` each wrapped into ``[−π/2, π/2)`` (:func:`unwrapped_latent`), with ``rating``
+    applied to it when it is below π/2 in size and its sign otherwise: it equals the direct
+    rating while a pair spans less than a quarter period, but still rates a pair spanning more
+    than half a period of forward motion as forward (the direct rating calls it backward, which
+    broke sub-sampled letters at large H).
     """
     lt = np.asarray(latent_time, dtype=float)
     n, m = lt.shape
+    if order_path not in ORDER_PATHS:
+        raise ValueError(f"order_path must be one of {ORDER_PATHS}, got {order_path!r}")
+    path = unwrapped_latent(lt) if order_path == "unwrapped" else None
     loc = np.zeros((m, n, width))
     for k in range(1, min(width, n - 1) + 1):
-        loc[:, : n - k, k - 1] = rating(lt[k:] - lt[: n - k]).T
+        if path is None:
+            loc[:, : n - k, k - 1] = rating(lt[k:] - lt[: n - k]).T
+        else:
+            d = path[k:] - path[: n - k]
+            loc[:, : n - k, k - 1] = np.where(np.abs(d) < 0.5 * np.pi, rating(d), np.sign(d)).T
     ebar = mean_error(errors, width)
     sre = reconstruction_compatibility(np.nan_to_num(ebar, nan=np.inf))
     band = 0.5 * (loc + sre)

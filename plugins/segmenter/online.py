@@ -169,8 +169,7 @@ class OnlineCLMSegmenter(CLMSegmenter):
     def reset(self) -> None:
         """Forget the stream."""
         m = len(self.candidates)
-        radius = self.history if self.background_radius is None else int(self.background_radius)
-        self._width = max(self.history, radius - 1)
+        self._radius, self._span, self._width = self.widths()
         self._latent = np.zeros((self.window, m))
         self._errors = np.zeros((self.window, m))
         self._band = np.zeros((m, self.window, self._width))
@@ -227,9 +226,10 @@ class OnlineCLMSegmenter(CLMSegmenter):
             self._width,
             order_rating(self.order_rating),
             pair_error(self.pair_error),
+            self.order_path,
         )
         for k in range(1, j - lo + 1):  # pair (j − k, j) sits in row j − k, column k − 1
-            self._band[:, j - k, k - 1] = recent[:, j - k - lo, k - 1] if k <= self.history else 0.0
+            self._band[:, j - k, k - 1] = recent[:, j - k - lo, k - 1] if k <= self._span else 0.0
         self.seen += 1
 
     def layers(self) -> tuple[np.ndarray, np.ndarray]:
@@ -239,7 +239,7 @@ class OnlineCLMSegmenter(CLMSegmenter):
             n,
             self._width,
             self.background_strength(n),
-            self.history if self.background_radius is None else int(self.background_radius),
+            self._radius,
         )
         band = np.concatenate([self._band[:, :n], bg[None]], axis=0)
         return band, np.r_[np.zeros(len(self.candidates)), bg_diag]

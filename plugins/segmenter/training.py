@@ -27,6 +27,7 @@ import numpy as np
 
 from .candidates import INDEX_FILE, CandidateSet, UKRCandidate
 from .datasets import LabelledDataset
+from .scaling import ChannelScaling
 
 
 def auto_beta(sequences: list[np.ndarray]) -> float:
@@ -35,6 +36,7 @@ def auto_beta(sequences: list[np.ndarray]) -> float:
 
 
 INITS = ("equidistant", "isomap")
+SCALINGS = ("standard", "none")
 
 
 def train_class_models(
@@ -45,14 +47,40 @@ def train_class_models(
     init: str = "equidistant",
     random_state: int | None = 0,
     progress: Callable[[str], None] | None = None,
+    scaling: str = "standard",
 ) -> dict:
-    """Fit one StructuredUKR per class of the training split; returns label → fitted model."""
+    """Fit one StructuredUKR per class of the training split; returns label → fitted model.
+
+    ``scaling="standard"`` (default) z-scores every channel with the statistics of all training
+    observations (:mod:`.scaling`) and stores the scaling in each model's provenance;
+    ``"none"`` trains on the raw channels.
+    """
+    if scaling not in SCALINGS:
+        raise ValueError(f"scaling must be one of {SCALINGS}, got {scaling!r}")
+    by_class = dataset.by_class("train")
+    return fit_class_models(by_class, beta, lambda_cseq, n_steps, init, random_state, progress, scaling)
+
+
+def fit_class_models(
+    by_class: dict[str, list[np.ndarray]],
+    beta: float | str = "auto",
+    lambda_cseq: float = 1.0,
+    n_steps: int = 300,
+    init: str = "equidistant",
+    random_state: int | None = 0,
+    progress: Callable[[str], None] | None = None,
+    scaling: str = "standard",
+) -> dict:
+    """:func:`train_class_models` on label → list of (T, d) training segments."""
     from handflow.plugins.manifold import StructuredUKR
 
     if init not in INITS:
         raise ValueError(f"init must be one of {INITS}, got {init!r}")
+    scaler = ChannelScaling().fit([s for seqs in by_class.values() for s in seqs]) if scaling == "standard" else None
     models = {}
-    for label, seqs in dataset.by_class("train").items():
+    for label, seqs in by_class.items():
+        if scaler is not None:
+            seqs = [scaler.transform(s) for s in seqs]
         b = auto_beta(seqs) if beta == "auto" else float(beta)
         if progress:
             progress(f"training '{label}' on {len(seqs)} sequences ({sum(map(len, seqs))} points, beta={b:.1f})")
@@ -64,6 +92,8 @@ def train_class_models(
             init=init,
             random_state=random_state,
         ).fit(seqs)
+        if scaler is not None:
+            models[label].provenance_ = dict(models[label].provenance_, **scaler.to_provenance())
     return models
 
 

@@ -77,6 +77,12 @@ class UKRCandidate:
     ``sin(2 Δx)`` over consecutive training latents (period π), and latent times are multiplied by
     it, so forward motion always means increasing latent time.
 
+    ``seam``: for a model of an *open stroke* (trained on whole strokes, not cycles; flagged
+    ``open_stroke`` in its provenance) the latent time where the stroke's end meets its start on
+    the periodic axis (:func:`stroke_seam`); None for periodic motions.  The CLM order ratings
+    treat crossing the seam as a restart, not as forward motion
+    (:func:`.compatibility.candidate_band`).
+
     A model trained on scaled channels (:mod:`.scaling`, stored in its provenance) scales every
     observation the same way before projecting.
     """
@@ -86,6 +92,12 @@ class UKRCandidate:
         self.scaling = ChannelScaling.from_model(model)
         self.time_dim = int(getattr(model, "time_dim_", 0) or 0)
         self.direction = training_direction(model.latents_[:, self.time_dim], model.sequence_ids_)
+        prov = getattr(model, "provenance_", None) or {}
+        self.seam = (
+            stroke_seam(np.mod(self.direction * model.latents_[:, self.time_dim], np.pi), model.sequence_ids_)
+            if prov.get("open_stroke")
+            else None
+        )
 
     @property
     def periodic_1d(self) -> bool:
@@ -117,6 +129,21 @@ def training_direction(latent_time: np.ndarray, sequence_ids: np.ndarray) -> flo
     same = ids[1:] == ids[:-1]
     steps = np.sin(2.0 * (lt[1:] - lt[:-1]))[same]
     return 1.0 if steps.size == 0 or steps.mean() >= 0 else -1.0
+
+
+def stroke_seam(latent_time: np.ndarray, sequence_ids: np.ndarray) -> float:
+    """Latent time between the training strokes' ends and starts (period π): the circular mean
+    end plus half the forward gap to the circular mean start."""
+    lt = np.asarray(latent_time, dtype=float)
+    ids = np.asarray(sequence_ids)
+    first = np.r_[True, ids[1:] != ids[:-1]]
+    last = np.r_[ids[1:] != ids[:-1], True]
+
+    def circular_mean(x):
+        return np.mod(np.angle(np.mean(np.exp(2j * x))) / 2.0, np.pi)
+
+    start, end = circular_mean(lt[first]), circular_mean(lt[last])
+    return float(np.mod(end + 0.5 * np.mod(start - end, np.pi), np.pi))
 
 
 class CandidateSet:
@@ -152,6 +179,10 @@ class CandidateSet:
     @property
     def classes(self) -> list[str]:
         return list(self.models)
+
+    def seams(self) -> np.ndarray:
+        """Open-stroke seam per candidate (NaN for periodic motions and non-UKR candidates)."""
+        return np.array([s if (s := getattr(m, "seam", None)) is not None else np.nan for m in self.models.values()])
 
     def __len__(self) -> int:
         return len(self.models)

@@ -127,6 +127,7 @@ class CLMSegmenter:
             order_rating(self.order_rating),
             pair_error(self.pair_error),
             self.order_path,
+            self.candidates.seams(),
         )
         cand[:, :, span:] = 0.0
         bg, bg_diag = background_band(n, width, self.background_strength(n), radius)

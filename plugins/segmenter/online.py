@@ -227,6 +227,7 @@ class OnlineCLMSegmenter(CLMSegmenter):
             order_rating(self.order_rating),
             pair_error(self.pair_error),
             self.order_path,
+            self.candidates.seams(),
         )
         for k in range(1, j - lo + 1):  # pair (j − k, j) sits in row j − k, column k − 1
             self._band[:, j - k, k - 1] = recent[:, j - k - lo, k - 1] if k <= self._span else 0.0
@@ -279,6 +280,22 @@ class OnlineCLMSegmenter(CLMSegmenter):
             converged=result.converged,
             events=events,
         )
+
+    def replay(self, Y: np.ndarray) -> np.ndarray:
+        """Feed a whole (N, d) stream through :meth:`update` (the node's code path) from a fresh
+        state; returns each observation's *final* published label (on arrival, then changed only
+        by confirmed revisions) — what a subscriber to the node's labels and events ends up with."""
+        Y = np.atleast_2d(np.asarray(Y, dtype=float))
+        self.reset()
+        proj = self.candidates.project(Y)
+        labels = np.empty(len(Y), dtype=int)
+        for t in range(len(Y)):
+            up = self.update_projected(proj.latent_time[t], proj.errors[t])
+            labels[t] = up.label
+            for ev in up.events:
+                if ev.kind == "revision":
+                    labels[ev.start : ev.end + 1] = ev.label
+        return labels
 
     def _warm_template(self) -> np.ndarray:
         """Bias towards each kept observation's previous winner, scaled by the mean winning activity.

@@ -44,3 +44,32 @@ def test_bad_segment_is_refused():
     Y[5, 1] = np.nan
     with pytest.raises(ValueError, match="finite"):
         split_cycles(Y)
+
+
+def loop(kind: str, k: int, period: int, seed: int) -> np.ndarray:
+    """k cycles of a circle ("circle") or a figure eight ("eight") with drifting speed."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(int(k * period))
+    phase = np.cumsum(1.0 + 0.25 * np.sin(2 * np.pi * t / t.size + seed))
+    phase = phase / phase[-1] * 2 * np.pi * k
+    if kind == "circle":
+        Y = np.c_[np.cos(phase), np.sin(phase), 0.3 * np.sin(phase)]
+    else:
+        Y = np.c_[np.sin(phase), np.sin(2 * phase), 0.3 * np.cos(phase)]
+    return Y + 0.03 * rng.normal(size=Y.shape)
+
+
+def test_model_trained_on_multi_cycle_segments_labels_a_single_cycle():
+    from handflow.plugins.segmenter import CLMSegmenter
+    from handflow.plugins.segmenter.training import candidate_set, class_pieces, fit_class_models
+
+    train = {kind: [loop(kind, k, 30 + 5 * k, seed=k) for k in (3, 4, 5)] for kind in ("circle", "eight")}
+    pieces, periodic = class_pieces(train["circle"], "auto", max_points=1500)
+    assert periodic and len(pieces) >= 6
+    models = fit_class_models(train, n_steps=60, cycles="auto", random_state=0)
+    assert not any(m.provenance_["open_stroke"] for m in models.values())
+    cands = candidate_set(models)
+    for label, kind in enumerate(("circle", "eight")):
+        one_cycle = loop(kind, 1, 40, seed=7)
+        labels = CLMSegmenter(cands, history=10, random_state=0).fit_predict(one_cycle)
+        assert np.mean(labels == label) >= 0.85

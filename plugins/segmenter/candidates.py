@@ -7,7 +7,8 @@ normalised self-reconstruction error ``e_t``.  :class:`UKRCandidate` adapts one 
 projects a sequence onto all of them at once, giving a :class:`Projection` that the
 recognisers consume (projections are computed once and re-used across parameter settings).
 When every candidate is a 1D periodic UKR manifold, :class:`CandidateSet` projects onto all of
-them in one batched call (:mod:`.fast_projection`) instead of one ``transform`` per model.
+them in one batched call (:mod:`.fast_projection`) instead of one ``transform`` per model
+(provided they share one channel scaling, :mod:`.scaling`).
 """
 
 from __future__ import annotations
@@ -18,6 +19,8 @@ from pathlib import Path
 from typing import Protocol, runtime_checkable
 
 import numpy as np
+
+from .scaling import ChannelScaling
 
 INDEX_FILE = "classes.json"
 TRAIN_HINT = "train them with `handflow train-classes DATASET --out DIR`"
@@ -77,13 +80,29 @@ class UKRCandidate:
     ``error_reference`` divides ``e_t`` (default 1 = the thesis' definition); the continuous
     evaluation sets it to the median ``e_t`` of the model's own training frames, so that the errors
     of a tight and of a loose class model are on one scale (docs/segmentation.md).
+
+    ``seam``: for a model of an *open stroke* (trained on whole strokes, not cycles; flagged
+    ``open_stroke`` in its provenance) the latent time where the stroke's end meets its start on
+    the periodic axis (:func:`stroke_seam`); None for periodic motions.  The CLM order ratings
+    treat crossing the seam as a restart, not as forward motion
+    (:func:`.compatibility.candidate_band`).
+
+    A model trained on scaled channels (:mod:`.scaling`, stored in its provenance) scales every
+    observation the same way before projecting.
     """
 
     def __init__(self, model, error_reference: float = 1.0) -> None:
         self.model = model
         self.error_reference = float(error_reference)
+        self.scaling = ChannelScaling.from_model(model)
         self.time_dim = int(getattr(model, "time_dim_", 0) or 0)
         self.direction = training_direction(model.latents_[:, self.time_dim], model.sequence_ids_)
+        prov = getattr(model, "provenance_", None) or {}
+        self.seam = (
+            stroke_seam(np.mod(self.direction * model.latents_[:, self.time_dim], np.pi), model.sequence_ids_)
+            if prov.get("open_stroke")
+            else None
+        )
 
     @property
     def periodic_1d(self) -> bool:
@@ -96,8 +115,13 @@ class UKRCandidate:
         residual = Y - reconstruction
         return np.sum(residual * residual / self.model.train_variance_, axis=1) / self.error_reference
 
-    def project(self, Y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def scaled(self, Y: np.ndarray) -> np.ndarray:
+        """Observations in the channel scaling the model was trained in."""
         Y = np.asarray(Y, dtype=float)
+        return Y if self.scaling is None else self.scaling.transform(Y)
+
+    def project(self, Y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        Y = self.scaled(Y)
         X = self.model.transform(Y)
         errors = self.normalised_errors(Y, self.model.inverse_transform(X))
         return np.mod(self.direction * X[:, self.time_dim], np.pi), errors
@@ -110,6 +134,21 @@ def training_direction(latent_time: np.ndarray, sequence_ids: np.ndarray) -> flo
     same = ids[1:] == ids[:-1]
     steps = np.sin(2.0 * (lt[1:] - lt[:-1]))[same]
     return 1.0 if steps.size == 0 or steps.mean() >= 0 else -1.0
+
+
+def stroke_seam(latent_time: np.ndarray, sequence_ids: np.ndarray) -> float:
+    """Latent time between the training strokes' ends and starts (period π): the circular mean
+    end plus half the forward gap to the circular mean start."""
+    lt = np.asarray(latent_time, dtype=float)
+    ids = np.asarray(sequence_ids)
+    first = np.r_[True, ids[1:] != ids[:-1]]
+    last = np.r_[ids[1:] != ids[:-1], True]
+
+    def circular_mean(x):
+        return np.mod(np.angle(np.mean(np.exp(2j * x))) / 2.0, np.pi)
+
+    start, end = circular_mean(lt[first]), circular_mean(lt[last])
+    return float(np.mod(end + 0.5 * np.mod(start - end, np.pi), np.pi))
 
 
 class CandidateSet:
@@ -128,7 +167,9 @@ class CandidateSet:
         """The batched projector over all candidates, or None when some are not 1D periodic UKR."""
         if self._batched is None:
             ukr = [m for m in self.models.values() if isinstance(m, UKRCandidate) and m.periodic_1d]
-            if len(ukr) != len(self.models):
+            first = ukr[0].scaling if ukr else None
+            shared = all((m.scaling is None) if first is None else first.same_as(m.scaling) for m in ukr)
+            if len(ukr) != len(self.models) or not shared:
                 self._batched = False
             else:
                 from .fast_projection import BatchedPeriodicProjector
@@ -144,6 +185,10 @@ class CandidateSet:
     def classes(self) -> list[str]:
         return list(self.models)
 
+    def seams(self) -> np.ndarray:
+        """Open-stroke seam per candidate (NaN for periodic motions and non-UKR candidates)."""
+        return np.array([s if (s := getattr(m, "seam", None)) is not None else np.nan for m in self.models.values()])
+
     def __len__(self) -> int:
         return len(self.models)
 
@@ -156,6 +201,7 @@ class CandidateSet:
         e = np.empty_like(lt)
         batched = self._batched_projector()
         if batched is not None:
+            Y = next(iter(self.models.values())).scaled(Y)
             X, F = batched.project(Y)
             for j, m in enumerate(self.models.values()):
                 lt[:, j] = np.mod(m.direction * X[:, j], np.pi)

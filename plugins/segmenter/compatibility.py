@@ -128,7 +128,26 @@ def pair_error_endpoints(errors: np.ndarray, width: int) -> np.ndarray:
     return out
 
 
-PAIR_ERRORS: dict[str, PairError] = {"mean": pair_error_mean, "endpoints": pair_error_endpoints}
+def pair_error_max(errors: np.ndarray, width: int) -> np.ndarray:
+    """``ē_ij`` = max of ``e_k`` over ``k = i…j``: a pair is only as compatible as the worst-fitting
+    observation between them, so a group cannot reach across a stretch the model does not fit."""
+    e = np.asarray(errors, dtype=float)
+    n, m = e.shape
+    out = np.full((m, n, width), np.nan)
+    running = e.copy()  # running[i] = max e_{i…i+k}
+    for k in range(1, width + 1):
+        if k >= n:
+            break
+        running = np.maximum(running[:-1], e[k:])
+        out[:, : n - k, k - 1] = running.T
+    return out
+
+
+PAIR_ERRORS: dict[str, PairError] = {
+    "mean": pair_error_mean,
+    "endpoints": pair_error_endpoints,
+    "max": pair_error_max,
+}
 
 
 def pair_error(name: str) -> PairError:
@@ -138,24 +157,66 @@ def pair_error(name: str) -> PairError:
         raise ValueError(f"pair error must be one of {sorted(PAIR_ERRORS)}, got {name!r}") from None
 
 
+def unwrapped_latent(latent_time: np.ndarray) -> np.ndarray:
+    """Latent path with every consecutive step wrapped into ``[−π/2, π/2)`` and summed (axis 0)."""
+    lt = np.asarray(latent_time, dtype=float)
+    steps = np.mod(np.diff(lt, axis=0) + 0.5 * np.pi, np.pi) - 0.5 * np.pi
+    return np.concatenate([np.zeros((1,) + lt.shape[1:]), np.cumsum(steps, axis=0)])
+
+
+ORDER_PATHS = ("unwrapped", "direct")
+
+
 def candidate_band(
     latent_time: np.ndarray,
     errors: np.ndarray,
     width: int,
     rating: OrderRating = order_rating_sign,
     mean_error: PairError = pair_error_mean,
+    order_path: str = "direct",
+    seams: np.ndarray | None = None,
 ) -> np.ndarray:
     """Banded CLM compatibilities ``f^m_ij = ½ (c_loc_ij + c_sre_ij)`` for ``0 < j − i ≤ width``.
 
     ``latent_time`` and ``errors`` are (N, M); returns (M, N, width) with
     ``band[m, i, k − 1] = f^m(i, i + k)`` and 0 where ``i + k ≥ N``.  The matrix is symmetric
     with a zero diagonal (spec §B), so the band holds all of it.
+
+    ``order_path="direct"`` rates ``x̂_j − x̂_i`` (spec §B).  ``"unwrapped"`` (documented choice,
+    docs/segmentation.md) rates the *net progress* along the path, the sum of the consecutive
+    steps ``i…j`` each wrapped into ``[−π/2, π/2)`` (:func:`unwrapped_latent`), with ``rating``
+    applied to it when it is below π/2 in size and its sign otherwise: it equals the direct
+    rating while a pair spans less than a quarter period, but still rates a pair spanning more
+    than half a period of forward motion as forward (the direct rating calls it backward, which
+    broke sub-sampled letters at large H).
+
+    ``seams`` (M,) (unwrapped path only): for an open-stroke candidate (finite seam) a pair whose
+    path crosses the seam — the stroke's end running on into its start — is rated −1: a new
+    stroke starts there, the pair does not belong to one motion (documented choice; without it
+    a letter followed by another that resembles its beginning reads as a repetition of the
+    first, docs/segmentation.md).  NaN = periodic motion, repetitions are forward motion.
     """
     lt = np.asarray(latent_time, dtype=float)
     n, m = lt.shape
+    if order_path not in ORDER_PATHS:
+        raise ValueError(f"order_path must be one of {ORDER_PATHS}, got {order_path!r}")
+    path = unwrapped_latent(lt) if order_path == "unwrapped" else None
+    if seams is not None and path is not None and np.isfinite(seams).any():
+        open_stroke = np.isfinite(seams)
+        phase = np.mod(lt - np.where(open_stroke, seams, 0.0), np.pi)  # 0 at the stroke's start
+    else:
+        open_stroke = None
     loc = np.zeros((m, n, width))
     for k in range(1, min(width, n - 1) + 1):
-        loc[:, : n - k, k - 1] = rating(lt[k:] - lt[: n - k]).T
+        if path is None:
+            loc[:, : n - k, k - 1] = rating(lt[k:] - lt[: n - k]).T
+        else:
+            d = path[k:] - path[: n - k]
+            r = np.where(np.abs(d) < 0.5 * np.pi, rating(d), np.sign(d))
+            if open_stroke is not None:
+                end = phase[: n - k] + d
+                r = np.where(open_stroke & ((end >= np.pi) | (end < 0.0)), -1.0, r)
+            loc[:, : n - k, k - 1] = r.T
     ebar = mean_error(errors, width)
     sre = reconstruction_compatibility(np.nan_to_num(ebar, nan=np.inf))
     band = 0.5 * (loc + sre)

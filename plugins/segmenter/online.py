@@ -169,8 +169,7 @@ class OnlineCLMSegmenter(CLMSegmenter):
     def reset(self) -> None:
         """Forget the stream."""
         m = len(self.candidates)
-        radius = self.history if self.background_radius is None else int(self.background_radius)
-        self._width = max(self.history, radius - 1)
+        self._radius, self._span, self._width = self.widths()
         self._latent = np.zeros((self.window, m))
         self._errors = np.zeros((self.window, m))
         self._band = np.zeros((m, self.window, self._width))
@@ -227,9 +226,11 @@ class OnlineCLMSegmenter(CLMSegmenter):
             self._width,
             order_rating(self.order_rating),
             pair_error(self.pair_error),
+            self.order_path,
+            self.candidates.seams(),
         )
         for k in range(1, j - lo + 1):  # pair (j − k, j) sits in row j − k, column k − 1
-            self._band[:, j - k, k - 1] = recent[:, j - k - lo, k - 1] if k <= self.history else 0.0
+            self._band[:, j - k, k - 1] = recent[:, j - k - lo, k - 1] if k <= self._span else 0.0
         self.seen += 1
 
     def layers(self) -> tuple[np.ndarray, np.ndarray]:
@@ -239,7 +240,7 @@ class OnlineCLMSegmenter(CLMSegmenter):
             n,
             self._width,
             self.background_strength(n),
-            self.history if self.background_radius is None else int(self.background_radius),
+            self._radius,
         )
         band = np.concatenate([self._band[:, :n], bg[None]], axis=0)
         return band, np.r_[np.zeros(len(self.candidates)), bg_diag]
@@ -279,6 +280,22 @@ class OnlineCLMSegmenter(CLMSegmenter):
             converged=result.converged,
             events=events,
         )
+
+    def replay(self, Y: np.ndarray) -> np.ndarray:
+        """Feed a whole (N, d) stream through :meth:`update` (the node's code path) from a fresh
+        state; returns each observation's *final* published label (on arrival, then changed only
+        by confirmed revisions) — what a subscriber to the node's labels and events ends up with."""
+        Y = np.atleast_2d(np.asarray(Y, dtype=float))
+        self.reset()
+        proj = self.candidates.project(Y)
+        labels = np.empty(len(Y), dtype=int)
+        for t in range(len(Y)):
+            up = self.update_projected(proj.latent_time[t], proj.errors[t])
+            labels[t] = up.label
+            for ev in up.events:
+                if ev.kind == "revision":
+                    labels[ev.start : ev.end + 1] = ev.label
+        return labels
 
     def _warm_template(self) -> np.ndarray:
         """Bias towards each kept observation's previous winner, scaled by the mean winning activity.

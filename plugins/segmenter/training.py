@@ -26,7 +26,9 @@ from pathlib import Path
 import numpy as np
 
 from .candidates import INDEX_FILE, CandidateSet, UKRCandidate
+from .cycles import split_cycles
 from .datasets import LabelledDataset
+from .scaling import ChannelScaling
 
 
 def auto_beta(sequences: list[np.ndarray]) -> float:
@@ -35,6 +37,8 @@ def auto_beta(sequences: list[np.ndarray]) -> float:
 
 
 INITS = ("equidistant", "isomap")
+SCALINGS = ("standard", "none")
+CYCLES = ("none", "auto")
 
 
 def train_class_models(
@@ -45,18 +49,76 @@ def train_class_models(
     init: str = "equidistant",
     random_state: int | None = 0,
     progress: Callable[[str], None] | None = None,
+    scaling: str = "standard",
+    cycles: str = "none",
+    max_points: int = 1500,
 ) -> dict:
-    """Fit one StructuredUKR per class of the training split; returns label → fitted model."""
+    """Fit one StructuredUKR per class of the training split; returns label → fitted model
+    (see :func:`fit_class_models`)."""
+    return fit_class_models(
+        dataset.by_class("train"), beta, lambda_cseq, n_steps, init, random_state, progress, scaling, cycles, max_points
+    )
+
+
+def class_pieces(segments: list[np.ndarray], cycles: str, max_points: int) -> tuple[list[np.ndarray], bool]:
+    """Training sequences of one class and whether they are cycles of a periodic motion.
+
+    ``cycles="auto"`` cuts every segment into single cycles (:func:`.cycles.split_cycles`;
+    segments without repetition stay whole); ``"none"`` keeps the segments.  Documented choice:
+    when the pieces hold more than ``max_points`` observations, evenly spaced pieces are kept
+    (UKR training is quadratic in the number of points).
+    """
+    if cycles not in CYCLES:
+        raise ValueError(f"cycles must be one of {CYCLES}, got {cycles!r}")
+    pieces, periodic = [], False
+    for seg in segments:
+        parts = split_cycles(seg) if cycles == "auto" else [seg]
+        periodic |= len(parts) > 1
+        pieces += parts
+    total = sum(map(len, pieces))
+    if total > max_points:
+        keep = max(1, int(len(pieces) * max_points / total))
+        pieces = [pieces[i] for i in np.linspace(0, len(pieces) - 1, keep).round().astype(int)]
+    return pieces, periodic
+
+
+def fit_class_models(
+    by_class: dict[str, list[np.ndarray]],
+    beta: float | str = "auto",
+    lambda_cseq: float = 1.0,
+    n_steps: int = 300,
+    init: str = "equidistant",
+    random_state: int | None = 0,
+    progress: Callable[[str], None] | None = None,
+    scaling: str = "standard",
+    cycles: str = "none",
+    max_points: int = 1500,
+) -> dict:
+    """One StructuredUKR per class from label → list of (T, d) training segments.
+
+    ``scaling="standard"`` (default) z-scores every channel with the statistics of all training
+    observations (:mod:`.scaling`); ``"none"`` trains on the raw channels.  ``cycles`` see
+    :func:`class_pieces`.  Each model's provenance records the scaling and ``open_stroke``: True
+    when the class was trained on whole segments (one stroke per period), False when on cycles
+    of a periodic motion.
+    """
     from handflow.plugins.manifold import StructuredUKR
 
     if init not in INITS:
         raise ValueError(f"init must be one of {INITS}, got {init!r}")
+    if scaling not in SCALINGS:
+        raise ValueError(f"scaling must be one of {SCALINGS}, got {scaling!r}")
+    scaler = ChannelScaling().fit([s for seqs in by_class.values() for s in seqs]) if scaling == "standard" else None
     models = {}
-    for label, seqs in dataset.by_class("train").items():
+    for label, segments in by_class.items():
+        seqs, periodic = class_pieces(segments, cycles, max_points)
+        if scaler is not None:
+            seqs = [scaler.transform(s) for s in seqs]
         b = auto_beta(seqs) if beta == "auto" else float(beta)
         if progress:
-            progress(f"training '{label}' on {len(seqs)} sequences ({sum(map(len, seqs))} points, beta={b:.1f})")
-        models[label] = StructuredUKR(
+            kind = "cycles" if periodic else "sequences"
+            progress(f"training '{label}' on {len(seqs)} {kind} ({sum(map(len, seqs))} points, beta={b:.1f})")
+        model = StructuredUKR(
             latent=[{"kernel": "periodic", "beta": b, "time": True}],
             lambda_cseq=lambda_cseq,
             lambda_pvar=0.0,
@@ -64,6 +126,10 @@ def train_class_models(
             init=init,
             random_state=random_state,
         ).fit(seqs)
+        model.provenance_ = dict(
+            model.provenance_, **(scaler.to_provenance() if scaler else {}), open_stroke=not periodic
+        )
+        models[label] = model
     return models
 
 

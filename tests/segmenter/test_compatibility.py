@@ -7,6 +7,7 @@ from handflow.plugins.segmenter.compatibility import (
     history_compatibility,
     order_rating_cos,
     order_rating_sign,
+    pair_error_max,
     pair_error_mean,
     reconstruction_compatibility,
     thesis_background_strength,
@@ -63,3 +64,31 @@ def test_background_band_decays_and_self_excites():
     np.testing.assert_allclose(band[0], [0.8 * 2 / 3, 0.8 / 3, 0.0])
     assert band[4].tolist() == [0.0, 0.0, 0.0]
     assert thesis_background_strength(100) == pytest.approx(0.9)
+
+
+def test_unwrapped_path_rates_long_forward_spans_forward():
+    lt = np.mod(np.linspace(0.0, 0.8 * np.pi, 9), np.pi)[:, None]  # steady forward, 0.1π per step
+    e = np.zeros_like(lt)
+    direct = candidate_band(lt, e, width=8, order_path="direct")
+    unwrapped = candidate_band(lt, e, width=8, order_path="unwrapped")
+    assert direct[0, 0, 7] == pytest.approx(0.0)  # 0.8π apart: the direct sign rating calls it backward
+    assert np.all(unwrapped[0, 0] == 1.0)
+    back = candidate_band(lt[::-1], e, width=8, order_path="unwrapped")
+    assert np.all(back[0, 0] == 0.0)  # backward: ½(−1 + 1)
+
+
+def test_seam_of_an_open_stroke_breaks_pairs_across_a_restart():
+    # one stroke running 0 → π, then a new stroke from 0: forward on the periodic axis, but a restart
+    lt = np.r_[np.linspace(0.05, 3.05, 7), np.linspace(0.05, 1.0, 4)][:, None]
+    e = np.zeros_like(lt)
+    periodic = candidate_band(lt, e, width=3, order_path="unwrapped", seams=np.array([np.nan]))
+    stroke = candidate_band(lt, e, width=3, order_path="unwrapped", seams=np.array([3.1]))
+    assert np.all(periodic[0, 4:7][periodic[0, 4:7] != 0] == 1.0)  # a repetition continues
+    assert stroke[0, 6, 0] == 0.0 and stroke[0, 5, 1] == 0.0  # pairs across the seam: ½(−1 + 1)
+    assert stroke[0, 2, 0] == 1.0 and stroke[0, 7, 0] == 1.0  # within each stroke: forward
+
+
+def test_pair_error_max_is_the_worst_observation_between():
+    e = np.array([[1.0], [5.0], [2.0], [0.5]])
+    out = pair_error_max(e, 3)
+    assert out[0, 0].tolist() == [5.0, 5.0, 5.0] and out[0, 2, 0] == 2.0 and np.isnan(out[0, 3, 0])

@@ -4,7 +4,7 @@ agreement of the final published online labels with the whole-stream batch UKR/C
 ``--classes`` candidate manifolds (default 4; 16 = all real letters) + background, sliding window
 200, a stream "recorded" at 100 Hz (letters of those classes one after another, so the stream
 holds transitions).  Every sample is processed
-exactly as the node does (batched projection onto the 4 manifolds + warm-started CLM).  Baselines
+exactly as the node does (batched projection onto all manifolds + warm-started CLM).  Baselines
 in the same run: the same stream with cold starts only (``warm_start=False``); the per-model
 projection (one ``StructuredUKR.transform`` per candidate, the path before the batched
 projector); and revisions counted the old way (every change of an earlier label, ``confirm=1``,
@@ -29,8 +29,8 @@ import time  # noqa: E402
 import numpy as np  # noqa: E402
 
 from handflow.plugins.segmenter import (  # noqa: E402
-    LetterGenerator,
     CLMSegmenter,
+    LetterGenerator,
     OnlineCLMSegmenter,
     candidate_set,
     load_dataset,

@@ -4,18 +4,29 @@ Setup: 24-float messages.  handflow: ``basic.signal → basic.transform → basi
 processes, the sink writes arrival − source stamp per message) and the single hop
 ``basic.signal → basic.sink`` (two processes).  Baseline: bare Zenoh publisher → subscriber (two
 processes) and publisher → relay → subscriber (three processes) with the same payload (the same
-JSON bytes), the same session topology (a hub peer plus gossip) and the same rates.
+CDR bytes and attachment, docs/ros2.md), the same session topology (a hub peer plus gossip) and the
+same rates.
+
+Images: a 640×480 RGB ``Image`` at 30 Hz over one hop (two processes).  handflow: the publisher
+encodes a fresh message per frame and the subscriber decodes and validates it (``wire.pack`` /
+``wire.unpack``); baseline: bare Zenoh carrying the same CDR bytes (the stamp patched in place),
+read without decoding.  ``image_codec_ms`` is encode + decode of one frame in-process (median);
+``recording_mb_per_s`` is the sustained rate of ``McapWriter`` storing such frames (zstd chunks),
+next to the bare ``mcap`` writer with the same bytes and settings.
 
     python benchmarks/transport.py [--json] [--seconds 6] [--rates 100 1000]
 
 ``overhead_ratio`` = median latency of the handflow chain / median of the bare-Zenoh chain with
-the same number of hops; ``overhead_ratio_single_hop`` compares the two-process set-ups.
+the same number of hops; ``overhead_ratio_single_hop`` compares the two-process set-ups;
+``image_overhead_ratio`` = median image latency handflow / bare Zenoh.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import statistics
+import struct
 import subprocess
 import sys
 import tempfile
@@ -26,15 +37,28 @@ import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
 WIDTH = 24
+IMAGE_SHAPE = (480, 640, 3)
+IMAGE_RATE_HZ = 30.0
+
+
+def _image(seq: int):
+    """A rendered-looking 640×480 RGB frame: smooth gradients with sensor noise (compressible like a camera's)."""
+    from handflow.framework.messages import Image
+
+    rng = np.random.default_rng(seq)
+    h, w, _ = IMAGE_SHAPE
+    yy, xx = np.mgrid[0:h, 0:w]
+    base = np.stack([xx * 255 // w, yy * 255 // h, (xx + yy + seq) % 256], axis=-1)
+    return Image.from_array((base + rng.integers(0, 8, size=IMAGE_SHAPE)).astype(np.uint8))
 
 
 # ------------------------------------------------------------------------------------------------
 # bare zenoh roles (run as subprocesses of this script)
 # ------------------------------------------------------------------------------------------------
 def _role(args: argparse.Namespace) -> None:
-    from handflow.framework import transport
+    from handflow.framework import transport, wire
     from handflow.framework.graph import ZenohSettings
-    from handflow.framework.messages import Array, Header, encode
+    from handflow.framework.messages import Array, Header
 
     settings = ZenohSettings()
     session = transport.open_node_session(settings, args.hub)
@@ -45,24 +69,39 @@ def _role(args: argparse.Namespace) -> None:
         period = 1.0 / args.rate
         t_next = time.perf_counter()
         data = np.zeros(WIDTH)
+        frames = [_image(i) for i in range(4)] if args.payload == "image" else []
+        if frames and args.mode == "raw":  # the same CDR bytes every time; only the stamp is patched in
+            body = bytearray(wire.pack(frames[0])[0])
         for seq in range(1, int(args.seconds * args.rate) + 1):
             t_next += period
             while (d := t_next - time.perf_counter()) > 0:
                 time.sleep(d if d > 2e-4 else 0)
-            msg = Array(data=data + seq)
-            msg.header = Header("pub", seq, time.time_ns())
-            pub.put(encode(msg))
+            now = time.time_ns()
+            if frames and args.mode == "raw":
+                struct.pack_into("<iI", body, 4, now // 1_000_000_000, now % 1_000_000_000)
+                pub.put(bytes(body), attachment=wire.attachment("handflow.Image", "pub", seq))
+                continue
+            msg = frames[seq % len(frames)] if frames else Array(data=data + seq)
+            msg.header = Header("pub", seq, now)
+            payload, att = wire.pack(msg)
+            pub.put(payload, attachment=att)
         time.sleep(1.0)
     elif args.role == "relay":
         pub = session.declare_publisher("bench/b")
-        session.declare_subscriber("bench/a", lambda s: pub.put(s.payload.to_bytes()))
+
+        def forward(sample):
+            payload, att = wire.sample_parts(sample)
+            pub.put(payload, attachment=att)
+
+        session.declare_subscriber("bench/a", forward)
         time.sleep(args.seconds + args.warmup + 2)
     else:
-        from handflow.framework.messages import decode
+        read = wire.peek if args.mode == "raw" else wire.unpack
 
         def on(sample):
-            msg = decode(sample.payload.to_bytes())
-            out_rows.append((msg.header.seq, time.time_ns() - msg.header.stamp_ns))
+            h = read(*wire.sample_parts(sample))
+            h = getattr(h, "header", h)
+            out_rows.append((h.seq, time.time_ns() - h.stamp_ns))
 
         session.declare_subscriber(args.key, on)
         time.sleep(args.seconds + args.warmup + 2)
@@ -70,7 +109,8 @@ def _role(args: argparse.Namespace) -> None:
     session.close()
 
 
-def run_raw(rate: float, seconds: float, hops: int) -> dict:
+def run_raw(rate: float, seconds: float, hops: int, payload: str = "joints", mode: str = "handflow") -> dict:
+    """Bare-Zenoh processes; ``mode`` 'handflow' encodes/decodes every message, 'raw' only moves bytes."""
     from handflow.framework import transport
     from handflow.framework.graph import ZenohSettings
 
@@ -90,6 +130,10 @@ def run_raw(rate: float, seconds: float, hops: int) -> dict:
             str(seconds),
             "--warmup",
             "1.5",
+            "--payload",
+            payload,
+            "--mode",
+            mode,
         ]
         key = "bench/a" if hops == 1 else "bench/b"
         procs = [subprocess.Popen(common + ["--role", "sub", "--key", key, "--out", str(out)])]
@@ -151,6 +195,66 @@ nodes:
     return stats
 
 
+def image_codec_ms(repeats: int = 60) -> dict:
+    """Median encode (``wire.pack``) and decode (``wire.unpack``, validated) of one 640×480 RGB frame, in ms."""
+    from handflow.framework import wire
+    from handflow.framework.messages import Header
+
+    msg = _image(0)
+    msg.header = Header("bench", 1, time.time_ns())
+    enc, dec = [], []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        payload, att = wire.pack(msg)
+        t1 = time.perf_counter()
+        wire.unpack(payload, att)
+        t2 = time.perf_counter()
+        enc.append(t1 - t0)
+        dec.append(t2 - t1)
+    return {
+        "encode_ms": 1e3 * statistics.median(enc),
+        "decode_ms": 1e3 * statistics.median(dec),
+        "total_ms": float(1e3 * statistics.median(np.add(enc, dec))),
+        "bytes": len(payload),
+    }
+
+
+def recording_rate(frames: int = 300, repeats: int = 3) -> dict:
+    """MB/s of ``McapWriter.write_encoded`` storing camera frames (CDR, zstd chunks) vs the bare mcap writer."""
+    from mcap.writer import CompressionType, Writer
+
+    from handflow.framework import wire
+    from handflow.framework.recording import McapWriter
+
+    payloads = [wire.pack(_image(i))[0] for i in range(8)]
+    total_mb = frames * len(payloads[0]) / 1e6
+    ours, bare = [], []
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "rec.mcap"
+        for _ in range(repeats):
+            t0 = time.perf_counter()
+            with McapWriter(path) as w:
+                for i in range(frames):
+                    w.write_encoded("handflow/bench/cam/image", "handflow.Image", payloads[i % 8], i, i, i)
+            ours.append(time.perf_counter() - t0)
+            t0 = time.perf_counter()
+            with open(path, "wb") as fh:
+                bw = Writer(fh, chunk_size=256 * 1024, compression=CompressionType.ZSTD)
+                bw.start(profile="ros2", library="bench")
+                sid = bw.register_schema("sensor_msgs/msg/Image", "ros2msg", b"")
+                cid = bw.register_channel("handflow/bench/cam/image", "cdr", sid)
+                for i in range(frames):
+                    bw.add_message(cid, i, payloads[i % 8], i, i)
+                bw.finish()
+            bare.append(time.perf_counter() - t0)
+    return {
+        "recording_mb_per_s": total_mb / statistics.median(ours),
+        "bare_mcap_mb_per_s": total_mb / statistics.median(bare),
+        "frames": frames,
+        "frame_bytes": len(payloads[0]),
+    }
+
+
 def _stats(lat_ns: list[int], seqs: list[int], expected: int | None) -> dict:
     if not lat_ns:
         return {"median_us": float("nan"), "p99_us": float("nan"), "received": 0, "lost": expected or 0}
@@ -181,6 +285,7 @@ def main() -> None:
     ap.add_argument("--_role", action="store_true", help=argparse.SUPPRESS)
     ap.add_argument("--role"), ap.add_argument("--hub"), ap.add_argument("--rate", type=float)
     ap.add_argument("--key"), ap.add_argument("--out"), ap.add_argument("--warmup", type=float, default=1.5)
+    ap.add_argument("--payload", default="joints"), ap.add_argument("--mode", default="raw")
     args = ap.parse_args()
     if args._role:
         _role(args)
@@ -191,8 +296,8 @@ def main() -> None:
         results["by_rate"][key] = {
             "handflow_chain": run_handflow(rate, args.seconds, 2),
             "handflow_single_hop": run_handflow(rate, args.seconds, 1),
-            "raw_chain": run_raw(rate, args.seconds, 2),
-            "raw_single_hop": run_raw(rate, args.seconds, 1),
+            "raw_chain": run_raw(rate, args.seconds, 2, mode="raw"),
+            "raw_single_hop": run_raw(rate, args.seconds, 1, mode="raw"),
         }
         if not args.json:
             print(f"{key} Hz: " + json.dumps(results["by_rate"][key]), file=sys.stderr)
@@ -206,6 +311,22 @@ def main() -> None:
             "overhead_ratio": top["handflow_chain"]["median_us"] / top["raw_chain"]["median_us"],
             "overhead_ratio_single_hop": top["handflow_single_hop"]["median_us"] / top["raw_single_hop"]["median_us"],
             "lost_at_top_rate": top["handflow_chain"]["lost"],
+        }
+    )
+    image = {
+        "handflow": run_raw(IMAGE_RATE_HZ, args.seconds, 1, "image", "handflow"),
+        "raw": run_raw(IMAGE_RATE_HZ, args.seconds, 1, "image", "raw"),
+    }
+    codec = image_codec_ms()
+    rec = recording_rate()
+    results.update(
+        {
+            "image": image,
+            "image_overhead_ratio": image["handflow"]["median_us"] / image["raw"]["median_us"],
+            "image_codec": codec,
+            "image_codec_ms": codec["total_ms"],
+            "recording": rec,
+            "recording_mb_per_s": rec["recording_mb_per_s"],
         }
     )
     max_ok = 0.0
@@ -232,6 +353,9 @@ def main() -> None:
             "overhead_ratio",
             "overhead_ratio_single_hop",
             "max_rate_hz_no_loss",
+            "image_overhead_ratio",
+            "image_codec_ms",
+            "recording_mb_per_s",
         ):
             print(f"{k:38s} {results[k]:.3f}" if isinstance(results[k], float) else f"{k:38s} {results[k]}")
 

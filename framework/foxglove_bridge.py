@@ -1,11 +1,11 @@
 """Live view in Foxglove: every handflow topic on a Foxglove WebSocket server (foxglove-sdk).
 
-Each topic becomes a JSON channel whose schema is the message type's JSON schema (the same as in
-recordings), named by the topic without the ``handflow/`` prefix (``<graph>/<node>/<port>``).
-Images are also published on ``<topic>/foxglove`` with Foxglove's well-known ``RawImage`` schema so
-the Image panel shows them; the Plot panel reads fields such as ``positions[3]`` of a joint-state
-channel directly.
-Runtime-internal topics (``_progress``) are skipped; node heartbeats (``_health``) are shown.
+Each topic becomes a ``cdr`` channel with the ``ros2msg`` schema of its ROS 2 type, under the same
+name as in recordings (the Zenoh key ``handflow/<graph>/<node>/<port>``), so one layout works live
+and on a recording (docs/foxglove.md).  The CDR payloads are forwarded as received; Foxglove decodes
+them itself (``sensor_msgs/Image`` in the Image panel, ``position[3]`` of a joint state in a Plot).
+Runtime-internal topics (``_progress``, ``_clock``) are skipped; heartbeats (``_health``) and runtime
+events are shown.  Payloads that are not valid messages are not forwarded (docs/robustness.md).
 """
 
 from __future__ import annotations
@@ -17,11 +17,12 @@ import zenoh
 
 try:  # the optional extra 'foxglove'
     import foxglove
-    from foxglove.messages import RawImage, Timestamp
 except ImportError:
     foxglove = None
 
-from .messages import Image, MessageError, decode, json_schema
+from . import wire
+from .messages import MessageError
+from .ros2.types import ros_type, schema_text
 from .transport import PREFIX
 
 log = logging.getLogger("handflow.foxglove")
@@ -57,8 +58,7 @@ class FoxgloveBridge:
         self.context = foxglove.Context()
         self.server = foxglove.start_server(name=f"handflow {graph}", host=host, port=port, context=self.context)
         self.port = self.server.port
-        self._channels: dict[str, foxglove.Channel] = {}
-        self._images: dict[str, foxglove.channels.RawImageChannel] = {}
+        self._channels: dict[tuple[str, str], foxglove.Channel] = {}  # (topic, type)
         self._lock = threading.Lock()
         key = f"{PREFIX}/{graph}/**"
         self._sub = session.declare_subscriber(key, self._on_sample)
@@ -68,42 +68,27 @@ class FoxgloveBridge:
         key = str(sample.key_expr)
         if key.endswith(("/_progress", "/_clock")):
             return
-        payload = sample.payload.to_bytes()
+        payload, att = wire.sample_parts(sample)
         try:
-            msg = decode(payload)
+            msg = wire.unpack(payload, att)
+            if att is None:  # a JSON-speaking peer: forward its message as CDR
+                payload, att = wire.pack(msg)
         except MessageError:
             return
-        topic = key[len(PREFIX) + 1 :]
-        stamp = msg.header.stamp_ns or None
         with self._lock:
-            channel = self._channels.get(topic)
+            channel = self._channels.get((key, msg.TYPE))
             if channel is None:
-                channel = foxglove.Channel(
-                    topic, schema=json_schema(type(msg)), message_encoding="json", context=self.context
+                schema = foxglove.Schema(
+                    name=ros_type(msg.TYPE), encoding="ros2msg", data=schema_text(msg.TYPE).encode()
                 )
-                self._channels[topic] = channel
-            if isinstance(msg, Image) and topic not in self._images:
-                self._images[topic] = foxglove.channels.RawImageChannel(f"{topic}/foxglove", context=self.context)
-        channel.log(payload, log_time=stamp)
-        if isinstance(msg, Image):
-            ts = Timestamp(msg.header.stamp_ns // 1_000_000_000, msg.header.stamp_ns % 1_000_000_000)
-            self._images[topic].log(
-                RawImage(
-                    timestamp=ts,
-                    frame_id=msg.frame_id,
-                    width=msg.width,
-                    height=msg.height,
-                    encoding=msg.encoding,
-                    step=msg.step,
-                    data=msg.data,
-                ),
-                log_time=stamp,
-            )
+                channel = foxglove.Channel(key, schema=schema, message_encoding="cdr", context=self.context)
+                self._channels[(key, msg.TYPE)] = channel
+        channel.log(payload, log_time=msg.header.stamp_ns or None)
 
     @property
     def topics(self) -> list[str]:
         with self._lock:
-            return sorted(self._channels)
+            return sorted({topic for topic, _ in self._channels})
 
     def close(self) -> None:
         self._sub.undeclare()

@@ -282,6 +282,8 @@ def _input_problems(graph: Graph, rn: ResolvedNode, port: str, source: str, line
             )
         ]
     out_type = graph.source_type(source)
+    if out_type is None and src_node not in graph.nodes:
+        return []  # an external topic of an unknown type (reported with 'external:')
     if out_type is None:
         outs = graph.nodes[src_node].cls.outputs
         return [

@@ -20,9 +20,9 @@ import threading
 import time
 from dataclasses import dataclass, field
 
-from . import discovery, transport
+from . import discovery, transport, wire
 from .graph import Graph, RestartPolicy
-from .messages import Header, MessageError, RuntimeEvent, Status, decode, encode
+from .messages import Header, MessageError, RuntimeEvent, Status
 from .runner import START_WAIT_S
 
 log = logging.getLogger("handflow.launcher")
@@ -87,7 +87,7 @@ class Launcher:
 
     def _on_health(self, sample) -> None:
         try:
-            status = decode(sample.payload.to_bytes())
+            status = wire.unpack(*wire.sample_parts(sample))
         except MessageError:
             return
         self.health[status.header.source] = status
@@ -133,7 +133,8 @@ class Launcher:
         msg = RuntimeEvent(kind=kind, node=",".join(unit.node_ids), detail=detail)
         msg.header = Header("_launcher", self._event_seq, time.time_ns())
         self._event_seq += 1
-        self._event_pub.put(encode(msg))
+        payload, att = wire.pack(msg)
+        self._event_pub.put(payload, attachment=att)
 
     @property
     def crash_loops(self) -> list[str]:

@@ -23,9 +23,8 @@ from typing import Any
 
 import numpy as np
 
-from . import transport
-from .messages import Array, Message, MessageError, RuntimeEvent, Status, decode
-from .recording import peek_header
+from . import transport, wire
+from .messages import Array, Message, MessageError, RuntimeEvent, Status
 
 ALIVE_S = 2.0  # a node is alive if its last heartbeat is younger than this
 WINDOW_S = 5.0  # rate and latency are computed over this sliding window
@@ -39,7 +38,7 @@ class TopicStats:
     gaps: int = 0
     dropped: int = 0
     last_seq: int = 0
-    last_data: bytes = b""
+    last_data: tuple[bytes, bytes | None] | None = None  # payload and attachment
     arrivals: deque = field(default_factory=deque)  # (monotonic s, latency ns)
 
     def note(self, now_m: float, latency_ns: int, seq: int, window_s: float) -> None:
@@ -121,14 +120,14 @@ class Monitor:
         parts = transport.split_key(key)
         if parts is None or parts[2] == "_progress":
             return  # the lock-step clock and progress reports are runtime traffic, not data
-        data = sample.payload.to_bytes()
+        data = wire.sample_parts(sample)
         if parts[2] == "_health":
             self._on_health(parts[0], parts[1], data, now_m)
             return
         if (parts[1], parts[2]) == ("_runtime", "events"):
             self._on_event(data)
         try:
-            hdr = peek_header(data)
+            hdr = wire.peek(*data)
         except MessageError:
             return
         with self._lock:
@@ -138,9 +137,9 @@ class Monitor:
             stats.note(now_m, now_wall - hdr.stamp_ns, hdr.seq, self.window_s)
             stats.last_data = data
 
-    def _on_event(self, data: bytes) -> None:
+    def _on_event(self, data: tuple[bytes, bytes | None]) -> None:
         try:
-            event = decode(data)
+            event = wire.unpack(*data)
         except MessageError:
             return
         if isinstance(event, RuntimeEvent) and event.kind == "dropped":
@@ -150,9 +149,9 @@ class Monitor:
                     stats = self.topics[event.topic] = TopicStats(event.topic)
                 stats.dropped += event.count
 
-    def _on_health(self, graph: str, node: str, data: bytes, now_m: float) -> None:
+    def _on_health(self, graph: str, node: str, data: tuple[bytes, bytes | None], now_m: float) -> None:
         try:
-            status = decode(data)
+            status = wire.unpack(*data)
         except MessageError:
             return
         m = _PID.search(getattr(status, "text", ""))
@@ -177,7 +176,7 @@ class Monitor:
         out_topics = []
         for t in sorted(topics, key=lambda t: t.key):
             try:
-                last = summarize(decode(lasts[t.key])) if lasts[t.key] else "-"
+                last = summarize(wire.unpack(*lasts[t.key])) if lasts[t.key] else "-"
             except MessageError as exc:
                 last = f"(undecodable: {exc})"
             lat = t.latency_ms()

@@ -51,9 +51,10 @@ from mcap.records import Message as McapMessage
 from mcap.stream_reader import StreamReader
 from mcap.writer import CompressionType, Writer
 
-from . import transport
+from . import transport, wire
 from .messages import Image, Message, MessageError, decode, encode, json_schema, message_types
 from .ros2.types import decode_cdr, encode_cdr, handflow_type, ros_type, schema_text
+from .wire import WireHeader, peek_header  # noqa: F401  (re-exported: the JSON dialect's header reader)
 
 log = logging.getLogger("handflow.recording")
 
@@ -147,41 +148,6 @@ class TopicFilter:
             if rx.match(target):
                 return True
         return False
-
-
-_HEADER_RX = re.compile(
-    rb'^\{"type":"([^"]+)","header":\{"source":"((?:[^"\\]|\\.)*)","seq":(-?\d+),"stamp_ns":(-?\d+)\}'
-)
-
-
-@dataclass(frozen=True)
-class WireHeader:
-    """Type and header of an encoded message, read without decoding its payload."""
-
-    type_name: str
-    source: str
-    seq: int
-    stamp_ns: int
-
-
-def peek_header(data: bytes) -> WireHeader:
-    """The message type and header of :func:`encode` bytes (fast path on the fixed key order).
-
-    Any other bytes raise :class:`MessageError`; the payload itself is not validated (:func:`decode` does).
-    """
-    try:
-        m = _HEADER_RX.match(data[:512])
-        if m:
-            source = json.loads(b'"' + m.group(2) + b'"')
-            return WireHeader(m.group(1).decode(), source, int(m.group(3)), int(m.group(4)))
-        d = json.loads(bytes(data))
-        h = d["header"] if "header" in d else {}
-        seq, stamp = h.get("seq", 0), h.get("stamp_ns", 0)
-        if type(d["type"]) is not str or type(seq) is not int or type(stamp) is not int:
-            raise TypeError("type, header.seq and header.stamp_ns must be a string and integers")
-        return WireHeader(d["type"], str(h.get("source", "")), seq, stamp)
-    except (ValueError, KeyError, TypeError, AttributeError, RecursionError) as exc:
-        raise MessageError(f"not a handflow message: {str(exc)[:200]}") from None
 
 
 # ----------------------------------------------------------------------------------------------
@@ -476,10 +442,12 @@ class GraphRecorder:
         key = str(sample.key_expr)
         if not self.filter(key):
             return
-        data = sample.payload.to_bytes()
+        data, att = wire.sample_parts(sample)
         try:
-            msg = decode(data)  # what replay and Foxglove read back must be valid (docs/robustness.md)
-            if self.writer.encoding == "json":
+            msg = wire.unpack(data, att)  # what replay and Foxglove read back must be valid (docs/robustness.md)
+            if (att is not None) == (
+                self.writer.encoding == "cdr"
+            ):  # already in the file's encoding: stored as received
                 self.writer.write_encoded(key, msg.TYPE, data, None, msg.header.stamp_ns, msg.header.seq)
             else:
                 self.writer.write(key, msg)
@@ -523,9 +491,12 @@ class RecordedMessage:
         parts = transport.split_key(self.topic)
         return decode_cdr(self.data, self.type_name, parts[1] if parts else "", self.sequence)
 
-    def wire(self) -> bytes:
-        """The bytes to publish on the handflow wire (JSON) for this record."""
-        return self.data if self.encoding == MESSAGE_ENCODING else encode(self.decode())
+    def wire(self) -> tuple[bytes, bytes]:
+        """``(payload, attachment)`` to publish on the handflow wire (CDR records as stored)."""
+        if self.encoding == MESSAGE_ENCODING:
+            return wire.pack(self.decode())
+        parts = transport.split_key(self.topic)
+        return self.data, wire.attachment(self.type_name, parts[1] if parts else "", self.sequence)
 
 
 @dataclass

@@ -1,6 +1,7 @@
 """Replay MCAP recordings into Zenoh: timed, or lock-step in virtual time (issue 2 item 7).
 
-- :class:`TimedReplayer` publishes the recorded bytes (nothing re-encoded) with the original
+- :class:`TimedReplayer` publishes the recorded CDR bytes (nothing re-encoded; records of the JSON
+  dialect are converted, :meth:`RecordedMessage.wire`) with the original
   inter-message timing (``log_time`` deltas) divided by ``speed``, optionally looping.
 - :class:`LockstepReplayer` drives a graph launched with ``--lockstep``: before each message it
   publishes the virtual time on ``handflow/<graph>/_clock`` (``{"t_ns": stamp}``) and waits until
@@ -29,9 +30,9 @@ from typing import Any
 
 import zenoh
 
-from . import transport
+from . import transport, wire
 from .graph import Graph
-from .messages import MessageError, decode
+from .messages import MessageError
 from .recording import ReadReport, RecordedMessage, iter_recording
 
 log = logging.getLogger("handflow.replay")
@@ -89,7 +90,7 @@ class GraphWatcher:
 
     def _on_health(self, sample: Any) -> None:
         try:
-            status = decode(sample.payload.to_bytes())
+            status = wire.unpack(*wire.sample_parts(sample))
         except MessageError:
             return
         with self.cond:
@@ -245,7 +246,8 @@ class TimedReplayer:
                 due = wall0 + (rm.log_time_ns - log0) / 1e9 / self.speed
                 if self.stop.wait(max(0.0, due - time.monotonic())):
                     break
-                self.pubs[key].put(rm.wire())
+                payload, att = rm.wire()
+                self.pubs[key].put(payload, attachment=att)
                 stats.published[key] += 1
             stats.loops += 1
             if not self.loop or stats.report.messages == 0:
@@ -338,7 +340,8 @@ class LockstepReplayer:
             source = f"{parts[1]}/{parts[2]}"
             with self.watcher.cond:
                 self.sent[source] += 1
-            self.pubs[key].put(rm.wire())
+            payload, att = rm.wire()
+            self.pubs[key].put(payload, attachment=att)
             stats.published[key] += 1
             self._settle(f"message #{stats.total} on {key}")
         stats.loops = 1

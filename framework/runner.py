@@ -37,10 +37,10 @@ from pathlib import Path
 
 import numpy as np
 
-from . import transport
+from . import transport, wire
 from .drops import DropLedger
 from .graph import Graph, ResolvedNode, load_graph
-from .messages import Header, Message, MessageError, Status, decode, encode
+from .messages import Header, Message, MessageError, Status
 from .plugin import Node
 from .testing import check_publish
 
@@ -92,7 +92,8 @@ class NodeContext:
         seq = self._state.get("out:" + port) + 1
         self._state.set("out:" + port, seq)
         msg.header = Header(self.node_id, seq, self.now_ns() if stamp_ns is None else int(stamp_ns))
-        self._pubs[port].put(encode(msg))
+        payload, att = wire.pack(msg)
+        self._pubs[port].put(payload, attachment=att)
         self.published[port] += 1
 
     def now_ns(self) -> int:
@@ -187,7 +188,7 @@ class GroupRuntime:
                 key = transport.topic_key(g, node, out)
                 self._subs.append(
                     self.session.declare_subscriber(
-                        key, lambda sample, s=slot, p=port: self._on_sample(s, p, sample.payload.to_bytes())
+                        key, lambda sample, s=slot, p=port: self._on_sample(s, p, *wire.sample_parts(sample))
                     )
                 )
         if self.lockstep:
@@ -209,13 +210,13 @@ class GroupRuntime:
                 return
             self.started.wait(HEARTBEAT_S / 5)
 
-    def _on_sample(self, slot: _NodeSlot, port: str, payload: bytes) -> None:
+    def _on_sample(self, slot: _NodeSlot, port: str, payload: bytes, att: bytes | None) -> None:
         """Zenoh callback: handle the message right here, serialised with ticks by the lock."""
         with self._lock:
             if self.stop_requested:
                 return
             try:
-                self._deliver(slot, port, payload)
+                self._deliver(slot, port, payload, att)
                 if self.lockstep:
                     self._publish_progress(slot)
             except Exception:
@@ -285,10 +286,10 @@ class GroupRuntime:
                 nxt = until_ns  # fell far behind: skip missed ticks instead of bursting
             heapq.heappush(ticks, (nxt, i))
 
-    def _deliver(self, slot: _NodeSlot, port: str, payload: bytes) -> None:
+    def _deliver(self, slot: _NodeSlot, port: str, payload: bytes, att: bytes | None) -> None:
         expected = slot.rn.cls.inputs.get(port, Message)
         try:
-            msg = decode(payload)
+            msg = wire.unpack(payload, att)
             if not isinstance(msg, expected):
                 raise MessageError(f"input '{port}' takes {expected.TYPE}, got {msg.TYPE}")
         except MessageError as exc:
@@ -308,12 +309,14 @@ class GroupRuntime:
         for slot in self.slots:
             status = slot.health()
             status.header = Header(slot.id, 0, time.time_ns())
-            self._health_pubs[slot.id].put(encode(status))
+            payload, att = wire.pack(status)
+            self._health_pubs[slot.id].put(payload, attachment=att)
             with self._lock:
                 events = slot.drops.report()
             for event in events:
                 event.header = Header(slot.id, 0, time.time_ns())
-                self._events_pub.put(encode(event))
+                payload, att = wire.pack(event)
+                self._events_pub.put(payload, attachment=att)
 
     def _publish_progress(self, slot: _NodeSlot, clock: int | None = None) -> None:
         body = {"handled": slot.handled, "published": slot.ctx.published, "clock": clock}

@@ -8,7 +8,8 @@ from collections import defaultdict
 
 import numpy as np
 
-from handflow.framework.fuzzing import malformed_payloads, sample_messages
+from handflow.framework import wire
+from handflow.framework.fuzzing import BYTE_OPS, Mutation, malformed_payloads, mutate, random_mutations, sample_messages
 from handflow.framework.messages import encode
 from handflow.framework.monitor import Monitor
 
@@ -20,13 +21,17 @@ HUGE_GLOVE = (
 )
 
 
+def mutate_bytes(data: bytes, rng: np.random.Generator) -> bytes:
+    return mutate(data, [Mutation(BYTE_OPS[m.value % 3], m.position, m.value) for m in random_mutations(rng)])
+
+
 class GarbagePeer:
     """Collects real payloads of ``topics`` from the graph, then publishes mutated ones onto them."""
 
     def __init__(self, session, graph: str, topics: list[str]) -> None:
         self.session = session
         self.topics = topics
-        self.real: dict[str, list[bytes]] = defaultdict(list)
+        self.real: dict[str, list[tuple[bytes, bytes | None]]] = defaultdict(list)
         self._lock = threading.Lock()
         self._subs = [session.declare_subscriber(t, self._collect) for t in topics]
         self.monitor = Monitor(session, graph)
@@ -35,7 +40,7 @@ class GarbagePeer:
         with self._lock:
             bucket = self.real[str(sample.key_expr)]
             if len(bucket) < 20:
-                bucket.append(sample.payload.to_bytes())
+                bucket.append(wire.sample_parts(sample))
 
     def ready(self, nodes: int) -> bool:
         with self._lock:
@@ -47,18 +52,28 @@ class GarbagePeer:
         return {n["id"]: n for n in self.monitor.snapshot()["nodes"]}
 
     def publish(self, per_topic: int, seed: int = 0) -> int:
-        """``per_topic`` payloads per topic: mutated real payloads, other message types, random bytes."""
-        others = [encode(m) for m in sample_messages()]
+        """``per_topic`` samples per topic: real CDR payloads with mutated bytes or attachments, every other
+        message type (CDR and JSON), JSON garbage without attachment, random bytes."""
+        samples = sample_messages()
+        others = [wire.pack(m) for m in samples] + [(encode(m), None) for m in samples]
         rng = np.random.default_rng(seed)
         pubs = {t: self.session.declare_publisher(t) for t in self.topics}
         sent = 0
         for k, (topic, pub) in enumerate(pubs.items()):
             with self._lock:
                 real = list(self.real[topic])
-            payloads = [HUGE_GLOVE, *others, rng.bytes(64)]
-            payloads += list(malformed_payloads(per_topic - len(payloads), seed + k, real))
-            for p in payloads:
-                pub.put(p)
+            garbage = [(HUGE_GLOVE, None), *others, (rng.bytes(64), None), (rng.bytes(64), real[0][1])]
+            n = (per_topic - len(garbage)) // 3
+            for i in range(n):  # CDR bodies mutated under a real attachment
+                body, att = real[i % len(real)]
+                garbage.append((mutate_bytes(body, rng), att))
+            for i in range(n):  # real bodies under mutated attachments
+                body, att = real[i % len(real)]
+                garbage.append((body, mutate_bytes(att, rng)))
+            json_seeds = [encode(m) for m in samples]
+            garbage += [(p, None) for p in malformed_payloads(per_topic - len(garbage), seed + k, json_seeds)]
+            for payload, att in garbage:
+                pub.put(payload, attachment=att)
                 sent += 1
                 time.sleep(0.001)
         for pub in pubs.values():

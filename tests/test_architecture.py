@@ -32,3 +32,10 @@ def test_old_top_level_names_are_not_importable_from_elsewhere(tmp_path):
     code = "import importlib.util as u; print(u.find_spec('framework'), u.find_spec('plugins'))"
     out = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True).stdout
     assert out.strip() == "None None"
+
+
+@pytest.mark.skipif(shutil.which("ruff") is None, reason="ruff not installed (pip install -e '.[test]')")
+@pytest.mark.parametrize("args", [["check", "."], ["format", "--check", "."]], ids=["lint", "format"])
+def test_ruff_keeps_the_tree_clean(args):
+    proc = subprocess.run(["ruff", *args], cwd=REPO, capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stdout + proc.stderr

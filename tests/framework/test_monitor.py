@@ -56,7 +56,15 @@ def test_gaps_restarts_latency_and_health_from_real_zenoh_traffic(sessions):
     health.put(_status(100))
     health.put(_status(100))
     health.put(_status(101))  # a new pid: the node was restarted
-    wait_until(lambda: mon.snapshot()["nodes"] and mon.topics["handflow/g/src/out"].count == 7, 10, "all samples")
+    wait_until(
+        lambda: (
+            mon.nodes.get(("g", "node"))
+            and mon.nodes["g", "node"].restarts == 1
+            and getattr(mon.topics.get("handflow/g/src/out"), "count", 0) == 7
+        ),
+        10,
+        "all samples and the three heartbeats",
+    )
     snap = mon.snapshot()
     (topic,) = snap["topics"]
     assert topic["topic"] == "handflow/g/src/out" and topic["gaps"] == 3 and topic["count"] == 7

@@ -81,7 +81,8 @@ def test_train_mcap_time_ranges(tmp_path):
     whole, _ = load_mcap(tmp_path / "rec.mcap", "handflow/rec/hand/joints")
     assert len(whole) == 1 and len(whole[0]) == sum(map(len, seqs))
     cfg = write_config(
-        tmp_path, {"mcap": "rec.mcap", "topic": "handflow/rec/hand/joints", "time_ranges": [[0, 1.5], [2.0, 3.1], [4.0, 5.2]]}
+        tmp_path,
+        {"mcap": "rec.mcap", "topic": "handflow/rec/hand/joints", "time_ranges": [[0, 1.5], [2.0, 3.1], [4.0, 5.2]]},
     )
     assert run(cfg, "--out", tmp_path / "m.npz", "--quiet") == 0
 

@@ -28,39 +28,9 @@ import time
 from pathlib import Path
 
 import numpy as np
+from procs import cpu_s, descendants, unit_name
 
 REPO = Path(__file__).resolve().parents[1]
-TICK = os.sysconf("SC_CLK_TCK")
-
-
-def _descendants(pid: int) -> list[int]:
-    out, todo = [], [pid]
-    while todo:
-        p = todo.pop()
-        try:
-            children = Path(f"/proc/{p}/task/{p}/children").read_text().split()
-        except OSError:
-            continue
-        out += [int(c) for c in children]
-        todo += [int(c) for c in children]
-    return out
-
-
-def _cpu_s(pid: int) -> float | None:
-    try:
-        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
-    except OSError:
-        return None
-    return (int(fields[11]) + int(fields[12])) / TICK  # utime + stime
-
-
-def _name(pid: int) -> str:
-    try:
-        argv = Path(f"/proc/{pid}/cmdline").read_bytes().split(b"\0")
-    except OSError:
-        return str(pid)
-    argv = [a.decode() for a in argv if a]
-    return argv[argv.index("--nodes") + 1] if "--nodes" in argv else "launcher"
 
 
 def _labels_seen(rec: Path) -> bool:
@@ -88,16 +58,16 @@ def run_graph(graph: str, seconds: float, rec: Path, handflow: list[str], cwd: P
                 raise RuntimeError(f"{graph}: no label within 180 s")
             time.sleep(0.5)
         time.sleep(3.0 if wait_label else 8.0)  # settle (numba JIT, first images)
-        pids = [proc.pid, *_descendants(proc.pid)]
-        start = {p: _cpu_s(p) for p in pids}
+        pids = [proc.pid, *descendants(proc.pid)]
+        start = {p: cpu_s(p) for p in pids}
         t_start = time.monotonic()
         time.sleep(seconds)
         elapsed = time.monotonic() - t_start
         cpu = {}
         for p in pids:
-            a, b = start[p], _cpu_s(p)
+            a, b = start[p], cpu_s(p)
             if a is not None and b is not None:
-                cpu[_name(p)] = round(100 * (b - a) / elapsed, 1)
+                cpu[unit_name(p)] = round(100 * (b - a) / elapsed, 1)
     finally:
         proc.send_signal(2)
         proc.wait(timeout=60)

@@ -35,7 +35,6 @@ from pathlib import Path
 
 import numpy as np
 
-REPO = Path(__file__).resolve().parents[1]
 WIDTH = 24
 IMAGE_SHAPE = (480, 640, 3)
 IMAGE_RATE_HZ = 30.0
@@ -182,7 +181,7 @@ nodes:
                 "--summary-json",
                 str(summary),
             ],
-            cwd=REPO,
+            cwd=tmp,
             check=True,
         )
         rows = [json.loads(line) for line in (tmp / "sink.jsonl").read_text().splitlines()]

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import logging
+import signal
 import sys
 
 from .registry import command_entries
@@ -72,7 +73,12 @@ def _unavailable(name: str, exc: Exception) -> int:
     return 1
 
 
+def _terminated(signum, frame) -> None:
+    raise KeyboardInterrupt  # SIGTERM stops a command like Ctrl-C does (commands install finer handlers)
+
+
 def main(argv: list[str] | None = None) -> int:
+    signal.signal(signal.SIGTERM, _terminated)
     parser = build_parser(argv)
     args = parser.parse_args(argv)
     logging.basicConfig(

@@ -1,9 +1,10 @@
-"""Typed message schemas and the one codec used on the wire and in recordings (spec handflow.framework.md).
+"""Typed message classes and their JSON dialect (docs/pipelines.md).
 
 Every message carries a :class:`Header` (source node, sequence number, ``stamp_ns``).  Payloads are
-plain dataclasses whose array fields are numpy arrays; :func:`encode` turns a message into compact
-JSON bytes (``{"type": ..., "header": ..., <fields>}``) and :func:`decode` back.  JSON keeps
-recordings readable by Foxglove (JSON-schema channels, see :func:`json_schema`).
+plain dataclasses whose array fields are numpy arrays.  On the wire and in recordings they travel as
+ROS 2 CDR (:mod:`handflow.framework.wire`, docs/ros2.md); :func:`encode` / :func:`decode` are the
+self-describing JSON dialect (``{"type": ..., "header": ..., <fields>}``) still read from JSON
+peers and older recordings.
 
 Validation (:meth:`Message.check`) rejects NaN/inf and wrongly shaped payloads; the publisher calls
 it and names the node and port in the error.  :func:`decode` is hardened for payloads from outside the

@@ -83,7 +83,9 @@ def register_generate(parser: argparse.ArgumentParser) -> None:
         help="grasp from the evaluation's fixed pre-grasp (only pose and λ vary) instead of random pre-grasps",
     )
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--out", default=str(DEFAULT_EXPERIENCE), help="output folder (gets grasps.npz)")
+    parser.add_argument(
+        "--out", default="grasp_experience", help="output folder, relative to the current directory (gets grasps.npz)"
+    )
     parser.add_argument("--train-soms", action="store_true", help="also write som_<object>.npz and som_shared.npz")
     parser.add_argument("--size", type=int, default=25, help="lattice size of the object-specific SOMs")
     parser.add_argument("--shared-size", type=int, default=30, help="lattice size of the shared SOM")

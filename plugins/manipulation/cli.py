@@ -48,9 +48,14 @@ def _record_if_missing(demo: Path, say) -> None:
 
 def ensure_manifold(name: str, models_dir: Path, say=_say) -> Path:
     """Path of the cached manifold ``name`` (see :data:`MODELS`), built on first use and rebuilt
-    when its demonstration recording is newer than the cached file."""
+    when its demonstration recording is newer than the cached file.  The manifolds shipped with the
+    package are used as they are: nothing is ever written into the installed package."""
     config, filename = MODELS[name]
     path = models_dir / filename
+    if models_dir == CONFIGS_MODELS:
+        if not path.is_file():
+            raise InvalidInputError(f"the shipped manifold {path} is missing; pass --models DIR to build one there")
+        return path
     cfg = load_config(TRAIN_CONFIGS / config)
     demo = cfg.data.demo
     if path.is_file() and (not demo.is_file() or demo.stat().st_mtime <= path.stat().st_mtime):

@@ -109,8 +109,8 @@ def load_data(cfg: DataConfig):
     return load_mcap(cfg.mcap, cfg.topic, cfg.field, cfg.time_ranges)
 
 
-def build_model(cfg: TrainConfig, n_steps=None) -> StructuredUKR:
-    m, t = cfg.model, cfg.training
+def build_model(m: ModelConfig, t: TrainingConfig, n_steps=None) -> StructuredUKR:
+    """The unfitted estimator a config's ``model:`` and ``training:`` sections describe."""
     return StructuredUKR(
         latent=[d.model_dump() for d in m.latent],
         time_dim=m.time_dim,
@@ -219,7 +219,7 @@ def run_train(args: argparse.Namespace) -> int:
         cfg = load_config(args.config)
         check_train_args(args)
         sequences, names = load_data(cfg.data)
-        model = build_model(cfg, args.steps)
+        model = build_model(cfg.model, cfg.training, args.steps)
         with _Progress(model.n_steps, args.quiet) as progress:
             model.fit(sequences, callback=progress)
     except InvalidInputError as exc:

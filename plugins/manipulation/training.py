@@ -29,7 +29,7 @@ import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 from scipy.stats import spearmanr
 
-from handflow.plugins.manifold.cli import ModelConfig, TrainingConfig, _Progress, check_train_args
+from handflow.plugins.manifold.cli import ModelConfig, TrainingConfig, _Progress, build_model, check_train_args
 from handflow.plugins.manifold.construction import ManifoldConstruction
 from handflow.plugins.manifold.model import StructuredUKR
 from handflow.plugins.manifold.validation import InvalidInputError
@@ -104,20 +104,7 @@ def construct(demos: Demonstrations, params: ConstructionParams, callback=None):
 
 def learn(demos: Demonstrations, model_cfg: ModelConfig, train_cfg: TrainingConfig, n_steps=None, callback=None):
     """Structured UKR on the demonstrations (the radius is not given to the learner)."""
-    m, t = model_cfg, train_cfg
-    model = StructuredUKR(
-        latent=[d.model_dump() for d in m.latent],
-        time_dim=m.time_dim,
-        lambda_cseq=m.lambda_cseq,
-        lambda_pvar=m.lambda_pvar,
-        loo_cv=m.loo_cv,
-        optimizer=t.optimizer,
-        n_steps=t.n_steps if n_steps is None else n_steps,
-        init=t.init,
-        isomap_neighbors=tuple(t.isomap_neighbors),
-        projection_steps=t.projection_steps,
-        random_state=t.random_state,
-    )
+    model = build_model(model_cfg, train_cfg, n_steps)
     model.fit(demos.sequences, callback=callback)
     q = model.latents_.shape[1]
     time_dim = model.time_dim_

@@ -41,23 +41,10 @@ SCALINGS = ("standard", "none")
 CYCLES = ("none", "auto")
 
 
-def train_class_models(
-    dataset: LabelledDataset,
-    beta: float | str = "auto",
-    lambda_cseq: float = 1.0,
-    n_steps: int = 300,
-    init: str = "equidistant",
-    random_state: int | None = 0,
-    progress: Callable[[str], None] | None = None,
-    scaling: str = "standard",
-    cycles: str = "none",
-    max_points: int = 1500,
-) -> dict:
+def train_class_models(dataset: LabelledDataset, **options) -> dict:
     """Fit one StructuredUKR per class of the training split; returns label → fitted model
-    (see :func:`fit_class_models`)."""
-    return fit_class_models(
-        dataset.by_class("train"), beta, lambda_cseq, n_steps, init, random_state, progress, scaling, cycles, max_points
-    )
+    (``options`` as for :func:`fit_class_models`)."""
+    return fit_class_models(dataset.by_class("train"), **options)
 
 
 def class_pieces(segments: list[np.ndarray], cycles: str, max_points: int) -> tuple[list[np.ndarray], bool]:

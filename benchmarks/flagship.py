@@ -1,4 +1,4 @@
-"""The flagship on this machine: start-up, CPU use, latency glove frame → segment label (issue 9).
+"""The flagship on this machine: start-up, CPU use, latency glove frame → segment label.
 
     python benchmarks/flagship.py [--json] [--seconds 20] [--fresh-install]
 

@@ -1,4 +1,4 @@
-"""Reader throughput, loss and arrival→publish latency against the pty emulator (issue 4 "Measure").
+"""Reader throughput, loss and arrival→publish latency against the pty emulator.
 
 Throughput: emulator + :class:`GloveReader` at the glove's full rate (100 Hz) and at 10×/20× it;
 received records per second over the streaming window, records lost (sent but not received,

@@ -1,4 +1,4 @@
-"""Manipulation benchmark (issue 6): control-loop cost and manifold build cost.
+"""Manipulation benchmark: control-loop cost and manifold build cost.
 
 * control-loop latency, observation → command, through :class:`ClosedLoopNode` code (partial
   projection with both ball assignments + k-step plan + publish) on the project's ball-swap

@@ -1,4 +1,4 @@
-"""Mapping cost per frame for the full chain raw → human model → ShadowHand (issue 4 "Measure").
+"""Mapping cost per frame for the full chain raw → human model → ShadowHand.
 
 Per-frame (one call per frame, as the nodes do) and batched (1000 frames per call) costs, plus the
 node path (HumanHandMappingNode + ShadowHandMappingNode in NodeHarness, incl. message checks).

@@ -1,4 +1,4 @@
-"""Recording and replay throughput, each against a baseline measured in the same run (issue 2 item 7).
+"""Recording and replay throughput, each against a baseline measured in the same run.
 
 - write: ``McapWriter.write_encoded`` (lock, channel lookup, 1 s flush thread) vs the bare
   ``mcap.writer.Writer.add_message`` with the same bytes, chunk size and compression;

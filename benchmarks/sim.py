@@ -1,4 +1,4 @@
-"""Simulator, camera and tracker figures (issue 5): ``python benchmarks/sim.py [--json]``.
+"""Simulator, camera and tracker figures: ``python benchmarks/sim.py [--json]``.
 
 - ``physics_rtf``: real-time factor of 240 Hz physics, ShadowHand-like hand closed on a 2.5 cm cap
   (contacts active); baseline ``physics_rtf_empty``: the same hand with no scene objects;

@@ -1,4 +1,4 @@
-"""Transport latency and loss: handflow graph vs bare Zenoh, measured in the same run (issue 2).
+"""Transport latency and loss: handflow graph vs bare Zenoh, measured in the same run.
 
 Setup: 24-float messages.  handflow: ``basic.signal → basic.transform → basic.sink`` (three
 processes, the sink writes arrival − source stamp per message) and the single hop

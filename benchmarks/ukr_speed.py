@@ -1,4 +1,4 @@
-"""Speed benchmark of Structured UKR (issue 3).
+"""Speed benchmark of Structured UKR.
 
 * seconds for 600 RPROP steps: N = 1800, d = 20, q = 1 (periodic) and N = 1200, d = 24, q = 2
   (periodic + Gaussian); latents initialised from given values so only optimisation is timed;

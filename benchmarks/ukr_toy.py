@@ -1,4 +1,4 @@
-"""Toy-cylinder benchmark of Structured UKR (spec ukr.md §9, issue 3).
+"""Toy-cylinder benchmark of Structured UKR (docs/training.md).
 
 Protocol: 10 noisy training sets (6 rings, σ = 0.1), q = 2 (periodic time β1 = 12, Gaussian
 height β2 = 4), LOO-CV, Isomap (K = 10) + atan2* init, 500 RPROP steps; all §9 error

@@ -1,4 +1,4 @@
-"""Finding running graphs from outside: the launcher's run-files (issue 2 items 7-8).
+"""Finding running graphs from outside: the launcher's run-files.
 
 A graph's hub listens on a random loopback port, so ``handflow record / replay / monitor`` need to
 learn it.  Each launcher writes ``<run dir>/<graph>.<pid>.json`` with its hub endpoint, pid and

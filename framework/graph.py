@@ -1,4 +1,4 @@
-"""YAML graph files: pydantic models, loading with line numbers, and validation (spec handflow.framework.md).
+"""YAML graph files: pydantic models, loading with line numbers, and validation (docs/architecture.md).
 
 A graph names nodes, the plugin each runs, its parameters (validated by the plugin's own params
 model) and which outputs feed which inputs (``inputs: {port: node/output}``); plus Zenoh settings,

@@ -1,6 +1,6 @@
 """Live view of a running graph: topics, rates, latency, sequence gaps, last values, node health.
 
-Issue 2 item 8, spec handflow.framework.md ("Sequence gaps are counted and visible in the monitor").
+docs/architecture.md ("Sequence gaps are counted and visible in the monitor").
 :class:`Monitor` subscribes to ``handflow/<graph>/**`` (or ``handflow/**``) and keeps, per topic, a
 sliding window of arrival times and end-to-end latencies (arrival wall clock − header
 ``stamp_ns``), the sequence gaps (a jump from seq n to n+k counts k−1 lost messages; a seq that goes

@@ -1,4 +1,4 @@
-"""The plugin base class every node derives from (spec handflow.framework.md, "Rooms").
+"""The plugin base class every node derives from (docs/architecture.md).
 
 A plugin declares typed input and output ports, a pydantic ``Params`` model, and any of the hooks
 ``setup`` / ``on_message`` / ``tick`` / ``teardown``.  The runtime never runs two hooks of a node

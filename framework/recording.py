@@ -1,7 +1,7 @@
 """MCAP recordings: writer, graph recorder, and a reader that recovers truncated files.
 
-Spec handflow.framework.md ("Runtime expectations": recordings open in Foxglove, are readable after a hard
-kill, keep the publish time) and issue 2 item 7.
+Recordings open in Foxglove and ROS 2 tools, are readable after a hard kill and keep the publish
+time (docs/recording.md).
 
 File layout (what :class:`McapWriter` writes, docs/recording.md).  Default ``encoding="cdr"``: a
 rosbag2-compatible MCAP (profile ``ros2``, one ``ros2msg`` schema per ROS 2 type, ``cdr`` messages

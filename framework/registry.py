@@ -1,4 +1,4 @@
-"""Plugin and command discovery through entry points (spec handflow.framework.md, "Rooms").
+"""Plugin and command discovery through entry points (docs/architecture.md).
 
 Built-in plugins register exactly like third-party ones: entry-point group ``handflow.plugins``
 (name → ``module:NodeClass``).  A plugin that was renamed keeps its old entry point; its class

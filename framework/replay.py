@@ -1,4 +1,4 @@
-"""Replay MCAP recordings into Zenoh: timed, or lock-step in virtual time (issue 2 item 7).
+"""Replay MCAP recordings into Zenoh: timed, or lock-step in virtual time.
 
 - :class:`TimedReplayer` publishes the recorded CDR bytes (nothing re-encoded; records of the JSON
   dialect are converted, :meth:`RecordedMessage.wire`) with the original

@@ -1,4 +1,4 @@
-"""One node process: runs a group of graph nodes (spec handflow.framework.md, "Runtime").
+"""One node process: runs a group of graph nodes (docs/architecture.md).
 
 Started by the launcher as ``python -m handflow.framework.runner GRAPH --nodes a,b --hub ENDPOINT``.
 Messages are handled directly in the Zenoh callback and ticks in the main loop, serialised by one

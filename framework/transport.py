@@ -1,4 +1,4 @@
-"""Zenoh transport: key expressions and session configuration (spec handflow.framework.md, "Runtime").
+"""Zenoh transport: key expressions and session configuration (docs/architecture.md).
 
 Keys are ``handflow/<graph>/<node>/<port>``; runtime-internal topics use ports starting with ``_``
 (``_health``, ``_progress``) and the graph-wide ``handflow/<graph>/_clock``.

@@ -1,4 +1,4 @@
-"""Scripted open-loop ball-swapping motion of the Gifu-like hand (spec production.md §1, thesis 5.6.2).
+"""Scripted open-loop ball-swapping motion of the Gifu-like hand (docs/manipulation.md, thesis 5.6.2).
 
 The thesis recorded an open-loop controller (Oztop et al. 2006) that moves only the four fingers;
 every hand cycle is identical and the balls' response varies.  The thesis does not give the

@@ -1,4 +1,4 @@
-"""Scripted cap-turning demonstrator: glove-like joint targets for the ShadowHand-like hand (spec production.md §1).
+"""Scripted cap-turning demonstrator: glove-like joint targets for the ShadowHand-like hand (docs/manipulation.md).
 
 One cycle (= one recorded sequence) has the four phases of the thesis (5.1):
 

@@ -1,4 +1,4 @@
-"""``handflow demo-record {cap,balls} --out FILE.mcap``: seeded demonstration recordings (spec production.md §1)."""
+"""``handflow demo-record {cap,balls} --out FILE.mcap``: seeded demonstration recordings (docs/manipulation.md)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Record demonstrations to MCAP: the thesis pipeline with a scripted operator (spec production.md §1).
+"""Record demonstrations to MCAP: the thesis pipeline with a scripted operator (docs/manipulation.md).
 
 Recordings use :class:`handflow.framework.recording.McapWriter` (JSON-schema channels, ``encode``d payloads,
 ``log_time`` = simulated time in ns from the start of the recording), so ``handflow.framework.recording.

@@ -1,4 +1,4 @@
-"""Commands ``handflow glove-emulator`` and ``handflow calibrate`` (issue 4 items 3 and 5)."""
+"""Commands ``handflow glove-emulator`` and ``handflow calibrate``."""
 
 from __future__ import annotations
 
@@ -30,7 +30,7 @@ CALIBRATION_STEPS = (
     "Cup the palm (bring thumb and little finger together)",
     "Wrist: flex, extend, bend left and right",
 )
-"""Guided extremes of a calibration session (spec glove.md "First mapping" 5)."""
+"""Guided extremes of a calibration session (docs/glove.md)."""
 
 
 def _fault(text: str) -> FaultParams:

@@ -1,4 +1,4 @@
-"""Synthetic glove data: a hand-motion trajectory through an inverse sensor model (issue 4, emulator).
+"""Synthetic glove data: a hand-motion trajectory through an inverse sensor model (emulator).
 
 :class:`HandMotion` generates smooth, seedable human-model postures (grasp open/close with per-finger
 phase lags, thumb opposition, spread, small wrist motion), all inside the joint limits and obeying

@@ -1,4 +1,4 @@
-"""Grasp manifolds and experience-based grasping (spec production.md §5, thesis chapter 4).
+"""Grasp manifolds and experience-based grasping (docs/grasping.md, thesis chapter 4).
 
 - :mod:`.pcp` — the partial-contact-posture distance and best-match search;
 - :mod:`.som` — the SOM grasp manifold (:class:`~.som.SOM`);

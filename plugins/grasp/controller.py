@@ -1,4 +1,4 @@
-"""The experience-based grasp controller, a plain class (spec production.md §5; thesis 4.1, Fig. 4.2).
+"""The experience-based grasp controller, a plain class (docs/grasping.md; thesis 4.1, Fig. 4.2).
 
 One :meth:`ExperienceGraspController.step` per control cycle maps the measured posture and the set
 of touching hand segments to joint targets:

@@ -1,4 +1,4 @@
-"""One grasp trial in pybullet: build the scene, run the controller, test stability (spec §5).
+"""One grasp trial in pybullet: build the scene, run the controller, test stability (docs/grasping.md).
 
 The simulator (:class:`handflow.plugins.simulator.simulation.Simulation`, scene ``grasp``) puts the object on
 a table under the palm-down hand.  Documented choices (:class:`EpisodeConfig`):

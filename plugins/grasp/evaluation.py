@@ -1,4 +1,4 @@
-"""Grasp evaluation over a grid of object poses (spec production.md §5, issue 8 item 4; thesis 4.3).
+"""Grasp evaluation over a grid of object poses (docs/grasping.md; thesis 4.3).
 
 For each object and grid pose, three controllers grasp from the same pre-grasp with the same
 disturbance seed:

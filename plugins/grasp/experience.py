@@ -1,4 +1,4 @@
-"""Experience bases and grasp datasets (spec production.md §5, thesis 4.1–4.2).
+"""Experience bases and grasp datasets (docs/grasping.md, thesis 4.1–4.2).
 
 An experience base is a set of postures over named joints with one query, the PCP best match.
 Three sources share that interface (:class:`ExperienceBase`):
@@ -6,7 +6,7 @@ Three sources share that interface (:class:`ExperienceBase`):
 - ``som``: the reference postures of a SOM grasp manifold (:mod:`.som`);
 - ``database``: the raw postures of successful grasps (a :class:`GraspDataset`);
 - ``manifold``: any array of postures, e.g. sampled from a manipulation manifold (the cap-turning
-  controller's grasp initialisation, spec §4 5.5.1).
+  controller's grasp initialisation, docs/grasping.md).
 
 :class:`GraspDataset` is the on-disk form of generated experience: one ``.npz`` with the postures,
 object type and pose of every successful grasp plus a JSON metadata string (touching segments per

@@ -1,4 +1,4 @@
-"""Grasp experience generation in pybullet (spec production.md §5, issue 8 item 1).
+"""Grasp experience generation in pybullet (docs/grasping.md).
 
 Documented method (the thesis pulled fingertips to the object with virtual springs from a few
 manually chosen start postures; any method that yields stable grasps is allowed): *randomised

@@ -1,4 +1,4 @@
-"""Fingers, segments and joints of a simulated hand as the grasp controller sees them (spec §5).
+"""Fingers, segments and joints of a simulated hand as the grasp controller sees them (docs/grasping.md).
 
 Derived from the simulator's kinematic skeleton (:func:`handflow.plugins.simulator.hand_geometry.build_skeleton`),
 so the contact segment names of :meth:`Simulation.contacts` map directly to fingers:

@@ -1,4 +1,4 @@
-"""Node ``grasp.experience``: the experience-based grasp controller on the runtime (spec §5, §4 5.5.1).
+"""Node ``grasp.experience``: the experience-based grasp controller on the runtime (docs/grasping.md).
 
 Inputs: ``joints`` (JointState, the simulator's collision-corrected posture), ``contacts`` (Contacts),
 ``trigger`` (Label, optional: ``grasp`` restarts a grasp from phase A, ``release`` opens to the

@@ -1,4 +1,4 @@
-"""Partial-contact-posture (PCP) matching, spec production.md §5 (thesis eq. 4.3, 4.4, 4.10, 4.11).
+"""Partial-contact-posture (PCP) matching, docs/grasping.md (thesis eq. 4.3, 4.4, 4.10, 4.11).
 
 ``d_pcp(θ, θ_pcp; s) = Σ_ij s_ij (θ_ij − θ_pcp_ij)²`` with ``s_ij ∈ {0, 1}``: only the selected joints
 count.  With ``s`` all ones it is the squared Euclidean distance (phase B of the controller, the SOM's
@@ -19,10 +19,10 @@ def check_mask(mask, n_features: int) -> np.ndarray:
     if s.shape != (n_features,):
         raise ValueError(f"PCP mask has shape {s.shape}; it needs one 0/1 entry per joint ({n_features},)")
     if s.dtype != bool and not np.isin(s, (0, 1)).all():
-        raise ValueError("PCP mask entries must be 0 or 1 (s_ij ∈ {0, 1}, spec production.md §5)")
+        raise ValueError("PCP mask entries must be 0 or 1 (s_ij ∈ {0, 1}, docs/grasping.md)")
     s = s.astype(float)
     if not s.any():
-        raise ValueError("PCP mask selects no joint; a PCP needs at least one contact (spec §5 phase C)")
+        raise ValueError("PCP mask selects no joint; a PCP needs at least one contact (docs/grasping.md)")
     return s
 
 

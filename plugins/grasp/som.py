@@ -1,4 +1,4 @@
-"""The SOM grasp manifold (spec production.md §5; thesis 4.2.1, eq. 4.7–4.11), scikit-learn style.
+"""The SOM grasp manifold (docs/grasping.md; thesis 4.2.1, eq. 4.7–4.11), scikit-learn style.
 
 A 2D lattice of ``rows × cols`` nodes with reference postures ``w_a``.  Training (eq. 4.8, 4.9)::
 

@@ -1,4 +1,4 @@
-"""Grasp stability in pybullet: the disturbance test and a wrench-space quality (spec production.md §5).
+"""Grasp stability in pybullet: the disturbance test and a wrench-space quality (docs/grasping.md).
 
 **Disturbance test** (the documented stability proxy; the thesis used force closure in zero gravity):
 after the grasp, the table is removed so that only the hand holds the object against gravity; after

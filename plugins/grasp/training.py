@@ -1,4 +1,4 @@
-"""Training the SOM grasp manifolds from a grasp dataset (spec production.md §5, thesis 4.2.2).
+"""Training the SOM grasp manifolds from a grasp dataset (docs/grasping.md, thesis 4.2.2).
 
 Object-specific SOMs (thesis: 25×25) get the grasps of one object, the shared SOM (thesis: 30×30)
 those of all objects; each file carries the joint names and the object in its metadata, so

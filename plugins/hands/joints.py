@@ -1,4 +1,4 @@
-"""Canonical joint tables of the three hand models (spec glove.md "Human hand model", "Second mapping").
+"""Canonical joint tables of the three hand models (docs/glove.md).
 
 Every hand model is defined ONCE here: joint names in message order, limits in radians and the
 coupled joints.  Mapping nodes put these names in every :class:`JointState`; the simulator builds

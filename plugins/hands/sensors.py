@@ -1,4 +1,4 @@
-"""The CyberGlove II sensor table, kept in one place (spec glove.md "Sensor numbering", protocol §7).
+"""The CyberGlove II sensor table, kept in one place (docs/glove.md, protocol §7).
 
 ``SENSORS[i]`` describes record index ``i`` (0-based; the thesis numbers it ``i + 1``) with the CGIU
 mask slot it comes from.  Mapping code addresses sensors by these names, never by raw numbers.

@@ -1,4 +1,4 @@
-"""Structured UKR manifolds (spec ukr.md): plain numpy/scipy, independent of the runtime."""
+"""Structured UKR manifolds (docs/training.md): plain numpy/scipy, independent of the runtime."""
 
 from .model import StructuredUKR
 from .validation import InvalidInputError, LatentDim

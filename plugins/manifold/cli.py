@@ -1,4 +1,4 @@
-"""``handflow train CONFIG.yaml --out MODEL.npz [--plot DIR]`` (issue 3; docs/training.md).
+"""``handflow train CONFIG.yaml --out MODEL.npz [--plot DIR]`` (docs/training.md).
 
 Exit codes: 0 ok (also after Ctrl-C, which saves the best model so far), 2 bad input
 (config, data, layout — the message names what to change), 1 runtime failure.

@@ -1,4 +1,4 @@
-"""Manipulation manifold by construction (spec production.md §2; thesis 5.2).
+"""Manipulation manifold by construction (docs/manipulation.md; thesis 5.2).
 
 Latent space ``(time, radius)``, built without any 2D training:
 

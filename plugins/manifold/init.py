@@ -1,4 +1,4 @@
-"""Latent initialisation (spec ukr.md §6; thesis 2.1.5, 5.3.4, 5.2).
+"""Latent initialisation (docs/training.md; thesis 2.1.5, 5.3.4, 5.2).
 
 * ``isomap_init``: scikit-learn Isomap; for a periodic time dimension embed into q+1 dimensions,
   pick the 2D sub-space carrying the cycle and map it with ``atan2*``; scale search over the

@@ -1,4 +1,4 @@
-"""Model files: one ``.npz`` of plain arrays + a JSON metadata string (spec ukr.md §8).
+"""Model files: one ``.npz`` of plain arrays + a JSON metadata string (docs/training.md).
 
 Never pickled: files are read with ``np.load(..., allow_pickle=False)``, so loading a model
 cannot execute code.  Metadata: ``format``, ``format_version``, all hyper-parameters, the time

@@ -1,4 +1,4 @@
-"""Univariate UKR kernels and their product (spec ukr.md §2).
+"""Univariate UKR kernels and their product (docs/training.md).
 
 Every kernel is written as a *profile* ``phi`` of a squared distance ``u``:
 

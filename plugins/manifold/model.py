@@ -1,4 +1,4 @@
-"""The Structured UKR estimator (spec ukr.md; thesis 2.1 and 5.3), scikit-learn conventions."""
+"""The Structured UKR estimator (docs/training.md; thesis 2.1 and 5.3), scikit-learn conventions."""
 
 from __future__ import annotations
 
@@ -22,7 +22,7 @@ class StructuredUKR(BaseEstimator):
     ----------
     latent : list of dict or LatentDim, default one periodic time dimension with β = 12
         One entry per latent dimension: ``kernel`` (gaussian | periodic | quartic |
-        epanechnikov), inverse bandwidth ``beta`` and ``time`` (at most one), spec §2.
+        epanechnikov), inverse bandwidth ``beta`` and ``time`` (at most one), docs/training.md
     time_dim : int, optional
         Index of the time dimension — alternative to ``time: true`` in ``latent``.
     lambda_cseq, lambda_pvar : float
@@ -264,7 +264,7 @@ class StructuredUKR(BaseEstimator):
 
     # -- persistence ---------------------------------------------------------------------------
     def save(self, path, provenance=None):
-        """Write ``.npz`` + JSON metadata (spec §8); see :mod:`handflow.plugins.manifold.io`."""
+        """Write ``.npz`` + JSON metadata (docs/training.md); see :mod:`handflow.plugins.manifold.io`."""
         self._check_fitted()
         save_model(self, path, provenance)
 

@@ -1,4 +1,4 @@
-"""Structured UKR objective and its analytic gradient (spec ukr.md §3–4).
+"""Structured UKR objective and its analytic gradient (docs/training.md).
 
 ``E(X) = R_cv(X) + λ_cseq E_cseq(X) + λ_pvar E_pvar(X)`` with
 

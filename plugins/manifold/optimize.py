@@ -1,4 +1,4 @@
-"""Optimisers for the UKR objective (spec ukr.md §5): iRprop± and L-BFGS.
+"""Optimisers for the UKR objective (docs/training.md): iRprop± and L-BFGS.
 
 Both keep the *best* latents seen (RPROP is not monotone), report progress through
 ``callback(step, value)`` and stop cleanly on ``KeyboardInterrupt`` (``interrupted=True``),

@@ -1,4 +1,4 @@
-"""The mapping f and the (masked) orthogonal projection g (spec ukr.md §3, §7).
+"""The mapping f and the (masked) orthogonal projection g (docs/training.md).
 
 ``g_s(y) = argmin_x Σ_k s_k (y_k − f_k(x))²``, batch-vectorised:
 

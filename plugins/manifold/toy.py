@@ -1,4 +1,4 @@
-"""Toy cylinder data and the reference error measures (spec ukr.md §9; thesis 5.3.2–5.3.3).
+"""Toy cylinder data and the reference error measures (docs/training.md; thesis 5.3.2–5.3.3).
 
 Documented normalisations (the thesis gives none legibly):
 

@@ -1,4 +1,4 @@
-"""Input checks with messages that say what to change (spec ukr.md §1, issue 3)."""
+"""Input checks with messages that say what to change (docs/training.md)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Manifold controllers (spec production.md §4): plain controller classes and thin graph nodes.
+"""Manifold controllers (docs/manipulation.md): plain controller classes and thin graph nodes.
 
 - :class:`~.open_loop.OpenLoopController` — latent time advances by Δ per step (5.4);
 - :class:`~.feedback_init.GraspByNavigation` — grasp by closing along the radius, then turn (5.5);

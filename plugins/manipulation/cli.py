@@ -1,4 +1,4 @@
-"""``handflow evaluate manipulation [--quick] [--json]`` (issue 6; docs/manipulation.md).
+"""``handflow evaluate manipulation [--quick] [--json]`` (docs/manipulation.md).
 
 Runs the scenarios headless (:mod:`.evaluation`) on the project's own manifolds.  Missing
 manifolds are built on first use and cached in ``--models`` (default ``configs/models``):

@@ -1,5 +1,4 @@
-"""Closed-loop ball-swapping control on a periodic manipulation manifold (spec production.md §4
-"Closed-loop"; thesis 5.6.3).
+"""Closed-loop ball-swapping control on a periodic manipulation manifold (docs/manipulation.md; thesis 5.6.3).
 
 1. observe the two (identical) ball positions;
 2. partial projection: the observation with ball *a* in the ball-1 slot and *b* in the ball-2

@@ -1,5 +1,4 @@
-"""Demonstration recordings of ``handflow demo-record`` as training sequences (spec production.md
-§1), read with :mod:`handflow.plugins.demo.loaders`.
+"""Demonstration recordings of ``handflow demo-record`` as training sequences (docs/manipulation.md), read with :mod:`handflow.plugins.demo.loaders`.
 
 Cap turning: one sequence per turning cycle (collision-corrected ShadowHand-like postures) with
 its cap radius (converted to cm).  Ball swapping: one sequence per swap cycle (= ball period =

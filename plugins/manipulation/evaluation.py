@@ -1,4 +1,4 @@
-"""Headless evaluation of the manipulation controllers (issue 6 "Measure"; production.md §4).
+"""Headless evaluation of the manipulation controllers (docs/manipulation.md).
 
 The plain controller classes drive the plain :class:`~handflow.plugins.simulator.simulation.Simulation`
 (no Zenoh): a control step every ``physics_hz / control_hz`` physics steps.

@@ -1,4 +1,4 @@
-"""Feedback-initialised open-loop control of the bottle cap (spec production.md §4; thesis 5.5).
+"""Feedback-initialised open-loop control of the bottle cap (docs/manipulation.md; thesis 5.5).
 
 :class:`GraspByNavigation` (5.5.2, preferred): start at a fixed latent point on the max-radius
 border at a time where the fingers touch the cap, navigate towards decreasing radius (the hand

@@ -1,4 +1,4 @@
-"""Advancing the latent time of a manipulation manifold (spec production.md §2, §4).
+"""Advancing the latent time of a manipulation manifold (docs/manipulation.md).
 
 A periodic time axis (learned manifolds, period π) wraps smoothly; a constructed time axis has
 two ends, so the time jumps back to the start when it passes the end (the visible jerk of the

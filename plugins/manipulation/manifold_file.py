@@ -1,5 +1,5 @@
 """A manipulation manifold on disk: a Structured UKR model plus what the controllers need to
-drive a hand with it (spec production.md §2–4): the name of every observation dimension, the
+drive a hand with it (docs/manipulation.md): the name of every observation dimension, the
 hand model, the latent dimension names and how the manifold was made.
 
 Stored inside the UKR model file's provenance under the key ``manipulation`` (no second file,

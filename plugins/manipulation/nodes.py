@@ -1,4 +1,4 @@
-"""Graph nodes of the manifold controllers (thin wrappers; spec production.md §4, issue 6).
+"""Graph nodes of the manifold controllers (thin wrappers; docs/manipulation.md).
 
 ``manifold.open_loop`` (:class:`OpenLoopNode`), ``manifold.feedback_init``
 (:class:`FeedbackInitNode`), ``manifold.closed_loop`` (:class:`ClosedLoopNode`).  Each reads the

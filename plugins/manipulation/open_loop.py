@@ -1,4 +1,4 @@
-"""Open-loop control by latent space navigation (spec production.md §4 "Open-loop"; thesis 5.4).
+"""Open-loop control by latent space navigation (docs/manipulation.md; thesis 5.4).
 
 The sequence parameters (e.g. the radius) are fixed; the latent time advances by ``delta`` per
 control step in the demonstrations' direction (:attr:`ManipulationManifold.time_sign`); the

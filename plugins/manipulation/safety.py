@@ -1,4 +1,4 @@
-"""The controllers' declared fail-safe posture (issue 6): an open hand.
+"""The controllers' declared fail-safe posture: an open hand.
 
 Documented choice: "open" = every joint of the hand model at 0 rad (extended fingers, neutral
 thumb and wrist), clipped to the joint limits; ``overrides`` (joint name → rad) change single

@@ -1,9 +1,9 @@
 """Manipulation manifolds from demonstration recordings: the ``construction`` and ``learning``
-modes of ``handflow train`` (spec production.md §2–3; docs/manipulation.md).
+modes of ``handflow train`` (docs/manipulation.md).
 
 A config with a top-level ``mode: construction | learning`` is handled here::
 
-    mode: construction                 # production.md §2 (cap demonstrations only)
+    mode: construction                 # docs/manipulation.md (cap demonstrations only)
     data: {demo: ../../recordings/cap_demos.mcap}
     construction: {time_beta: 30, radius_beta: 4, n_steps: 100}
 

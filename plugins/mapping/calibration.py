@@ -1,4 +1,4 @@
-"""Glove profile (per glove) and session calibration (per wearing) files (spec glove.md "First mapping" 5).
+"""Glove profile (per glove) and session calibration (per wearing) files (docs/glove.md).
 
 - :class:`GloveProfile`: thumb parallelogram slopes (and default intercepts), dynamic
   zero-abduction parameters of the three spread sensors, spread angle range, the thumb's unmeasured

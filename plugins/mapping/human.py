@@ -1,4 +1,4 @@
-"""First mapping: raw CyberGlove sensors → 24 joints of the human hand model (spec glove.md, thesis 3.4).
+"""First mapping: raw CyberGlove sensors → 24 joints of the human hand model (docs/glove.md, thesis 3.4).
 
 :class:`HumanHandMapping` is vectorised over frames (``map(raw)`` with raw of shape (n, 22) or
 (22,)) and combines

@@ -28,7 +28,7 @@ from .robot import GifuHandMapping, RobotHandMapping, ShadowHandMapping
 
 
 class HumanHandMappingNode(Node):
-    """Raw CyberGlove frames → 24 joints of the human hand model (spec glove.md 3.4)."""
+    """Raw CyberGlove frames → 24 joints of the human hand model (docs/glove.md)."""
 
     class Params(BaseModel):
         model_config = ConfigDict(extra="forbid")
@@ -90,7 +90,7 @@ class _RobotNode(Node, ABC):
 
 
 class ShadowHandMappingNode(_RobotNode):
-    """Human-model joints → ShadowHand-like 24 joints (analytic thumb base, spec glove.md 3.5)."""
+    """Human-model joints → ShadowHand-like 24 joints (analytic thumb base, docs/glove.md)."""
 
     class Params(BaseModel):
         model_config = ConfigDict(extra="forbid")

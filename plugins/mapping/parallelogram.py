@@ -1,4 +1,4 @@
-"""Thumb roll/abduction from the cross-coupled sensors 1 and 4 (spec glove.md "First mapping" 2, thesis 3.4.1–3.4.2).
+"""Thumb roll/abduction from the cross-coupled sensors 1 and 4 (docs/glove.md, thesis 3.4.1–3.4.2).
 
 In the plane ``x = s1`` (roll), ``y = s4`` (abduction) the data fill a parallelogram bounded by
 ``y = m13·x + b1`` / ``y = m13·x + b3`` (left/right) and ``y = m24·x + b4`` / ``y = m24·x + b2``

@@ -1,4 +1,4 @@
-"""Second mapping: human hand model → robot hands (spec glove.md "Second mapping", thesis 3.5).
+"""Second mapping: human hand model → robot hands (docs/glove.md, thesis 3.5).
 
 ShadowHand-like: every joint copies over (same sign conventions, :mod:`.hands`) except the thumb
 base, computed analytically from (α, β) by :func:`handflow.plugins.mapping.thumb.thumb_to_shadow`; results

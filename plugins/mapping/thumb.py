@@ -1,4 +1,4 @@
-"""Analytic ShadowHand thumb-base mapping α/β ↔ Θ0/Θ1 (spec glove.md "Second mapping", thesis 3.5).
+"""Analytic ShadowHand thumb-base mapping α/β ↔ Θ0/Θ1 (docs/glove.md, thesis 3.5).
 
 Both representations place the unit point of the thumb axis at
 

@@ -1,4 +1,4 @@
-"""Dynamic zero-abduction surface of a spread sensor (spec glove.md "First mapping" 4, thesis 3.4.4–3.4.5).
+"""Dynamic zero-abduction surface of a spread sensor (docs/glove.md, thesis 3.4.4–3.4.5).
 
 A spread sensor's reading at zero spread depends on the flexion readings ``a`` (left finger MCP)
 and ``b`` (right finger MCP).  Our documented parametrisation (the thesis' formula is illegible)

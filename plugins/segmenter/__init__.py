@@ -1,4 +1,4 @@
-"""Motion recognition and segmentation with structured manifolds (spec recognition.md, issue 7).
+"""Motion recognition and segmentation with structured manifolds (docs/segmentation.md).
 
 Usable without the runtime: load a dataset, train one manifold per class, recognise.
 

@@ -1,4 +1,4 @@
-"""Baseline point-wise classifiers for the evaluation (issue 7): sliding-window DTW 1-NN and
+"""Baseline point-wise classifiers for the evaluation: sliding-window DTW 1-NN and
 per-class HMMs.
 
 Both classify observation ``t`` from the causal window of the last ``window`` observations

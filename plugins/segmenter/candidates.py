@@ -1,4 +1,4 @@
-"""Candidate motion models and their projections (spec recognition.md, preamble).
+"""Candidate motion models and their projections (docs/segmentation.md, preamble).
 
 A *candidate model* is anything with ``project(Y) -> (latent_time, errors)``: the latent time
 ``x̂_{t,dt}`` of every observation on that model's periodic time axis (period π) and the

@@ -91,7 +91,7 @@ def run_train_classes(args) -> int:
 # -- evaluate segmentation ----------------------------------------------------------------------
 def register_evaluate(parser: argparse.ArgumentParser) -> None:
     parser.description = (
-        "Run the thesis recognition/segmentation protocol (spec recognition.md §D) for "
+        "Run the thesis recognition/segmentation protocol (docs/segmentation.md §D) for "
         "ukr_only, ukr_clm and the dtw_1nn / hmm baselines: validation picks parameters, "
         "test reports."
     )

@@ -1,4 +1,4 @@
-"""Competitive layer model with banded lateral compatibilities (spec recognition.md §B).
+"""Competitive layer model with banded lateral compatibilities (docs/segmentation.md §B).
 
 Layers ``α = 0…L−1`` hold one linear-threshold neuron per observation ``r = 0…N−1``.  The
 lateral compatibility of layer ``α`` is a symmetric banded matrix given by its diagonal
@@ -147,7 +147,7 @@ class CompetitiveLayerModel:
         Gauss–Seidel contracts roughly by ``λ_max / I`` per sweep, so a margin of 1.1 needed
         ~100 sweeps to settle where 1.5 needs ~25–40 with the same labels on our letter data.
     eta : annealing factor per sweep, ``T ← η T``.
-    temperature : start temperature; ``None`` = largest eigenvalue (spec §B step 1).
+    temperature : start temperature; ``None`` = largest eigenvalue (docs/segmentation.md step 1).
     tol : relative activity-change tolerance of the convergence test.
     max_sweeps : cap on sweeps (the result reports ``converged=False`` when hit).
     init_scale : initial activities are uniform in ``(0, init_scale)``.

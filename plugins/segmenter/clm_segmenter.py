@@ -1,4 +1,4 @@
-"""UKR/CLM segmenter (spec recognition.md §B): one CLM layer per candidate plus a background layer.
+"""UKR/CLM segmenter (docs/segmentation.md §B): one CLM layer per candidate plus a background layer.
 
 :class:`CLMSegmenter` turns the projections of a sequence onto the candidate manifolds into banded
 layer compatibilities (:func:`layer_compatibilities`) and runs the

@@ -1,4 +1,4 @@
-"""Compatibility formulas of the manifold recognisers (spec recognition.md §A and §B).
+"""Compatibility formulas of the manifold recognisers (docs/segmentation.md §A and §B).
 
 All functions are vectorised over observations (axis 0) and candidates (axis 1).  Every
 documented choice of the spec is a named, swappable function held in a registry:
@@ -62,7 +62,7 @@ def order_compatibility(latent_time: np.ndarray, rating: OrderRating = order_rat
 def local_compatibility(
     latent_time: np.ndarray, errors: np.ndarray, rating: OrderRating = order_rating_cos
 ) -> np.ndarray:
-    """``C_local = ½ (C_rec + C_ord)`` (spec §A)."""
+    """``C_local = ½ (C_rec + C_ord)`` (docs/segmentation.md)."""
     return 0.5 * (reconstruction_compatibility(errors) + order_compatibility(latent_time, rating))
 
 
@@ -78,7 +78,7 @@ def history_weights(history: int, gamma: float) -> np.ndarray:
 def history_compatibility(c_local: np.ndarray, history: int, gamma: float) -> np.ndarray:
     """``C_his(t) = Σ_h γ^h C_local(t − h + 1) / Σ_h γ^h`` over the H most recent observations.
 
-    Documented choice (spec §A): ``h = 1…H`` with the current observation as ``h = 1``.  At the
+    Documented choice (docs/segmentation.md): ``h = 1…H`` with the current observation as ``h = 1``.  At the
     start of a stream only the observations that exist are summed (and normalised).
     """
     c = np.asarray(c_local, dtype=float)
@@ -180,9 +180,9 @@ def candidate_band(
 
     ``latent_time`` and ``errors`` are (N, M); returns (M, N, width) with
     ``band[m, i, k − 1] = f^m(i, i + k)`` and 0 where ``i + k ≥ N``.  The matrix is symmetric
-    with a zero diagonal (spec §B), so the band holds all of it.
+    with a zero diagonal (docs/segmentation.md), so the band holds all of it.
 
-    ``order_path="direct"`` rates ``x̂_j − x̂_i`` (spec §B).  ``"unwrapped"`` (documented choice,
+    ``order_path="direct"`` rates ``x̂_j − x̂_i`` (docs/segmentation.md).  ``"unwrapped"`` (documented choice,
     docs/segmentation.md) rates the *net progress* along the path, the sum of the consecutive
     steps ``i…j`` each wrapped into ``[−π/2, π/2)`` (:func:`unwrapped_latent`), with ``rating``
     applied to it when it is below π/2 in size and its sign otherwise: it equals the direct
@@ -225,7 +225,7 @@ def candidate_band(
 
 
 def background_band(n: int, width: int, strength: float, radius: int) -> tuple[np.ndarray, float]:
-    """Background layer ``f^bg_ij = λ_bg (1 − |i − j| / K_bg)`` for ``|i − j| < K_bg`` (spec §B).
+    """Background layer ``f^bg_ij = λ_bg (1 − |i − j| / K_bg)`` for ``|i − j| < K_bg`` (docs/segmentation.md).
 
     Returns the (N, width) band of off-diagonal entries and the diagonal (self-excitation λ_bg).
     """

@@ -1,4 +1,4 @@
-"""The thesis evaluation protocol (spec recognition.md §D) for all four methods.
+"""The thesis evaluation protocol (docs/segmentation.md §D) for all four methods.
 
 Experiments (``EXPERIMENTS``), each built from the trajectories of one split:
 
@@ -21,7 +21,7 @@ rejection threshold is tuned to keep the validation motions, not to reject (sele
 rejection experiments too favours rejecting everything).  The best is evaluated on the test split
 (the CLM with ``runs`` runs per case: a case's share is the mean over runs, its ``std`` the
 standard deviation); the UKR/CLM rejection experiments are also reported with a *strong*
-background (``3 λ_bg`` with the thesis rule ``λ_bg = 1 − 10/N``, spec §B) under
+background (``3 λ_bg`` with the thesis rule ``λ_bg = 1 − 10/N``, docs/segmentation.md) under
 ``strong_background``.  Summary per
 experiment: ``share_ge_85`` (cases with ≥ 85 % correct), ``share_perfect`` (100 % correct),
 ``mean_correct`` — all fractions in [0, 1].
@@ -46,7 +46,7 @@ EXPERIMENTS = ("single", "concatenated", "middle_halves", "reversed_rejection", 
 METHODS = ("ukr_only", "ukr_clm", "dtw_1nn", "hmm")
 SELECTION_EXPERIMENTS = ("single", "concatenated", "middle_halves")
 REJECTION_EXPERIMENTS = ("reversed_rejection", "left_out_rejection")
-STRONG_BACKGROUND = 3.0  # spec §B: a "strong" background is 3 λ_bg (λ_bg = 1 − 10/N)
+STRONG_BACKGROUND = 3.0  # docs/segmentation.md: a "strong" background is 3 λ_bg (λ_bg = 1 − 10/N)
 
 
 @dataclass

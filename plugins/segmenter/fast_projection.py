@@ -1,4 +1,4 @@
-"""Batched projection of observations onto several 1D periodic UKR candidates at once (spec ukr.md §7).
+"""Batched projection of observations onto several 1D periodic UKR candidates at once (docs/training.md).
 
 The online node projects every new observation onto all candidate manifolds; one
 ``StructuredUKR.transform`` per candidate costs ~1 ms of Python overhead for a single point.

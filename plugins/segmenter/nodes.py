@@ -82,7 +82,7 @@ class _RecognizerNode(Node):
 
 
 class OnlineCLMNode(_RecognizerNode):
-    """Online warm-started UKR/CLM segmentation over a sliding window (spec recognition.md §C)."""
+    """Online warm-started UKR/CLM segmentation over a sliding window (docs/segmentation.md §C)."""
 
     class Params(RecognizerParams):
         window: int = Field(200, ge=2, description="observations in the sliding window")
@@ -123,7 +123,7 @@ class OnlineCLMNode(_RecognizerNode):
 
 
 class UKROnlyNode(_RecognizerNode):
-    """UKR-only recogniser (spec recognition.md §A): scores are the overall compatibilities C(t)."""
+    """UKR-only recogniser (docs/segmentation.md §A): scores are the overall compatibilities C(t)."""
 
     class Params(RecognizerParams):
         lam: float = Field(0.3, ge=0, le=1, description="λ: weight of C_rec")

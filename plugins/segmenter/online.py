@@ -1,4 +1,4 @@
-"""Online / incremental UKR/CLM segmentation (spec recognition.md §C).
+"""Online / incremental UKR/CLM segmentation (docs/segmentation.md §C).
 
 :class:`OnlineCLMSegmenter` keeps a sliding window of the last ``window`` observations.  Each new
 observation is projected onto the candidates once; only the compatibilities that involve it (one

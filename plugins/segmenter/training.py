@@ -1,9 +1,9 @@
-"""Train one structured UKR manifold per motion class (issue 7 item 1) and save the model set.
+"""Train one structured UKR manifold per motion class and save the model set.
 
 Each class gets a :class:`handflow.plugins.manifold.StructuredUKR` with one periodic latent time dimension
 trained on that class's training trajectories (λ_cseq = 1, λ_pvar = 0 as for the thesis' 1D
 models).  Documented choice for the periodic bandwidth: ``beta="auto"`` scales the thesis'
-best value β = 12 at 45 points per cycle (spec ukr.md §4) with the mean training length,
+best value β = 12 at 45 points per cycle (docs/training.md) with the mean training length,
 ``β = 12 · mean_length / 45``.
 
 Documented choice for the latent initialisation (``init``): ``"equidistant"`` (default) spreads

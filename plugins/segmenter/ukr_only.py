@@ -1,4 +1,4 @@
-"""UKR-only recogniser (spec recognition.md §A): local + history compatibilities, winner-take-all.
+"""UKR-only recogniser (docs/segmentation.md §A): local + history compatibilities, winner-take-all.
 
 Inherently online: :meth:`UKROnlyRecognizer.update` takes one observation at a time and gives
 exactly the values :meth:`UKROnlyRecognizer.predict` computes for the whole sequence.
@@ -32,7 +32,7 @@ class UKROnlyRecognizer:
     lam : λ, weight of the reconstruction compatibility (thesis 0.3).
     gamma : γ, history discount (thesis 0.9).
     history : H, history length (thesis 5, 10, 15, 20).
-    order_rating : ``"cos"`` or ``"sign"`` (spec §A).
+    order_rating : ``"cos"`` or ``"sign"`` (docs/segmentation.md).
     threshold : optional rejection threshold; observations with ``max C < threshold`` get −1.
     """
 

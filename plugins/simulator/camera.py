@@ -1,7 +1,7 @@
 """Pinhole camera of a scene: TinyRenderer images and the projection of world points into them.
 
 Both use the same OpenGL view/projection matrices, so a projected ground-truth point lands where
-pybullet draws it (used to measure the tracker's error, spec production.md §4 closed loop).
+pybullet draws it (used to measure the tracker's error, docs/simulator.md closed loop).
 """
 
 from __future__ import annotations

@@ -11,7 +11,7 @@ towards the little finger), ring/little ``+y`` (positive towards the thumb); wri
 wrist yaw ``+y`` (positive = radial deviation); palm arch / LFJ5 an axis in the palm plane tilted
 ``PALM_ARCH_TILT`` from ``+z`` (positive moves the little-finger metacarpal palmar).
 
-Thumb base (spec glove.md "Second mapping"): the thumb frame ``T`` has ``x_T = x_P`` (radial),
+Thumb base (docs/glove.md): the thumb frame ``T`` has ``x_T = x_P`` (radial),
 ``y_T = z_P`` (along the fingers), ``z_T = -y_P`` (palmar).  ShadowHand-like and Gifu-like thumbs
 realise ``T · R_z(45°) · R_x(Θ0) · R_y(-Θ1)`` with the thumb along the rotated ``x`` axis
 (Θ0 = THJ5 / TH_J1, Θ1 = THJ4 / TH_J2, Θ1 > 0 moves the thumb palmar); the human thumb realises

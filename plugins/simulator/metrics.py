@@ -1,4 +1,4 @@
-"""Counting ball swaps from ball positions (spec production.md §4 closed loop; issue 6 "swaps per minute").
+"""Counting ball swaps from ball positions (docs/simulator.md closed loop).
 
 The two health balls are identical, so the counter must not depend on which ball is called 1:
 it follows the *undirected* line through both balls.  The doubled angle

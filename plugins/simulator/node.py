@@ -5,7 +5,7 @@ joints not named keep their last target).  Every tick (``rate_hz``) the node ste
 that simulated time follows ``ctx.now_ns()`` (wall clock live, virtual time in lock-step replay),
 then publishes ``joints`` (collision-corrected JointState), ``contacts`` (Contacts) and ``scene``
 (Array with ``names``: the scene state plus ``sim_time`` and ``holding``); ``image`` (Image) at
-``camera_hz``.  Fail-safe (issue 6): when no targets arrived for ``hold_safe_after_s`` the node
+``camera_hz``.  Fail-safe: when no targets arrived for ``hold_safe_after_s`` the node
 holds the last command, logs it once and reports ``holding = 1`` until targets resume.
 """
 

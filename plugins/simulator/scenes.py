@@ -1,4 +1,4 @@
-"""Manipulation scenes: bottle cap, Chinese health balls, grasp objects, empty (spec production.md §1, §4–5).
+"""Manipulation scenes: bottle cap, Chinese health balls, grasp objects, empty (docs/simulator.md).
 
 A scene places the hand's base link (``hand_pose``), builds its bodies in a pybullet client, names
 them for contact reports, and reports its state (cap angle, ball or object poses) as a flat
@@ -101,7 +101,7 @@ def _prism(radius: float, height: float, sides: int = 32) -> list[list[float]]:
 
 @dataclass
 class CapScene(Scene):
-    """Fixed bottle with a cap on a vertical revolute joint under the palm (spec production.md §1).
+    """Fixed bottle with a cap on a vertical revolute joint under the palm (docs/simulator.md).
 
     The cap turns against a constant friction torque (pybullet velocity motor with target 0 and
     force ``friction_torque``, the usual way to model joint friction) plus viscous ``damping``
@@ -411,7 +411,7 @@ cylinder r 3 cm h 16 cm (lying, axis along world y), sphere r 3 cm."""
 
 @dataclass
 class GraspScene(Scene):
-    """One grasp object resting on a table under the palm-down hand (spec production.md §5).
+    """One grasp object resting on a table under the palm-down hand (docs/simulator.md).
 
     ``position`` offsets the object from the point under the palm centre (world x, y in m) and
     ``yaw_deg`` turns it about the vertical.  Box and cylinder lie with their long axis along world

@@ -1,4 +1,4 @@
-"""The plain pybullet simulation of a hand in a scene, usable without the runtime (spec production.md §1).
+"""The plain pybullet simulation of a hand in a scene, usable without the runtime (docs/simulator.md).
 
 ::
 

@@ -1,4 +1,4 @@
-"""Colour-blob tracker for the health-ball scene (spec production.md §4, closed loop step 1).
+"""Colour-blob tracker for the health-ball scene (docs/manipulation.md, closed loop step 1).
 
 OpenCV on an RGB image: HSV thresholds → morphological opening → external contours → centroids
 from image moments.  Two identical balls and two reference marks near the wrist are found; ball

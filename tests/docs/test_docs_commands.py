@@ -1,4 +1,4 @@
-"""Every shell command in the user docs runs (issue 9: "every command in the docs is exercised").
+"""Every shell command in the user docs runs (every command in the docs is exercised).
 
 The commands are the lines of the fenced ```bash blocks and the ``$ `` lines of the ```console
 blocks of README.md and docs/*.md.  docs/recording.md and docs/monitoring.md are run by

@@ -1,4 +1,4 @@
-"""The grasp controller's phases on scripted contact sequences (spec production.md §5, thesis 4.1)."""
+"""The grasp controller's phases on scripted contact sequences (docs/grasping.md, thesis 4.1)."""
 
 import numpy as np
 import pytest

@@ -1,4 +1,4 @@
-"""Experience bases, grasp datasets, hand layout / PCP masks, wrench quality (spec production.md §5)."""
+"""Experience bases, grasp datasets, hand layout / PCP masks, wrench quality (docs/grasping.md)."""
 
 import numpy as np
 import pytest

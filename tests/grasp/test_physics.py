@@ -1,4 +1,4 @@
-"""Grasping in pybullet: the controller on real contacts, and a stable cylinder grasp (spec §5)."""
+"""Grasping in pybullet: the controller on real contacts, and a stable cylinder grasp (docs/grasping.md)."""
 
 from pathlib import Path
 

@@ -1,4 +1,4 @@
-"""The simulator's grasp scene as the grasp family uses it: start posture, lying cylinder, camera (spec §5)."""
+"""The simulator's grasp scene as the grasp family uses it: start posture, lying cylinder, camera (docs/grasping.md)."""
 
 import numpy as np
 import pybullet as p

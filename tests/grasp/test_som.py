@@ -1,4 +1,4 @@
-"""SOM grasp manifold: training, topology, associative completion, resume, files (spec production.md §5)."""
+"""SOM grasp manifold: training, topology, associative completion, resume, files (docs/grasping.md)."""
 
 import numpy as np
 import pytest

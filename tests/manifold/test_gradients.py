@@ -1,4 +1,4 @@
-"""Analytic gradients vs central finite differences (issue 3: every kernel and penalty,
+"""Analytic gradients vs central finite differences (every kernel and penalty,
 periodic and not, LOO on and off)."""
 
 import numpy as np

@@ -1,4 +1,4 @@
-"""Behaviour of the StructuredUKR estimator (issue 3)."""
+"""Behaviour of the StructuredUKR estimator."""
 
 import numpy as np
 import pytest

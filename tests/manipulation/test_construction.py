@@ -1,4 +1,4 @@
-"""Manifold by construction (production.md §2) on synthetic radius-labelled sequences."""
+"""Manifold by construction (docs/manipulation.md) on synthetic radius-labelled sequences."""
 
 import numpy as np
 import pytest

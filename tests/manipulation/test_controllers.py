@@ -1,4 +1,4 @@
-"""Plain controller classes (production.md §4) on synthetic manifolds."""
+"""Plain controller classes (docs/manipulation.md) on synthetic manifolds."""
 
 import numpy as np
 import pytest

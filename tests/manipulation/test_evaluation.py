@@ -1,4 +1,4 @@
-"""Evaluation helpers of issue 6 (plugins/manifold/controllers/evaluation.py): the recovery
+"""Evaluation helpers of the manipulation controllers (plugins/manipulation/evaluation.py): the recovery
 definition and a short real ball-swap run with a turn-back disturbance."""
 
 import numpy as np

@@ -60,7 +60,7 @@ def _pose(sim, values):
 
 @pytest.mark.parametrize("theta0, theta1", [(0.3, 0.5), (-0.6, 0.9), (0.9, 0.2)])
 def test_shadow_thumb_points_where_the_human_thumb_points(theta0, theta1):
-    """Spec glove.md: α, β from the closed-form inverse give the same thumb axis as Θ0, Θ1."""
+    """docs/glove.md: α, β from the closed-form inverse give the same thumb axis as Θ0, Θ1."""
     s0, c0, s1, c1 = np.sin(theta0), np.cos(theta0), np.sin(theta1), np.cos(theta1)
     h = np.sqrt(0.5)
     alpha = np.arctan2(np.sqrt(0.5 + c1 * s0 * s1 + 0.5 * s1**2 * c0**2), h * (c1 - s1 * s0))

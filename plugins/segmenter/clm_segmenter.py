@@ -126,8 +126,7 @@ class CLMSegmenter:
         """Bands (M+1, N, B) and diagonals (M+1,) of all layers, background last."""
         if self.history < 1:
             raise ValueError(f"history H must be >= 1, got {self.history}")
-        n = len(proj)
-        radius, span, width = self.widths()
+        _, span, width = self.widths()
         cand = candidate_band(
             proj.latent_time,
             proj.errors * self.error_scale,
@@ -138,6 +137,12 @@ class CLMSegmenter:
             self.candidates.seams(),
         )
         cand[:, :, span:] = 0.0
+        return self.with_background(cand)
+
+    def with_background(self, cand: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Candidate bands (M, N, B) → all layers' bands and diagonals, the background layer last."""
+        n = cand.shape[1]
+        radius, _, width = self.widths()
         bg, bg_diag = background_band(n, width, self.background_strength(n), radius)
         band = np.concatenate([cand, bg[None]], axis=0)
         diag = np.r_[np.zeros(cand.shape[0]), bg_diag]
@@ -152,7 +157,11 @@ class CLMSegmenter:
         """Segment an already projected sequence; returns class indices (−1 = background)."""
         if len(proj) < 1:
             raise ValueError("cannot segment an empty sequence")
-        band, diag = self.layer_compatibilities(proj)
+        return self.fit_predict_bands(*self.layer_compatibilities(proj))
+
+    def fit_predict_bands(self, band: np.ndarray, diag: np.ndarray) -> np.ndarray:
+        """Segment with given layer compatibilities (:meth:`with_background` adds the background):
+        the lowest-energy of ``restarts`` runs; returns layer indices (−1 = background)."""
         lam = self.solver_.spectral_scale(band, diag)
         best = None
         for _ in range(self.restarts):

@@ -224,6 +224,42 @@ def candidate_band(
     return np.where(valid, band, 0.0)
 
 
+def score_evidence(scores: np.ndarray) -> np.ndarray:
+    """Per-frame class evidence in [0, 1] from any classifier's per-class scores (N, M), larger =
+    more likely: a softmax over the classes at temperature τ = the median over frames of the gap
+    between the best and the second-best score (documented choice, docs/segmentation.md: it makes
+    the mapping independent of the scorer's units — ridge decision values, negative DTW
+    distances, HMM log-likelihoods — and gives a frame with a median gap ≈ 0.73 for its best
+    class against one rival)."""
+    S = np.asarray(scores, dtype=float)
+    if S.ndim != 2 or S.shape[1] < 1:
+        raise ValueError(f"scores must be (frames, classes), got shape {S.shape}")
+    S = np.where(np.isfinite(S), S, np.nanmin(np.where(np.isfinite(S), S, np.nan)) if np.isfinite(S).any() else 0.0)
+    if S.shape[1] == 1:
+        return np.ones_like(S)
+    top2 = np.sort(S, axis=1)[:, -2:]
+    tau = float(np.median(top2[:, 1] - top2[:, 0])) or 1.0
+    z = (S - S.max(axis=1, keepdims=True)) / tau
+    e = np.exp(z)
+    return e / e.sum(axis=1, keepdims=True)
+
+
+def evidence_band(evidence: np.ndarray, width: int, history: int) -> np.ndarray:
+    """Banded CLM compatibilities of classifier evidence: ``f^m_ij = e_im + e_jm − 1`` for
+    ``0 < j − i ≤ history`` (0 beyond, and past the end), laid out as :func:`candidate_band`.
+
+    Documented choice (docs/segmentation.md): two frames support each other in layer m when together
+    they lean to m (``e_im + e_jm > 1``) and repel when they lean elsewhere; the range [−1, 1] is
+    that of the UKR compatibilities, so the background strength means the same for both.
+    """
+    e = np.asarray(evidence, dtype=float)
+    n, m = e.shape
+    band = np.zeros((m, n, width))
+    for k in range(1, min(width, history, n - 1) + 1):
+        band[:, : n - k, k - 1] = (e[: n - k] + e[k:] - 1.0).T
+    return band
+
+
 def background_band(n: int, width: int, strength: float, radius: int) -> tuple[np.ndarray, float]:
     """Background layer ``f^bg_ij = λ_bg (1 − |i − j| / K_bg)`` for ``|i − j| < K_bg`` (docs/segmentation.md).
 

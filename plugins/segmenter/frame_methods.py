@@ -17,6 +17,7 @@ import numpy as np
 from .baselines import PerClassHMM, SlidingDTW1NN
 from .candidates import CandidateSet, Projection
 from .clm_segmenter import CLMSegmenter
+from .compatibility import evidence_band, score_evidence
 from .cycles import phase_direction, split_cycles
 from .openset import REJECTED, score_thresholds, threshold_labels
 from .training import auto_beta, candidate_set
@@ -253,4 +254,48 @@ class UKROnlyMethod(UKRMethod):
         return score_thresholds(np.concatenate([self._compat(fitted, s, fitted.model).max(axis=1) for s in states]))
 
 
-METHODS = {m.name: m for m in (UKRCLMMethod(), UKROnlyMethod(), DTWMethod(), HMMMethod(), MiniRocketMethod())}
+class ScoreCLMMethod:
+    """The CLM as a segmentation layer over a classifier's per-frame scores: evidence
+    (:func:`.compatibility.score_evidence`) → banded compatibilities within the history H
+    (:func:`.compatibility.evidence_band`) → one CLM layer per class plus the background;
+    rejection = the background factor, calibrated like every method's (docs/segmentation.md)."""
+
+    history = 10
+
+    def __init__(self, scorer: ScoreMethod) -> None:
+        self.scorer = scorer
+        self.name = f"clm_{scorer.name.removesuffix('_1nn')}"
+
+    def grid(self, quick: bool) -> list[dict]:
+        return self.scorer.grid(quick)
+
+    def fit(self, segments, params, seed) -> Fitted:
+        return self.scorer.fit(segments, params, seed)
+
+    def prepare(self, fitted, X) -> np.ndarray:
+        return score_evidence(self.scorer.prepare(fitted, X))
+
+    def labels(self, fitted, state, reject, drop=None):
+        cols = _columns(fitted, drop)
+        seg = CLMSegmenter(None, history=self.history, background_factor=reject, max_sweeps=300, random_state=0)
+        _, _, width = seg.widths()
+        evidence = state[:, cols] / state[:, cols].sum(axis=1, keepdims=True)
+        local = seg.fit_predict_bands(*seg.with_background(evidence_band(evidence, width, self.history)))
+        return _to_global(local, [fitted.classes[k] for k in cols])
+
+    def reject_grid(self, fitted, states) -> np.ndarray:
+        return UKRCLMMethod.reject_grid(self, fitted, states)
+
+
+METHODS = {
+    m.name: m
+    for m in (
+        UKRCLMMethod(),
+        UKROnlyMethod(),
+        DTWMethod(),
+        HMMMethod(),
+        MiniRocketMethod(),
+        ScoreCLMMethod(MiniRocketMethod()),
+        ScoreCLMMethod(DTWMethod()),
+    )
+}

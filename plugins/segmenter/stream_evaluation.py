@@ -28,7 +28,7 @@ from .frame_methods import METHODS, Fitted
 from .openset import calibrate, frame_metrics, tradeoff_curve
 
 INNER_FOLDS = 3  # validation recordings of the inner split (each validated by a fit on the others)
-DEFAULT_METHODS = ("ukr_clm", "ukr_clm_online", "ukr_only", "dtw_1nn", "hmm", "minirocket")
+DEFAULT_METHODS = ("ukr_clm", "ukr_clm_online", "ukr_only", "dtw_1nn", "hmm", "minirocket", "clm_minirocket")
 
 
 @dataclass

@@ -14,7 +14,7 @@ from handflow.plugins.segmenter.continuous import (
     segments,
 )
 from handflow.plugins.segmenter.datasets import DatasetError
-from handflow.plugins.segmenter.frame_methods import DTWMethod
+from handflow.plugins.segmenter.frame_methods import METHODS, DTWMethod
 from handflow.plugins.segmenter.openset import calibrate, frame_metrics, tradeoff_curve
 from handflow.plugins.segmenter.stream_evaluation import StreamEvaluator
 from tests.segmenter.conftest import SHARED
@@ -150,3 +150,23 @@ def test_basicmotions_made_continuous_keeps_every_case(tmp_path):
     rs = load_recordings(tmp_path / "bm.npz")
     assert len(rs.recordings) == 8 and all(len(r.X) == 1000 for r in rs.recordings)
     assert np.bincount(np.concatenate([r.y for r in rs.recordings])).tolist() == [2000] * 4
+
+
+def test_clm_over_classifier_scores_groups_frames_and_rejects_with_its_background():
+    from handflow.plugins.segmenter.compatibility import evidence_band, score_evidence
+
+    evidence = score_evidence(np.array([[3.0, 0.0], [2.0, 1.0], [0.0, 2.5]]))
+    assert np.allclose(evidence.sum(axis=1), 1) and evidence[0, 0] > evidence[1, 0] > 0.5 > evidence[2, 0]
+    band = evidence_band(evidence, width=4, history=2)
+    assert band.shape == (2, 3, 4) and np.allclose(band[:, :, 2:], 0) and np.allclose(band[:, 2], 0)
+    assert band[0, 0, 0] > 0 > band[0, 1, 0]  # frames 0,1 lean to class 0 together; frame 2 does not
+
+    X, y = _synthetic_recordings(0)
+    method = METHODS["clm_dtw"]
+    fitted = method.fit({c: [X[y == c]] for c in (0, 1, 2)}, {"window": 20}, seed=0)
+    state = method.prepare(fitted, X)
+    kept = method.labels(fitted, state, reject=0.0)
+    assert np.mean(kept == y) > 0.8  # the CLM groups the classifier's evidence into the right segments
+    assert np.all(method.labels(fitted, state, reject=8.0) == -1)  # a strong background takes everything
+    dropped = method.labels(fitted, state, reject=0.0, drop=2)
+    assert not np.any(dropped == 2)  # pseudo-unknown: class 2's layer is gone

@@ -11,8 +11,10 @@ import warnings
 from dataclasses import dataclass
 from functools import cache
 from importlib.metadata import EntryPoint, entry_points
+from typing import TYPE_CHECKING
 
-from .plugin import Node
+if TYPE_CHECKING:  # the node base class (numpy, pydantic) loads with the first plugin, not with `--help`
+    from .plugin import Node
 
 PLUGIN_GROUP = "handflow.plugins"
 COMMAND_GROUP = "handflow.commands"
@@ -29,6 +31,8 @@ class PluginEntry:
     entry_point: EntryPoint
 
     def load(self) -> type[Node]:
+        from .plugin import Node
+
         try:
             cls = self.entry_point.load()
         except Exception as exc:  # an import error inside a plugin must not hide the others

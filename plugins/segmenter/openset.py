@@ -63,7 +63,8 @@ def tradeoff_curve(known_accuracy: Iterable[float], unknown_rejection: Iterable[
     if rej[-1] < 1:
         rej.append(1.0)
         acc.append(0.0)
-    return rej, acc, float(np.trapezoid(acc, rej))
+    r, a = np.asarray(rej), np.asarray(acc)
+    return rej, acc, float(np.sum(np.diff(r) * (a[1:] + a[:-1]) / 2))  # trapezoidal (np.trapezoid needs numpy 2)
 
 
 def score_thresholds(confidence: np.ndarray, n: int = 41) -> np.ndarray:

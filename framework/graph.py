@@ -14,12 +14,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
-import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
 from .messages import Message, message_types
 from .plugin import Node
 from .registry import PluginError, load_plugin, plugin_entries
+from .yaml_files import Problem, YamlFileError, line_of, parse, pydantic_problems
 
 _ID = re.compile(r"^[A-Za-z0-9_\-]+$")
 
@@ -97,18 +97,8 @@ class GraphSpec(_Strict):
         return v
 
 
-@dataclass
-class Problem:
-    line: int
-    message: str
-
-
-class GraphError(ValueError):
+class GraphError(YamlFileError):
     """A graph file with problems; ``str()`` lists them as ``file:line: message``."""
-
-    def __init__(self, path: Path, problems: list[Problem]) -> None:
-        self.path, self.problems = path, problems
-        super().__init__("\n".join(f"{path}:{p.line}: {p.message}" for p in problems))
 
 
 @dataclass
@@ -153,66 +143,20 @@ def _message_type(name: str) -> type[Message] | None:
 
 
 # ----------------------------------------------------------------------------------------------
-# Line numbers
-# ----------------------------------------------------------------------------------------------
-def _line_index(node: yaml.Node, path: tuple = (), out: dict | None = None) -> dict[tuple, int]:
-    """Map every key path of a composed YAML document to its 1-based line."""
-    out = {} if out is None else out
-    out.setdefault(path, node.start_mark.line + 1)
-    if isinstance(node, yaml.MappingNode):
-        for k, v in node.value:
-            out[path + (k.value,)] = k.start_mark.line + 1
-            _line_index(v, path + (k.value,), out)
-    elif isinstance(node, yaml.SequenceNode):
-        for i, v in enumerate(node.value):
-            _line_index(v, path + (i,), out)
-    return out
-
-
-def _line_of(lines: dict[tuple, int], loc: tuple) -> int:
-    loc = tuple(loc)
-    while loc and loc not in lines:
-        loc = loc[:-1]
-    return lines.get(loc, 1)
-
-
-def _pydantic_problems(
-    exc: ValidationError, lines: dict[tuple, int], prefix: tuple = (), what: str = ""
-) -> list[Problem]:
-    problems = []
-    for err in exc.errors():
-        loc = prefix + tuple(err["loc"])
-        name = ".".join(str(p) for p in err["loc"]) or "(top level)"
-        hint = err["msg"]
-        if err["type"] == "extra_forbidden":
-            hint = "unknown field; remove it or check its spelling"
-        elif err["type"] == "missing":
-            hint = "required field is missing; add it"
-        problems.append(Problem(_line_of(lines, loc), f"{what}{name}: {hint}"))
-    return problems
-
-
-# ----------------------------------------------------------------------------------------------
 # Loading and validation
 # ----------------------------------------------------------------------------------------------
 def read_graph_text(text: str, path: Path) -> tuple[Graph | None, list[Problem]]:
     """Parse and validate graph YAML; returns the graph (None if unusable) and all problems."""
-    try:
-        doc = yaml.compose(text)
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        line = mark.line + 1 if mark else 1
-        return None, [
-            Problem(line, f"YAML syntax error: {getattr(exc, 'problem', exc)}; fix the indentation/quoting there")
-        ]
-    if doc is None or not isinstance(data, dict):
+    parsed = parse(text)
+    if isinstance(parsed, Problem):
+        return None, [parsed]
+    data, lines = parsed
+    if not isinstance(data, dict):
         return None, [Problem(1, "a graph file must be a YAML mapping with 'name' and 'nodes'")]
-    lines = _line_index(doc)
     try:
         spec = GraphSpec.model_validate(data)
     except ValidationError as exc:
-        return None, _pydantic_problems(exc, lines)
+        return None, pydantic_problems(exc, lines)
 
     graph = Graph(spec, path)
     problems: list[Problem] = []
@@ -221,21 +165,21 @@ def read_graph_text(text: str, path: Path) -> tuple[Graph | None, list[Problem]]
         if ns.id in seen:
             problems.append(
                 Problem(
-                    _line_of(lines, ("nodes", i, "id")),
+                    line_of(lines, ("nodes", i, "id")),
                     f"duplicate node id '{ns.id}' (first used on line {seen[ns.id]}); give each node a unique id",
                 )
             )
             continue
-        seen[ns.id] = _line_of(lines, ("nodes", i, "id"))
+        seen[ns.id] = line_of(lines, ("nodes", i, "id"))
         try:
             cls = load_plugin(ns.plugin)
         except PluginError as exc:
-            problems.append(Problem(_line_of(lines, ("nodes", i, "plugin")), str(exc)))
+            problems.append(Problem(line_of(lines, ("nodes", i, "plugin")), str(exc)))
             continue
         try:
             params = cls.Params.model_validate(ns.params)
         except ValidationError as exc:
-            problems += _pydantic_problems(exc, lines, ("nodes", i, "params"), f"node '{ns.id}' param ")
+            problems += pydantic_problems(exc, lines, ("nodes", i, "params"), f"node '{ns.id}' param ")
             continue
         graph.nodes[ns.id] = ResolvedNode(ns, cls, params)
 
@@ -243,7 +187,7 @@ def read_graph_text(text: str, path: Path) -> tuple[Graph | None, list[Problem]]
         if _message_type(tname) is None:
             problems.append(
                 Problem(
-                    _line_of(lines, ("external", topic)),
+                    line_of(lines, ("external", topic)),
                     f"external topic '{topic}': unknown message type '{tname}'; known: {', '.join(sorted(message_types()))}",
                 )
             )
@@ -253,7 +197,7 @@ def read_graph_text(text: str, path: Path) -> tuple[Graph | None, list[Problem]]
         if rn is None or rn.spec is not ns:
             continue
         for port, source in ns.inputs.items():
-            line = _line_of(lines, ("nodes", i, "inputs", port))
+            line = line_of(lines, ("nodes", i, "inputs", port))
             problems += _input_problems(graph, rn, port, source, line)
     return (graph if not problems else None), problems
 

@@ -13,7 +13,9 @@ from pathlib import Path
 from typing import Literal, Optional
 
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+from handflow.framework.yaml_files import YamlFileError, load_model
 
 from .data import load_csv_dir, load_mcap, load_npz
 from .model import StructuredUKR
@@ -85,14 +87,9 @@ def load_config(path) -> TrainConfig:
     if not path.is_file():
         raise InvalidInputError(f"config file {path} not found")
     try:
-        raw = yaml.safe_load(path.read_text())
-    except yaml.YAMLError as exc:
-        raise InvalidInputError(f"{path}: not valid YAML ({exc})") from None
-    try:
-        cfg = TrainConfig.model_validate(raw if raw is not None else {})
-    except ValidationError as exc:
-        lines = [f"  {'.'.join(str(p) for p in e['loc']) or '(top level)'}: {e['msg']}" for e in exc.errors()]
-        raise InvalidInputError(f"{path}: invalid config — change:\n" + "\n".join(lines)) from None
+        cfg = load_model(path, TrainConfig)
+    except YamlFileError as exc:
+        raise InvalidInputError(f"invalid config — change:\n{exc}") from None
     for key in ("csv_dir", "npz", "mcap"):
         value = getattr(cfg.data, key)
         if value is not None and not value.is_absolute():

@@ -25,10 +25,10 @@ from pathlib import Path
 from typing import Literal, Optional
 
 import numpy as np
-import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, ConfigDict, Field
 from scipy.stats import spearmanr
 
+from handflow.framework.yaml_files import YamlFileError, load_model
 from handflow.plugins.manifold.cli import ModelConfig, TrainingConfig, _Progress, build_model, check_train_args
 from handflow.plugins.manifold.construction import ManifoldConstruction
 from handflow.plugins.manifold.model import StructuredUKR
@@ -74,13 +74,12 @@ class LearningConfig(_Strict):
 
 def load_config(path):
     path = Path(path)
-    raw = yaml.safe_load(path.read_text())
-    cls = ConstructionConfig if raw.get("mode") == "construction" else LearningConfig
     try:
-        cfg = cls.model_validate(raw)
-    except ValidationError as exc:
-        lines = [f"  {'.'.join(str(p) for p in e['loc']) or '(top level)'}: {e['msg']}" for e in exc.errors()]
-        raise InvalidInputError(f"{path}: invalid config — change:\n" + "\n".join(lines)) from None
+        cfg = load_model(
+            path, choose=lambda d: ConstructionConfig if d.get("mode") == "construction" else LearningConfig
+        )
+    except YamlFileError as exc:
+        raise InvalidInputError(f"invalid config — change:\n{exc}") from None
     if not cfg.data.demo.is_absolute():
         cfg.data.demo = path.parent / cfg.data.demo
     return cfg

@@ -21,6 +21,7 @@ import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from handflow.framework.resources import shipped
+from handflow.framework.yaml_files import YamlFileError, load_model
 from handflow.plugins.hands.sensors import N_SENSORS, SENSOR_NAMES, sensor_index
 
 from .parallelogram import fit_intercepts, robust_extremes
@@ -130,13 +131,15 @@ def _load(path: str | Path, model: type[BaseModel], what: str):
             f"{what} file '{p}' not found; pass an existing file (defaults ship in "
             "configs/glove/) or record one with 'handflow calibrate'"
         )
+    if p.suffix.lower() != ".json":
+        try:
+            return load_model(p, model)
+        except YamlFileError as exc:
+            raise CalibrationFileError(f"{what} file is invalid — fix:\n{exc}") from None
     try:
-        text = p.read_text()
-        data = json.loads(text) if p.suffix.lower() == ".json" else yaml.safe_load(text)
-    except (ValueError, yaml.YAMLError, UnicodeDecodeError) as exc:
-        raise CalibrationFileError(
-            f"{what} file '{p}' is not valid {'JSON' if p.suffix == '.json' else 'YAML'}: {exc}"
-        ) from None
+        data = json.loads(p.read_text())
+    except (ValueError, UnicodeDecodeError) as exc:
+        raise CalibrationFileError(f"{what} file '{p}' is not valid JSON: {exc}") from None
     if not isinstance(data, dict):
         raise CalibrationFileError(f"{what} file '{p}' must hold a mapping of fields, got {type(data).__name__}")
     try:

@@ -45,7 +45,7 @@ def test_calibrate_bad_input_exits_2_with_message(tmp_path, capsys):
     assert (
         _cmd(register_calibrate, ["--recording", str(tmp_path / "f.npy"), "-o", str(out), "--profile", str(bad)]) == 2
     )
-    assert "not valid YAML" in capsys.readouterr().err
+    assert "profile.yaml:2: YAML syntax error" in capsys.readouterr().err
     assert not out.exists()
 
 

@@ -73,7 +73,7 @@ def test_roundtrip_yaml_and_json(tmp_path):
 @pytest.mark.parametrize(
     "content, message",
     [
-        ("s_min: [1, 2\n", "not valid YAML"),
+        ("s_min: [1, 2\n", r"calib.yaml:2: YAML syntax error"),
         ("- just a list\n", "must hold a mapping"),
         ("s_min: [1, 2]\ns_max: [3, 4]\nthumb_intercepts: [1, 2, 3, 4]\n", "need 22 values"),
         (

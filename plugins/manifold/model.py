@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 from sklearn.base import BaseEstimator
+from sklearn.utils.validation import check_is_fitted
 
 from .init import equidistant_init, isomap_init
 from .io import load_model, save_model
@@ -53,6 +54,7 @@ class StructuredUKR(BaseEstimator):
 
     def __init__(
         self,
+        *,
         latent=None,
         time_dim=None,
         lambda_cseq=1.0,
@@ -206,8 +208,7 @@ class StructuredUKR(BaseEstimator):
         return self._manifold.kernel
 
     def _check_fitted(self):
-        if not hasattr(self, "latents_"):
-            raise RuntimeError("this StructuredUKR is not fitted yet; call fit() or load()")
+        check_is_fitted(self, "latents_", msg="this %(name)s is not fitted yet; call fit() or load() first")
 
     def inverse_transform(self, X):
         """f: latent (M, q) → observation (M, d); a single latent (q,) gives (d,)."""

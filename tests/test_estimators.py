@@ -6,8 +6,8 @@ Every estimator: keyword-only hyper-parameters, ``__init__`` stores only, random
 """
 
 import inspect
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 import pytest
@@ -92,7 +92,7 @@ def test_clone_and_set_params_round_trip(case):
     est = c.make()
     twin = clone(est)
     assert twin is not est and twin.get_params() == est.get_params()
-    (key, value), = c.tweak.items()
+    ((key, value),) = c.tweak.items()
     assert est.set_params(**c.tweak) is est and est.get_params()[key] == value
     assert clone(est).get_params()[key] == value
 
@@ -106,7 +106,7 @@ def test_unfitted_call_raises_not_fitted_naming_fit(case):
 def test_constructor_does_no_work(case):
     _, c = case
     est = c.make(**c.invalid)  # stored, not checked
-    (key, value), = c.invalid.items()
+    ((key, value),) = c.invalid.items()
     assert est.get_params()[key] == value
     with pytest.raises(ValueError):
         est.fit(c.data())

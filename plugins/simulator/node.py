@@ -11,7 +11,7 @@ holds the last command, logs it once and reports ``holding = 1`` until targets r
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
@@ -25,8 +25,8 @@ class SimulatorParams(BaseModel):
     """Parameters of ``simulator.pybullet``."""
 
     model_config = ConfigDict(extra="forbid")
-    hand: str = Field("shadow", description="hand model: human | shadow | gifu")
-    scene: str = Field("empty", description="scene: empty | cap | balls | grasp")
+    hand: Literal["human", "shadow", "gifu"] = Field("shadow", description="hand model")
+    scene: Literal["empty", "cap", "balls", "grasp"] = Field("empty", description="scene")
     scene_options: dict[str, Any] = Field(
         default_factory=dict, description="scene fields, e.g. {radius: 0.02} (cap) or {pushes: [[20, 0.3]]} (balls)"
     )

@@ -18,8 +18,8 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 
 from .messages import Message, message_types
 from .plugin import Node
-from .ros2.rmw_zenoh import check_name
 from .registry import PluginError, load_plugin, plugin_entries
+from .ros2.rmw_zenoh import check_name
 from .yaml_files import Problem, YamlFileError, line_of, parse, pydantic_problems
 
 _ID = re.compile(r"^[A-Za-z0-9_\-]+$")

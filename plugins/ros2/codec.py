@@ -78,10 +78,11 @@ class RosCodec:
     def __init__(self, ros_type: str, msg_files: Iterable[Path] = ()) -> None:
         self.ros_type = full_name(ros_type)
         try:
-            self.message_type: type[Message] = types.handflow_type(self.ros_type)
+            native: type[Message] | None = types.handflow_type(self.ros_type)
         except MessageError:
-            self.message_type = Array
-        if self.message_type is not Array:
+            native = None
+        self.message_type = native or Array
+        if native is not None:
             self.store = None
             self.type_hash = types.type_hash(self.ros_type)
             return

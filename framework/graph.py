@@ -282,7 +282,7 @@ def _input_problems(graph: Graph, rn: ResolvedNode, port: str, source: str, line
                 f"node '{nid}' input '{port}': node '{src_node}' has no output '{src_port}'; its outputs: {', '.join(outs) or 'none'}",
             )
         ]
-    in_type = rn.cls.inputs[port]
+    in_type = rn.cls.input_types(rn.params)[port]
     if not issubclass(out_type, in_type):
         return [
             Problem(

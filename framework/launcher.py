@@ -85,7 +85,7 @@ class Launcher:
         self._start_pub = self.session.declare_publisher(transport.start_key(graph.name))
         self._event_pub = self.session.declare_publisher(transport.topic_key(graph.name, "_runtime", "events"))
         self._event_seq = 0
-        self.ros2 = Ros2Bridge(self.session, graph) if graph.spec.ros2 is not None else None
+        self.ros2 = Ros2Bridge(self.session, graph, host) if graph.spec.ros2 is not None else None
 
     def _on_health(self, sample) -> None:
         try:

@@ -289,7 +289,7 @@ class GroupRuntime:
             heapq.heappush(ticks, (nxt, i))
 
     def _deliver(self, slot: _NodeSlot, port: str, payload: bytes, att: bytes | None) -> None:
-        expected = slot.rn.cls.inputs.get(port, Message)
+        expected = slot.rn.cls.input_types(slot.rn.params).get(port, Message)
         try:
             msg = wire.unpack(payload, att)
             if not isinstance(msg, expected):

@@ -19,15 +19,18 @@ log = logging.getLogger(__name__)
 
 
 class Ros2Bridge:
-    """Republishes a graph's ``ros2.publish`` topics under one ROS 2 node; :meth:`close` withdraws them."""
+    """Republishes a graph's ``ros2.publish`` topics of ``host`` under one ROS 2 node; :meth:`close` withdraws them."""
 
-    def __init__(self, session, graph: Graph) -> None:
+    def __init__(self, session, graph: Graph, host: str | None = None) -> None:
         settings = graph.spec.ros2
         assert settings is not None
         self.node = RosNode(session, settings.ros_node_name(graph.name), settings.domain_id, settings.namespace)
         self.publishers: dict[str, RosPublisher] = {}
         self._subs = []
         for source, topic in settings.topics().items():
+            rn = graph.nodes.get(source.partition("/")[0])
+            if (rn.spec.host if rn is not None else None) != host:
+                continue  # the launcher of the host running the node publishes it
             cls = graph.source_type(source)
             assert cls is not None  # checked by graph validation
             ros = ros_type(cls.TYPE)

@@ -72,15 +72,20 @@ def _texts(store, name: str) -> dict[str, str]:
     return out
 
 
+def native_type(ros_type: str) -> type[Message] | None:
+    """The handflow counterpart of a ROS 2 type, if it has one."""
+    try:
+        return types.handflow_type(full_name(ros_type))
+    except MessageError:
+        return None
+
+
 class RosCodec:
     """CDR of one ROS 2 type ⇄ handflow messages; ``message_type`` and ``type_hash`` tell what and how."""
 
     def __init__(self, ros_type: str, msg_files: Iterable[Path] = ()) -> None:
         self.ros_type = full_name(ros_type)
-        try:
-            native: type[Message] | None = types.handflow_type(self.ros_type)
-        except MessageError:
-            native = None
+        native = native_type(self.ros_type)
         self.message_type = native or Array
         if native is not None:
             self.store = None

@@ -17,11 +17,10 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from handflow.framework.messages import Array, Message, MessageError
 from handflow.framework.plugin import Node
-from handflow.framework.ros2 import types
 from handflow.framework.ros2.rmw_zenoh import DEFAULT_DEPTH, RosNode, check_name
 from handflow.framework.ros2.type_hash import full_name
 
-from .codec import RosCodec
+from .codec import RosCodec, native_type
 
 QUEUE_SIZE = 10_000
 LOG_EVERY = 100  # a stream of bad samples is logged once per this many
@@ -60,6 +59,11 @@ class SubscribeParams(Ros2Params):
     rate_hz: float = Field(500.0, gt=0, description="how often queued samples are published into the graph")
 
 
+def graph_type(ros_type: str) -> type[Message]:
+    """The handflow message a ROS 2 type is carried as in a graph (docs/ros2.md)."""
+    return native_type(ros_type) or Array
+
+
 def _open(node: Node, p: Ros2Params) -> tuple[zenoh.Session, RosNode, RosCodec]:
     codec = RosCodec(p.type, [node.ctx.resolve_path(f) for f in p.msg_files])
     conf = zenoh.Config()
@@ -80,10 +84,7 @@ class Ros2Subscribe(Node):
 
     @classmethod
     def output_types(cls, params: BaseModel) -> dict[str, type[Message]]:
-        try:
-            return {"out": types.handflow_type(params.type)}
-        except MessageError:
-            return {"out": Array}
+        return {"out": graph_type(params.type)}
 
     def setup(self) -> None:
         self.session, self.ros_node, self.codec = _open(self, self.params)
@@ -134,6 +135,10 @@ class Ros2Publish(Node):
 
     Params = Ros2Params
     inputs = {"in": Message}
+
+    @classmethod
+    def input_types(cls, params: BaseModel) -> dict[str, type[Message]]:
+        return {"in": graph_type(params.type)}
 
     def setup(self) -> None:
         self.session, self.ros_node, self.codec = _open(self, self.params)

@@ -8,6 +8,8 @@ import time
 import numpy as np
 import pytest
 import zenoh
+from hypothesis import given
+from hypothesis import strategies as st
 
 from handflow.framework.graph import read_graph_text
 from handflow.framework.messages import Array, JointState, MessageError
@@ -179,3 +181,24 @@ nodes:
     assert "'secondary' expects handflow.JointState but 'pose/out' publishes handflow.Array" in problems[0].message
     _, problems = read_graph_text(text.replace("/joint_states, type", "joint_states, type"), tmp_path / "g.yaml")
     assert any("must start with '/'" in p.message for p in problems)
+    out = text.replace("plugin: basic.select, inputs: {primary: js/out, secondary: pose/out}", "plugin: ros2.publish")
+    out = out.replace(
+        "- {id: sel, plugin: ros2.publish}",
+        "- {id: sel, plugin: ros2.publish, inputs: {in: pose/out}, params: {topic: /j, type: sensor_msgs/msg/JointState}}",
+    )
+    _, problems = read_graph_text(out, tmp_path / "g.yaml")
+    assert [p.message for p in problems] == [
+        "node 'sel' input 'in' expects handflow.JointState but 'pose/out' publishes handflow.Array; connect a matching output"
+    ]
+
+
+CODECS = [RosCodec(JS), RosCodec("geometry_msgs/msg/PoseStamped"), RosCodec("sensor_msgs/msg/Imu")]
+
+
+@given(st.integers(0, len(CODECS) - 1), st.binary(max_size=400))
+def test_any_bytes_from_ros_decode_or_raise_message_error(which, data):
+    try:
+        msg = CODECS[which].decode(b"\x00\x01\x00\x00" + data, "ros2:/t", 1, 0)
+    except MessageError:
+        return
+    msg.check()

@@ -45,9 +45,11 @@ def test_inlet_publishes_samples_with_sender_stamps_mapped_to_wall_time():
     try:
         past = lsl.local_clock() - 5.0  # samples taken 5 s ago by the sender's clock
         expected_wall = time.time_ns() - 5_000_000_000
+        outlet.push_sample(np.array([np.nan, 0, 0], np.float32), timestamp=past - 0.01)  # dropped
         for i in range(20):
             outlet.push_sample(np.array([i, 2 * i, -i], np.float32), timestamp=past + i / 100)
         assert _wait(lambda: (h.tick(), len(h.published["out"]) >= 20)[1])
+        assert len(h.published["out"]) == 20
         msgs = h.published["out"]
         assert msgs[0].names == ["flexor", "extensor", "thumb"]
         assert [m.data.tolist() for m in msgs[:3]] == [[0, 0, 0], [1, 2, -1], [2, 4, -2]]

@@ -24,6 +24,9 @@ ADMIN_SPACE = "@ros2_lv"
 GID_SIZE = 16
 DEFAULT_DEPTH = 10  # the history depth of rclcpp/rclpy's default QoS profile
 _ATTACHMENT = struct.Struct("<qqB16s")
+# rmw_zenoh for Jazzy up to 0.2.3 named each field: (str, int64, str, int64, str, bytes), zenoh-ext serialised
+_KEYED_ATTACHMENT = struct.Struct("<B15sqB16sqB10sB16s")
+_KEYS = (b"sequence_number", b"source_timestamp", b"source_gid")
 _NAME = re.compile(r"^(/[A-Za-z_][A-Za-z0-9_]*)+$")
 _ENTITY_IDS = itertools.count()  # unique within the process; the session id makes them unique overall
 
@@ -90,7 +93,14 @@ def pack_attachment(seq: int, source_timestamp_ns: int, gid: bytes) -> bytes:
 
 
 def parse_attachment(att: bytes | None) -> tuple[int, int, bytes]:
-    """``(sequence number, source timestamp ns, GID)``; :class:`MessageError` for anything else."""
+    """``(sequence number, source timestamp ns, GID)``; :class:`MessageError` for anything else.
+
+    Reads the positional layout of rmw_zenoh ≥ 0.2.4 (Jazzy) and the earlier keyed one.
+    """
+    if att is not None and len(att) == _KEYED_ATTACHMENT.size:
+        n1, k1, seq, n2, k2, stamp, n3, k3, n4, gid = _KEYED_ATTACHMENT.unpack(att)
+        if (n1, k1, n2, k2, n3, k3, n4) == (15, _KEYS[0], 16, _KEYS[1], 10, _KEYS[2], GID_SIZE):
+            return seq, stamp, gid
     if att is None or len(att) != _ATTACHMENT.size:
         raise MessageError(f"not an rmw_zenoh attachment: {None if att is None else len(att)} bytes, not 33")
     seq, stamp, n, gid = _ATTACHMENT.unpack(att)

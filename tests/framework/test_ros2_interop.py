@@ -112,6 +112,15 @@ def test_attachment_is_zenoh_ext_serialisation():
     theirs = zext.z_serialize((zext.Int64(5), zext.Int64(1_700_000_000_123), gid)).to_bytes()
     assert ours == theirs and len(ours) == 33
     assert rz.parse_attachment(ours) == (5, 1_700_000_000_123, gid)
+    keyed = (  # the layout of rmw_zenoh for Jazzy up to 0.2.3 (fields named), still read
+        "sequence_number",
+        zext.Int64(5),
+        "source_timestamp",
+        zext.Int64(1_700_000_000_123),
+        "source_gid",
+        gid,
+    )
+    assert rz.parse_attachment(zext.z_serialize(keyed).to_bytes()) == (5, 1_700_000_000_123, gid)
 
 
 @given(st.binary(max_size=64))
@@ -206,6 +215,20 @@ def test_graph_option_republishes_with_rmw_zenoh_key_attachment_and_tokens(tmp_p
         bridge.close()
         ros_side.close()
         hub.close()
+
+
+def test_each_launcher_publishes_the_topics_of_its_host(tmp_path):
+    text = GRAPH.replace("    plugin: basic.signal", "    plugin: basic.signal\n    host: lab")
+    graph, problems = read_graph_text(text, tmp_path / "g.yaml")
+    assert not problems
+    session = _session()
+    try:
+        here, there = Ros2Bridge(session, graph), Ros2Bridge(session, graph, "lab")
+        assert not here.publishers and list(there.publishers) == ["sig/out"]
+        here.close()
+        there.close()
+    finally:
+        session.close()
 
 
 def test_joint_state_cdr_of_the_option_is_what_rosbags_writes(store):

@@ -17,6 +17,7 @@ import re
 import struct
 import time
 from collections.abc import Callable
+from dataclasses import dataclass
 
 from ..messages import MessageError
 
@@ -81,6 +82,42 @@ def endpoint_token(
     """Liveliness token of a publisher (``kind="MP"``) or subscription (``"MS"``)."""
     head = f"{ADMIN_SPACE}/{domain_id}/{zid}/{nid}/{eid}/{kind}/%/{mangle(namespace)}/{node}"
     return f"{head}/{mangle(check_name(topic))}/{dds_type(ros_type)}/{type_hash}/{qos}"
+
+
+def ros_type_of(dds: str) -> str:
+    """``std_msgs::msg::dds_::String_`` → ``std_msgs/msg/String`` (inverse of :func:`dds_type`)."""
+    parts = dds.split("::")
+    if len(parts) != 4 or parts[2] != "dds_" or not parts[3].endswith("_"):
+        raise MessageError(f"not an rmw_zenoh type name: {dds[:80]!r}")
+    return f"{parts[0]}/{parts[1]}/{parts[3][:-1]}"
+
+
+@dataclass(frozen=True)
+class Entity:
+    """What a liveliness token announces: a node (``NN``), publisher (``MP``), subscription (``MS``), …"""
+
+    kind: str
+    domain_id: int
+    zid: str
+    node: str
+    namespace: str
+    topic: str = ""
+    ros_type: str = ""
+    type_hash: str = ""
+
+
+def parse_token(key: str) -> Entity:
+    """The entity of an rmw_zenoh liveliness token; :class:`MessageError` for other keys."""
+    parts = str(key).split("/")
+    if len(parts) < 9 or parts[0] != ADMIN_SPACE or not parts[1].isdigit():
+        raise MessageError(f"not an rmw_zenoh liveliness token: {str(key)[:120]!r}")
+    kind, namespace = parts[5], parts[7].replace("%", "/")
+    if kind == "NN":
+        return Entity(kind, int(parts[1]), parts[2], parts[8], namespace)
+    if len(parts) < 13:
+        raise MessageError(f"rmw_zenoh {kind} token without topic, type, hash and QoS: {str(key)[:120]!r}")
+    topic = parts[9].replace("%", "/")
+    return Entity(kind, int(parts[1]), parts[2], parts[8], namespace, topic, ros_type_of(parts[10]), parts[11])
 
 
 def gid_of(token: str) -> bytes:

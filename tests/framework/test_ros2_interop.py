@@ -13,6 +13,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from handflow.framework import wire
+from handflow.framework.cli import main
 from handflow.framework.graph import read_graph_text
 from handflow.framework.messages import Array, Header, JointState, MessageError
 from handflow.framework.ros2 import rmw_zenoh as rz
@@ -104,6 +105,48 @@ def test_keys_and_tokens_match_rmw_zenoh_examples():
     for bad in ("chatter", "/a//b", "/1a", "/a-b", "/a/"):
         with pytest.raises(MessageError, match="must start with '/'"):
             rz.check_name(bad)
+
+
+def test_tokens_parse_back_into_entities():
+    pub = rz.parse_token(TALKER_TOKEN)
+    assert (pub.kind, pub.domain_id, pub.node, pub.namespace) == ("MP", 0, "talker", "/")
+    assert (pub.topic, pub.ros_type, pub.type_hash) == ("/chatter", "std_msgs/msg/String", STRING_HASH)
+    assert rz.parse_token(LISTENER_TOKEN) == rz.Entity("NN", 0, "aac3178e146ba6f1fc6e6a4085e77f21", "listener", "/")
+    for bad in ("@ros2_lv/0/z/0/1/MP/%/%/n", "handflow/g/n/p", "@ros2_lv/x/z/0/0/NN/%/%/n"):
+        with pytest.raises(MessageError):
+            rz.parse_token(bad)
+
+
+def test_ros2_topics_command_lists_what_ros2_topic_list_would(capsys):
+    endpoint = f"tcp/127.0.0.1:{free_tcp_port()}"
+    router, peer = _session(listen=[endpoint]), _session(connect=[endpoint])
+    node = rz.RosNode(peer, "lister", domain_id=4)
+    node.publisher("/hand/joint_states", "sensor_msgs/msg/JointState", JOINT_STATE_HASH)
+    node.subscriber("/hand/joint_states", "sensor_msgs/msg/JointState", JOINT_STATE_HASH, lambda *a: None)
+    node.publisher("/chatter", "std_msgs/msg/String", STRING_HASH)
+    try:
+        args = ["ros2-topics", "--connect", endpoint, "--domain-id", "4", "--timeout", "1", "--json"]
+        for _ in range(20):
+            assert main(args) == 0
+            table = json.loads(capsys.readouterr().out)
+            if len(table) == 2:
+                break
+            time.sleep(0.1)
+        assert table == {
+            "/chatter": {"type": "std_msgs/msg/String", "type_hash": STRING_HASH, "publishers": 1, "subscriptions": 0},
+            "/hand/joint_states": {
+                "type": "sensor_msgs/msg/JointState",
+                "type_hash": JOINT_STATE_HASH,
+                "publishers": 1,
+                "subscriptions": 1,
+            },
+        }
+    finally:
+        node.close()
+        peer.close()
+        router.close()
+    assert main(["ros2-topics", "--connect", "tcp/127.0.0.1:1", "--timeout", "0.2"]) == 2
+    assert "start its router" in capsys.readouterr().out
 
 
 def test_attachment_is_zenoh_ext_serialisation():

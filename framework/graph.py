@@ -239,7 +239,11 @@ def read_graph_text(text: str, path: Path, only: Collection[str] | None = None) 
 
 def _ros2_problems(graph: Graph, ros2: Ros2Settings, lines: dict) -> list[Problem]:
     problems = []
+    declared = {n.id for n in graph.spec.nodes}
     for source, topic in ros2.topics().items():
+        node_id = source.partition("/")[0]
+        if node_id in declared and node_id not in graph.nodes:
+            continue  # not loaded here (another process's node, or failed its own checks)
         line = line_of(lines, ("ros2", "publish", source) if isinstance(ros2.publish, dict) else ("ros2", "publish"))
         if graph.source_type(source) is None and source.partition("/")[0] in graph.nodes:
             problems.append(Problem(line, f"ros2.publish: '{source}' is not an output of this graph; use node/port"))

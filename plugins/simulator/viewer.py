@@ -1,0 +1,85 @@
+"""What a 3D viewer needs from a simulated scene: the hand's TF tree, its description, scene objects as markers.
+
+Frame names: the world frame (pybullet's world, ``world`` by default) and the hand's URDF links under
+a prefix (``sim/palm``); the description is :func:`~handflow.plugins.simulator.urdf.urdf_text` with
+``viewer=True`` and the same prefix, so every TF child frame is one of its links (docs/foxglove.md).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from handflow.framework.messages import Markers, Transforms
+
+from .bullet import pybullet as p
+from .kinematics import Frames, relative_frames
+from .simulation import Simulation
+
+# pybullet visual geometry → (marker kind, scale from pybullet's dimensions)
+_SHAPES = {
+    p.GEOM_SPHERE: ("sphere", lambda d: [2 * d[0]] * 3),
+    p.GEOM_BOX: ("cube", lambda d: list(d[:3])),
+    p.GEOM_CYLINDER: ("cylinder", lambda d: [2 * d[1], 2 * d[1], d[0]]),
+    p.GEOM_CAPSULE: ("cylinder", lambda d: [2 * d[1], 2 * d[1], d[0] + 2 * d[1]]),
+}
+
+
+def transforms_message(frames: Frames, world: str, base: str, position, rotation: Rotation) -> Transforms:
+    """A Transforms message: ``world`` → ``base`` at the given pose, then the hand's frames."""
+    return Transforms(
+        parents=[world, *frames.parents],
+        children=[base, *frames.children],
+        translations=np.vstack([np.asarray(position, float).reshape(1, 3), frames.translations]),
+        rotations=np.vstack([rotation.as_quat().reshape(1, 4), frames.rotations]),
+    )
+
+
+def simulated_hand_transforms(sim: Simulation, prefix: str, world: str = "world") -> Transforms:
+    """The simulated hand's TF tree from pybullet's link poses (after physics, collisions included)."""
+    poses = {prefix + name: pose for name, pose in sim.link_poses().items()}
+    parents = [prefix + j.parent for j in sim.skeleton.joints]
+    children = [prefix + j.child for j in sim.skeleton.joints]
+    base = prefix + sim.skeleton.base
+    return transforms_message(relative_frames(parents, children, poses), world, base, *poses[base])
+
+
+def scene_markers(sim: Simulation, world: str = "world", namespace: str = "scene") -> Markers:
+    """Every primitive shape of the scene's bodies (not the hand) as a marker in the world frame.
+
+    Meshes and planes are left out; a capsule is drawn as a cylinder over its full length.  Ids
+    are stable while the scene's bodies stay (one per visual shape, in body order).
+    """
+    kinds, positions, rotations, scales, colours = [], [], [], [], []
+    c = sim.client
+    for i in range(p.getNumBodies(physicsClientId=c)):
+        body = p.getBodyUniqueId(i, physicsClientId=c)
+        if body == sim.hand_id:
+            continue
+        for shape in p.getVisualShapeData(body, physicsClientId=c):
+            link, geom, dims, local_pos, local_orn, rgba = shape[1], shape[2], shape[3], shape[5], shape[6], shape[7]
+            if geom not in _SHAPES:
+                continue
+            if link < 0:
+                pos, orn = p.getBasePositionAndOrientation(body, physicsClientId=c)
+            else:
+                pos, orn = p.getLinkState(body, link, computeForwardKinematics=True, physicsClientId=c)[:2]
+            frame = Rotation.from_quat(orn)
+            kind, scale = _SHAPES[geom]
+            kinds.append(kind)
+            positions.append(np.asarray(pos) + frame.apply(local_pos))
+            rotations.append((frame * Rotation.from_quat(local_orn)).as_quat())
+            scales.append(scale(dims))
+            colours.append(rgba)
+    n = len(kinds)
+    return Markers(
+        kinds=kinds,
+        frame_ids=[world] * n,
+        namespaces=[namespace] * n,
+        ids=np.arange(n),
+        positions=np.reshape(positions, (n, 3)),
+        orientations=np.reshape(rotations, (n, 4)),
+        scales=np.reshape(scales, (n, 3)),
+        colours=np.reshape(colours, (n, 4)),
+        texts=[""] * n,
+    )

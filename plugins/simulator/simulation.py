@@ -212,8 +212,8 @@ class Simulation:
         ids = {v: k for k, v in self.link_names.items()}
         if link not in ids:
             raise ValueError(f"hand '{self.model.name}' has no link '{link}'; links: {', '.join(sorted(ids))}")
-        if ids[link] == -1:
-            return np.array(p.getBasePositionAndOrientation(self.hand_id, physicsClientId=self.client)[0])
+        if ids[link] == -1:  # pybullet's base position is its centre of mass, not the link frame
+            return self.link_poses()[link][0]
         return np.array(
             p.getLinkState(self.hand_id, ids[link], computeForwardKinematics=True, physicsClientId=self.client)[4]
         )

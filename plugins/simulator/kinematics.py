@@ -57,7 +57,7 @@ class HandKinematics:
 
     def transforms(self, names: Sequence[str], positions) -> Frames:
         """Every joint's parent → child transform at the given joint angles (radians)."""
-        q = self.joint_vector(names, positions)
+        q = np.remainder(self.joint_vector(names, positions) + np.pi, 2 * np.pi) - np.pi  # same rotation, any finite q
         rot = self._fixed * Rotation.from_rotvec(self._axes * q[:, None])
         return Frames(list(self.parents), list(self.children), self._origins.copy(), rot.as_quat())
 

@@ -5,6 +5,8 @@ from __future__ import annotations
 import cv2
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from handflow.framework.messages import Image, Label, MessageError
 from handflow.framework.ros2.types import decode_cdr, encode_cdr
@@ -55,3 +57,27 @@ def test_compress_node_keeps_the_stamp_and_rejects_unknown_encodings():
     assert "mono16" in h.dropped[0][1]
     with pytest.raises(MessageError):
         compress(Image(width=2, height=2, encoding="yuv422", step=4, data=bytes(8)))
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    width=st.integers(0, 40),
+    height=st.integers(0, 40),
+    pad=st.integers(0, 5),
+    encoding=st.sampled_from(["mono8", "rgb8", "bgr8", "rgba8", "bgra8", "mono16", "yuv422"]),
+    fmt=st.sampled_from(["jpeg", "png"]),
+)
+def test_compress_node_never_crashes_on_a_valid_image(width, height, pad, encoding, fmt):
+    channels = {"mono8": 1, "rgb8": 3, "bgr8": 3, "rgba8": 4, "bgra8": 4, "mono16": 2, "yuv422": 2}[encoding]
+    step = width * channels + pad
+    img = Image(
+        width=width,
+        height=height,
+        encoding=encoding,
+        step=step,
+        data=bytes(range(256)) * (step * height // 256) + bytes(step * height % 256),
+    )
+    img.check()
+    h = NodeHarness(CompressImage, {"format": fmt}).setup()
+    h.send("image", img)
+    assert len(h.published.get("compressed", [])) + len(h.dropped) == 1

@@ -7,6 +7,8 @@ import xml.etree.ElementTree as ET
 import numpy as np
 import pybullet as p
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
 from handflow.framework.messages import JointState, Transforms
@@ -138,3 +140,13 @@ def test_simulator_node_publishes_tf_markers_and_a_repeated_description():
     assert len(h.published["description"]) == 2  # at the first tick and 0.5 s later
     assert_tree_matches_urdf(h.published["tf"][-1], h.published["description"][0].data)
     assert h.published["markers"][-1].kinds == ["cylinder", "cylinder"]  # bottle and cap
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.floats(allow_nan=False, allow_infinity=False), min_size=24, max_size=24))
+def test_robot_state_turns_any_finite_joint_angles_into_a_valid_tree(angles):
+    h = NodeHarness(RobotStateNode, {"hand": "human"}).setup()
+    h.send("joints", JointState(names=HUMAN.names, positions=angles, hand="human"))
+    assert not h.dropped
+    (tf,) = h.published["tf"]
+    assert np.isfinite(tf.translations).all()  # tf passed the publisher's checks (unit quaternions)

@@ -61,22 +61,22 @@ class HandKinematics:
         rot = self._fixed * Rotation.from_rotvec(self._axes * q[:, None])
         return Frames(list(self.parents), list(self.children), self._origins.copy(), rot.as_quat())
 
-    def link_poses(self, names: Sequence[str], positions) -> dict[str, tuple[np.ndarray, Rotation]]:
-        """World pose (position, rotation) of every link with the base link at the origin."""
+    def link_poses(self, names: Sequence[str], positions) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        """World pose (position, quaternion x, y, z, w) of every link with the base link at the origin."""
         frames = self.transforms(names, positions)
         poses = {self.base: (np.zeros(3), Rotation.identity())}
         for parent, child, t, r in zip(frames.parents, frames.children, frames.translations, frames.rotations):
             p_pos, p_rot = poses[parent]  # the skeleton lists every parent before its children
             poses[child] = (p_pos + p_rot.apply(t), p_rot * Rotation.from_quat(r))
-        return poses
+        return {link: (pos, rot.as_quat()) for link, (pos, rot) in poses.items()}
 
 
-def relative_frames(parents: list[str], children: list[str], world: dict[str, tuple[np.ndarray, Rotation]]) -> Frames:
-    """Parent → child transforms from world poses of both frames (e.g. pybullet's link frames)."""
-    t, r = [], []
-    for parent, child in zip(parents, children):
-        (p_pos, p_rot), (c_pos, c_rot) = world[parent], world[child]
-        inv = p_rot.inv()
-        t.append(inv.apply(c_pos - p_pos))
-        r.append((inv * c_rot).as_quat())
-    return Frames(list(parents), list(children), np.array(t).reshape(-1, 3), np.array(r).reshape(-1, 4))
+def relative_frames(parents: list[str], children: list[str], world: dict[str, tuple[np.ndarray, np.ndarray]]) -> Frames:
+    """Parent → child transforms from world poses (position, quaternion) of both frames, vectorised."""
+    parent_pos = np.array([world[n][0] for n in parents]).reshape(-1, 3)
+    child_pos = np.array([world[n][0] for n in children]).reshape(-1, 3)
+    if not parents:
+        return Frames([], [], parent_pos, np.zeros((0, 4)))
+    inv = Rotation.from_quat([world[n][1] for n in parents]).inv()
+    rot = inv * Rotation.from_quat([world[n][1] for n in children])
+    return Frames(list(parents), list(children), inv.apply(child_pos - parent_pos).reshape(-1, 3), rot.as_quat())

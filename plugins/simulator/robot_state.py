@@ -48,7 +48,7 @@ class RobotStateNode(Node):
         skeleton = build_skeleton(prm.hand)
         prefix = prm.frame_prefix if prm.frame_prefix is not None else f"{self.ctx.node_id}/"
         self.kinematics = HandKinematics(skeleton, prefix)
-        self.base_rotation = Rotation.from_euler("xyz", prm.rpy)
+        self.base_quaternion = Rotation.from_euler("xyz", prm.rpy).as_quat()
         self.description = Text(data=urdf_text(skeleton, viewer=True, prefix=prefix))
         self.last_description_ns: int | None = None
 
@@ -63,7 +63,7 @@ class RobotStateNode(Node):
         except ValueError as exc:  # unknown joint names: the runtime drops the message (docs/robustness.md)
             raise MessageError(str(exc)) from None
         base = self.kinematics.base
-        tf = transforms_message(frames, prm.world_frame, base, prm.origin, self.base_rotation)
+        tf = transforms_message(frames, prm.world_frame, base, prm.origin, self.base_quaternion)
         self.ctx.publish("tf", tf, stamp_ns=msg.header.stamp_ns)
         now = self.ctx.now_ns()
         last, period = self.last_description_ns, prm.description_period_s

@@ -218,16 +218,16 @@ class Simulation:
             p.getLinkState(self.hand_id, ids[link], computeForwardKinematics=True, physicsClientId=self.client)[4]
         )
 
-    def link_poses(self) -> dict[str, tuple[np.ndarray, Rotation]]:
-        """World pose (position, rotation) of every hand link's URDF frame as pybullet has it now."""
+    def link_poses(self) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        """World pose (position, quaternion x, y, z, w) of every hand link's URDF frame as pybullet has it now."""
         com_pos, com_orn = p.getBasePositionAndOrientation(self.hand_id, physicsClientId=self.client)
         local_pos, local_orn = p.getDynamicsInfo(self.hand_id, -1, physicsClientId=self.client)[3:5]
         base_rot = Rotation.from_quat(com_orn) * Rotation.from_quat(local_orn).inv()  # base COM → link frame
-        poses = {self.skeleton.base: (np.array(com_pos) - base_rot.apply(local_pos), base_rot)}
+        poses = {self.skeleton.base: (np.array(com_pos) - base_rot.apply(local_pos), base_rot.as_quat())}
         ids = [int(i) for i in sorted(self.link_names) if i >= 0]
         states = p.getLinkStates(self.hand_id, ids, computeForwardKinematics=True, physicsClientId=self.client)
         for i, state in zip(ids, states):
-            poses[self.link_names[i]] = (np.array(state[4]), Rotation.from_quat(state[5]))
+            poses[self.link_names[i]] = (np.array(state[4]), np.array(state[5]))
         return poses
 
     # -- lifetime ------------------------------------------------------------------------------

@@ -25,13 +25,13 @@ _SHAPES = {
 }
 
 
-def transforms_message(frames: Frames, world: str, base: str, position, rotation: Rotation) -> Transforms:
-    """A Transforms message: ``world`` → ``base`` at the given pose, then the hand's frames."""
+def transforms_message(frames: Frames, world: str, base: str, position, quaternion) -> Transforms:
+    """A Transforms message: ``world`` → ``base`` at the given pose (quaternion x, y, z, w), then the hand's frames."""
     return Transforms(
         parents=[world, *frames.parents],
         children=[base, *frames.children],
         translations=np.vstack([np.asarray(position, float).reshape(1, 3), frames.translations]),
-        rotations=np.vstack([rotation.as_quat().reshape(1, 4), frames.rotations]),
+        rotations=np.vstack([np.asarray(quaternion, float).reshape(1, 4), frames.rotations]),
     )
 
 
@@ -50,35 +50,40 @@ def scene_markers(sim: Simulation, world: str = "world", namespace: str = "scene
     Meshes and planes are left out; a capsule is drawn as a cylinder over its full length.  Ids
     are stable while the scene's bodies stay (one per visual shape, in body order).
     """
-    kinds, positions, rotations, scales, colours = [], [], [], [], []
+    kinds, scales, colours, frames, local = [], [], [], [], []
     c = sim.client
     for i in range(p.getNumBodies(physicsClientId=c)):
         body = p.getBodyUniqueId(i, physicsClientId=c)
         if body == sim.hand_id:
             continue
         for shape in p.getVisualShapeData(body, physicsClientId=c):
-            link, geom, dims, local_pos, local_orn, rgba = shape[1], shape[2], shape[3], shape[5], shape[6], shape[7]
+            link, geom, dims, rgba = shape[1], shape[2], shape[3], shape[7]
             if geom not in _SHAPES:
                 continue
             if link < 0:
                 pos, orn = p.getBasePositionAndOrientation(body, physicsClientId=c)
             else:
                 pos, orn = p.getLinkState(body, link, computeForwardKinematics=True, physicsClientId=c)[:2]
-            frame = Rotation.from_quat(orn)
             kind, scale = _SHAPES[geom]
             kinds.append(kind)
-            positions.append(np.asarray(pos) + frame.apply(local_pos))
-            rotations.append((frame * Rotation.from_quat(local_orn)).as_quat())
             scales.append(scale(dims))
             colours.append(rgba)
+            frames.append((*pos, *orn))
+            local.append((*shape[5], *shape[6]))
     n = len(kinds)
+    frames_a, local_a = np.reshape(frames, (n, 7)), np.reshape(local, (n, 7))
+    positions, rotations = np.zeros((0, 3)), np.zeros((0, 4))
+    if n:
+        frame = Rotation.from_quat(frames_a[:, 3:])
+        positions = frames_a[:, :3] + frame.apply(local_a[:, :3])
+        rotations = (frame * Rotation.from_quat(local_a[:, 3:])).as_quat()
     return Markers(
         kinds=kinds,
         frame_ids=[world] * n,
         namespaces=[namespace] * n,
         ids=np.arange(n),
-        positions=np.reshape(positions, (n, 3)),
-        orientations=np.reshape(rotations, (n, 4)),
+        positions=positions,
+        orientations=rotations,
         scales=np.reshape(scales, (n, 3)),
         colours=np.reshape(colours, (n, 4)),
         texts=[""] * n,

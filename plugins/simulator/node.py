@@ -7,7 +7,8 @@ then publishes ``joints`` (collision-corrected JointState), ``contacts`` (Contac
 (Array with ``names``: the scene state plus ``sim_time`` and ``holding``); ``image`` (Image) at
 ``camera_hz``.  For 3D viewers (docs/foxglove.md) it also publishes ``tf`` (Transforms from
 pybullet's link poses, every tick), ``markers`` (the scene's shapes, every tick) and ``description``
-(the viewer-safe URDF, at start and every ``description_period_s``), frames under ``frame_prefix``.
+(the viewer-safe URDF, at start and every ``description_period_s``), frames under ``frame_prefix``;
+``view_hz: 0`` turns the three off.
 Fail-safe: when no targets arrived for ``hold_safe_after_s`` the node
 holds the last command, logs it once and reports ``holding = 1`` until targets resume.
 """
@@ -49,6 +50,7 @@ class SimulatorParams(BaseModel):
     )
     frame_prefix: str | None = Field(None, description="prefix of the hand's TF frames; default '<node id>/'")
     world_frame: str = Field("world", description="TF frame of the simulated world")
+    view_hz: float = Field(30.0, ge=0, description="rate of tf and markers (at most the tick rate); 0 = off")
     description_period_s: float = Field(
         2.0, ge=0, description="republish the robot description this often (late viewers); 0 = only at start"
     )
@@ -81,6 +83,7 @@ class PybulletSimulatorNode(Node):
         self.prefix = prm.frame_prefix if prm.frame_prefix is not None else f"{self.ctx.node_id}/"
         self.description = Text(data=urdf_text(self.sim.skeleton, viewer=True, prefix=self.prefix))
         self.last_description_ns: int | None = None
+        self.last_view_ns: int | None = None
 
     def on_message(self, port: str, msg: JointState) -> None:
         try:
@@ -134,10 +137,14 @@ class PybulletSimulatorNode(Node):
             self.ctx.publish("image", Image.from_array(rgb, frame_id=f"{self.params.scene}_camera"))
 
     def _publish_viewer(self, now: int) -> None:
-        world = self.params.world_frame
-        self.ctx.publish("tf", simulated_hand_transforms(self.sim, self.prefix, world))
-        self.ctx.publish("markers", scene_markers(self.sim, world))
-        period = self.params.description_period_s
+        prm = self.params
+        if prm.view_hz <= 0:
+            return
+        if self.last_view_ns is None or now - self.last_view_ns >= 1e9 / prm.view_hz - 1e3:  # 1 µs slack
+            self.last_view_ns = now
+            self.ctx.publish("tf", simulated_hand_transforms(self.sim, self.prefix, prm.world_frame))
+            self.ctx.publish("markers", scene_markers(self.sim, prm.world_frame))
+        period = prm.description_period_s
         last = self.last_description_ns
         if last is None or (period > 0 and now - last >= period * 1e9):
             self.last_description_ns = now

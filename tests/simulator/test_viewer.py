@@ -151,3 +151,15 @@ def test_robot_state_turns_any_finite_joint_angles_into_a_valid_tree(angles):
     assert not h.dropped
     (tf,) = h.published["tf"]
     assert np.isfinite(tf.translations).all()  # tf passed the publisher's checks (unit quaternions)
+
+
+def test_view_outputs_follow_view_hz_and_turn_off():
+    rates = {}
+    for view_hz in (5.0, 0.0):
+        h = NodeHarness(PybulletSimulatorNode, {"camera_hz": 0, "rate_hz": 10, "view_hz": view_hz}, "sim").setup()
+        try:
+            h.tick(10)
+        finally:
+            h.teardown()
+        rates[view_hz] = (len(h.published.get("tf", [])), len(h.published.get("description", [])))
+    assert rates == {5.0: (5, 1), 0.0: (0, 0)}

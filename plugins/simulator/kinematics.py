@@ -15,6 +15,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from handflow.framework.messages import Transforms
+
 from .hand_geometry import HandSkeleton
 
 
@@ -80,3 +82,13 @@ def relative_frames(parents: list[str], children: list[str], world: dict[str, tu
     inv = Rotation.from_quat([world[n][1] for n in parents]).inv()
     rot = inv * Rotation.from_quat([world[n][1] for n in children])
     return Frames(list(parents), list(children), inv.apply(child_pos - parent_pos).reshape(-1, 3), rot.as_quat())
+
+
+def transforms_message(frames: Frames, world: str, base: str, position, quaternion) -> Transforms:
+    """A Transforms message: ``world`` → ``base`` at the given pose (quaternion x, y, z, w), then the hand's frames."""
+    return Transforms(
+        parents=[world, *frames.parents],
+        children=[base, *frames.children],
+        translations=np.vstack([np.asarray(position, float).reshape(1, 3), frames.translations]),
+        rotations=np.vstack([np.asarray(quaternion, float).reshape(1, 4), frames.rotations]),
+    )

@@ -17,9 +17,8 @@ from handflow.framework.messages import JointState, MessageError, Text, Transfor
 from handflow.framework.plugin import Node
 
 from .hand_geometry import build_skeleton
-from .kinematics import HandKinematics
+from .kinematics import HandKinematics, transforms_message
 from .urdf import urdf_text
-from .viewer import transforms_message
 
 
 class RobotStateParams(BaseModel):

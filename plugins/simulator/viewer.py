@@ -13,7 +13,7 @@ from scipy.spatial.transform import Rotation
 from handflow.framework.messages import Markers, Transforms
 
 from .bullet import pybullet as p
-from .kinematics import Frames, relative_frames
+from .kinematics import relative_frames, transforms_message
 from .simulation import Simulation
 
 # pybullet visual geometry → (marker kind, scale from pybullet's dimensions)
@@ -23,16 +23,6 @@ _SHAPES = {
     p.GEOM_CYLINDER: ("cylinder", lambda d: [2 * d[1], 2 * d[1], d[0]]),
     p.GEOM_CAPSULE: ("cylinder", lambda d: [2 * d[1], 2 * d[1], d[0] + 2 * d[1]]),
 }
-
-
-def transforms_message(frames: Frames, world: str, base: str, position, quaternion) -> Transforms:
-    """A Transforms message: ``world`` → ``base`` at the given pose (quaternion x, y, z, w), then the hand's frames."""
-    return Transforms(
-        parents=[world, *frames.parents],
-        children=[base, *frames.children],
-        translations=np.vstack([np.asarray(position, float).reshape(1, 3), frames.translations]),
-        rotations=np.vstack([np.asarray(quaternion, float).reshape(1, 4), frames.rotations]),
-    )
 
 
 def simulated_hand_transforms(sim: Simulation, prefix: str, world: str = "world") -> Transforms:

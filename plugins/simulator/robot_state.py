@@ -5,7 +5,7 @@ the glove mapping, or a robot hand's commanded joints): input ``joints`` (JointS
 ``tf`` (Transforms: ``world_frame`` → base at ``origin``/``rpy``, then one transform per joint
 by forward kinematics, :mod:`handflow.plugins.simulator.kinematics`) and ``description`` (the
 viewer-safe URDF with the same frame prefix, at the first message and every
-``description_period_s``).  See docs/foxglove.md.
+``description_period_s``); at most ``view_hz`` TF messages per second.  See docs/foxglove.md.
 """
 
 from __future__ import annotations
@@ -33,6 +33,7 @@ class RobotStateParams(BaseModel):
     description_period_s: float = Field(
         2.0, ge=0, description="republish the robot description this often (late viewers); 0 = only once"
     )
+    view_hz: float = Field(30.0, gt=0, description="at most this many TF messages per second (viewers need no more)")
 
 
 class RobotStateNode(Node):
@@ -50,9 +51,13 @@ class RobotStateNode(Node):
         self.base_quaternion = Rotation.from_euler("xyz", prm.rpy).as_quat()
         self.description = Text(data=urdf_text(skeleton, viewer=True, prefix=prefix))
         self.last_description_ns: int | None = None
+        self.last_tf_ns: int | None = None
 
     def on_message(self, port: str, msg: JointState) -> None:
         prm = self.params
+        now = self.ctx.now_ns()
+        if self.last_tf_ns is not None and now - self.last_tf_ns < 1e9 / prm.view_hz - 1e3:  # 1 µs slack
+            return
         if msg.hand and msg.hand != prm.hand:
             raise MessageError(
                 f"joints of hand '{msg.hand}' arrived; this node draws the '{prm.hand}' hand (param hand)"
@@ -64,7 +69,7 @@ class RobotStateNode(Node):
         base = self.kinematics.base
         tf = transforms_message(frames, prm.world_frame, base, prm.origin, self.base_quaternion)
         self.ctx.publish("tf", tf, stamp_ns=msg.header.stamp_ns)
-        now = self.ctx.now_ns()
+        self.last_tf_ns = now
         last, period = self.last_description_ns, prm.description_period_s
         if last is None or (period > 0 and now - last >= period * 1e9):
             self.last_description_ns = now

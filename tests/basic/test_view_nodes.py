@@ -18,7 +18,8 @@ from handflow.plugins.basic.label_text import LabelText
 def test_label_text_replaces_one_text_marker_with_the_label_and_its_score():
     h = NodeHarness(LabelText, {"position": [0, 0, 0.4], "height": 0.05}).setup()
     h.send("label", Label(label="grasp", classes=["grasp", "wave"], scores=[0.87, 0.1]), stamp_ns=5)
-    h.send("label", Label(label="unknown"), stamp_ns=6)
+    h.send("label", Label(label="wave"), stamp_ns=50_000_005)  # within 1 / max_hz (10 Hz): skipped
+    h.send("label", Label(label="unknown"), stamp_ns=100_000_005)
     first, second = h.published["markers"]
     assert first.texts == ["grasp (0.87)"] and second.texts == ["unknown"]
     assert first.kinds == ["text"] and (first.namespaces, first.ids.tolist()) == (

@@ -123,8 +123,10 @@ def test_robot_state_node_publishes_the_tree_and_description_of_the_human_hand()
     assert_tree_matches_urdf(tfs[-1], descriptions[0].data)
     assert tfs[-1].parents[0] == "world" and tfs[-1].children[0] == "human_tf/forearm"
     np.testing.assert_allclose(tfs[-1].translations[0], [0, 0.3, 0])
-    h.send("joints", JointState(names=["FFJ3"], positions=[0.1], hand="shadow"))
-    h.send("joints", JointState(names=["nope"], positions=[0.1], hand=""))
+    h.send("joints", JointState(names=HUMAN.names, positions=q, hand="human"), stamp_ns=1_210_000_000)
+    assert len(h.published["tf"]) == 3  # 10 ms after the last: above view_hz (30), skipped
+    h.send("joints", JointState(names=["FFJ3"], positions=[0.1], hand="shadow"), stamp_ns=2_000_000_000)
+    h.send("joints", JointState(names=["nope"], positions=[0.1], hand=""), stamp_ns=3_000_000_000)
     assert len(h.dropped) == 2 and "param hand" in h.dropped[0][1] and "nope" in h.dropped[1][1]
 
 

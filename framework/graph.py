@@ -20,6 +20,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 from .messages import Message, message_types
 from .plugin import Node
 from .registry import PluginError, load_plugin, plugin_entries
+from .ros2.rmw_zenoh import check_name
 from .yaml_files import Problem, YamlFileError, line_of, parse, pydantic_problems
 
 _ID = re.compile(r"^[A-Za-z0-9_\-]+$")
@@ -81,6 +82,28 @@ class FoxgloveSettings(_Strict):
     port: int = Field(8765, ge=0, le=65535, description="0 picks a free port")
 
 
+class Ros2Settings(_Strict):
+    """Live ROS 2 interop: selected topics republished as rmw_zenoh does it (docs/ros2.md)."""
+
+    domain_id: int = Field(0, ge=0, le=232, description="ROS_DOMAIN_ID of the ROS 2 system")
+    node_name: str | None = Field(None, description="ROS 2 node name; default: the graph name ('-' → '_')")
+    namespace: str = Field("/", description="ROS 2 namespace of that node")
+    publish: list[str] | dict[str, str] = Field(
+        default_factory=list,
+        description="node/port topics to publish; as a mapping node/port → ROS 2 topic name, else /<node>/<port>",
+    )
+    depth: int = Field(10, ge=1, description="history depth announced in the QoS of each publisher")
+
+    def topics(self) -> dict[str, str]:
+        """node/port → ROS 2 topic name."""
+        if isinstance(self.publish, dict):
+            return dict(self.publish)
+        return {src: "/" + src.replace("-", "_") for src in self.publish}
+
+    def ros_node_name(self, graph_name: str) -> str:
+        return self.node_name or graph_name.replace("-", "_")
+
+
 class GraphSpec(_Strict):
     name: str
     description: str = ""
@@ -89,6 +112,7 @@ class GraphSpec(_Strict):
     nodes: list[NodeSpec]
     record: RecordSpec | None = None
     foxglove: FoxgloveSettings | None = None
+    ros2: Ros2Settings | None = None
 
     @field_validator("name")
     @classmethod
@@ -129,7 +153,8 @@ class Graph:
         """Message type published at ``node/port`` (a graph node or an external topic)."""
         node_id, _, port = source.partition("/")
         if node_id in self.nodes:
-            return self.nodes[node_id].cls.outputs.get(port)
+            rn = self.nodes[node_id]
+            return rn.cls.output_types(rn.params).get(port)
         name = self.spec.external.get(source)
         return _message_type(name) if name else None
 
@@ -199,6 +224,9 @@ def read_graph_text(text: str, path: Path, only: Collection[str] | None = None) 
                 )
             )
 
+    if spec.ros2 is not None:
+        problems += _ros2_problems(graph, spec.ros2, lines)
+
     for i, ns in enumerate(spec.nodes):
         rn = graph.nodes.get(ns.id)
         if rn is None or rn.spec is not ns:
@@ -207,6 +235,27 @@ def read_graph_text(text: str, path: Path, only: Collection[str] | None = None) 
             line = line_of(lines, ("nodes", i, "inputs", port))
             problems += _input_problems(graph, rn, port, source, line)
     return (graph if not problems else None), problems
+
+
+def _ros2_problems(graph: Graph, ros2: Ros2Settings, lines: dict) -> list[Problem]:
+    problems = []
+    declared = {n.id for n in graph.spec.nodes}
+    for source, topic in ros2.topics().items():
+        node_id = source.partition("/")[0]
+        if node_id in declared and node_id not in graph.nodes:
+            continue  # not loaded here (another process's node, or failed its own checks)
+        line = line_of(lines, ("ros2", "publish", source) if isinstance(ros2.publish, dict) else ("ros2", "publish"))
+        if graph.source_type(source) is None and source.partition("/")[0] in graph.nodes:
+            problems.append(Problem(line, f"ros2.publish: '{source}' is not an output of this graph; use node/port"))
+        elif graph.source_type(source) is None:
+            problems.append(
+                Problem(line, f"ros2.publish: no node '{source.partition('/')[0]}' in this graph; use node/port")
+            )
+        try:
+            check_name(topic)
+        except ValueError as exc:
+            problems.append(Problem(line, f"ros2.publish '{source}': {exc}"))
+    return problems
 
 
 def _input_problems(graph: Graph, rn: ResolvedNode, port: str, source: str, line: int) -> list[Problem]:
@@ -236,14 +285,15 @@ def _input_problems(graph: Graph, rn: ResolvedNode, port: str, source: str, line
     if out_type is None and src_node not in graph.nodes:
         return []  # an external topic of an unknown type (reported with 'external:')
     if out_type is None:
-        outs = graph.nodes[src_node].cls.outputs
+        src = graph.nodes[src_node]
+        outs = src.cls.output_types(src.params)
         return [
             Problem(
                 line,
                 f"node '{nid}' input '{port}': node '{src_node}' has no output '{src_port}'; its outputs: {', '.join(outs) or 'none'}",
             )
         ]
-    in_type = rn.cls.inputs[port]
+    in_type = rn.cls.input_types(rn.params)[port]
     if not issubclass(out_type, in_type):
         return [
             Problem(

@@ -178,3 +178,18 @@ def test_the_wire_peeks_the_stamp_of_headerless_types():
     empty = Transforms()
     empty.header.stamp_ns = 99
     assert wire.peek(*wire.pack(empty)).stamp_ns == 0  # an empty TFMessage carries no stamp
+
+
+@pytest.mark.parametrize(
+    "ros",
+    [
+        "tf2_msgs/msg/TFMessage",
+        "visualization_msgs/msg/MarkerArray",
+        "sensor_msgs/msg/CompressedImage",
+        "std_msgs/msg/String",
+    ],
+)
+def test_view_types_have_the_rihs01_hash_of_rosbags(store, ros):
+    from handflow.framework.ros2.types import type_hash
+
+    assert type_hash(ros) == store.hash_rihs01(ros)

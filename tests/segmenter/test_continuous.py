@@ -185,6 +185,8 @@ def test_clm_over_classifier_scores_groups_frames_and_rejects_with_its_backgroun
     band = evidence_band(evidence, width=4, history=2)
     assert band.shape == (2, 3, 4) and np.allclose(band[:, :, 2:], 0) and np.allclose(band[:, 2], 0)
     assert band[0, 0, 0] > 0 > band[0, 1, 0]  # frames 0,1 lean to class 0 together; frame 2 does not
+    four = evidence_band(np.tile([0.4, 0.2, 0.2, 0.2], (3, 1)), width=2, history=2)
+    assert four[0, 0, 0] > 0 > four[1, 0, 0]  # above chance (1/4) supports, below repels, with 4 classes
 
     X, y = _synthetic_recordings(0)
     method = METHODS["clm_dtw"]

@@ -16,6 +16,7 @@ from handflow.plugins.segmenter.continuous import (
 from handflow.plugins.segmenter.datasets import DatasetError
 from handflow.plugins.segmenter.frame_methods import METHODS, DTWMethod
 from handflow.plugins.segmenter.openset import calibrate, frame_metrics, runs, segment_f1, tradeoff_curve
+from handflow.plugins.segmenter.stream_cli import format_stream_table
 from handflow.plugins.segmenter.stream_evaluation import StreamEvaluator
 from tests.segmenter.conftest import SHARED
 
@@ -165,6 +166,8 @@ def test_open_set_selection_rejects_a_held_out_class(tmp_path):
     assert res["unknown_rejection"] > 0.5  # class c was never seen: most of its frames are rejected
     assert res["known_accuracy"] > 0.5
     assert 0 <= res["tradeoff_auc"] <= 1
+    assert 0 < res["segment_f1"] <= 1 and all("segment_f1" in f for f in res["folds"])
+    assert "segment_f1" in format_stream_table(ev.evaluate())
     assert DTWMethod().grid(quick=True)
 
 

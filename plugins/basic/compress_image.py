@@ -5,9 +5,10 @@ from __future__ import annotations
 from typing import Literal
 
 import cv2
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import Field
 
 from handflow.framework.messages import CompressedImage, Image, MessageError
+from handflow.framework.params import StrictModel
 from handflow.framework.plugin import Node
 
 _TO_BGR = {"rgb8": cv2.COLOR_RGB2BGR, "rgba8": cv2.COLOR_RGBA2BGR, "bgra8": cv2.COLOR_BGRA2BGR}
@@ -32,10 +33,9 @@ def compress(image: Image, fmt: str = "jpeg", quality: int = 90) -> CompressedIm
     return CompressedImage(format=fmt, data=data.tobytes(), frame_id=image.frame_id)
 
 
-class CompressImageParams(BaseModel):
+class CompressImageParams(StrictModel):
     """Parameters of ``basic.compress_image``."""
 
-    model_config = ConfigDict(extra="forbid")
     format: Literal["jpeg", "png"] = "jpeg"
     quality: int = Field(90, ge=0, le=100, description="JPEG quality")
 

@@ -2,16 +2,16 @@
 
 from __future__ import annotations
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import Field
 
 from handflow.framework.messages import Label, Markers
+from handflow.framework.params import StrictModel
 from handflow.framework.plugin import Node
 
 
-class LabelTextParams(BaseModel):
+class LabelTextParams(StrictModel):
     """Parameters of ``basic.label_text``."""
 
-    model_config = ConfigDict(extra="forbid")
     frame_id: str = Field("world", description="TF frame the text is placed in")
     position: tuple[float, float, float] = Field((0.0, 0.0, 0.5), description="text position in frame_id (m)")
     height: float = Field(0.04, gt=0, description="text height (m)")

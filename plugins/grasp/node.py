@@ -14,9 +14,10 @@ from __future__ import annotations
 from typing import Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import Field
 
 from handflow.framework.messages import Contacts, JointState, Label, MessageError, Status
+from handflow.framework.params import StrictModel
 from handflow.framework.plugin import Node
 from handflow.plugins.hands.joints import HAND_MODELS
 
@@ -25,10 +26,9 @@ from .experience import ExperienceBase
 from .hand_layout import hand_layout
 
 
-class ExperienceGraspParams(BaseModel):
+class ExperienceGraspParams(StrictModel):
     """Parameters of ``grasp.experience``."""
 
-    model_config = ConfigDict(extra="forbid")
     hand: Literal["shadow", "gifu", "human"] = Field("shadow", description="hand model")
     experience: str | None = Field(None, description="SOM (.npz from grasp-som) or grasp dataset; none = tactile only")
     rate_hz: float = Field(60.0, gt=0, description="control cycles per second")

@@ -13,9 +13,10 @@ import importlib
 from typing import Any
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import Field, model_validator
 
 from handflow.framework.messages import Array, MessageError
+from handflow.framework.params import StrictModel
 from handflow.framework.plugin import Node
 
 from .clock import lsl_to_stamps, stamp_to_lsl, wall_minus_lsl_ns
@@ -39,8 +40,7 @@ def _require_extra() -> None:
         raise ValueError(str(exc)) from None
 
 
-class InletParams(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+class InletParams(StrictModel):
     name: str | None = Field(None, description="stream name to resolve")
     type: str | None = Field(None, description="stream type to resolve, e.g. EMG, EEG, Mocap")
     source_id: str | None = Field(None, description="stream source id to resolve (the most specific)")
@@ -56,8 +56,7 @@ class InletParams(BaseModel):
         return self
 
 
-class OutletParams(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+class OutletParams(StrictModel):
     name: str = Field(description="stream name")
     type: str = Field("handflow", description="stream type, e.g. EMG, Mocap")
     source_id: str = Field("", description="unique source id (lets receivers reconnect after a restart)")

@@ -13,9 +13,10 @@ import queue
 from typing import Literal
 
 import zenoh
-from pydantic import BaseModel, ConfigDict, Field, field_validator
+from pydantic import BaseModel, Field, field_validator
 
 from handflow.framework.messages import Array, Message, MessageError
+from handflow.framework.params import StrictModel
 from handflow.framework.plugin import Node
 from handflow.framework.ros2.rmw_zenoh import DEFAULT_DEPTH, RosNode, check_name
 from handflow.framework.ros2.type_hash import full_name
@@ -26,8 +27,7 @@ QUEUE_SIZE = 10_000
 LOG_EVERY = 100  # a stream of bad samples is logged once per this many
 
 
-class Ros2Params(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+class Ros2Params(StrictModel):
     topic: str = Field(description="fully qualified ROS 2 topic name, e.g. /joint_states")
     type: str = Field(description="ROS 2 message type, e.g. sensor_msgs/msg/JointState")
     msg_files: list[str] = Field(

@@ -10,10 +10,11 @@ viewer-safe URDF with the same frame prefix, at the first message and every
 
 from __future__ import annotations
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import Field
 from scipy.spatial.transform import Rotation
 
 from handflow.framework.messages import JointState, MessageError, Text, Transforms
+from handflow.framework.params import StrictModel
 from handflow.framework.plugin import Node
 
 from .hand_geometry import build_skeleton
@@ -21,10 +22,9 @@ from .kinematics import HandKinematics, transforms_message
 from .urdf import urdf_text
 
 
-class RobotStateParams(BaseModel):
+class RobotStateParams(StrictModel):
     """Parameters of ``simulator.robot_state``."""
 
-    model_config = ConfigDict(extra="forbid")
     hand: str = Field("human", description="hand model: human | shadow | gifu")
     frame_prefix: str | None = Field(None, description="prefix of the hand's TF frames; default '<node id>/'")
     world_frame: str = Field("world", description="parent frame of the hand's base link")

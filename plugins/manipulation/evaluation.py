@@ -60,9 +60,10 @@ class CapSettings:
 def cap_turning(
     manifold: ManipulationManifold, radius_cm: float, settings: CapSettings = CapSettings(), seed: int = 0
 ) -> dict:
-    """Grasp by navigation then turn ``settings.cycles`` cycles; returns deg_per_cycle and
-    found_radius (the frozen latent radius: cm on a constructed manifold, latent units on a
-    learned one)."""
+    """Grasp by navigation then turn ``settings.cycles`` cycles; returns deg_per_cycle (net rotation
+    over all cycles / cycles), per_cycle_deg (rotation of each cycle: the first one carries the
+    grasp's settling transient, see docs/manipulation.md) and found_radius (the frozen latent
+    radius: cm on a constructed manifold, latent units on a learned one)."""
     t_dim = manifold.time_dim
     lo, hi = manifold.range(t_dim)
     delta = (hi - lo) / (settings.cycle_s * settings.control_hz)
@@ -83,14 +84,17 @@ def cap_turning(
             sim.step(per_control)
             if ctl.state == TURNING:
                 break
-        start = sim.scene_state()["cap_angle"]
-        for _ in range(turning_steps):
+        angles = [sim.scene_state()["cap_angle"]]
+        for step in range(1, turning_steps + 1):
             x = ctl.update(())
             sim.set_targets(manifold.joint_names, ctl.posture(x))
             sim.step(per_control)
-        turned = sim.scene_state()["cap_angle"] - start
+            if step * settings.cycles // turning_steps > len(angles) - 1:
+                angles.append(sim.scene_state()["cap_angle"])
+    per_cycle = np.degrees(np.diff(angles))
     return {
-        "deg_per_cycle": float(np.degrees(turned) / settings.cycles),
+        "deg_per_cycle": float(per_cycle.sum() / settings.cycles),
+        "per_cycle_deg": per_cycle.tolist(),
         "found_radius": float(ctl.radius),
         "grasp_complete": bool(ctl.grasp_complete),
     }
@@ -236,7 +240,7 @@ class EvalPlan:
 
     @classmethod
     def quick(cls) -> EvalPlan:
-        return cls(cap=CapSettings(cycles=1), balls=BallSettings(duration_s=30.0, camera=False), disturb_every_s=12.0)
+        return cls(cap=CapSettings(cycles=2), balls=BallSettings(duration_s=30.0, camera=False), disturb_every_s=12.0)
 
     def disturbances(self) -> tuple[float, ...]:
         end = self.balls.duration_s - 1e-9

@@ -36,3 +36,17 @@ def test_a_turn_back_costs_the_open_loop_swaps(ball_manifold_file):
     turned = ball_swap(man, False, BallSettings(**{**base.__dict__, "turn_times_s": (10.5,), "turn_deg": 90.0}))
     assert abs(calm["progress"][-1]) >= 5
     assert abs(turned["progress"][-1]) <= abs(calm["progress"][-1]) - 0.4
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("radius_cm", [1.5, 3.5])
+def test_quick_evaluation_turns_the_smallest_and_largest_cap_forward(radius_cm):
+    from handflow.framework.resources import shipped
+    from handflow.plugins.manipulation import ManipulationManifold
+    from handflow.plugins.manipulation.evaluation import cap_turning
+
+    man = ManipulationManifold.load(shipped("models") / "cap_constructed.npz")
+    res = cap_turning(man, radius_cm, EvalPlan.quick().cap)
+    assert res["grasp_complete"]
+    assert res["deg_per_cycle"] >= 10.0
+    assert len(res["per_cycle_deg"]) == EvalPlan.quick().cap.cycles

@@ -4,7 +4,14 @@ definition and a short real ball-swap run with a turn-back disturbance."""
 import numpy as np
 import pytest
 
-from handflow.plugins.manipulation.evaluation import BallSettings, EvalPlan, ball_swap, recoveries
+from handflow.plugins.manipulation.evaluation import (
+    DISTURBANCE_CLASSES,
+    BallSettings,
+    EvalPlan,
+    ball_swap,
+    disturbance_classes,
+    recoveries,
+)
 
 
 def test_recovery_needs_half_the_calm_rate_within_ten_seconds():
@@ -24,6 +31,17 @@ def test_quick_plan_disturbs_at_the_same_open_loop_phase():
     times = plan.disturbances()
     assert times[0] == pytest.approx(10.5) and len(times) == 2
     assert np.allclose(np.mod(np.array(times) - times[0], 2.0), 0.0)  # 2 s hand cycle
+
+
+def test_disturbance_classes_gather_rate_and_recovered_share_per_controller():
+    row = {"swaps_per_min": 30.0, "disturbances": 4}
+    for i, (_, key) in enumerate(DISTURBANCE_CLASSES.values()):
+        row[f"swaps_per_min_disturbed{key}"], row[f"recoveries{key}"] = 20.0 + i, i
+    classes = disturbance_classes({"open_loop": row, "closed_loop": {**row, "recoveries_held": 4}})
+    assert set(classes) == {"turn_back", "push", "hold"}
+    assert classes["push"]["open_loop"] == {"rate": 21.0, "recovered_share": 0.25}
+    assert classes["hold"]["closed_loop"]["recovered_share"] == 1.0
+    assert classes["hold"]["open_loop"]["recovered_share"] == 0.5
 
 
 @pytest.mark.slow

@@ -108,6 +108,16 @@ class Node:
         return float(rate)
 
     @classmethod
+    def input_types(cls, params: BaseModel) -> dict[str, type[Message]]:
+        """Input port types for these params; ``inputs`` unless a plugin's types depend on its params."""
+        return cls.inputs
+
+    @classmethod
+    def output_types(cls, params: BaseModel) -> dict[str, type[Message]]:
+        """Output port types for these params; ``outputs`` unless a plugin's types depend on its params."""
+        return cls.outputs
+
+    @classmethod
     def summary(cls) -> str:
         doc = cls.description or (cls.__doc__ or "").strip().splitlines()[0:1]
         return doc if isinstance(doc, str) else (doc[0] if doc else "")

@@ -33,6 +33,7 @@ import numpy as np
 
 from ..messages import Header, Image, JointState, Message, MessageError, Status, message_types
 from .cdr import CdrReader, CdrWriter, parse_msg
+from .type_hash import rihs01
 
 OWN_PACKAGE = "handflow_msgs"
 # Standard ROS 2 Jazzy definitions used by the mapping (checked against rosbags' Jazzy store in tests).
@@ -94,6 +95,11 @@ def handflow_type(ros: str) -> type[Message]:
         except MessageError:
             continue
     raise MessageError(f"no handflow message type for ROS 2 type {ros}")
+
+
+def type_hash(ros: str) -> str:
+    """The RIHS01 hash of a standard or ``handflow_msgs`` type used by the mapping (docs/ros2.md)."""
+    return rihs01(ros, {**STANDARD_MSGS, **own_msgs()})
 
 
 # ----------------------------------------------------------------------------------------------

@@ -1,0 +1,228 @@
+"""UKR on neighbour lists: cost and memory linear in the number of points (docs/training.md).
+
+With compact kernels (:data:`~handflow.plugins.manifold.kernels.COMPACT_KERNELS`) ``K_ij`` is
+zero unless every latent coordinate of ``x_i − x_j`` lies inside its kernel's support.  In
+coordinates scaled by ``1/support`` that support is the unit ball of the maximum norm
+(periodic dimensions on a torus of circumference ``π/support``), so a ``cKDTree`` finds all
+non-zero pairs.  The objective and gradient of ``objective.py`` are then sums over those
+pairs only: O(N·k·d) time and O(N·k) memory for k neighbours per point.
+
+Rebuild schedule (Verlet list, documented choice): pairs are searched up to radius
+``1 + skin`` (``skin`` = 0.3 supports) and the list is rebuilt only once some point has
+moved more than ``skin/2`` supports in some coordinate since the last build, so no pair
+inside the support is ever missed and the result equals the dense one up to rounding.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.sparse import csr_matrix
+from scipy.spatial import cKDTree
+
+from .kernels import COMPACT_KERNELS, ProductKernel
+from .objective import Objective
+from .projection import Manifold
+from .validation import InvalidInputError
+
+# Documented choice: above this many points ``sparse="auto"`` takes the neighbour-list path
+# (measured crossover well below it, docs/benchmarks.md "UKR at scale").
+SPARSE_MIN_N = 2000
+SKIN = 0.3
+SPARSE_MODES = ("auto", True, False, "float32")
+_TINY = 1e-300
+
+
+def compact_advice(kernel: ProductKernel) -> str:
+    """Which compact kernel to configure instead of each non-compact one."""
+    subs = []
+    for l, k in enumerate(kernel.kernels):
+        if not k.compact:
+            if k.periodic:
+                subs.append(f"latent[{l}]: {k.name} (beta {k.beta:g}) -> periodic_quartic with beta > 1")
+            else:
+                subs.append(f"latent[{l}]: {k.name} -> quartic or epanechnikov")
+    return "; ".join(subs)
+
+
+def use_sparse(mode, kernel: ProductKernel, n_points: int) -> bool:
+    """Resolve the ``sparse`` hyper-parameter (``auto``: compact kernels and N ≥ SPARSE_MIN_N)."""
+    if mode not in SPARSE_MODES or isinstance(mode, (int, float)) and not isinstance(mode, bool):
+        raise InvalidInputError(f"sparse must be one of 'auto', true, false, 'float32'; got {mode!r}")
+    compact = all(k.compact for k in kernel.kernels)
+    if mode == "auto":
+        return compact and n_points >= SPARSE_MIN_N
+    if mode and not compact:
+        raise InvalidInputError(
+            f"sparse training needs compact kernels ({', '.join(COMPACT_KERNELS)}); change {compact_advice(kernel)}"
+        )
+    return bool(mode)
+
+
+def pair_kernel(kernel: ProductKernel, delta, with_du=False):
+    """``K`` on a list of latent differences (P×q) and, optionally, ``∂K/∂δ_l`` (list over l)."""
+    phis, dks = [], []
+    for l, k in enumerate(kernel.kernels):
+        s = np.sin(delta[:, l]) if k.periodic else delta[:, l]
+        u = (k.beta**2) * s * s
+        phis.append(k.phi(u))
+        if with_du:
+            du = (k.beta**2) * (np.sin(2 * delta[:, l]) if k.periodic else 2 * delta[:, l])
+            dks.append(k.dphi(u) * du)
+    K = np.prod(phis, axis=0) if len(phis) > 1 else phis[0]
+    if not with_du:
+        return K, None
+    D = []
+    for l in range(kernel.q):
+        d = dks[l].copy()
+        for m in range(kernel.q):
+            if m != l:
+                d *= phis[m]
+        D.append(d)
+    return K, D
+
+
+class NeighbourIndex:
+    """Scaled latent coordinates and their ``cKDTree`` (support = unit max-norm ball)."""
+
+    def __init__(self, kernel: ProductKernel):
+        if not all(k.compact for k in kernel.kernels):
+            raise InvalidInputError(
+                f"the neighbour-list path needs compact kernels ({', '.join(COMPACT_KERNELS)}); "
+                f"change {compact_advice(kernel)}"
+            )
+        self.kernel = kernel
+        self.scale = np.array([1.0 / k.support for k in kernel.kernels])
+        self.box = np.where(kernel.periodic, np.pi * self.scale, 0.0)
+
+    def scaled(self, X):
+        Z = np.asarray(X, dtype=float) * self.scale
+        p = self.kernel.periodic
+        Z[:, p] = np.mod(Z[:, p], self.box[p])
+        return Z
+
+    def tree(self, X):
+        return cKDTree(self.scaled(X), boxsize=self.box if self.kernel.periodic.any() else None)
+
+    def differences(self, A, B, rows, cols):
+        """Latent differences ``a_rows − b_cols`` (periodic ones wrapped into [−π/2, π/2))."""
+        delta = A[rows] - B[cols]
+        p = self.kernel.periodic
+        delta[:, p] = np.mod(delta[:, p] + np.pi / 2, np.pi) - np.pi / 2
+        return delta
+
+
+class VerletPairs:
+    """All ordered pairs ``i ≠ j`` within ``1 + skin`` supports, as a CSR pattern, kept
+    up to date as the latents move (rebuilt when a point has moved more than ``skin/2``)."""
+
+    def __init__(self, index: NeighbourIndex, skin=SKIN):
+        self.index, self.skin = index, float(skin)
+        self.X_ref, self.n_builds = None, 0
+
+    def update(self, X):
+        if self.X_ref is not None:
+            moved = self.index.differences(X, self.X_ref, slice(None), slice(None)) * self.index.scale
+            if np.max(np.abs(moved), initial=0.0) <= self.skin / 2:
+                return
+        pairs = self.index.tree(X).query_pairs(1.0 + self.skin, p=np.inf, output_type="ndarray")
+        rows = np.r_[pairs[:, 0], pairs[:, 1]]
+        cols = np.r_[pairs[:, 1], pairs[:, 0]]
+        order = np.lexsort((cols, rows))
+        self.rows, self.cols = rows[order], cols[order]
+        self.indptr = np.r_[0, np.cumsum(np.bincount(self.rows, minlength=len(X)))]
+        self.X_ref, self.n_builds = X.copy(), self.n_builds + 1
+
+    def matrix(self, data):
+        n = len(self.indptr) - 1
+        return csr_matrix((data, self.cols, self.indptr), shape=(n, n))
+
+    @property
+    def mean_neighbours(self) -> float:
+        return len(self.rows) / max(len(self.indptr) - 1, 1)
+
+
+class SparseObjective(Objective):
+    """:class:`~handflow.plugins.manifold.objective.Objective` evaluated on neighbour pairs.
+
+    Same terms, same gradient (``∂R/∂x_al = Σ_j G_aj D_aj,l − Σ_i G_ia D_ia,l``), with the
+    sums over j and i running over the sparse pattern: with ``D_l`` antisymmetric,
+    ``Σ_j G_aj D_aj = −(2/N)(y_a·(D_l E/s)_a − (D_l c/s)_a)`` and
+    ``Σ_i G_ia D_ia = (2/N)(E_a·(D_l Y)_a − c_a (D_l 1)_a)/s_a`` — one sparse product per
+    latent dimension.  ``dtype=np.float32`` evaluates the pair terms and products in single
+    precision (docs/benchmarks.md measures the error); value and gradient return as float64.
+    """
+
+    def __init__(self, Y, kernel, layout, *, skin=SKIN, dtype=np.float64, **kwargs):
+        super().__init__(Y, kernel, layout, **kwargs)
+        self.dtype = np.dtype(dtype)
+        self.pairs = VerletPairs(NeighbourIndex(kernel), skin)
+        self._Yc = self.Y.astype(self.dtype)
+
+    def reconstruction(self, X, gradient=True):
+        N, Y, pairs = self.N, self.Y, self.pairs
+        d = Y.shape[1]
+        pairs.update(X)
+        delta = pairs.index.differences(X, X, pairs.rows, pairs.cols).astype(self.dtype)
+        K, D = pair_kernel(self.kernel, delta, gradient)
+        T = pairs.matrix(K) @ np.hstack([self._Yc, np.ones((N, 1), self.dtype)])
+        T = T.astype(float)
+        if not self.loo_cv:  # K(0) = 1 on the diagonal
+            T += np.hstack([Y, np.ones((N, 1))])
+        s = np.maximum(T[:, -1], _TINY)
+        F = T[:, :d] / s[:, None]
+        E = Y - F
+        R = float(np.einsum("ij,ij->", E, E)) / N
+        if not gradient:
+            return R, None
+        c = np.einsum("ij,ij->i", E, F)
+        rhs = np.hstack([E / s[:, None], (c / s)[:, None], Y, np.ones((N, 1))]).astype(self.dtype)
+        grad = np.empty_like(X)
+        for l in range(self.kernel.q):
+            V = (pairs.matrix(D[l]) @ rhs).astype(float)
+            toward = np.einsum("nd,nd->n", Y, V[:, :d]) - V[:, d]
+            back = (np.einsum("nd,nd->n", E, V[:, d + 1 : 2 * d + 1]) - c * V[:, -1]) / s
+            grad[:, l] = (-2.0 / N) * (toward + back)
+        return R, grad
+
+
+class SparseManifold(Manifold):
+    """f and its Jacobian summed over the training points inside each query's kernel support
+    (same neighbour index as training); the projection g is inherited unchanged."""
+
+    def __init__(self, kernel: ProductKernel, X, Y):
+        self.index = NeighbourIndex(kernel)
+        self._tree = self.index.tree(X)
+        super().__init__(kernel, X, Y)
+
+    def _pairs(self, Xq):
+        hits = self._tree.query_ball_point(self.index.scaled(Xq), 1.0, p=np.inf)
+        counts = np.fromiter((len(h) for h in hits), dtype=np.int64, count=len(hits))
+        cols = np.concatenate([np.asarray(h, dtype=np.int64) for h in hits]) if counts.sum() else np.zeros(0, int)
+        rows = np.repeat(np.arange(len(Xq)), counts)
+        return rows, cols, np.r_[0, np.cumsum(counts)]
+
+    def _weights(self, Xq, with_du):
+        rows, cols, indptr = self._pairs(Xq)
+        delta = self.index.differences(np.asarray(Xq, dtype=float), self.X, rows, cols)
+        K, D = pair_kernel(self.kernel, delta, with_du)
+        shape = (len(Xq), len(self.X))
+
+        def mat(data):
+            return csr_matrix((data, cols, indptr), shape=shape)
+
+        return mat(K), [mat(x) for x in D] if with_du else None
+
+    def f(self, Xq):
+        K, _ = self._weights(Xq, False)
+        T = K @ np.hstack([self.Y, np.ones((len(self.Y), 1))])
+        return T[:, :-1] / np.maximum(T[:, -1], _TINY)[:, None]
+
+    def f_and_jacobian(self, Xq):
+        K, D = self._weights(Xq, True)
+        Y1 = np.hstack([self.Y, np.ones((len(self.Y), 1))])
+        T = K @ Y1
+        S = np.maximum(T[:, -1], _TINY)[:, None]
+        F = T[:, :-1] / S
+        dT = [Dl @ Y1 for Dl in D]
+        J = np.stack([(t[:, :-1] - F * t[:, -1:]) / S for t in dT], axis=2)
+        return F, J

@@ -22,7 +22,7 @@ from scipy.spatial import cKDTree
 from .kernels import COMPACT_KERNELS, ProductKernel
 from .objective import Objective
 from .projection import Manifold
-from .validation import InvalidInputError
+from .validation import InvalidInputError, parse_latent
 
 # Documented choice: above this many points ``sparse="auto"`` takes the neighbour-list path
 # (measured crossover well below it, docs/benchmarks.md "UKR at scale").
@@ -56,6 +56,19 @@ def use_sparse(mode, kernel: ProductKernel, n_points: int) -> bool:
             f"sparse training needs compact kernels ({', '.join(COMPACT_KERNELS)}); change {compact_advice(kernel)}"
         )
     return bool(mode)
+
+
+def dense_advice(model, n_points: int):
+    """Message for ``handflow train`` when a large set would take the quadratic dense path."""
+    kernel, _ = parse_latent(model.latent)
+    if n_points < SPARSE_MIN_N or model.sparse is False or all(k.compact for k in kernel.kernels):
+        return None
+    gb = 8 * n_points**2 / 1e9
+    return (
+        f"{n_points} points with non-compact kernels train on the dense path: time and memory grow "
+        f"with N² (one {n_points}×{n_points} kernel matrix is {gb:.1f} GB). For cost linear in N "
+        f"choose compact kernels: {compact_advice(kernel)} (docs/training.md, 'Training at scale')"
+    )
 
 
 def pair_kernel(kernel: ProductKernel, delta, with_du=False):

@@ -8,15 +8,17 @@ non-zero pairs.  The objective and gradient of ``objective.py`` are then sums ov
 pairs only: O(N·k·d) time and O(N·k) memory for k neighbours per point.
 
 Rebuild schedule (Verlet list, documented choice): pairs are searched up to radius
-``1 + skin`` (``skin`` = 0.3 supports) and the list is rebuilt only once some point has
+``1 + skin`` (``skin`` = 0.1 supports: fastest of 0.1–0.5 at N = 20 000, q = 2) and the list is rebuilt only once some point has
 moved more than ``skin/2`` supports in some coordinate since the last build, so no pair
 inside the support is ever missed and the result equals the dense one up to rounding.
+Latents packed so densely that a point has more than ``MAX_MEAN_NEIGHBOURS`` neighbours are
+refused (value ``inf`` without gradient, so the initial scale search skips such scales).
 """
 
 from __future__ import annotations
 
 import numpy as np
-from scipy.sparse import csr_matrix
+from scipy.sparse import coo_matrix, csr_matrix
 from scipy.spatial import cKDTree
 
 from .kernels import COMPACT_KERNELS, ProductKernel
@@ -27,9 +29,16 @@ from .validation import InvalidInputError, parse_latent
 # Documented choice: above this many points ``sparse="auto"`` takes the neighbour-list path
 # (measured crossover well below it, docs/benchmarks.md "UKR at scale").
 SPARSE_MIN_N = 2000
-SKIN = 0.3
+SKIN = 0.1
+# Documented choice: more neighbours per point than this (estimated on 256 probes before each
+# rebuild) means the kernels are too wide to be sparse; memory would approach the dense N².
+MAX_MEAN_NEIGHBOURS = 256
 SPARSE_MODES = ("auto", True, False, "float32")
 _TINY = 1e-300
+
+
+class TooManyNeighbours(InvalidInputError):
+    """The latents are so concentrated that the neighbour lists would not be sparse."""
 
 
 def compact_advice(kernel: ProductKernel) -> str:
@@ -71,25 +80,28 @@ def dense_advice(model, n_points: int):
     )
 
 
-def pair_kernel(kernel: ProductKernel, delta, with_du=False):
-    """``K`` on a list of latent differences (P×q) and, optionally, ``∂K/∂δ_l`` (list over l)."""
+def pair_kernel(kernel: ProductKernel, deltas, with_du=False):
+    """``K`` on per-dimension lists of latent differences and, optionally, ``∂K/∂δ_l``.
+
+    Periodic kernels depend on δ only through ``sin δ`` and ``sin 2δ``, so differences need
+    no wrapping."""
     phis, dks = [], []
-    for l, k in enumerate(kernel.kernels):
-        s = np.sin(delta[:, l]) if k.periodic else delta[:, l]
+    for k, delta in zip(kernel.kernels, deltas):
+        s = np.sin(delta) if k.periodic else delta
         u = (k.beta**2) * s * s
         phis.append(k.phi(u))
         if with_du:
-            du = (k.beta**2) * (np.sin(2 * delta[:, l]) if k.periodic else 2 * delta[:, l])
+            du = (k.beta**2) * (np.sin(2 * delta) if k.periodic else 2 * delta)
             dks.append(k.dphi(u) * du)
     K = np.prod(phis, axis=0) if len(phis) > 1 else phis[0]
     if not with_du:
         return K, None
     D = []
     for l in range(kernel.q):
-        d = dks[l].copy()
+        d = dks[l]
         for m in range(kernel.q):
             if m != l:
-                d *= phis[m]
+                d = d * phis[m]
         D.append(d)
     return K, D
 
@@ -116,42 +128,61 @@ class NeighbourIndex:
     def tree(self, X):
         return cKDTree(self.scaled(X), boxsize=self.box if self.kernel.periodic.any() else None)
 
-    def differences(self, A, B, rows, cols):
-        """Latent differences ``a_rows − b_cols`` (periodic ones wrapped into [−π/2, π/2))."""
-        delta = A[rows] - B[cols]
+    def displacement(self, X, X_ref):
+        """Largest coordinate move in supports (periodic moves taken modulo π)."""
+        delta = X - X_ref
         p = self.kernel.periodic
         delta[:, p] = np.mod(delta[:, p] + np.pi / 2, np.pi) - np.pi / 2
-        return delta
+        return float(np.max(np.abs(delta * self.scale), initial=0.0))
+
+    @staticmethod
+    def deltas(A, B, rows, cols, dtype=np.float64):
+        """Per latent dimension the differences ``a_rows − b_cols``."""
+        return [(A[:, l][rows] - B[:, l][cols]).astype(dtype, copy=False) for l in range(A.shape[1])]
 
 
 class VerletPairs:
-    """All ordered pairs ``i ≠ j`` within ``1 + skin`` supports, as a CSR pattern, kept
-    up to date as the latents move (rebuilt when a point has moved more than ``skin/2``)."""
+    """Unordered pairs ``i < j`` within ``1 + skin`` supports and the symmetric CSR pattern
+    they fill, kept up to date as the latents move (rebuilt once a point has moved more than
+    ``skin/2`` supports).  Pair values are computed once per unordered pair."""
 
     def __init__(self, index: NeighbourIndex, skin=SKIN):
         self.index, self.skin = index, float(skin)
         self.X_ref, self.n_builds = None, 0
 
     def update(self, X):
-        if self.X_ref is not None:
-            moved = self.index.differences(X, self.X_ref, slice(None), slice(None)) * self.index.scale
-            if np.max(np.abs(moved), initial=0.0) <= self.skin / 2:
-                return
-        pairs = self.index.tree(X).query_pairs(1.0 + self.skin, p=np.inf, output_type="ndarray")
-        rows = np.r_[pairs[:, 0], pairs[:, 1]]
-        cols = np.r_[pairs[:, 1], pairs[:, 0]]
-        order = np.lexsort((cols, rows))
-        self.rows, self.cols = rows[order], cols[order]
-        self.indptr = np.r_[0, np.cumsum(np.bincount(self.rows, minlength=len(X)))]
+        if self.X_ref is not None and self.index.displacement(X, self.X_ref) <= self.skin / 2:
+            return
+        N = len(X)
+        tree = self.index.tree(X)
+        probe = tree.data[np.linspace(0, N - 1, min(N, 256)).astype(int)]
+        mean_k = float(np.mean(tree.query_ball_point(probe, 1.0 + self.skin, p=np.inf, return_length=True)))
+        if mean_k > MAX_MEAN_NEIGHBOURS:
+            raise TooManyNeighbours(
+                f"about {mean_k:.0f} latent neighbours per point inside the kernel support (limit "
+                f"{MAX_MEAN_NEIGHBOURS}): the kernels are too wide for these latents; raise beta"
+            )
+        pairs = tree.query_pairs(1.0 + self.skin, p=np.inf, output_type="ndarray")
+        self.i, self.j = pairs[:, 0], pairs[:, 1]
+        # CSR of both directions; its data holds ±(pair number + 1): the gather map and sign
+        tag = np.arange(1, len(pairs) + 1, dtype=float)
+        full = coo_matrix((np.r_[tag, -tag], (np.r_[self.i, self.j], np.r_[self.j, self.i])), shape=(N, N)).tocsr()
+        self.indices, self.indptr = full.indices, full.indptr
+        self.perm = np.abs(full.data).astype(np.intp) - 1
+        self.sign = np.sign(full.data)
         self.X_ref, self.n_builds = X.copy(), self.n_builds + 1
 
-    def matrix(self, data):
+    def matrix(self, values, antisymmetric=False):
+        """Symmetric (or antisymmetric) CSR matrix from one value per unordered pair."""
+        data = values[self.perm]
+        if antisymmetric:
+            data *= self.sign.astype(data.dtype, copy=False)
         n = len(self.indptr) - 1
-        return csr_matrix((data, self.cols, self.indptr), shape=(n, n))
+        return csr_matrix((data, self.indices, self.indptr), shape=(n, n))
 
     @property
     def mean_neighbours(self) -> float:
-        return len(self.rows) / max(len(self.indptr) - 1, 1)
+        return 2 * len(self.i) / max(len(self.indptr) - 1, 1)
 
 
 class SparseObjective(Objective):
@@ -174,9 +205,13 @@ class SparseObjective(Objective):
     def reconstruction(self, X, gradient=True):
         N, Y, pairs = self.N, self.Y, self.pairs
         d = Y.shape[1]
-        pairs.update(X)
-        delta = pairs.index.differences(X, X, pairs.rows, pairs.cols).astype(self.dtype)
-        K, D = pair_kernel(self.kernel, delta, gradient)
+        try:
+            pairs.update(X)
+        except TooManyNeighbours:
+            if gradient:
+                raise
+            return np.inf, None  # e.g. a too small trial scale in init.scale_search
+        K, D = pair_kernel(self.kernel, pairs.index.deltas(X, X, pairs.i, pairs.j, self.dtype), gradient)
         T = pairs.matrix(K) @ np.hstack([self._Yc, np.ones((N, 1), self.dtype)])
         T = T.astype(float)
         if not self.loo_cv:  # K(0) = 1 on the diagonal
@@ -191,7 +226,7 @@ class SparseObjective(Objective):
         rhs = np.hstack([E / s[:, None], (c / s)[:, None], Y, np.ones((N, 1))]).astype(self.dtype)
         grad = np.empty_like(X)
         for l in range(self.kernel.q):
-            V = (pairs.matrix(D[l]) @ rhs).astype(float)
+            V = (pairs.matrix(D[l], antisymmetric=True) @ rhs).astype(float)
             toward = np.einsum("nd,nd->n", Y, V[:, :d]) - V[:, d]
             back = (np.einsum("nd,nd->n", E, V[:, d + 1 : 2 * d + 1]) - c * V[:, -1]) / s
             grad[:, l] = (-2.0 / N) * (toward + back)
@@ -216,8 +251,7 @@ class SparseManifold(Manifold):
 
     def _weights(self, Xq, with_du):
         rows, cols, indptr = self._pairs(Xq)
-        delta = self.index.differences(np.asarray(Xq, dtype=float), self.X, rows, cols)
-        K, D = pair_kernel(self.kernel, delta, with_du)
+        K, D = pair_kernel(self.kernel, self.index.deltas(np.asarray(Xq, dtype=float), self.X, rows, cols), with_du)
         shape = (len(Xq), len(self.X))
 
         def mat(data):

@@ -131,3 +131,12 @@ def test_config_reaches_sparse_path():
     model = build_model(cfg, TrainingConfig(n_steps=3, init="equidistant")).fit(_rings())
     assert model.sparse_ and model.sparse == "float32"
     assert np.all(np.isfinite(model.history_))
+
+
+def test_too_dense_latents_are_refused_not_allocated():
+    kern = ProductKernel([("quartic", 0.5)])
+    X = np.linspace(0, 1, 600)[:, None]
+    obj = SparseObjective(np.c_[X, X**2], kern, SequenceLayout(np.zeros(600)), loo_cv=True)
+    assert obj.reconstruction(X, gradient=False)[0] == np.inf
+    with pytest.raises(InvalidInputError, match="raise beta"):
+        obj(X)

@@ -36,6 +36,7 @@ from handflow.plugins.manifold.sparse import SparseObjective
 from handflow.plugins.manifold.validation import parse_latent
 
 LATENT = [{"kernel": "periodic_quartic", "beta": 8.0, "time": True}, {"kernel": "quartic", "beta": 4.0}]
+DEFAULT_DATA = "/work/shared/data/gesture_phases.npz"
 N_PER, SPACING = 50, 0.05  # points per sequence; second-coordinate spacing of sequences
 
 
@@ -142,7 +143,7 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--json", action="store_true", help="print one JSON object")
     ap.add_argument("--repeats", type=int, default=3, help="timing repeats (median)")
-    ap.add_argument("--data", type=Path, default=Path("/work/shared/data/gesture_phases.npz"))
+    ap.add_argument("--data", type=Path, default=Path(DEFAULT_DATA), help="real recordings (held-out part)")
     a = ap.parse_args()
     res = measure(a.repeats, a.data)
     if a.json:

@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from handflow.plugins.manifold import StructuredUKR
+from handflow.plugins.manifold import sparse as sparse_module
 from handflow.plugins.manifold.cli import ModelConfig, TrainingConfig, build_model
 from handflow.plugins.manifold.kernels import Kernel, ProductKernel
 from handflow.plugins.manifold.objective import Objective, SequenceLayout
@@ -140,3 +141,43 @@ def test_too_dense_latents_are_refused_not_allocated():
     assert obj.reconstruction(X, gradient=False)[0] == np.inf
     with pytest.raises(InvalidInputError, match="raise beta"):
         obj(X)
+
+
+def test_segmenter_class_models_train_on_every_point_sparse(monkeypatch):
+    from handflow.plugins.segmenter.training import fit_class_models
+
+    monkeypatch.setattr(sparse_module, "SPARSE_MIN_N", 500)  # keep the test small
+    rng = np.random.default_rng(1)
+    t = np.linspace(0, 2 * np.pi, 100, endpoint=False)
+    segs = [
+        np.c_[np.cos(t * (1 + 0.01 * i)), np.sin(t), 0.1 * i + 0 * t] + rng.normal(0, 0.01, (100, 3)) for i in range(8)
+    ]
+    models = fit_class_models({"a": segs}, n_steps=2, kernel="periodic_quartic", max_points=300)
+    assert models["a"].sparse_ and len(models["a"].Y_) == 800  # max_points ignored: every point
+    with pytest.raises(ValueError, match="kernel must be one of"):
+        fit_class_models({"a": segs}, kernel="gaussian")
+
+
+def _long_npz(tmp_path, n_seq=6, n=100):
+    rng = np.random.default_rng(0)
+    t = np.pi * np.arange(n) / n
+    arrays = {
+        f"s{i}": np.c_[np.cos(2 * t), np.sin(2 * t), 0.1 * i + 0 * t] + rng.normal(0, 0.01, (n, 3))
+        for i in range(n_seq)
+    }
+    np.savez(tmp_path / "long.npz", **arrays)
+    return "long.npz"
+
+
+@pytest.mark.parametrize("compact", [True, False])
+def test_train_command_picks_sparse_or_names_compact_kernels(tmp_path, capsys, monkeypatch, compact):
+    from tests.manifold.test_train_command import run, write_config
+
+    monkeypatch.setattr(sparse_module, "SPARSE_MIN_N", 500)  # keep the test small
+    time = {"kernel": "periodic_quartic" if compact else "periodic", "beta": 20.0, "time": True}
+    cfg = write_config(tmp_path, {"npz": _long_npz(tmp_path)}, latent=[time], init="equidistant")
+    out = tmp_path / "m.npz"
+    assert run(cfg, "--out", out, "--steps", "2") == 0
+    err = capsys.readouterr().err
+    assert StructuredUKR.load(out).sparse_ is compact
+    assert ("latent[0]: periodic (beta 20) -> periodic_quartic" in err) is not compact

@@ -10,6 +10,7 @@ topics fed from outside (``external``), process groups, hosts, restart policies 
 from __future__ import annotations
 
 import re
+from collections.abc import Collection
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
@@ -145,8 +146,12 @@ def _message_type(name: str) -> type[Message] | None:
 # ----------------------------------------------------------------------------------------------
 # Loading and validation
 # ----------------------------------------------------------------------------------------------
-def read_graph_text(text: str, path: Path) -> tuple[Graph | None, list[Problem]]:
-    """Parse and validate graph YAML; returns the graph (None if unusable) and all problems."""
+def read_graph_text(text: str, path: Path, only: Collection[str] | None = None) -> tuple[Graph | None, list[Problem]]:
+    """Parse and validate graph YAML; returns the graph (None if unusable) and all problems.
+
+    With ``only``, plugin classes are loaded and checked for those node ids alone (a node process
+    of an already validated graph imports just its own plugins; docs/architecture.md).
+    """
     parsed = parse(text)
     if isinstance(parsed, Problem):
         return None, [parsed]
@@ -171,6 +176,8 @@ def read_graph_text(text: str, path: Path) -> tuple[Graph | None, list[Problem]]
             )
             continue
         seen[ns.id] = line_of(lines, ("nodes", i, "id"))
+        if only is not None and ns.id not in only:
+            continue
         try:
             cls = load_plugin(ns.plugin)
         except PluginError as exc:
@@ -268,7 +275,7 @@ def shipped_graphs() -> list[str]:
     return sorted(p.stem for p in shipped().glob("*.yaml"))
 
 
-def validate_file(path: str | Path) -> tuple[Graph | None, list[Problem]]:
+def validate_file(path: str | Path, only: Collection[str] | None = None) -> tuple[Graph | None, list[Problem]]:
     path = graph_path(path)
     if not path.exists() and path.parent == graph_path("x").parent:
         return None, [Problem(1, f"no shipped graph '{path.stem}'; shipped graphs: {', '.join(shipped_graphs())}")]
@@ -276,12 +283,12 @@ def validate_file(path: str | Path) -> tuple[Graph | None, list[Problem]]:
         text = path.read_text()
     except OSError as exc:
         return None, [Problem(1, f"cannot read graph file: {exc.strerror}")]
-    return read_graph_text(text, path.resolve())
+    return read_graph_text(text, path.resolve(), only)
 
 
-def load_graph(path: str | Path) -> Graph:
-    """A validated :class:`Graph`, or :class:`GraphError` with every problem."""
-    graph, problems = validate_file(path)
+def load_graph(path: str | Path, only: Collection[str] | None = None) -> Graph:
+    """A validated :class:`Graph` (plugins of the ``only`` node ids, or all), or :class:`GraphError`."""
+    graph, problems = validate_file(path, only)
     if problems or graph is None:
         raise GraphError(graph_path(path), problems)
     return graph

@@ -367,8 +367,9 @@ def main(argv: list[str] | None = None) -> int:
     logging.basicConfig(
         level=args.log_level, stream=sys.stderr, format="%(asctime)s %(levelname)s [%(name)s] %(message)s"
     )
-    graph = load_graph(args.graph)
-    rt = GroupRuntime(graph, args.nodes.split(","), args.hub, args.lockstep, args.state_dir)
+    node_ids = args.nodes.split(",")
+    graph = load_graph(args.graph, only=node_ids)
+    rt = GroupRuntime(graph, node_ids, args.hub, args.lockstep, args.state_dir)
 
     def _stop(signum, frame):
         rt.stop_requested = True

@@ -10,7 +10,7 @@ import argparse
 import sys
 from importlib.metadata import entry_points
 from pathlib import Path
-from typing import Literal, Optional
+from typing import Literal, Optional, Union
 
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, model_validator
@@ -20,6 +20,7 @@ from handflow.framework.yaml_files import YamlFileError, load_model
 from .data import load_csv_dir, load_mcap, load_npz
 from .model import StructuredUKR
 from .plots import plot_training
+from .sparse import dense_advice
 from .validation import InvalidInputError
 
 
@@ -64,6 +65,7 @@ class ModelConfig(_Strict):
     lambda_cseq: float = Field(1.0, ge=0)
     lambda_pvar: float = Field(1.0, ge=0)
     loo_cv: bool = True
+    sparse: Union[bool, Literal["auto", "float32"]] = "auto"
 
 
 class TrainingConfig(_Strict):
@@ -114,6 +116,7 @@ def build_model(m: ModelConfig, t: TrainingConfig, n_steps=None) -> StructuredUK
         lambda_cseq=m.lambda_cseq,
         lambda_pvar=m.lambda_pvar,
         loo_cv=m.loo_cv,
+        sparse=m.sparse,
         optimizer=t.optimizer,
         n_steps=t.n_steps if n_steps is None else n_steps,
         init=t.init,
@@ -217,6 +220,9 @@ def run_train(args: argparse.Namespace) -> int:
         check_train_args(args)
         sequences, names = load_data(cfg.data)
         model = build_model(cfg.model, cfg.training, args.steps)
+        advice = dense_advice(model, sum(map(len, sequences)))
+        if advice and not args.quiet:
+            print(f"handflow train: note: {advice}", file=sys.stderr)
         with _Progress(model.n_steps, args.quiet) as progress:
             model.fit(sequences, callback=progress)
     except InvalidInputError as exc:

@@ -13,22 +13,20 @@ from pathlib import Path
 from typing import Literal, Optional, Union
 
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import Field, model_validator
 
+from handflow.framework.params import StrictModel
 from handflow.framework.yaml_files import YamlFileError, load_model
 
 from .data import load_csv_dir, load_mcap, load_npz
+from .kernels import KernelName
 from .model import StructuredUKR
 from .plots import plot_training
 from .sparse import dense_advice
 from .validation import InvalidInputError
 
 
-class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid")
-
-
-class DataConfig(_Strict):
+class DataConfig(StrictModel):
     """Exactly one source: ``csv_dir``, ``npz`` or ``mcap`` (+ ``topic``)."""
 
     csv_dir: Optional[Path] = None
@@ -53,13 +51,13 @@ class DataConfig(_Strict):
         return self
 
 
-class LatentConfig(_Strict):
-    kernel: str
+class LatentConfig(StrictModel):
+    kernel: KernelName
     beta: float = Field(gt=0)
     time: bool = False
 
 
-class ModelConfig(_Strict):
+class ModelConfig(StrictModel):
     latent: list[LatentConfig] = Field(min_length=1)
     time_dim: Optional[int] = None
     lambda_cseq: float = Field(1.0, ge=0)
@@ -68,7 +66,7 @@ class ModelConfig(_Strict):
     sparse: Union[bool, Literal["auto", "float32"]] = "auto"
 
 
-class TrainingConfig(_Strict):
+class TrainingConfig(StrictModel):
     optimizer: Literal["rprop", "lbfgs"] = "rprop"
     n_steps: int = Field(500, ge=0)
     init: Literal["isomap", "equidistant"] = "isomap"
@@ -77,7 +75,7 @@ class TrainingConfig(_Strict):
     random_state: Optional[int] = 0
 
 
-class TrainConfig(_Strict):
+class TrainConfig(StrictModel):
     data: DataConfig
     model: ModelConfig
     training: TrainingConfig = Field(default_factory=TrainingConfig)

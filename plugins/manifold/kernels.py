@@ -24,10 +24,12 @@ are centred first (translation invariance) to limit cancellation in ``a² - 2ab 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Literal, get_args
 
 import numpy as np
 
-KERNEL_NAMES = ("gaussian", "periodic", "quartic", "epanechnikov", "periodic_quartic")
+KernelName = Literal["gaussian", "periodic", "quartic", "epanechnikov", "periodic_quartic"]
+KERNEL_NAMES: tuple[str, ...] = get_args(KernelName)
 COMPACT_KERNELS = ("quartic", "epanechnikov", "periodic_quartic")
 
 

@@ -17,9 +17,10 @@ from __future__ import annotations
 
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import Field
 
 from handflow.framework.messages import Array, Contacts, Image, JointState, Markers, MessageError, Text, Transforms
+from handflow.framework.params import StrictModel
 from handflow.framework.plugin import Node
 
 from .simulation import Simulation
@@ -27,10 +28,9 @@ from .urdf import urdf_text
 from .viewer import scene_markers, simulated_hand_transforms
 
 
-class SimulatorParams(BaseModel):
+class SimulatorParams(StrictModel):
     """Parameters of ``simulator.pybullet``."""
 
-    model_config = ConfigDict(extra="forbid")
     hand: Literal["human", "shadow", "gifu"] = Field("shadow", description="hand model")
     scene: Literal["empty", "cap", "balls", "grasp"] = Field("empty", description="scene")
     scene_options: dict[str, Any] = Field(

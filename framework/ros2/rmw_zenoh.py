@@ -15,6 +15,7 @@ import hashlib
 import itertools
 import re
 import struct
+import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -210,14 +211,21 @@ class RosPublisher:
         self.seq = 0
         self._token = node.session.liveliness().declare_token(self.token_key)
         self._pub = node.session.declare_publisher(self.key)
+        self._lock = threading.Lock()  # puts come from Zenoh callback threads; close may race with them
+        self._closed = False
 
     def put(self, cdr: bytes) -> None:
-        self.seq += 1  # rmw_zenoh's sequence numbers start at 1
-        self._pub.put(cdr, attachment=pack_attachment(self.seq, time.time_ns(), self.gid))
+        with self._lock:
+            if self._closed:
+                return
+            self.seq += 1  # rmw_zenoh's sequence numbers start at 1
+            self._pub.put(cdr, attachment=pack_attachment(self.seq, time.time_ns(), self.gid))
 
     def close(self) -> None:
-        self._pub.undeclare()
-        self._token.undeclare()
+        with self._lock:
+            self._closed = True
+            self._pub.undeclare()
+            self._token.undeclare()
 
 
 class RosSubscriber:

@@ -28,6 +28,19 @@ class _Strict(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
 
+class TlsSettings(_Strict):
+    """Mutual TLS between the graph's machines; access rights derived from the graph (docs/security.md)."""
+
+    certs: str = Field(description="directory made by `handflow certs init`, relative to the graph file")
+    host: str | None = Field(None, description="this machine's certificate name (default: `handflow run --host`)")
+    readers: list[str] = Field(
+        default_factory=list, description="certificate names that may read every topic (monitor, record, replay)"
+    )
+    publishers: dict[str, list[str]] = Field(
+        default_factory=dict, description="external topic (node/port) → certificate names that may publish it"
+    )
+
+
 class ZenohSettings(_Strict):
     """Transport settings. Default: embedded peer on loopback, multicast scouting off, no router."""
 
@@ -39,6 +52,15 @@ class ZenohSettings(_Strict):
         default_factory=list, description="endpoints of other machines' graphs, e.g. tcp/192.168.1.7:7450"
     )
     multicast_scouting: bool = False
+    tls: TlsSettings | None = Field(None, description="mutual TLS and generated access control (docs/security.md)")
+    insecure: bool = Field(False, description="allow plain endpoints beyond loopback (anyone who reaches them joins)")
+
+
+def is_loopback_endpoint(endpoint: str) -> bool:
+    """``tcp/127.0.0.1:7447``, ``tcp/localhost:0``, ``tcp/[::1]:7447`` → True; other addresses → False."""
+    addr = endpoint.partition("/")[2].split("#", 1)[0]
+    host = addr.rsplit(":", 1)[0].strip("[]")
+    return host == "localhost" or host.startswith("127.") or host == "::1"
 
 
 class RestartPolicy(_Strict):
@@ -192,6 +214,7 @@ def read_graph_text(text: str, path: Path) -> tuple[Graph | None, list[Problem]]
                 )
             )
 
+    problems += _zenoh_problems(spec, lines)
     for i, ns in enumerate(spec.nodes):
         rn = graph.nodes.get(ns.id)
         if rn is None or rn.spec is not ns:
@@ -200,6 +223,50 @@ def read_graph_text(text: str, path: Path) -> tuple[Graph | None, list[Problem]]
             line = line_of(lines, ("nodes", i, "inputs", port))
             problems += _input_problems(graph, rn, port, source, line)
     return (graph if not problems else None), problems
+
+
+def _zenoh_problems(spec: GraphSpec, lines) -> list[Problem]:
+    """Plain endpoints beyond loopback need TLS or an explicit ``insecure: true`` (docs/security.md)."""
+    z = spec.zenoh
+    problems = []
+    for key in ("listen", "connect"):
+        for i, ep in enumerate(getattr(z, key)):
+            plain = not ep.startswith(("tls/", "quic/"))
+            if z.tls is not None and plain and not is_loopback_endpoint(ep):
+                problems.append(
+                    Problem(
+                        line_of(lines, ("zenoh", key, i)),
+                        f"zenoh {key} endpoint '{ep}' is not TLS although 'zenoh.tls' is set; use tls/{ep.partition('/')[2]}",
+                    )
+                )
+            elif z.tls is None and plain and not z.insecure and not is_loopback_endpoint(ep):
+                problems.append(
+                    Problem(
+                        line_of(lines, ("zenoh", key, i)),
+                        f"zenoh {key} endpoint '{ep}' reaches beyond this machine without TLS: any peer that reaches "
+                        f"it could join, read and publish on every topic. Create certificates "
+                        f"(`handflow certs init certs && handflow certs add-host certs NAME`), set "
+                        f"'zenoh: {{tls: {{certs: certs}}}}' and use tls/ endpoints, or write 'insecure: true' "
+                        f"under 'zenoh:' to accept the risk (docs/security.md)",
+                    )
+                )
+            elif not plain and z.tls is None:
+                problems.append(
+                    Problem(
+                        line_of(lines, ("zenoh", key, i)),
+                        f"zenoh {key} endpoint '{ep}' needs certificates: add 'tls: {{certs: DIR}}' under 'zenoh:'",
+                    )
+                )
+    if z.tls is not None:
+        for topic in z.tls.publishers:
+            if topic not in spec.external:
+                problems.append(
+                    Problem(
+                        line_of(lines, ("zenoh", "tls", "publishers", topic)),
+                        f"zenoh.tls.publishers names '{topic}', which is not an 'external' topic of this graph",
+                    )
+                )
+    return problems
 
 
 def _input_problems(graph: Graph, rn: ResolvedNode, port: str, source: str, line: int) -> list[Problem]:

@@ -171,4 +171,3 @@ def test_two_graphs_over_mutual_tls_admit_only_rightful_peers(ca, tmp_path, monk
     assert not any(k.endswith("/source/out") and p.startswith(b"FORGED") for k, p in seen)
     for who in ("nocert", "foreign-ca", "mallory"):  # their own puts echo locally; nothing of the graph arrives
         assert all(p.startswith(b"FORGED") for p in received[who]), who
-    assert any(not p.startswith(b"FORGED") for p in received["b"]), "host b may read what its nodes consume"

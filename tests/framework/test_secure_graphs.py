@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import datetime as dt
 import json
-import os
 import time
 from pathlib import Path
 
@@ -16,15 +15,15 @@ import pytest
 
 pytest.importorskip("cryptography")
 
-import zenoh  # noqa: E402
+import zenoh
 
-from handflow.framework import certs  # noqa: E402
-from handflow.framework.access import access_control  # noqa: E402
-from handflow.framework.discovery import live_runs  # noqa: E402
-from handflow.framework.graph import load_graph, validate_file  # noqa: E402
-from handflow.framework.transport import free_tcp_port  # noqa: E402
+from handflow.framework import certs
+from handflow.framework.access import access_control
+from handflow.framework.discovery import live_runs
+from handflow.framework.graph import load_graph, validate_file
+from handflow.framework.transport import free_tcp_port
 
-from .test_runtime_e2e import chain_graph, read_sink, start  # noqa: E402
+from .test_runtime_e2e import chain_graph, read_sink, start
 
 
 @pytest.fixture

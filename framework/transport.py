@@ -115,5 +115,14 @@ def open_node_session(settings: ZenohSettings, hub_endpoint: str) -> zenoh.Sessi
     return zenoh.open(_config("peer", [f"tcp/{host}:0"], [hub_endpoint], settings.multicast_scouting))
 
 
+def open_tls_peer(endpoint: str, ca: object, cert: object, key: object) -> zenoh.Session:
+    """A peer joining a TLS graph from another machine (monitor, record, replay) with its own certificate."""
+    conf = _config("peer", [], [endpoint], False)
+    tls = {"root_ca_certificate": ca, "connect_certificate": cert, "connect_private_key": key}
+    for k, v in {**tls, "verify_name_on_connect": False}.items():
+        conf.insert_json5(f"transport/link/tls/{k}", json.dumps(str(v) if k != "verify_name_on_connect" else v))
+    return zenoh.open(conf)
+
+
 def hub_endpoint_for(port: int | None = None) -> str:
     return f"tcp/127.0.0.1:{port or free_tcp_port()}"

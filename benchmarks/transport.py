@@ -196,10 +196,22 @@ nodes:
 
 def image_codec_ms(repeats: int = 60) -> dict:
     """Median encode (``wire.pack``) and decode (``wire.unpack``, validated) of one 640×480 RGB frame, in ms."""
+    return codec_ms(_image(0), repeats)
+
+
+def joint_codec_us(repeats: int = 2000) -> dict:
+    """The same for a 24-joint ``JointState`` (names and positions), in µs."""
+    from handflow.framework.messages import JointState
+
+    msg = JointState(names=[f"J{i}" for i in range(WIDTH)], positions=np.arange(float(WIDTH)))
+    return {k.replace("_ms", "_us"): v * 1e3 if k != "bytes" else v for k, v in codec_ms(msg, repeats).items()}
+
+
+def codec_ms(msg, repeats: int) -> dict:
+    """Median encode and decode times (ms) of one message through the wire codec."""
     from handflow.framework import wire
     from handflow.framework.messages import Header
 
-    msg = _image(0)
     msg.header = Header("bench", 1, time.time_ns())
     enc, dec = [], []
     for _ in range(repeats):
@@ -317,6 +329,7 @@ def main() -> None:
         "raw": run_raw(IMAGE_RATE_HZ, args.seconds, 1, "image", "raw"),
     }
     codec = image_codec_ms()
+    joints = joint_codec_us()
     rec = recording_rate()
     results.update(
         {
@@ -324,6 +337,7 @@ def main() -> None:
             "image_overhead_ratio": image["handflow"]["median_us"] / image["raw"]["median_us"],
             "image_codec": codec,
             "image_codec_ms": codec["total_ms"],
+            "joint_codec": joints,
             "recording": rec,
             "recording_mb_per_s": rec["recording_mb_per_s"],
         }

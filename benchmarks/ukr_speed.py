@@ -8,8 +8,11 @@
   implementation (objective.py): exponent GEMM 2N²·3q, exp N², and the two N×N GEMMs
   K·[Y, Y∘P, P, 1] = 2N²(d + 2dq + 2q + 1) and K·[E∘Q, c∘Q] = 2N²(2dq + 2q)
   (du/dδ has rank 2 per dimension).  The machine is shared: the 1-min load average is printed.
+* the neighbour-list path at scale (``ukr_scale.py``: ``sparse_vs_dense_objective_rel``,
+  ``sparse_vs_dense_time_ratio``, ``sparse_n20000_s``, ``sparse_peak_mb``, ``scaling_exponent``
+  and more); ``--part dense`` or ``--part scale`` runs one half.
 
-    python benchmarks/ukr_speed.py [--json] [--repeats 3]
+    python benchmarks/ukr_speed.py [--json] [--repeats 3] [--part all|dense|scale]
 """
 
 from __future__ import annotations
@@ -19,6 +22,7 @@ import json
 import os
 
 import numpy as np
+import ukr_scale
 from timing import median_time
 
 from handflow.plugins.manifold import StructuredUKR
@@ -87,29 +91,32 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--json", action="store_true", help="print one JSON object")
     ap.add_argument("--repeats", type=int, default=3, help="training repeats (median)")
+    ap.add_argument("--part", choices=("all", "dense", "scale"), default="all", help="which measurements")
+    ap.add_argument("--data", default=ukr_scale.DEFAULT_DATA, help="real recordings for the held-out comparison")
     a = ap.parse_args()
-    gf, mm, eval_ms = gflops(a.repeats)
-    single, batch = projection_ms(a.repeats)
-    res = {
-        "train_seconds_n1800": train_seconds(40, 45, 20, 1, a.repeats),
-        "train_seconds_n1200": train_seconds(24, 50, 24, 2, a.repeats),
+    res = dense_suite(a.repeats) if a.part != "scale" else {}
+    if a.part != "dense":
+        res |= ukr_scale.measure(a.repeats, a.data)
+    if a.json:
+        print(json.dumps(res))
+        return
+    for key, value in res.items():
+        print(f"{key}: {value}")
+    print(f"load average (1 min) at the end: {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores")
+
+
+def dense_suite(repeats):
+    gf, mm, eval_ms = gflops(repeats)
+    single, batch = projection_ms(repeats)
+    return {
+        "train_seconds_n1800": train_seconds(40, 45, 20, 1, repeats),
+        "train_seconds_n1200": train_seconds(24, 50, 24, 2, repeats),
         "project_single_ms": single,
         "project_batch1000_ms": batch,
         "gflops": gf,
         "gflops_ratio_to_matmul": gf / mm,
+        "objective_eval_ms": eval_ms,
     }
-    if a.json:
-        print(json.dumps(res))
-        return
-    print(f"600 RPROP steps, N=1800 d=20 q=1: {res['train_seconds_n1800']:.2f} s (goal <= 15)")
-    print(f"600 RPROP steps, N=1200 d=24 q=2: {res['train_seconds_n1200']:.2f} s")
-    print(f"transform, one point (N=300 d=2): {single:.3f} ms (goal <= 1)")
-    print(f"transform, batch of 1000:          {batch:.2f} ms")
-    print(
-        f"objective+gradient N=1800 d=20: {eval_ms:.2f} ms, {gf:.1f} GFLOP/s; numpy matmul "
-        f"{mm:.1f} GFLOP/s; ratio {gf / mm:.2f} (goal >= 0.3)"
-    )
-    print(f"load average (1 min) at the end: {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores")
 
 
 if __name__ == "__main__":

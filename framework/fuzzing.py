@@ -22,17 +22,21 @@ import numpy as np
 
 from .messages import (
     Array,
+    CompressedImage,
     Contacts,
     GloveFrame,
     Image,
     JointState,
     Label,
     LatentState,
+    Markers,
     Message,
     Points2D,
     RuntimeEvent,
     SegmentEvent,
     Status,
+    Text,
+    Transforms,
     encode,
     message_types,
 )
@@ -85,6 +89,25 @@ def sample_messages() -> list[Message]:
         SegmentEvent(kind="revision", label="wave", start_index=3, end_index=9, previous_label="grasp"),
         Status(state="connected", counters={"corrupt": 2.0}, text="ok"),
         RuntimeEvent(kind="dropped", node="human", topic="handflow/demo/glove/frames", count=3, detail="bad"),
+        CompressedImage(format="jpeg", data=b"\xff\xd8\xff\xe0 not really a jpeg", frame_id="cap_camera"),
+        Transforms(
+            parents=["world", "sim/forearm"],
+            children=["sim/forearm", "sim/wrist"],
+            translations=[[0.0, 0.1, 0.2], [0.0, 0.0, 0.0]],
+            rotations=[[0.0, 0.0, 0.0, 1.0], [0.0, 0.0, np.sin(0.3), np.cos(0.3)]],
+        ),
+        Markers(
+            kinds=["sphere", "text"],
+            frame_ids=["world", "world"],
+            namespaces=["balls", "label"],
+            ids=[1, 0],
+            positions=[[0.1, 0.0, 0.3], [0.0, 0.0, 0.5]],
+            orientations=[[0.0, 0.0, 0.0, 1.0]] * 2,
+            scales=[[0.04, 0.04, 0.04], [0.0, 0.0, 0.05]],
+            colours=[[1.0, 0.2, 0.2, 1.0], [1.0, 1.0, 1.0, 1.0]],
+            texts=["", "grasp"],
+        ),
+        Text(data='<?xml version="1.0"?><robot name="x"/>'),
     ]
     known = {type(m) for m in examples}
     examples += [cls() for cls in message_types().values() if cls not in known]

@@ -10,25 +10,24 @@ topics fed from outside (``external``), process groups, hosts, restart policies 
 from __future__ import annotations
 
 import re
+from collections.abc import Collection
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
+from pydantic import BaseModel, Field, ValidationError, field_validator
 
 from .messages import Message, message_types
+from .params import StrictModel
 from .plugin import Node
 from .registry import PluginError, load_plugin, plugin_entries
+from .ros2.rmw_zenoh import check_name
 from .yaml_files import Problem, YamlFileError, line_of, parse, pydantic_problems
 
 _ID = re.compile(r"^[A-Za-z0-9_\-]+$")
 
 
-class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid")
-
-
-class TlsSettings(_Strict):
+class TlsSettings(StrictModel):
     """Mutual TLS between the graph's machines; access rights derived from the graph (docs/security.md)."""
 
     certs: str = Field(description="directory made by `handflow certs init`, relative to the graph file")
@@ -41,7 +40,7 @@ class TlsSettings(_Strict):
     )
 
 
-class ZenohSettings(_Strict):
+class ZenohSettings(StrictModel):
     """Transport settings. Default: embedded peer on loopback, multicast scouting off, no router."""
 
     mode: Literal["peer", "client"] = "peer"
@@ -63,7 +62,7 @@ def is_loopback_endpoint(endpoint: str) -> bool:
     return host == "localhost" or host.startswith("127.") or host == "::1"
 
 
-class RestartPolicy(_Strict):
+class RestartPolicy(StrictModel):
     """Supervision of a node's process (docs/pipelines.md): restarted on failure by default."""
 
     policy: Literal["never", "on-failure"] = "on-failure"
@@ -73,7 +72,7 @@ class RestartPolicy(_Strict):
     window_s: float = Field(60.0, gt=0, description="failures older than this are forgotten")
 
 
-class NodeSpec(_Strict):
+class NodeSpec(StrictModel):
     id: str
     plugin: str
     params: dict[str, Any] = Field(default_factory=dict)
@@ -90,19 +89,41 @@ class NodeSpec(_Strict):
         return v
 
 
-class RecordSpec(_Strict):
+class RecordSpec(StrictModel):
     path: str | None = Field(None, description="MCAP file; `handflow run --record` overrides it")
     topics: list[str] = Field(default_factory=lambda: ["**"], description="globs over node/port, e.g. 'glove/*'")
 
 
-class FoxgloveSettings(_Strict):
+class FoxgloveSettings(StrictModel):
     """Live view: a Foxglove WebSocket server started by the launcher, streaming every topic."""
 
     host: str = "127.0.0.1"
     port: int = Field(8765, ge=0, le=65535, description="0 picks a free port")
 
 
-class GraphSpec(_Strict):
+class Ros2Settings(StrictModel):
+    """Live ROS 2 interop: selected topics republished as rmw_zenoh does it (docs/ros2.md)."""
+
+    domain_id: int = Field(0, ge=0, le=232, description="ROS_DOMAIN_ID of the ROS 2 system")
+    node_name: str | None = Field(None, description="ROS 2 node name; default: the graph name ('-' → '_')")
+    namespace: str = Field("/", description="ROS 2 namespace of that node")
+    publish: list[str] | dict[str, str] = Field(
+        default_factory=list,
+        description="node/port topics to publish; as a mapping node/port → ROS 2 topic name, else /<node>/<port>",
+    )
+    depth: int = Field(10, ge=1, description="history depth announced in the QoS of each publisher")
+
+    def topics(self) -> dict[str, str]:
+        """node/port → ROS 2 topic name."""
+        if isinstance(self.publish, dict):
+            return dict(self.publish)
+        return {src: "/" + src.replace("-", "_") for src in self.publish}
+
+    def ros_node_name(self, graph_name: str) -> str:
+        return self.node_name or graph_name.replace("-", "_")
+
+
+class GraphSpec(StrictModel):
     name: str
     description: str = ""
     zenoh: ZenohSettings = Field(default_factory=ZenohSettings)
@@ -110,6 +131,7 @@ class GraphSpec(_Strict):
     nodes: list[NodeSpec]
     record: RecordSpec | None = None
     foxglove: FoxgloveSettings | None = None
+    ros2: Ros2Settings | None = None
 
     @field_validator("name")
     @classmethod
@@ -150,7 +172,8 @@ class Graph:
         """Message type published at ``node/port`` (a graph node or an external topic)."""
         node_id, _, port = source.partition("/")
         if node_id in self.nodes:
-            return self.nodes[node_id].cls.outputs.get(port)
+            rn = self.nodes[node_id]
+            return rn.cls.output_types(rn.params).get(port)
         name = self.spec.external.get(source)
         return _message_type(name) if name else None
 
@@ -167,8 +190,12 @@ def _message_type(name: str) -> type[Message] | None:
 # ----------------------------------------------------------------------------------------------
 # Loading and validation
 # ----------------------------------------------------------------------------------------------
-def read_graph_text(text: str, path: Path) -> tuple[Graph | None, list[Problem]]:
-    """Parse and validate graph YAML; returns the graph (None if unusable) and all problems."""
+def read_graph_text(text: str, path: Path, only: Collection[str] | None = None) -> tuple[Graph | None, list[Problem]]:
+    """Parse and validate graph YAML; returns the graph (None if unusable) and all problems.
+
+    With ``only``, plugin classes are loaded and checked for those node ids alone (a node process
+    of an already validated graph imports just its own plugins; docs/architecture.md).
+    """
     parsed = parse(text)
     if isinstance(parsed, Problem):
         return None, [parsed]
@@ -193,6 +220,8 @@ def read_graph_text(text: str, path: Path) -> tuple[Graph | None, list[Problem]]
             )
             continue
         seen[ns.id] = line_of(lines, ("nodes", i, "id"))
+        if only is not None and ns.id not in only:
+            continue
         try:
             cls = load_plugin(ns.plugin)
         except PluginError as exc:
@@ -215,6 +244,9 @@ def read_graph_text(text: str, path: Path) -> tuple[Graph | None, list[Problem]]
             )
 
     problems += _zenoh_problems(spec, lines)
+    if spec.ros2 is not None:
+        problems += _ros2_problems(graph, spec.ros2, lines)
+
     for i, ns in enumerate(spec.nodes):
         rn = graph.nodes.get(ns.id)
         if rn is None or rn.spec is not ns:
@@ -269,6 +301,27 @@ def _zenoh_problems(spec: GraphSpec, lines) -> list[Problem]:
     return problems
 
 
+def _ros2_problems(graph: Graph, ros2: Ros2Settings, lines: dict) -> list[Problem]:
+    problems = []
+    declared = {n.id for n in graph.spec.nodes}
+    for source, topic in ros2.topics().items():
+        node_id = source.partition("/")[0]
+        if node_id in declared and node_id not in graph.nodes:
+            continue  # not loaded here (another process's node, or failed its own checks)
+        line = line_of(lines, ("ros2", "publish", source) if isinstance(ros2.publish, dict) else ("ros2", "publish"))
+        if graph.source_type(source) is None and source.partition("/")[0] in graph.nodes:
+            problems.append(Problem(line, f"ros2.publish: '{source}' is not an output of this graph; use node/port"))
+        elif graph.source_type(source) is None:
+            problems.append(
+                Problem(line, f"ros2.publish: no node '{source.partition('/')[0]}' in this graph; use node/port")
+            )
+        try:
+            check_name(topic)
+        except ValueError as exc:
+            problems.append(Problem(line, f"ros2.publish '{source}': {exc}"))
+    return problems
+
+
 def _input_problems(graph: Graph, rn: ResolvedNode, port: str, source: str, line: int) -> list[Problem]:
     nid = rn.spec.id
     if port not in rn.cls.inputs:
@@ -296,14 +349,15 @@ def _input_problems(graph: Graph, rn: ResolvedNode, port: str, source: str, line
     if out_type is None and src_node not in graph.nodes:
         return []  # an external topic of an unknown type (reported with 'external:')
     if out_type is None:
-        outs = graph.nodes[src_node].cls.outputs
+        src = graph.nodes[src_node]
+        outs = src.cls.output_types(src.params)
         return [
             Problem(
                 line,
                 f"node '{nid}' input '{port}': node '{src_node}' has no output '{src_port}'; its outputs: {', '.join(outs) or 'none'}",
             )
         ]
-    in_type = rn.cls.inputs[port]
+    in_type = rn.cls.input_types(rn.params)[port]
     if not issubclass(out_type, in_type):
         return [
             Problem(
@@ -335,7 +389,7 @@ def shipped_graphs() -> list[str]:
     return sorted(p.stem for p in shipped().glob("*.yaml"))
 
 
-def validate_file(path: str | Path) -> tuple[Graph | None, list[Problem]]:
+def validate_file(path: str | Path, only: Collection[str] | None = None) -> tuple[Graph | None, list[Problem]]:
     path = graph_path(path)
     if not path.exists() and path.parent == graph_path("x").parent:
         return None, [Problem(1, f"no shipped graph '{path.stem}'; shipped graphs: {', '.join(shipped_graphs())}")]
@@ -343,12 +397,12 @@ def validate_file(path: str | Path) -> tuple[Graph | None, list[Problem]]:
         text = path.read_text()
     except OSError as exc:
         return None, [Problem(1, f"cannot read graph file: {exc.strerror}")]
-    return read_graph_text(text, path.resolve())
+    return read_graph_text(text, path.resolve(), only)
 
 
-def load_graph(path: str | Path) -> Graph:
-    """A validated :class:`Graph`, or :class:`GraphError` with every problem."""
-    graph, problems = validate_file(path)
+def load_graph(path: str | Path, only: Collection[str] | None = None) -> Graph:
+    """A validated :class:`Graph` (plugins of the ``only`` node ids, or all), or :class:`GraphError`."""
+    graph, problems = validate_file(path, only)
     if problems or graph is None:
         raise GraphError(graph_path(path), problems)
     return graph

@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 from . import discovery, transport, wire
 from .graph import Graph, RestartPolicy
 from .messages import Header, MessageError, RuntimeEvent, Status
+from .ros2.bridge import Ros2Bridge
 from .runner import START_WAIT_S
 
 log = logging.getLogger("handflow.launcher")
@@ -89,6 +90,7 @@ class Launcher:
         self._start_pub = self.session.declare_publisher(transport.start_key(graph.name))
         self._event_pub = self.session.declare_publisher(transport.topic_key(graph.name, "_runtime", "events"))
         self._event_seq = 0
+        self.ros2 = Ros2Bridge(self.session, graph, host) if graph.spec.ros2 is not None else None
 
     def _on_health(self, sample) -> None:
         try:
@@ -205,6 +207,8 @@ class Launcher:
 
     def close(self) -> None:
         discovery.remove_run_file(self.run_file)
+        if self.ros2 is not None:
+            self.ros2.close()
         self._health_sub.undeclare()
         self._start_pub.undeclare()
         self._event_pub.undeclare()

@@ -470,6 +470,90 @@ class Status(Message):
     text: str = ""
 
 
+@dataclass
+class CompressedImage(Message):
+    """Compressed camera image (``format`` ``jpeg`` or ``png``, as ``sensor_msgs/CompressedImage``)."""
+
+    TYPE: ClassVar[str] = "handflow.CompressedImage"
+    format: str = "jpeg"
+    data: bytes = b""
+    frame_id: str = "camera"
+
+
+def _unit_quaternions(q: np.ndarray) -> bool:
+    """Every row a unit quaternion within 1e-3 (huge values fail without an overflow warning)."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        return bool(np.all(np.abs(np.einsum("ij,ij->i", q, q) - 1.0) <= 2e-3))
+
+
+@dataclass
+class Transforms(Message):
+    """Rigid transforms ``parents[i]`` → ``children[i]`` at the header's stamp (``tf2_msgs/TFMessage``).
+
+    ``translations`` (n, 3) in metres; ``rotations`` (n, 4) unit quaternions ``x, y, z, w``: the
+    pose of the child frame in the parent frame (docs/foxglove.md).
+    """
+
+    TYPE: ClassVar[str] = "handflow.Transforms"
+    parents: list[str] = field(default_factory=list)
+    children: list[str] = field(default_factory=list)
+    translations: np.ndarray = _array("float64", 2, cols=3)
+    rotations: np.ndarray = _array("float64", 2, cols=4)
+
+    def _check_shapes(self) -> None:
+        n = len(self.children)
+        if not len(self.parents) == n == self.translations.shape[0] == self.rotations.shape[0]:
+            raise MessageError("parents, children, translations and rotations need one entry per transform")
+        if not _unit_quaternions(self.rotations):
+            raise MessageError("rotations must be unit quaternions (x, y, z, w)")
+
+
+MARKER_KINDS = {"arrow": 0, "cube": 1, "sphere": 2, "cylinder": 3, "text": 9}
+"""Marker shapes handflow publishes, with their ``visualization_msgs/Marker`` type codes."""
+
+
+@dataclass
+class Markers(Message):
+    """Shapes and texts to draw in 3D, one entry per marker (``visualization_msgs/MarkerArray``).
+
+    ``kinds`` from :data:`MARKER_KINDS`; ``positions`` (n, 3) and ``orientations`` (n, 4, quaternion
+    ``x, y, z, w``) in ``frame_ids``; ``scales`` (n, 3) the size in metres (a text's height is
+    ``scales[:, 2]``); ``colours`` (n, 4) RGBA in 0..1; ``texts`` the strings of text markers.
+    A marker replaces the earlier one of the same ``namespaces[i]`` and ``ids[i]``.
+    """
+
+    TYPE: ClassVar[str] = "handflow.Markers"
+    kinds: list[str] = field(default_factory=list)
+    frame_ids: list[str] = field(default_factory=list)
+    namespaces: list[str] = field(default_factory=list)
+    ids: np.ndarray = _array("int32")
+    positions: np.ndarray = _array("float64", 2, cols=3)
+    orientations: np.ndarray = _array("float64", 2, cols=4)
+    scales: np.ndarray = _array("float64", 2, cols=3)
+    colours: np.ndarray = _array("float32", 2, cols=4)
+    texts: list[str] = field(default_factory=list)
+
+    def _check_shapes(self) -> None:
+        n = len(self.kinds)
+        sizes = (len(self.frame_ids), len(self.namespaces), self.ids.size, len(self.texts))
+        arrays = (self.positions, self.orientations, self.scales, self.colours)
+        if any(k != n for k in sizes) or any(a.shape[0] != n for a in arrays):
+            raise MessageError("every marker field needs one entry per marker")
+        unknown = sorted(set(self.kinds) - set(MARKER_KINDS))
+        if unknown:
+            raise MessageError(f"marker kinds {unknown} are not among {', '.join(MARKER_KINDS)}")
+        if not _unit_quaternions(self.orientations):
+            raise MessageError("orientations must be unit quaternions (x, y, z, w)")
+
+
+@dataclass
+class Text(Message):
+    """A text document, e.g. a robot description (URDF) for viewers (``std_msgs/String``)."""
+
+    TYPE: ClassVar[str] = "handflow.Text"
+    data: str = ""
+
+
 EVENT_KINDS = ("restart", "crash_loop", "gap", "dropped", "outage", "recovered")
 
 

@@ -41,7 +41,7 @@ class TopicStats:
     last_data: tuple[bytes, bytes | None] | None = None  # payload and attachment
     arrivals: deque = field(default_factory=deque)  # (monotonic s, latency ns)
 
-    def note(self, now_m: float, latency_ns: int, seq: int, window_s: float) -> None:
+    def note(self, now_m: float, latency_ns: int | None, seq: int, window_s: float) -> None:
         self.count += 1
         if self.last_seq and seq > self.last_seq + 1:
             self.gaps += seq - self.last_seq - 1
@@ -57,9 +57,8 @@ class TopicStats:
         return (len(self.arrivals) - 1) / span if span > 0 else 0.0
 
     def latency_ms(self) -> float | None:
-        if not self.arrivals:
-            return None
-        return float(np.median([lat for _, lat in self.arrivals])) / 1e6
+        known = [lat for _, lat in self.arrivals if lat is not None]
+        return float(np.median(known)) / 1e6 if known else None
 
 
 @dataclass
@@ -134,7 +133,8 @@ class Monitor:
             stats = self.topics.get(key)
             if stats is None:
                 stats = self.topics[key] = TopicStats(key, hdr.type_name)
-            stats.note(now_m, now_wall - hdr.stamp_ns, hdr.seq, self.window_s)
+            latency = now_wall - hdr.stamp_ns if hdr.stamp_ns else None  # Text carries no stamp
+            stats.note(now_m, latency, hdr.seq, self.window_s)
             stats.last_data = data
 
     def _on_event(self, data: tuple[bytes, bytes | None]) -> None:

@@ -9,7 +9,7 @@ resolve a path relative to the graph file.
 Example::
 
     class Gain(Node):
-        class Params(BaseModel):
+        class Params(StrictModel):
             gain: float = 1.0
         inputs = {"in": Array}
         outputs = {"out": Array}
@@ -24,15 +24,14 @@ import logging
 from pathlib import Path
 from typing import Any, ClassVar, Protocol
 
-from pydantic import BaseModel, ConfigDict
+from pydantic import BaseModel
 
 from .messages import Message
+from .params import StrictModel
 
 
-class NoParams(BaseModel):
+class NoParams(StrictModel):
     """Params model of a plugin without parameters (unknown keys are rejected)."""
-
-    model_config = ConfigDict(extra="forbid")
 
 
 class Context(Protocol):
@@ -60,7 +59,8 @@ class Node:
     """Base class of all plugins.
 
     Class attributes to set in a subclass:
-    - ``Params``: pydantic model of the ``params:`` block (``extra="forbid"`` recommended);
+    - ``Params``: the ``params:`` block, a :class:`~handflow.framework.params.StrictModel` subclass
+      (unknown keys rejected; choices as ``Literal``);
     - ``inputs`` / ``outputs``: port name → message type;
     - ``description``: one line shown by ``handflow plugins`` (defaults to the docstring's first line).
     A node with a ``tick`` override is ticked at ``tick_rate_hz()`` (default: ``params.rate_hz``).
@@ -106,6 +106,16 @@ class Node:
                 f"{type(self).__name__} overrides tick() but its Params has no 'rate_hz'; override tick_rate_hz()"
             )
         return float(rate)
+
+    @classmethod
+    def input_types(cls, params: BaseModel) -> dict[str, type[Message]]:
+        """Input port types for these params; ``inputs`` unless a plugin's types depend on its params."""
+        return cls.inputs
+
+    @classmethod
+    def output_types(cls, params: BaseModel) -> dict[str, type[Message]]:
+        """Output port types for these params; ``outputs`` unless a plugin's types depend on its params."""
+        return cls.outputs
 
     @classmethod
     def summary(cls) -> str:

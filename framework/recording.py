@@ -52,7 +52,7 @@ from mcap.stream_reader import StreamReader
 from mcap.writer import CompressionType, Writer
 
 from . import transport, wire
-from .messages import Image, Message, MessageError, decode, encode, json_schema, message_types
+from .messages import Image, Message, MessageError, Text, decode, encode, json_schema, message_types
 from .ros2.types import decode_cdr, encode_cdr, handflow_type, ros_type, schema_text
 from .wire import WireHeader, peek_header  # noqa: F401  (re-exported: the JSON dialect's header reader)
 
@@ -411,7 +411,9 @@ class GraphRecorder:
     (:func:`graph_provenance`); ``attach(session)`` subscribes to ``handflow/<graph>/**`` and keeps
     the topics matching the ``record.topics`` globs; ``close()`` finalises the file.
     Payloads are validated by :func:`decode` and stored as received (never re-encoded); invalid
-    payloads are counted in ``skipped`` and logged once per topic.
+    payloads are counted in ``skipped`` and logged once per topic.  The first :class:`Text` document
+    of each topic (e.g. a robot description) is also attached as a file named after the topic
+    (``handflow/demo/sim/description.urdf`` for a URDF; docs/foxglove.md).
     """
 
     def __init__(self, writer: McapWriter, graph_name: str, topics: Iterable[str] | None = None) -> None:
@@ -420,6 +422,7 @@ class GraphRecorder:
         self.filter = TopicFilter(topics)
         self.skipped: dict[str, int] = {}
         self._subscriber = None
+        self._documents: set[str] = set()
 
     @classmethod
     def for_graph(
@@ -451,10 +454,18 @@ class GraphRecorder:
                 self.writer.write_encoded(key, msg.TYPE, data, None, msg.header.stamp_ns, msg.header.seq)
             else:
                 self.writer.write(key, msg)
+            if isinstance(msg, Text) and key not in self._documents:
+                self._documents.add(key)
+                self._attach_document(key, msg.data)
         except (MessageError, RecordingError) as exc:
             if key not in self.skipped:
                 log.warning("not recording a payload on %s: %s", key, exc)
             self.skipped[key] = self.skipped.get(key, 0) + 1
+
+    def _attach_document(self, key: str, text: str) -> None:
+        urdf = "<robot" in text[:2000]
+        name, media_type = (f"{key}.urdf", "application/xml") if urdf else (f"{key}.txt", "text/plain")
+        self.writer.add_attachment(name, text.encode(), media_type)
 
     def close(self) -> None:
         if self._subscriber is not None:

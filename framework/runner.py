@@ -79,7 +79,7 @@ class NodeContext:
         self.graph_name = runtime.graph.name
         self.log = logging.getLogger(f"handflow.node.{self.node_id}")
         self._rt = runtime
-        self._outputs = rn.cls.outputs
+        self._outputs = rn.cls.output_types(rn.params)
         self._state = state
         self._pubs = {
             port: runtime.session.declare_publisher(transport.topic_key(self.graph_name, self.node_id, port))
@@ -115,7 +115,9 @@ class _NodeSlot:
     def __init__(self, rt: GroupRuntime, rn: ResolvedNode, state_dir: Path | None) -> None:
         self.rn = rn
         self.id = rn.spec.id
-        keys = [f"out:{p}" for p in sorted(rn.cls.outputs)] + [f"in:{p}" for p in sorted(rn.spec.inputs)]
+        keys = [f"out:{p}" for p in sorted(rn.cls.output_types(rn.params))] + [
+            f"in:{p}" for p in sorted(rn.spec.inputs)
+        ]
         self.state = SeqState(state_dir / f"{self.id}.seq" if state_dir else None, keys)
         self.ctx = NodeContext(rt, rn, self.state)
         self.node: Node = rn.cls(rn.params, self.ctx)
@@ -287,7 +289,7 @@ class GroupRuntime:
             heapq.heappush(ticks, (nxt, i))
 
     def _deliver(self, slot: _NodeSlot, port: str, payload: bytes, att: bytes | None) -> None:
-        expected = slot.rn.cls.inputs.get(port, Message)
+        expected = slot.rn.cls.input_types(slot.rn.params).get(port, Message)
         try:
             msg = wire.unpack(payload, att)
             if not isinstance(msg, expected):
@@ -367,8 +369,9 @@ def main(argv: list[str] | None = None) -> int:
     logging.basicConfig(
         level=args.log_level, stream=sys.stderr, format="%(asctime)s %(levelname)s [%(name)s] %(message)s"
     )
-    graph = load_graph(args.graph)
-    rt = GroupRuntime(graph, args.nodes.split(","), args.hub, args.lockstep, args.state_dir)
+    node_ids = args.nodes.split(",")
+    graph = load_graph(args.graph, only=node_ids)
+    rt = GroupRuntime(graph, node_ids, args.hub, args.lockstep, args.state_dir)
 
     def _stop(signum, frame):
         rt.stop_requested = True

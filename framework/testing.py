@@ -75,8 +75,9 @@ class NodeHarness:
         node_id: str = "node",
         base_dir: str | Path = ".",
     ) -> None:
-        self.ctx = HarnessContext(node_id, Path(base_dir).resolve(), node_cls.outputs)
-        self.node = node_cls(node_cls.Params.model_validate(params or {}), self.ctx)
+        validated = node_cls.Params.model_validate(params or {})
+        self.ctx = HarnessContext(node_id, Path(base_dir).resolve(), node_cls.output_types(validated))
+        self.node = node_cls(validated, self.ctx)
         self.dropped: list[tuple[str, str]] = []
 
     @property

@@ -5,7 +5,8 @@ As in rmw_zenoh, what gap counting and the monitor need travels outside the mess
 
     b"HF\\x01"  int64 seq  uint16 len(source)  source (UTF-8)  type name (UTF-8, the rest)
 
-The stamp is read from the CDR body itself: every handflow wire type starts with ``std_msgs/Header``.
+The stamp is read from the CDR body itself: most handflow wire types start with ``std_msgs/Header``;
+the others (``STAMPS`` of :mod:`handflow.framework.ros2.types`: transforms, markers, text) are decoded.
 A payload without an attachment is read as the earlier self-describing JSON (:func:`decode`), so
 JSON-speaking peers and recordings keep working.  Everything raises only :class:`MessageError`.
 """
@@ -18,7 +19,7 @@ import struct
 from dataclasses import dataclass
 
 from .messages import Message, MessageError, decode, message_types
-from .ros2.types import decode_cdr, encode_cdr
+from .ros2.types import STAMPS, decode_cdr, encode_cdr
 
 MAGIC = b"HF\x01"
 _FIXED = struct.Struct("<qH")
@@ -101,6 +102,8 @@ def peek(payload: bytes, att: bytes | None) -> WireHeader:
     if att is None:
         return peek_header(payload)
     type_name, source, seq = parse_attachment(att)
+    if type_name in STAMPS:
+        return WireHeader(type_name, source, seq, decode_cdr(payload, type_name).header.stamp_ns)
     if len(payload) < 4 + _STAMP.size:
         raise MessageError(f"a CDR message needs at least {4 + _STAMP.size} bytes, got {len(payload)}")
     sec, nanosec = _STAMP.unpack_from(payload, 4)

@@ -31,7 +31,7 @@ def _describe(name: str) -> dict:
         "target": entry.target,
         "summary": cls.summary(),
         "inputs": {p: t.TYPE or "any" for p, t in cls.inputs.items()},
-        "outputs": {p: t.TYPE for p, t in cls.outputs.items()},
+        "outputs": {p: t.TYPE or "any" for p, t in cls.outputs.items()},
         "params": params,
     }
 

@@ -10,7 +10,9 @@ against ``rosbags`` in tests/framework/test_ros2_cdr.py; docs/ros2.md.
 
 from __future__ import annotations
 
+import functools
 import struct
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -108,8 +110,26 @@ class CdrWriter:
                 self.buf += arr.data.cast("B")
             return
         self.primitive("uint32", len(values))
+        if item == "string":
+            self._strings(values)
+            return
         for v in values:
             self.value(item, v)
+
+    def _strings(self, values: Any) -> None:
+        """``string[]`` elements in one loop (joint names are the most common sequence on the wire)."""
+        buf = self.buf
+        for v in values:
+            try:
+                raw = v.encode()
+            except (AttributeError, UnicodeEncodeError) as exc:
+                raise MessageError(f"a string is not Unicode text: {exc}") from None
+            pad = -(len(buf) - 4) % 4
+            if pad:
+                buf += bytes(pad)
+            buf += _U32.pack(len(raw) + 1)
+            buf += raw
+            buf += b"\x00"
 
     def struct(self, ftype: str, values: dict[str, Any]) -> None:
         for t, name in self.specs[ftype]:
@@ -117,90 +137,175 @@ class CdrWriter:
 
 
 class CdrReader:
-    """Reads CDR values from a payload, checking every length; raises :class:`MessageError`."""
+    """Reads CDR values from a payload, checking every length; raises :class:`MessageError`.
+
+    Each type is read by a plan built once per field list (:func:`_plan`): a tuple of small
+    readers, one per field, so no type name is parsed per message.
+    """
 
     def __init__(self, data: bytes | bytearray | memoryview, specs: dict[str, Fields]) -> None:
         self.data = memoryview(data).cast("B") if not isinstance(data, bytes) else memoryview(data)
+        self.size = len(self.data)
         self.specs = specs
-        if len(self.data) < 4:
-            raise MessageError(f"a CDR payload needs a 4-byte encapsulation header, got {len(self.data)} byte(s)")
+        if self.size < 4:
+            raise MessageError(f"a CDR payload needs a 4-byte encapsulation header, got {self.size} byte(s)")
         if bytes(self.data[:2]) != ENCAPSULATION_LE[:2]:
             raise MessageError(
                 f"only little-endian CDR (00 01) is read, got encapsulation {bytes(self.data[:2]).hex()}"
             )
         self.pos = 4
 
-    def _take(self, n: int, what: str) -> memoryview:
-        end = self.pos + n
-        if end > len(self.data):
+    def take(self, n: int, align: int, what: str) -> int:
+        """Start offset of ``n`` bytes after aligning to ``align``; advances past them."""
+        start = self.pos + (-(self.pos - 4) % align)
+        end = start + n
+        if end > self.size:
             raise MessageError(
-                f"truncated CDR payload: {what} needs {n} byte(s) at offset {self.pos}, {len(self.data) - self.pos} left"
+                f"truncated CDR payload: {what} needs {n} byte(s) at offset {start}, {max(self.size - start, 0)} left"
             )
-        out = self.data[self.pos : end]
         self.pos = end
-        return out
-
-    def _align(self, n: int) -> None:
-        self.pos += -(self.pos - 4) % n
-
-    def primitive(self, ftype: str) -> Any:
-        st = _STRUCTS[ftype]
-        self._align(st.size)
-        value = st.unpack(self._take(st.size, ftype))[0]
-        if ftype == "bool" and self.data[self.pos - 1] > 1:
-            raise MessageError(f"a CDR bool must be 0 or 1, got {self.data[self.pos - 1]}")
-        return value
-
-    def string(self) -> str:
-        n = self.primitive("uint32")
-        raw = self._take(n, "string")
-        if n == 0 or raw[-1] != 0:
-            raise MessageError("a CDR string must end with NUL")
-        try:
-            return bytes(raw[:-1]).decode()
-        except UnicodeDecodeError as exc:
-            raise MessageError(f"a CDR string is not UTF-8: {exc}") from None
-
-    def header(self) -> tuple[int, str]:
-        sec, nanosec = self.primitive("int32"), self.primitive("uint32")
-        if sec < 0 or nanosec >= 1_000_000_000:
-            raise MessageError(f"header stamp must be a time ≥ 0 with nanosec < 1e9, got {sec} s {nanosec} ns")
-        return sec * 1_000_000_000 + nanosec, self.string()
-
-    def value(self, ftype: str) -> Any:
-        if ftype.endswith("[]"):
-            return self.sequence(ftype[:-2])
-        if ftype in _STRUCTS:
-            return self.primitive(ftype)
-        if ftype == "string":
-            return self.string()
-        if ftype == HEADER:
-            return self.header()
-        return self.struct(ftype)
-
-    def sequence(self, item: str) -> Any:
-        n = self.primitive("uint32")
-        dtype = _DTYPES.get(item)
-        if dtype is not None:
-            if n:
-                self._align(dtype.itemsize)
-            raw = self._take(n * dtype.itemsize, f"{item}[{n}]")
-            arr = np.frombuffer(raw, dtype=dtype)
-            if item == "bool":
-                if arr.size and arr.max() > 1:
-                    raise MessageError("a CDR bool must be 0 or 1")
-                arr = arr.view(np.bool_)
-            return arr
-        if n > len(self.data) - self.pos:  # every element takes at least one byte
-            raise MessageError(
-                f"truncated CDR payload: {n} {item} element(s) announced, {len(self.data) - self.pos} byte(s) left"
-            )
-        return [self.value(item) for _ in range(n)]
+        return start
 
     def struct(self, ftype: str) -> dict[str, Any]:
-        return {name: self.value(t) for t, name in self.specs[ftype]}
+        return _plan(self.specs, ftype)(self)
 
     def finish(self) -> None:
         """No bytes may follow the message except up to 3 bytes of padding."""
         if len(self.data) - self.pos > 3:
             raise MessageError(f"{len(self.data) - self.pos} unexpected byte(s) after the CDR message")
+
+
+Read = Callable[[CdrReader], Any]
+
+
+_PLANS: dict[int, tuple[dict[str, Fields], dict[str, Read]]] = {}  # id(specs) → (specs, readers by type)
+
+
+def _plan(specs: dict[str, Fields], ftype: str) -> Read:
+    """The reader of one field type, built on first use for this ``specs`` table."""
+    entry = _PLANS.get(id(specs))
+    if entry is None or entry[0] is not specs:
+        entry = _PLANS[id(specs)] = (specs, {})
+    read = entry[1].get(ftype)
+    if read is None:
+        read = entry[1][ftype] = _build(specs, ftype)
+    return read
+
+
+def _build(specs: dict[str, Fields], ftype: str) -> Read:
+    if ftype.endswith("[]"):
+        return _sequence_reader(specs, ftype[:-2])
+    if ftype in _STRUCTS:
+        return _primitive_reader(ftype)
+    if ftype == "string":
+        return _read_string
+    if ftype == HEADER:
+        return _read_header
+    pairs = tuple((name, _plan(specs, t)) for t, name in specs[ftype])
+
+    def read(r: CdrReader) -> dict[str, Any]:
+        return {name: f(r) for name, f in pairs}
+
+    return read
+
+
+@functools.cache
+def _primitive_reader(ftype: str) -> Read:
+    st = _STRUCTS[ftype]
+    size = st.size
+    if ftype == "bool":
+
+        def read_bool(r: CdrReader) -> bool:
+            byte = r.data[r.take(1, 1, ftype)]
+            if byte > 1:
+                raise MessageError(f"a CDR bool must be 0 or 1, got {byte}")
+            return bool(byte)
+
+        return read_bool
+
+    def read(r: CdrReader) -> Any:
+        return st.unpack_from(r.data, r.take(size, size, ftype))[0]
+
+    return read
+
+
+_read_uint32 = _primitive_reader("uint32")
+_STAMP = struct.Struct("<iI")
+_U32 = _STRUCTS["uint32"]
+
+
+def _read_string(r: CdrReader) -> str:
+    n = _read_uint32(r)
+    start = r.take(n, 1, "string")
+    if n == 0 or r.data[start + n - 1] != 0:
+        raise MessageError("a CDR string must end with NUL")
+    try:
+        return bytes(r.data[start : start + n - 1]).decode()
+    except UnicodeDecodeError as exc:
+        raise MessageError(f"a CDR string is not UTF-8: {exc}") from None
+
+
+def _read_strings(r: CdrReader) -> list[str]:
+    """``string[]`` in one loop (joint names are the most common sequence on the wire)."""
+    n = _read_uint32(r)
+    data, size, pos = r.data, r.size, r.pos
+    if n > size - pos:
+        raise MessageError(f"truncated CDR payload: {n} string element(s) announced, {size - pos} byte(s) left")
+    out = []
+    for _ in range(n):
+        pos += -(pos - 4) % 4
+        if pos + 4 > size:
+            raise MessageError(f"truncated CDR payload: a string length needs 4 byte(s) at offset {pos}")
+        k = _U32.unpack_from(data, pos)[0]
+        pos += 4
+        end = pos + k
+        if k == 0 or end > size or data[end - 1] != 0:
+            raise MessageError(f"a CDR string at offset {pos} must fit the payload and end with NUL")
+        try:
+            out.append(str(data[pos : end - 1], "utf-8"))
+        except UnicodeDecodeError as exc:
+            raise MessageError(f"a CDR string is not UTF-8: {exc}") from None
+        pos = end
+    r.pos = pos
+    return out
+
+
+def _read_header(r: CdrReader) -> tuple[int, str]:
+    sec, nanosec = _STAMP.unpack_from(r.data, r.take(8, 4, "header stamp"))
+    if sec < 0 or nanosec >= 1_000_000_000:
+        raise MessageError(f"header stamp must be a time ≥ 0 with nanosec < 1e9, got {sec} s {nanosec} ns")
+    return sec * 1_000_000_000 + nanosec, _read_string(r)
+
+
+def _sequence_reader(specs: dict[str, Fields], item: str) -> Read:
+    dtype = _DTYPES.get(item)
+    if dtype is not None:
+        return _array_reader(item, dtype)
+    if item == "string":
+        return _read_strings
+    element = _plan(specs, item)
+
+    def read(r: CdrReader) -> list[Any]:
+        n = _read_uint32(r)
+        if n > r.size - r.pos:  # every element takes at least one byte
+            raise MessageError(f"truncated CDR payload: {n} {item} element(s) announced, {r.size - r.pos} byte(s) left")
+        return [element(r) for _ in range(n)]
+
+    return read
+
+
+@functools.cache
+def _array_reader(item: str, dtype: np.dtype) -> Read:
+    size = dtype.itemsize
+
+    def read(r: CdrReader) -> np.ndarray:
+        n = _read_uint32(r)
+        start = r.take(n * size, size if n else 1, f"{item}[{n}]")
+        arr = np.frombuffer(r.data, dtype=dtype, count=n, offset=start)
+        if item == "bool":
+            if n and arr.max() > 1:
+                raise MessageError("a CDR bool must be 0 or 1")
+            arr = arr.view(np.bool_)
+        return arr
+
+    return read

@@ -10,6 +10,11 @@ JointState                   ``sensor_msgs/msg/JointState`` (``frame_id`` = ``<h
 Image                        ``sensor_msgs/msg/Image``
 Status                       ``diagnostic_msgs/msg/DiagnosticArray`` (one status: ``name`` = state,
                              ``message`` = text, counters as key/value pairs)
+CompressedImage              ``sensor_msgs/msg/CompressedImage``
+Transforms                   ``tf2_msgs/msg/TFMessage`` (every transform carries the message's stamp)
+Markers                      ``visualization_msgs/msg/MarkerArray`` (shapes and texts; no points, meshes
+                             or textures; action ADD, lifetime forever)
+Text                         ``std_msgs/msg/String`` (no header: the stamp is not carried)
 Array, GloveFrame, Contacts, ``handflow_msgs/msg/<same name>``
 Points2D, LatentState,
 Label, SegmentEvent,
@@ -31,8 +36,22 @@ from typing import Any
 
 import numpy as np
 
-from ..messages import Header, Image, JointState, Message, MessageError, Status, message_types
+from ..messages import (
+    MARKER_KINDS,
+    CompressedImage,
+    Header,
+    Image,
+    JointState,
+    Markers,
+    Message,
+    MessageError,
+    Status,
+    Text,
+    Transforms,
+    message_types,
+)
 from .cdr import CdrReader, CdrWriter, parse_msg
+from .type_hash import rihs01
 
 OWN_PACKAGE = "handflow_msgs"
 # Standard ROS 2 Jazzy definitions used by the mapping (checked against rosbags' Jazzy store in tests).
@@ -48,11 +67,41 @@ STANDARD_MSGS = {
         "byte OK=0\nbyte WARN=1\nbyte ERROR=2\nbyte STALE=3\nbyte level\nstring name\nstring message\nstring hardware_id\ndiagnostic_msgs/KeyValue[] values"
     ),
     "diagnostic_msgs/msg/DiagnosticArray": "std_msgs/Header header\ndiagnostic_msgs/DiagnosticStatus[] status",
+    "builtin_interfaces/msg/Duration": "int32 sec\nuint32 nanosec",
+    "std_msgs/msg/String": "string data",
+    "std_msgs/msg/ColorRGBA": "float32 r\nfloat32 g\nfloat32 b\nfloat32 a",
+    "sensor_msgs/msg/CompressedImage": "std_msgs/Header header\nstring format\nuint8[] data",
+    "geometry_msgs/msg/Vector3": "float64 x\nfloat64 y\nfloat64 z",
+    "geometry_msgs/msg/Point": "float64 x\nfloat64 y\nfloat64 z",
+    "geometry_msgs/msg/Quaternion": "float64 x\nfloat64 y\nfloat64 z\nfloat64 w",
+    "geometry_msgs/msg/Pose": "geometry_msgs/Point position\ngeometry_msgs/Quaternion orientation",
+    "geometry_msgs/msg/Transform": "geometry_msgs/Vector3 translation\ngeometry_msgs/Quaternion rotation",
+    "geometry_msgs/msg/TransformStamped": (
+        "std_msgs/Header header\nstring child_frame_id\ngeometry_msgs/Transform transform"
+    ),
+    "tf2_msgs/msg/TFMessage": "geometry_msgs/TransformStamped[] transforms",
+    "visualization_msgs/msg/UVCoordinate": "float32 u\nfloat32 v",
+    "visualization_msgs/msg/MeshFile": "string filename\nuint8[] data",
+    "visualization_msgs/msg/Marker": (
+        "int32 ARROW=0\nint32 CUBE=1\nint32 SPHERE=2\nint32 CYLINDER=3\nint32 LINE_STRIP=4\nint32 LINE_LIST=5\n"
+        "int32 CUBE_LIST=6\nint32 SPHERE_LIST=7\nint32 POINTS=8\nint32 TEXT_VIEW_FACING=9\nint32 MESH_RESOURCE=10\n"
+        "int32 TRIANGLE_LIST=11\nint32 ARROW_STRIP=12\nint32 ADD=0\nint32 MODIFY=0\nint32 DELETE=2\nint32 DELETEALL=3\n"
+        "std_msgs/Header header\nstring ns\nint32 id\nint32 type\nint32 action\ngeometry_msgs/Pose pose\n"
+        "geometry_msgs/Vector3 scale\nstd_msgs/ColorRGBA color\nbuiltin_interfaces/Duration lifetime\nbool frame_locked\n"
+        "geometry_msgs/Point[] points\nstd_msgs/ColorRGBA[] colors\nstring texture_resource\n"
+        "sensor_msgs/CompressedImage texture\nvisualization_msgs/UVCoordinate[] uv_coordinates\nstring text\n"
+        "string mesh_resource\nvisualization_msgs/MeshFile mesh_file\nbool mesh_use_embedded_materials"
+    ),
+    "visualization_msgs/msg/MarkerArray": "visualization_msgs/Marker[] markers",
 }
 STANDARD_TYPES = {
     JointState.TYPE: "sensor_msgs/msg/JointState",
     Image.TYPE: "sensor_msgs/msg/Image",
     Status.TYPE: "diagnostic_msgs/msg/DiagnosticArray",
+    CompressedImage.TYPE: "sensor_msgs/msg/CompressedImage",
+    Transforms.TYPE: "tf2_msgs/msg/TFMessage",
+    Markers.TYPE: "visualization_msgs/msg/MarkerArray",
+    Text.TYPE: "std_msgs/msg/String",
 }
 DIAGNOSTIC_LEVELS = {"ok": 0, "connected": 0, "warn": 1, "warning": 1, "error": 2, "failed": 2, "stale": 3}
 
@@ -94,6 +143,11 @@ def handflow_type(ros: str) -> type[Message]:
         except MessageError:
             continue
     raise MessageError(f"no handflow message type for ROS 2 type {ros}")
+
+
+def type_hash(ros: str) -> str:
+    """The RIHS01 hash of a standard or ``handflow_msgs`` type used by the mapping (docs/ros2.md)."""
+    return rihs01(ros, {**STANDARD_MSGS, **own_msgs()})
 
 
 # ----------------------------------------------------------------------------------------------
@@ -164,6 +218,123 @@ def _status_from(v: dict[str, Any]) -> dict[str, Any]:
     return {"state": s["name"], "text": s["message"], "counters": counters}
 
 
+def _compressed_to(m: CompressedImage) -> dict[str, Any]:
+    return {"header": (m.header.stamp_ns, m.frame_id), "format": m.format, "data": np.frombuffer(m.data, np.uint8)}
+
+
+def _compressed_from(v: dict[str, Any]) -> dict[str, Any]:
+    return {"frame_id": v["header"][1], "format": v["format"], "data": v["data"].tobytes()}
+
+
+_XYZ, _XYZW = ("x", "y", "z"), ("x", "y", "z", "w")
+
+
+def _fields(row: np.ndarray, names: tuple[str, ...]) -> dict[str, float]:
+    return dict(zip(names, row.tolist()))
+
+
+def _rows(items: list[dict[str, Any]], names: tuple[str, ...]) -> np.ndarray:
+    return np.array([[d[k] for k in names] for d in items], dtype=float).reshape(-1, len(names))
+
+
+def _transforms_to(m: Transforms) -> dict[str, Any]:
+    stamp = m.header.stamp_ns
+    return {
+        "transforms": [
+            {
+                "header": (stamp, parent),
+                "child_frame_id": child,
+                "transform": {"translation": _fields(t, _XYZ), "rotation": _fields(r, _XYZW)},
+            }
+            for parent, child, t, r in zip(m.parents, m.children, m.translations, m.rotations)
+        ]
+    }
+
+
+def _transforms_from(v: dict[str, Any]) -> dict[str, Any]:
+    ts = v["transforms"]
+    return {
+        "parents": [t["header"][1] for t in ts],
+        "children": [t["child_frame_id"] for t in ts],
+        "translations": _rows([t["transform"]["translation"] for t in ts], _XYZ),
+        "rotations": _rows([t["transform"]["rotation"] for t in ts], _XYZW),
+    }
+
+
+_RGBA = ("r", "g", "b", "a")
+_MARKER_KIND_NAMES = {code: name for name, code in MARKER_KINDS.items()}
+_NO_TEXTURE = {"header": (0, ""), "format": "", "data": np.zeros(0, np.uint8)}
+_NO_MESH = {"filename": "", "data": np.zeros(0, np.uint8)}
+
+
+def _markers_to(m: Markers) -> dict[str, Any]:
+    stamp = m.header.stamp_ns
+    rows = zip(
+        m.kinds, m.frame_ids, m.namespaces, m.ids.tolist(), m.positions, m.orientations, m.scales, m.colours, m.texts
+    )
+    return {
+        "markers": [
+            {
+                "header": (stamp, frame),
+                "ns": ns,
+                "id": ident,
+                "type": MARKER_KINDS[kind],
+                "action": 0,
+                "pose": {"position": _fields(p, _XYZ), "orientation": _fields(q, _XYZW)},
+                "scale": _fields(s, _XYZ),
+                "color": _fields(c, _RGBA),
+                "lifetime": {"sec": 0, "nanosec": 0},
+                "frame_locked": False,
+                "points": [],
+                "colors": [],
+                "texture_resource": "",
+                "texture": _NO_TEXTURE,
+                "uv_coordinates": [],
+                "text": text,
+                "mesh_resource": "",
+                "mesh_file": _NO_MESH,
+                "mesh_use_embedded_materials": False,
+            }
+            for kind, frame, ns, ident, p, q, s, c, text in rows
+        ]
+    }
+
+
+def _markers_from(v: dict[str, Any]) -> dict[str, Any]:
+    ms = v["markers"]
+    for mk in ms:
+        if mk["type"] not in _MARKER_KIND_NAMES or mk["action"] != 0:
+            raise MessageError(
+                f"handflow Markers carry added {', '.join(MARKER_KINDS)} markers; got type {mk['type']}, action {mk['action']}"
+            )
+        if mk["points"] or mk["texture"]["data"].size or mk["mesh_file"]["data"].size:
+            raise MessageError("handflow Markers carry no points, textures or meshes")
+    return {
+        "kinds": [_MARKER_KIND_NAMES[mk["type"]] for mk in ms],
+        "frame_ids": [mk["header"][1] for mk in ms],
+        "namespaces": [mk["ns"] for mk in ms],
+        "ids": np.array([mk["id"] for mk in ms], dtype=np.int32),
+        "positions": _rows([mk["pose"]["position"] for mk in ms], _XYZ),
+        "orientations": _rows([mk["pose"]["orientation"] for mk in ms], _XYZW),
+        "scales": _rows([mk["scale"] for mk in ms], _XYZ),
+        "colours": _rows([mk["color"] for mk in ms], _RGBA).astype(np.float32),
+        "texts": [mk["text"] for mk in ms],
+    }
+
+
+def _stamp_of_first(items: str) -> Callable[[dict[str, Any]], int]:
+    """Stamp of a headerless ROS type: that of its first element (0 when empty)."""
+    return lambda v: v[items][0]["header"][0] if v[items] else 0
+
+
+STAMPS: dict[str, Callable[[dict[str, Any]], int]] = {
+    Transforms.TYPE: _stamp_of_first("transforms"),
+    Markers.TYPE: _stamp_of_first("markers"),
+    Text.TYPE: lambda v: 0,
+}
+"""How to find the stamp of types whose ROS 2 message does not start with ``std_msgs/Header``."""
+
+
 def _own_to(m: Message) -> dict[str, Any]:
     v = {name: getattr(m, name) for name in vars(m) if name != "header"}
     v["header"] = (m.header.stamp_ns, "")
@@ -213,6 +384,10 @@ _MAPPINGS: dict[str, Mapping] = {
     "handflow.GloveFrame": (_glove_to, _glove_from),
     "handflow.Points2D": (_points_to, _points_from),
     "handflow.Array": (_own_to, _array_from),
+    CompressedImage.TYPE: (_compressed_to, _compressed_from),
+    Transforms.TYPE: (_transforms_to, _transforms_from),
+    Markers.TYPE: (_markers_to, _markers_from),
+    Text.TYPE: (lambda m: {"data": m.data}, lambda v: {"data": v["data"]}),
 }
 
 
@@ -237,7 +412,8 @@ def decode_cdr(data: bytes | bytearray | memoryview, type_name: str, source: str
         msg = cls(**from_ros(values))
     except (TypeError, ValueError, OverflowError) as exc:
         raise MessageError(f"invalid {cls.TYPE}: {exc}") from None
-    msg.header = Header(source, seq, values["header"][0])
+    stamp = STAMPS[cls.TYPE](values) if cls.TYPE in STAMPS else values["header"][0]
+    msg.header = Header(source, seq, stamp)
     try:
         msg.check()
     except (TypeError, ValueError, OverflowError, IndexError) as exc:

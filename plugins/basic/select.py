@@ -10,16 +10,16 @@ from __future__ import annotations
 
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import Field
 
 from handflow.framework.messages import JointState
+from handflow.framework.params import StrictModel
 from handflow.framework.plugin import Node
 
 INPUTS = ("primary", "secondary")
 
 
-class SelectParams(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+class SelectParams(StrictModel):
     use: Literal["primary", "secondary"] = Field("primary", description="input forwarded at start")
     switch_after_s: float | None = Field(
         None, gt=0, description="switch to the other input this many seconds after the first message; null = never"

@@ -5,14 +5,14 @@ from __future__ import annotations
 from typing import Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import Field
 
 from handflow.framework.messages import Array
+from handflow.framework.params import StrictModel
 from handflow.framework.plugin import Node
 
 
-class SignalParams(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+class SignalParams(StrictModel):
     kind: Literal["sine", "noise", "csv"] = "sine"
     rate_hz: float = Field(100.0, gt=0)
     width: int = Field(1, ge=1, description="values per message (sine/noise)")

@@ -5,14 +5,14 @@ from __future__ import annotations
 import json
 import time
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import Field
 
 from handflow.framework.messages import Message
+from handflow.framework.params import StrictModel
 from handflow.framework.plugin import Node
 
 
-class SinkParams(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+class SinkParams(StrictModel):
     log_every: int = Field(0, ge=0, description="log every n-th message (0: only a summary at teardown)")
     jsonl: str | None = Field(None, description="append one JSON line per message (arrival ns, latency ns, message)")
 

@@ -2,14 +2,12 @@
 
 from __future__ import annotations
 
-from pydantic import BaseModel, ConfigDict
-
 from handflow.framework.messages import Array
+from handflow.framework.params import StrictModel
 from handflow.framework.plugin import Node
 
 
-class GainOffsetParams(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+class GainOffsetParams(StrictModel):
     gain: float = 1.0
     offset: float = 0.0
 

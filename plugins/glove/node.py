@@ -17,9 +17,10 @@ import glob
 from pathlib import Path
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import Field
 
 from handflow.framework.messages import GloveFrame, Status
+from handflow.framework.params import StrictModel
 from handflow.framework.plugin import Node
 
 from .emulator import Fault, GloveEmulator, array_source
@@ -28,18 +29,16 @@ from .reader import GloveReader, ReaderConfig
 from .synthetic import HandMotion, SyntheticGlove
 
 
-class FaultParams(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+class FaultParams(StrictModel):
     kind: Literal["garbage", "drop_bytes", "truncate", "zero_value", "disconnect", "stall"]
     at_record: int
     size: int = 8
     duration_s: float = 0.3
 
 
-class EmulatorParams(BaseModel):
+class EmulatorParams(StrictModel):
     """Options of the embedded emulator (``port: emulator``)."""
 
-    model_config = ConfigDict(extra="forbid")
     frames: str | None = Field(None, description="raw frames file (.npy/.csv/.mcap) to loop; default: synthetic motion")
     motion_period_s: float = 4.0
     noise: float = 0.5
@@ -83,8 +82,7 @@ def missing_device_message(port: str) -> str | None:
 class CyberGloveNode(Node):
     """CyberGlove II reader: raw frames + link status (serial, /dev/rfcommN, bt://ADDR, or emulator)."""
 
-    class Params(BaseModel):
-        model_config = ConfigDict(extra="forbid")
+    class Params(StrictModel):
         port: str = Field("emulator", description="serial device, bt://AA:BB:CC:DD:EE:FF[/channel], or 'emulator'")
         baudrate: int = 115200
         glove_rate_hz: float = 100.0

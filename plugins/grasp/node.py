@@ -11,10 +11,13 @@ dataset (raw database) or nothing (purely tactile grasping).
 
 from __future__ import annotations
 
+from typing import Literal
+
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import Field
 
 from handflow.framework.messages import Contacts, JointState, Label, MessageError, Status
+from handflow.framework.params import StrictModel
 from handflow.framework.plugin import Node
 from handflow.plugins.hands.joints import HAND_MODELS
 
@@ -23,18 +26,19 @@ from .experience import ExperienceBase
 from .hand_layout import hand_layout
 
 
-class ExperienceGraspParams(BaseModel):
+class ExperienceGraspParams(StrictModel):
     """Parameters of ``grasp.experience``."""
 
-    model_config = ConfigDict(extra="forbid")
-    hand: str = Field("shadow", description="hand model: shadow | gifu | human")
+    hand: Literal["shadow", "gifu", "human"] = Field("shadow", description="hand model")
     experience: str | None = Field(None, description="SOM (.npz from grasp-som) or grasp dataset; none = tactile only")
     rate_hz: float = Field(60.0, gt=0, description="control cycles per second")
     gamma: float = Field(1.0, gt=0, description="closing speed γ of distal joints (rad/s)")
     lam: float = Field(1.0, gt=0, description="proximal joints close at λ·γ")
     squeeze: float = Field(0.1, ge=0, description="grip: held joints finally target measured + squeeze (rad)")
     max_lead: float = Field(0.25, gt=0, description="closing targets lead the measured angle by at most this (rad)")
-    steer: str = Field("staged", description="how a best match steers free fingers: closing | blend | staged | all")
+    steer: Literal["closing", "blend", "staged", "all"] = Field(
+        "staged", description="how a best match steers free fingers"
+    )
     steer_before_contact: bool = Field(
         True, description="phase B approaches best matches (false: tactile until the first contact)"
     )

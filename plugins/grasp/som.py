@@ -75,6 +75,7 @@ class SOM(BaseEstimator):
 
     def __init__(
         self,
+        *,
         rows: int = 25,
         cols: int = 25,
         lr=(0.95, 0.05),
@@ -211,6 +212,7 @@ class SOM(BaseEstimator):
 
     def transform(self, X, mask=None) -> np.ndarray:
         """Lattice coordinates (row, col) of each posture's best-match node (n, 2)."""
+        check_is_fitted(self, "nodes_")
         return self.grid_[self.best_match(X, mask)].copy()
 
     def quantization_error(self, X) -> float:

@@ -10,24 +10,23 @@ import argparse
 import sys
 from importlib.metadata import entry_points
 from pathlib import Path
-from typing import Literal, Optional
+from typing import Literal, Optional, Union
 
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import Field, model_validator
 
+from handflow.framework.params import StrictModel
 from handflow.framework.yaml_files import YamlFileError, load_model
 
 from .data import load_csv_dir, load_mcap, load_npz
+from .kernels import KernelName
 from .model import StructuredUKR
 from .plots import plot_training
+from .sparse import dense_advice
 from .validation import InvalidInputError
 
 
-class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid")
-
-
-class DataConfig(_Strict):
+class DataConfig(StrictModel):
     """Exactly one source: ``csv_dir``, ``npz`` or ``mcap`` (+ ``topic``)."""
 
     csv_dir: Optional[Path] = None
@@ -52,21 +51,22 @@ class DataConfig(_Strict):
         return self
 
 
-class LatentConfig(_Strict):
-    kernel: str
+class LatentConfig(StrictModel):
+    kernel: KernelName
     beta: float = Field(gt=0)
     time: bool = False
 
 
-class ModelConfig(_Strict):
+class ModelConfig(StrictModel):
     latent: list[LatentConfig] = Field(min_length=1)
     time_dim: Optional[int] = None
     lambda_cseq: float = Field(1.0, ge=0)
     lambda_pvar: float = Field(1.0, ge=0)
     loo_cv: bool = True
+    sparse: Union[bool, Literal["auto", "float32"]] = "auto"
 
 
-class TrainingConfig(_Strict):
+class TrainingConfig(StrictModel):
     optimizer: Literal["rprop", "lbfgs"] = "rprop"
     n_steps: int = Field(500, ge=0)
     init: Literal["isomap", "equidistant"] = "isomap"
@@ -75,7 +75,7 @@ class TrainingConfig(_Strict):
     random_state: Optional[int] = 0
 
 
-class TrainConfig(_Strict):
+class TrainConfig(StrictModel):
     data: DataConfig
     model: ModelConfig
     training: TrainingConfig = Field(default_factory=TrainingConfig)
@@ -114,6 +114,7 @@ def build_model(m: ModelConfig, t: TrainingConfig, n_steps=None) -> StructuredUK
         lambda_cseq=m.lambda_cseq,
         lambda_pvar=m.lambda_pvar,
         loo_cv=m.loo_cv,
+        sparse=m.sparse,
         optimizer=t.optimizer,
         n_steps=t.n_steps if n_steps is None else n_steps,
         init=t.init,
@@ -217,6 +218,9 @@ def run_train(args: argparse.Namespace) -> int:
         check_train_args(args)
         sequences, names = load_data(cfg.data)
         model = build_model(cfg.model, cfg.training, args.steps)
+        advice = dense_advice(model, sum(map(len, sequences)))
+        if advice and not args.quiet:
+            print(f"handflow train: note: {advice}", file=sys.stderr)
         with _Progress(model.n_steps, args.quiet) as progress:
             model.fit(sequences, callback=progress)
     except InvalidInputError as exc:

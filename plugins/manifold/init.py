@@ -23,6 +23,9 @@ SCALE_GRID = np.geomspace(0.1, 100.0, 31)
 # Documented choice: jitter (in bandwidths) that breaks the exact symmetry of constant
 # non-time coordinates, whose gradient would otherwise be identically zero.
 JITTER = 1e-3
+# Documented choice: Isomap's geodesic matrix is N×N; above this many points it is fitted on
+# an evenly spaced subset and the other points are mapped with Isomap.transform.
+ISOMAP_MAX_POINTS = 2000
 
 
 def atan2_star(v, u):
@@ -61,7 +64,12 @@ def spectral_latents(Y, kernel, n_neighbors):
         )
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # disconnected-graph warnings: sklearn completes it
-        Z = Isomap(n_neighbors=n_neighbors, n_components=kernel.q + n_periodic).fit_transform(Y)
+        iso = Isomap(n_neighbors=n_neighbors, n_components=kernel.q + n_periodic)
+        if len(Y) <= ISOMAP_MAX_POINTS:
+            Z = iso.fit_transform(Y)
+        else:  # geodesics are N×N: embed an evenly spaced subset, map the rest in blocks
+            iso.fit(Y[np.linspace(0, len(Y) - 1, ISOMAP_MAX_POINTS).astype(int)])
+            Z = np.vstack([iso.transform(Y[a : a + ISOMAP_MAX_POINTS]) for a in range(0, len(Y), ISOMAP_MAX_POINTS)])
     Z = _canonical_signs(Z)
     X = np.empty((Y.shape[0], kernel.q))
     if n_periodic:

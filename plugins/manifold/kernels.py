@@ -6,6 +6,11 @@ Every kernel is written as a *profile* ``phi`` of a squared distance ``u``:
 * periodic      ``u = β² sin²(δ)``  ``k = exp(-u/2)``   (period π, lives on [0, π))
 * epanechnikov  ``u = β² δ²``       ``k = [1 - u]_+``
 * quartic       ``u = β² δ²``       ``k = [1 - u]_+²``
+* periodic_quartic ``u = β² sin²(δ)`` ``k = [1 - u]_+²`` (period π, compact for β > 1:
+  support ``|sin δ| < 1/β``)
+
+The finite-support ones (:data:`COMPACT_KERNELS`) allow the neighbour-list objective of
+``sparse.py`` whose cost grows linearly with the number of points.
 
 Prefactors are never computed: they cancel in the Nadaraya–Watson ratio (§2).
 
@@ -19,10 +24,13 @@ are centred first (translation invariance) to limit cancellation in ``a² - 2ab 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Literal, get_args
 
 import numpy as np
 
-KERNEL_NAMES = ("gaussian", "periodic", "quartic", "epanechnikov")
+KernelName = Literal["gaussian", "periodic", "quartic", "epanechnikov", "periodic_quartic"]
+KERNEL_NAMES: tuple[str, ...] = get_args(KernelName)
+COMPACT_KERNELS = ("quartic", "epanechnikov", "periodic_quartic")
 
 
 @dataclass(frozen=True)
@@ -40,7 +48,19 @@ class Kernel:
 
     @property
     def periodic(self) -> bool:
-        return self.name == "periodic"
+        return self.name in ("periodic", "periodic_quartic")
+
+    @property
+    def compact(self) -> bool:
+        """True when ``k(δ) = 0`` outside a finite support (``periodic_quartic`` needs β > 1)."""
+        return self.name in COMPACT_KERNELS and (self.name != "periodic_quartic" or self.beta > 1)
+
+    @property
+    def support(self) -> float:
+        """Half-width of the support in latent units (``inf`` for non-compact kernels)."""
+        if not self.compact:
+            return np.inf
+        return float(np.arcsin(1.0 / self.beta)) if self.periodic else 1.0 / self.beta
 
     @property
     def exp_profile(self) -> bool:

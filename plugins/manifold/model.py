@@ -4,12 +4,14 @@ from __future__ import annotations
 
 import numpy as np
 from sklearn.base import BaseEstimator
+from sklearn.utils.validation import check_is_fitted
 
 from .init import equidistant_init, isomap_init
 from .io import load_model, save_model
 from .objective import Objective, SequenceLayout
 from .optimize import OPTIMIZERS
 from .projection import Manifold
+from .sparse import SparseManifold, SparseObjective, use_sparse
 from .validation import InvalidInputError, as_sequences, check_array, check_time_dim, parse_latent
 
 INIT_NAMES = ("isomap", "equidistant")
@@ -21,7 +23,7 @@ class StructuredUKR(BaseEstimator):
     Parameters
     ----------
     latent : list of dict or LatentDim, default one periodic time dimension with β = 12
-        One entry per latent dimension: ``kernel`` (gaussian | periodic | quartic |
+        One entry per latent dimension: ``kernel`` (gaussian | periodic | quartic | periodic_quartic |
         epanechnikov), inverse bandwidth ``beta`` and ``time`` (at most one), docs/training.md
     time_dim : int, optional
         Index of the time dimension — alternative to ``time: true`` in ``latent``.
@@ -42,17 +44,22 @@ class StructuredUKR(BaseEstimator):
         Levenberg–Marquardt refinement steps of ``transform`` (§7).
     random_state : int, Generator or None
         Seeds the symmetry-breaking jitter of the equidistant init (the rest is deterministic).
+    sparse : 'auto' | True | False | 'float32'
+        Neighbour-list objective and mapping, linear in N (compact kernels only; 'float32'
+        evaluates it in single precision); 'auto' takes it for compact kernels from
+        ``SPARSE_MIN_N`` points on (docs/training.md, "Training at scale").
 
     Attributes (after ``fit``)
     --------------------------
     latents_ (N, q), Y_ (N, d), sequence_ids_ (N,), history_ (objective per step, index 0 =
     initial), objective_ (best value), train_variance_ (d,), time_dim_ (int or None),
-    periodic_ (q,) bool, init_info_, interrupted_, n_evaluations_, n_features_in_,
+    periodic_ (q,) bool, sparse_ (bool), init_info_, interrupted_, n_evaluations_, n_features_in_,
     provenance_ (dict saved with the model).
     """
 
     def __init__(
         self,
+        *,
         latent=None,
         time_dim=None,
         lambda_cseq=1.0,
@@ -64,6 +71,7 @@ class StructuredUKR(BaseEstimator):
         isomap_neighbors=(5, 10, 15),
         projection_steps=10,
         random_state=None,
+        sparse="auto",
     ):
         self.latent = latent
         self.time_dim = time_dim
@@ -76,6 +84,7 @@ class StructuredUKR(BaseEstimator):
         self.isomap_neighbors = isomap_neighbors
         self.projection_steps = projection_steps
         self.random_state = random_state
+        self.sparse = sparse
 
     # -- configuration ------------------------------------------------------------------------
     def _layout(self):
@@ -142,7 +151,9 @@ class StructuredUKR(BaseEstimator):
         if N < need:
             raise InvalidInputError(f"fewer points than needed: got {N}, a {kernel.q}-D model needs at least {need}")
         layout = SequenceLayout(ids)
-        objective = Objective(
+        sparse = use_sparse(self.sparse, kernel, N)
+        options = {"dtype": np.float32 if self.sparse == "float32" else np.float64} if sparse else {}
+        objective = (SparseObjective if sparse else Objective)(
             Y,
             kernel,
             layout,
@@ -150,6 +161,7 @@ class StructuredUKR(BaseEstimator):
             lambda_cseq=self.lambda_cseq,
             lambda_pvar=self.lambda_pvar,
             loo_cv=self.loo_cv,
+            **options,
         )
         X0, self.init_info_ = self._initial_latents(Y, objective, layout, kernel, time_dim)
         result = OPTIMIZERS[self.optimizer](objective, X0, int(self.n_steps), wrap=kernel.wrap, callback=callback)
@@ -172,7 +184,8 @@ class StructuredUKR(BaseEstimator):
             train_variance = Y.var(axis=0)
             train_variance = np.where(train_variance > 0, train_variance, 1.0)
         self.train_variance_ = np.asarray(train_variance, dtype=float)
-        self._manifold = Manifold(kernel, X, Y)
+        self.sparse_ = use_sparse(self.sparse, kernel, len(Y))
+        self._manifold = (SparseManifold if self.sparse_ else Manifold)(kernel, X, Y)
 
     @classmethod
     def from_latents(cls, sequences, latents, sequence_ids=None, **params):
@@ -206,8 +219,7 @@ class StructuredUKR(BaseEstimator):
         return self._manifold.kernel
 
     def _check_fitted(self):
-        if not hasattr(self, "latents_"):
-            raise RuntimeError("this StructuredUKR is not fitted yet; call fit() or load()")
+        check_is_fitted(self, "latents_", msg="this %(name)s is not fitted yet; call fit() or load() first")
 
     def inverse_transform(self, X):
         """f: latent (M, q) → observation (M, d); a single latent (q,) gives (d,)."""

@@ -18,6 +18,7 @@ import numpy as np
 from .kernels import ProductKernel
 
 _TINY = 1e-300
+_BLOCK = 1 << 22  # coarse-search distances held at once (32 MB): memory stays O(N) per batch
 
 
 class Manifold:
@@ -49,15 +50,23 @@ class Manifold:
     def _clamp_wrap(self, X):
         return self.kernel.wrap(np.clip(X, self.lower, self.upper))
 
+    def _nearest_candidates(self, Yq, w, w2):
+        """Index of the best candidate per row, in row blocks of at most ``_BLOCK`` distances."""
+        Fc = self.candidates
+        best = np.empty(len(Yq), dtype=np.int64)
+        step = max(1, _BLOCK // max(len(Fc), 1))
+        for a in range(0, len(Yq), step):
+            Yw, wb = Yq[a : a + step] * w2[a : a + step], w2[a : a + step]
+            dist = Yw @ (-2.0 * Fc.T) + (wb @ (Fc * Fc).T if w.ndim == 2 else (Fc * Fc) @ w)
+            best[a : a + step] = np.argmin(dist, axis=1)
+        return best
+
     def project(self, Yq, weights=None, n_iter=10, tol=1e-7):
         """Masked orthogonal projection of every row of Yq (M×d); ``weights`` (d,) or (M×d)."""
         Yq = np.asarray(Yq, dtype=float)
         w = np.ones(Yq.shape[1]) if weights is None else np.asarray(weights, dtype=float)
         w2 = np.broadcast_to(w, Yq.shape)
-        Fc = self.candidates
-        Yw = Yq * w2
-        dist = Yw @ (-2.0 * Fc.T) + (w2 @ (Fc * Fc).T) if w.ndim == 2 else Yw @ (-2.0 * Fc.T) + (Fc * Fc) @ w
-        x = self.X[np.argmin(dist, axis=1)].copy()
+        x = self.X[self._nearest_candidates(Yq, w, w2)].copy()
         F, J = self.f_and_jacobian(x)
         r = Yq - F
         err = np.einsum("md,md->m", w2 * r, r)

@@ -125,13 +125,12 @@ def _print_table(result: dict) -> None:
             f"  {r:>9}  {v['deg_per_cycle']:9.1f}  {v['found_radius']:8.2f} | "
             f"{w['deg_per_cycle']:9.1f}  {w['found_radius']:12.2f}"
         )
-    print("ball swapping (swaps/min; recoveries of the turn-backs | of the pushes)")
+    print("ball swapping (swaps/min calm; per disturbance class: swaps/min, share recovered)")
     for name, v in result["ball_swap"].items():
-        print(
-            f"  {name:<18} calm {v['swaps_per_min']:6.2f}  turned back "
-            f"{v['swaps_per_min_disturbed']:6.2f}  pushed {v['swaps_per_min_disturbed_pushed']:6.2f}"
-            f"  recoveries {v['recoveries']}/{v['disturbances']} | "
-            f"{v['recoveries_pushed']}/{v['disturbances']}"
+        classes = "  ".join(
+            f"{cls} {c[name]['rate']:6.2f} ({c[name]['recovered_share']:.0%})"
+            for cls, c in result["disturbance_classes"].items()
         )
+        print(f"  {name:<18} calm {v['swaps_per_min']:6.2f}  {classes}")
     print(f"learned radius: Spearman {result['radius_spearman']}, separation {result['radius_separation']}")
     print(f"control-loop latency ms (median, p99): {result['loop_latency_ms']}")

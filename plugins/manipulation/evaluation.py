@@ -60,9 +60,10 @@ class CapSettings:
 def cap_turning(
     manifold: ManipulationManifold, radius_cm: float, settings: CapSettings = CapSettings(), seed: int = 0
 ) -> dict:
-    """Grasp by navigation then turn ``settings.cycles`` cycles; returns deg_per_cycle and
-    found_radius (the frozen latent radius: cm on a constructed manifold, latent units on a
-    learned one)."""
+    """Grasp by navigation then turn ``settings.cycles`` cycles; returns deg_per_cycle (net rotation
+    over all cycles / cycles), per_cycle_deg (rotation of each cycle: the first one carries the
+    grasp's settling transient, see docs/manipulation.md) and found_radius (the frozen latent
+    radius: cm on a constructed manifold, latent units on a learned one)."""
     t_dim = manifold.time_dim
     lo, hi = manifold.range(t_dim)
     delta = (hi - lo) / (settings.cycle_s * settings.control_hz)
@@ -83,14 +84,17 @@ def cap_turning(
             sim.step(per_control)
             if ctl.state == TURNING:
                 break
-        start = sim.scene_state()["cap_angle"]
-        for _ in range(turning_steps):
+        angles = [sim.scene_state()["cap_angle"]]
+        for step in range(1, turning_steps + 1):
             x = ctl.update(())
             sim.set_targets(manifold.joint_names, ctl.posture(x))
             sim.step(per_control)
-        turned = sim.scene_state()["cap_angle"] - start
+            if step * settings.cycles // turning_steps > len(angles) - 1:
+                angles.append(sim.scene_state()["cap_angle"])
+    per_cycle = np.degrees(np.diff(angles))
     return {
-        "deg_per_cycle": float(np.degrees(turned) / settings.cycles),
+        "deg_per_cycle": float(per_cycle.sum() / settings.cycles),
+        "per_cycle_deg": per_cycle.tolist(),
         "found_radius": float(ctl.radius),
         "grasp_complete": bool(ctl.grasp_complete),
     }
@@ -110,7 +114,8 @@ def ideal_balls(sim: Simulation, width: int = 240, height: int = 180) -> np.ndar
 class BallSettings:
     """Ball-swap run settings (closed loop: ``k`` steps of ``delta``, ``mask`` and ``tolerance`` of
     :class:`ClosedLoopController`; both: ``period_s`` per latent period at the control rate;
-    disturbances: ``push_times_s`` at ``push_speed`` m/s, ``turn_times_s`` by ``turn_deg``)."""
+    disturbances: ``push_times_s`` at ``push_speed`` m/s, ``turn_times_s`` by ``turn_deg``,
+    ``hold_times_s`` for ``hold_s`` s)."""
 
     duration_s: float = 120.0
     period_s: float = 4.0
@@ -125,6 +130,8 @@ class BallSettings:
     push_speed: float = 0.3
     turn_times_s: tuple[float, ...] = ()
     turn_deg: float = 90.0
+    hold_times_s: tuple[float, ...] = ()
+    hold_s: float = 1.0
     seed: int = 0
     mask: str = "ball1"
     tolerance: float = 0.05
@@ -143,6 +150,7 @@ def ball_swap(manifold: ManipulationManifold, closed_loop: bool, settings: BallS
     options = {
         "pushes": [[t, settings.push_speed] for t in settings.push_times_s],
         "turns": [[t, settings.turn_deg] for t in settings.turn_times_s],
+        "holds": [[t, settings.hold_s] for t in settings.hold_times_s],
     }
     with Simulation("gifu", "balls", options, seed=settings.seed, physics_hz=settings.physics_hz) as sim:
         open_ctl = OpenLoopController(manifold, [t_lo], delta)
@@ -236,12 +244,19 @@ class EvalPlan:
 
     @classmethod
     def quick(cls) -> EvalPlan:
-        return cls(cap=CapSettings(cycles=1), balls=BallSettings(duration_s=30.0, camera=False), disturb_every_s=12.0)
+        return cls(cap=CapSettings(cycles=2), balls=BallSettings(duration_s=30.0, camera=False), disturb_every_s=12.0)
 
     def disturbances(self) -> tuple[float, ...]:
         end = self.balls.duration_s - 1e-9
         return tuple(np.arange(self.first_disturbance_s, end, self.disturb_every_s).tolist())
 
+
+DISTURBANCE_CLASSES = {
+    "turn_back": ("turn_times_s", ""),
+    "push": ("push_times_s", "_pushed"),
+    "hold": ("hold_times_s", "_held"),
+}
+"""Disturbance class → (:class:`BallSettings` field of its times, key suffix in the per-controller rows)."""
 
 BALL_CONTROLLERS = {"open_loop": (False, None), "closed_loop": (True, None), "closed_loop_thesis": (True, 0.0)}
 """Evaluation name → (closed loop?, tolerance override: None = the plan's, 0 = pure projection)."""
@@ -249,7 +264,7 @@ BALL_CONTROLLERS = {"open_loop": (False, None), "closed_loop": (True, None), "cl
 
 def ball_swap_report(manifold: ManipulationManifold, plan: EvalPlan, progress=lambda line: None) -> dict:
     """Per controller: calm rate, rate and recoveries under turn-backs (``swaps_per_min_disturbed``,
-    ``recoveries``, the thesis scenario) and under pushes (``…_pushed``)."""
+    ``recoveries``, the thesis scenario), pushes (``…_pushed``) and holds (``…_held``)."""
     times = plan.disturbances()
     out = {}
     for name, (closed, tolerance) in BALL_CONTROLLERS.items():
@@ -259,7 +274,7 @@ def ball_swap_report(manifold: ManipulationManifold, plan: EvalPlan, progress=la
         calm = ball_swap(manifold, closed, base)
         direction = 1.0 if calm["progress"][-1] >= 0 else -1.0
         row = {"swaps_per_min": calm["swaps_per_min"]}
-        for key, field_name in (("", "turn_times_s"), ("_pushed", "push_times_s")):
+        for field_name, key in DISTURBANCE_CLASSES.values():
             run = ball_swap(manifold, closed, BallSettings(**{**base.__dict__, field_name: times}))
             row[f"swaps_per_min_disturbed{key}"] = run["swaps_per_min"]
             row[f"recoveries{key}"] = recoveries(
@@ -269,6 +284,20 @@ def ball_swap_report(manifold: ManipulationManifold, plan: EvalPlan, progress=la
         out[name] = row
         progress(f"ball swap {name}: {row}")
     return out
+
+
+def disturbance_classes(rows: dict) -> dict:
+    """``{class: {controller: {"rate", "recovered_share"}}}`` from the rows of :func:`ball_swap_report`."""
+    return {
+        cls: {
+            name: {
+                "rate": row[f"swaps_per_min_disturbed{key}"],
+                "recovered_share": row[f"recoveries{key}"] / max(row["disturbances"], 1),
+            }
+            for name, row in rows.items()
+        }
+        for cls, (_, key) in DISTURBANCE_CLASSES.items()
+    }
 
 
 def evaluate(
@@ -287,9 +316,11 @@ def evaluate(
             res = cap[key][f"{r:g}"] = cap_turning(manifold, r, plan.cap)
             progress(f"{key} r={r:g} cm: {res['deg_per_cycle']:.1f} deg/cycle, found radius {res['found_radius']:.2f}")
     report = learned.model.provenance_
+    rows = ball_swap_report(balls, plan, progress)
     return {
         **cap,
-        "ball_swap": ball_swap_report(balls, plan, progress),
+        "ball_swap": rows,
+        "disturbance_classes": disturbance_classes(rows),
         "radius_spearman": report.get("spearman"),
         "radius_separation": report.get("separation"),
         "loop_latency_ms": loop_latency_ms(ball_path, k=plan.balls.k),

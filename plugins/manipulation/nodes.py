@@ -15,9 +15,10 @@ from __future__ import annotations
 
 from typing import Literal, Optional
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import Field
 
 from handflow.framework.messages import Contacts, JointState, LatentState, Points2D
+from handflow.framework.params import StrictModel
 from handflow.framework.plugin import Node
 
 from .closed_loop import MASKS, ClosedLoopController
@@ -27,8 +28,7 @@ from .open_loop import OpenLoopController
 from .safety import open_hand
 
 
-class _ControllerParams(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+class _ControllerParams(StrictModel):
     manifold: str = Field(description="manifold file (.npz, from `handflow train`), relative to the graph")
     rate_hz: float = Field(30.0, gt=0, description="control rate (one command per tick)")
     delta: float = Field(0.02, gt=0, description="latent time step per control tick (speed)")

@@ -25,9 +25,10 @@ from pathlib import Path
 from typing import Literal, Optional
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import Field
 from scipy.stats import spearmanr
 
+from handflow.framework.params import StrictModel
 from handflow.framework.yaml_files import YamlFileError, load_model
 from handflow.plugins.manifold.cli import ModelConfig, TrainingConfig, _Progress, build_model, check_train_args
 from handflow.plugins.manifold.construction import ManifoldConstruction
@@ -40,16 +41,12 @@ from .manifold_file import ManipulationManifold
 MODES = ("construction", "learning")
 
 
-class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid")
-
-
-class DemoData(_Strict):
+class DemoData(StrictModel):
     demo: Path = Field(description="MCAP recording of `handflow demo-record` (relative to the config)")
     max_sequences_per_radius: Optional[int] = Field(None, ge=1, description="use only the first n")
 
 
-class ConstructionParams(_Strict):
+class ConstructionParams(StrictModel):
     time_beta: float = Field(30.0, gt=0)
     radius_beta: float = Field(4.0, gt=0)
     lambda_cseq: float = Field(1.0, ge=0)
@@ -59,13 +56,13 @@ class ConstructionParams(_Strict):
     random_state: Optional[int] = 0
 
 
-class ConstructionConfig(_Strict):
+class ConstructionConfig(StrictModel):
     mode: Literal["construction"]
     data: DemoData
     construction: ConstructionParams = Field(default_factory=ConstructionParams)
 
 
-class LearningConfig(_Strict):
+class LearningConfig(StrictModel):
     mode: Literal["learning"]
     data: DemoData
     model: ModelConfig

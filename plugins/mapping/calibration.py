@@ -18,8 +18,9 @@ from pathlib import Path
 
 import numpy as np
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import BaseModel, Field, ValidationError, field_validator, model_validator
 
+from handflow.framework.params import StrictModel
 from handflow.framework.resources import shipped
 from handflow.framework.yaml_files import YamlFileError, load_model
 from handflow.plugins.hands.sensors import N_SENSORS, SENSOR_NAMES, sensor_index
@@ -44,10 +45,9 @@ class CalibrationFileError(ValueError):
     """A glove profile or session calibration file that is missing or invalid."""
 
 
-class ZeroAbduction(BaseModel):
+class ZeroAbduction(StrictModel):
     """Height ``h`` and shape ``lam`` = (λ1…λ6) of a zero-abduction surface (see zero_abduction.py)."""
 
-    model_config = ConfigDict(extra="forbid")
     h: float
     lam: tuple[float, float, float, float, float, float] = (1.0, 0.0, 0.0, 1.0, 0.0, 0.0)
 
@@ -59,10 +59,9 @@ class ZeroAbduction(BaseModel):
         return lam
 
 
-class GloveProfile(BaseModel):
+class GloveProfile(StrictModel):
     """Per-glove mapping parameters."""
 
-    model_config = ConfigDict(extra="forbid")
     name: str = "default"
     thumb_m13: float = Field(description="slope of the left/right parallelogram sides (s4 over s1)")
     thumb_m24: float = Field(description="slope of the top/bottom parallelogram sides")
@@ -89,10 +88,9 @@ class GloveProfile(BaseModel):
         return self
 
 
-class SessionCalibration(BaseModel):
+class SessionCalibration(StrictModel):
     """Per-session calibration: sensor extremes and thumb parallelogram intercepts (b1, b2, b3, b4)."""
 
-    model_config = ConfigDict(extra="forbid")
     profile: str = "default"
     s_min: list[float]
     s_max: list[float]

@@ -13,11 +13,12 @@ Every output message carries the joint names and keeps the input's stamp.
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from typing import Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict
 
 from handflow.framework.messages import GloveFrame, JointState, MessageError
+from handflow.framework.params import StrictModel
 from handflow.framework.plugin import Node
 from handflow.plugins.hands.joints import HUMAN
 from handflow.plugins.hands.sensors import N_SENSORS
@@ -30,11 +31,10 @@ from .robot import GifuHandMapping, RobotHandMapping, ShadowHandMapping
 class HumanHandMappingNode(Node):
     """Raw CyberGlove frames → 24 joints of the human hand model (docs/glove.md)."""
 
-    class Params(BaseModel):
-        model_config = ConfigDict(extra="forbid")
+    class Params(StrictModel):
         profile: str = str(DEFAULT_PROFILE)
         calibration: str = str(DEFAULT_CALIBRATION)
-        handedness: str = "right"
+        handedness: Literal["right", "left"] = "right"
 
     inputs = {"raw": GloveFrame}
     outputs = {"joints": JointState}
@@ -92,8 +92,7 @@ class _RobotNode(Node, ABC):
 class ShadowHandMappingNode(_RobotNode):
     """Human-model joints → ShadowHand-like 24 joints (analytic thumb base, docs/glove.md)."""
 
-    class Params(BaseModel):
-        model_config = ConfigDict(extra="forbid")
+    class Params(StrictModel):
         theta0_at_singularity: float = 0.0
 
     def _make(self) -> RobotHandMapping:
@@ -103,9 +102,8 @@ class ShadowHandMappingNode(_RobotNode):
 class GifuHandMappingNode(_RobotNode):
     """Human-model joints → Gifu-like hand (16 DOF; PIP/DIP merged)."""
 
-    class Params(BaseModel):
-        model_config = ConfigDict(extra="forbid")
-        merge: str = "mean"
+    class Params(StrictModel):
+        merge: Literal["mean", "pip", "max"] = "mean"
         theta0_at_singularity: float = 0.0
 
     def _make(self) -> RobotHandMapping:

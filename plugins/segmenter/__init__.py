@@ -7,44 +7,44 @@ Usable without the runtime: load a dataset, train one manifold per class, recogn
 >>> CLMSegmenter(cands, history=10).fit_predict(Y)         # doctest: +SKIP
 """
 
-from .baselines import PerClassHMM, SlidingDTW1NN
-from .candidates import CandidateModel, CandidateSet, ModelsMissingError, Projection, UKRCandidate, load_candidates
-from .clm import CLMResult, CompetitiveLayerModel, clm_energy
-from .clm_segmenter import CLMSegmenter
-from .datasets import DatasetError, LabelledDataset, Trajectory, load_dataset
-from .evaluation import EXPERIMENTS, METHODS, Evaluator, Protocol
-from .online import OnlineCLMSegmenter, OnlineUpdate, SegmentChange
-from .synthetic import LetterGenerator
-from .training import candidate_set, save_class_models, train_class_models
-from .ukr_only import UKROnlyRecognizer
+import importlib
 
-__all__ = [
-    "CandidateModel",
-    "CandidateSet",
-    "CLMResult",
-    "CLMSegmenter",
-    "CompetitiveLayerModel",
-    "DatasetError",
-    "EXPERIMENTS",
-    "Evaluator",
-    "LabelledDataset",
-    "LetterGenerator",
-    "METHODS",
-    "ModelsMissingError",
-    "OnlineCLMSegmenter",
-    "OnlineUpdate",
-    "PerClassHMM",
-    "Projection",
-    "Protocol",
-    "SegmentChange",
-    "SlidingDTW1NN",
-    "Trajectory",
-    "UKRCandidate",
-    "UKROnlyRecognizer",
-    "candidate_set",
-    "clm_energy",
-    "load_candidates",
-    "load_dataset",
-    "save_class_models",
-    "train_class_models",
-]
+_SOURCES = {
+    "CLMResult": "clm",
+    "CLMSegmenter": "clm_segmenter",
+    "CandidateModel": "candidates",
+    "CandidateSet": "candidates",
+    "CompetitiveLayerModel": "clm",
+    "DatasetError": "datasets",
+    "EXPERIMENTS": "evaluation",
+    "Evaluator": "evaluation",
+    "LabelledDataset": "datasets",
+    "LetterGenerator": "synthetic",
+    "METHODS": "evaluation",
+    "ModelsMissingError": "candidates",
+    "OnlineCLMSegmenter": "online",
+    "OnlineUpdate": "online",
+    "PerClassHMM": "baselines",
+    "Projection": "candidates",
+    "Protocol": "evaluation",
+    "SegmentChange": "online",
+    "SlidingDTW1NN": "baselines",
+    "Trajectory": "datasets",
+    "UKRCandidate": "candidates",
+    "UKROnlyRecognizer": "ukr_only",
+    "candidate_set": "training",
+    "clm_energy": "clm",
+    "load_candidates": "candidates",
+    "load_dataset": "datasets",
+    "save_class_models": "training",
+    "train_class_models": "training",
+}
+
+__all__ = sorted(_SOURCES)
+
+
+def __getattr__(name: str):
+    """Import the module that defines ``name`` on first use (a node loads only what it needs)."""
+    if name not in _SOURCES:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    return getattr(importlib.import_module(f".{_SOURCES[name]}", __name__), name)

@@ -12,6 +12,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 from scipy.special import logsumexp
+from sklearn.base import BaseEstimator
+from sklearn.utils.validation import check_is_fitted
 
 REJECTED = -1
 
@@ -58,7 +60,7 @@ def _sliding_dtw(Y, refs, offsets, window):  # pragma: no cover - compiled
     return out
 
 
-class _Standardiser:
+class _Standardiser(BaseEstimator):
     def fit_from(self, sequences: list[np.ndarray]) -> None:
         Y = np.vstack(sequences)
         self.mean_ = Y.mean(axis=0)
@@ -70,6 +72,11 @@ class _Standardiser:
         if Y.shape[1] != self.mean_.size:
             raise ValueError(f"observations must have {self.mean_.size} columns, got {Y.shape[1]}")
         return (Y - self.mean_) / self.std_
+
+
+def _check_window(window: int) -> None:
+    if int(window) < 1:
+        raise ValueError(f"window must be >= 1, got {window}")
 
 
 def decide(scores: np.ndarray, threshold: float | None = None) -> np.ndarray:
@@ -87,11 +94,12 @@ class SlidingDTW1NN(_Standardiser):
     ``y_{t−w+1…t}`` divided by its length.  ``threshold`` (on that score) rejects.
     """
 
-    def __init__(self, window: int = 10, threshold: float | None = None) -> None:
+    def __init__(self, *, window: int = 10, threshold: float | None = None) -> None:
         self.window = window
         self.threshold = threshold
 
     def fit(self, sequences_by_class: dict[str, list[np.ndarray]]) -> SlidingDTW1NN:
+        _check_window(self.window)
         if not sequences_by_class:
             raise ValueError("need at least one class with training sequences")
         self.classes_ = list(sequences_by_class)
@@ -107,8 +115,8 @@ class SlidingDTW1NN(_Standardiser):
 
     def scores(self, Y: np.ndarray) -> np.ndarray:
         """(N, M) class scores."""
-        if self.window < 1:
-            raise ValueError(f"window must be >= 1, got {self.window}")
+        check_is_fitted(self, "refs_")
+        _check_window(self.window)
         d = _sliding_dtw(np.ascontiguousarray(self.standardise(Y)), self.refs_, self.offsets_, int(self.window))
         out = np.full((d.shape[0], len(self.classes_)), -np.inf)
         for c in range(len(self.classes_)):
@@ -125,6 +133,7 @@ class PerClassHMM(_Standardiser):
 
     def __init__(
         self,
+        *,
         n_states: int = 4,
         window: int = 10,
         n_iter: int = 30,
@@ -140,6 +149,9 @@ class PerClassHMM(_Standardiser):
         self.random_state = random_state
 
     def fit(self, sequences_by_class: dict[str, list[np.ndarray]]) -> PerClassHMM:
+        _check_window(self.window)
+        if int(self.n_states) < 1:
+            raise ValueError(f"n_states must be >= 1, got {self.n_states}")
         if not sequences_by_class:
             raise ValueError("need at least one class with training sequences")
         try:
@@ -185,8 +197,9 @@ class PerClassHMM(_Standardiser):
         return logsumexp(alpha, axis=1) / length
 
     def scores(self, Y: np.ndarray) -> np.ndarray:
-        if self.window < 1:
-            raise ValueError(f"window must be >= 1, got {self.window}")
+        """(N, M) class scores."""
+        check_is_fitted(self, "models_")
+        _check_window(self.window)
         Z = self.standardise(Y)
         return np.stack([self._window_loglik(m, Z) for m in self.models_], axis=1)
 

@@ -13,7 +13,7 @@ from .continuous import is_continuous
 from .datasets import DatasetError, load_dataset
 from .evaluation import EXPERIMENTS, METHODS, Evaluator, Protocol
 from .stream_cli import run_stream_evaluation
-from .training import INITS, candidate_set, save_class_models, train_class_models
+from .training import INITS, KERNELS, candidate_set, save_class_models, train_class_models
 
 
 def _progress(msg: str) -> None:
@@ -38,6 +38,12 @@ def _add_dataset_args(parser: argparse.ArgumentParser) -> None:
         choices=INITS,
         default="equidistant",
         help="latent init of the class manifolds (equidistant over the period, or isomap)",
+    )
+    parser.add_argument(
+        "--kernel",
+        choices=KERNELS,
+        default="periodic",
+        help="time kernel of the class manifolds; periodic_quartic trains on every point in linear time",
     )
     parser.add_argument("--seed", type=int, default=0)
 
@@ -68,7 +74,13 @@ def run_train_classes(args) -> int:
     try:
         ds = _dataset(args)
         models = train_class_models(
-            ds, beta=_beta(args), n_steps=args.steps, init=args.init, random_state=args.seed, progress=_progress
+            ds,
+            beta=_beta(args),
+            n_steps=args.steps,
+            init=args.init,
+            random_state=args.seed,
+            progress=_progress,
+            kernel=args.kernel,
         )
     except (DatasetError, ValueError) as exc:
         print(f"error: {exc}", file=sys.stderr)
@@ -131,7 +143,13 @@ def run_evaluate(args) -> int:
             _progress(f"training one manifold per class ({len(ds.classes)} classes)")
             candidates = candidate_set(
                 train_class_models(
-                    ds, beta=_beta(args), n_steps=args.steps, init=args.init, random_state=args.seed, progress=_progress
+                    ds,
+                    beta=_beta(args),
+                    n_steps=args.steps,
+                    init=args.init,
+                    random_state=args.seed,
+                    progress=_progress,
+                    kernel=args.kernel,
                 )
             )
         evaluator = Evaluator(

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 from scipy.linalg import eigvals_banded
+from sklearn.base import BaseEstimator
 
 
 @numba.njit(cache=True, inline="always")
@@ -133,7 +134,7 @@ class CLMResult:
     temperature: float
 
 
-class CompetitiveLayerModel:
+class CompetitiveLayerModel(BaseEstimator):
     """Annealed asynchronous Gauss–Seidel CLM solver over banded layer compatibilities.
 
     Parameters
@@ -155,10 +156,14 @@ class CompetitiveLayerModel:
         ``"gershgorin"`` (the max absolute row sum, an upper bound that is ~10× cheaper; used by
         the online segmenter, where the exact value costs more than the sweeps).
     random_state : seed or ``numpy.random.Generator``; the run is deterministic given a seed.
+        The constructor only stores it (scikit-learn convention); the generator ``rng_`` is made
+        from it at the first :meth:`solve` and advances over later runs (new ``random_state`` via
+        ``set_params`` starts a new one).
     """
 
     def __init__(
         self,
+        *,
         J: float = 2.0,
         inhibition: float | None = None,
         inhibition_margin: float = 1.5,
@@ -180,7 +185,15 @@ class CompetitiveLayerModel:
         self.init_scale = init_scale
         self.spectral = spectral
         self.random_state = random_state
-        self._rng = np.random.default_rng(random_state)
+
+    def set_params(self, **params):
+        self.__dict__.pop("rng_", None)
+        return super().set_params(**params)
+
+    def _generator(self) -> np.random.Generator:
+        if "rng_" not in self.__dict__:
+            self.rng_ = np.random.default_rng(self.random_state)
+        return self.rng_
 
     def _validate(self, band: np.ndarray, diag: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         band = np.ascontiguousarray(band, dtype=np.float64)
@@ -205,7 +218,7 @@ class CompetitiveLayerModel:
         return max(largest_eigenvalue(band[a], diag[a]) for a in range(band.shape[0]))
 
     def initial_activities(self, shape: tuple[int, int]) -> np.ndarray:
-        return self._rng.uniform(0.0, self.init_scale, size=shape) + 1e-12
+        return self._generator().uniform(0.0, self.init_scale, size=shape) + 1e-12
 
     def solve(
         self,
@@ -235,7 +248,7 @@ class CompetitiveLayerModel:
         if x.shape != (L, N):
             raise ValueError(f"x0 must have shape {(L, N)}, got {x.shape}")
         colsum = x.sum(axis=0)
-        seed = int(self._rng.integers(0, 2**31 - 1))
+        seed = int(self._generator().integers(0, 2**31 - 1))
         sweeps, converged, T_end = _sweeps(
             x,
             colsum,

@@ -9,6 +9,8 @@ observation is its label; the background layer means rejected (−1).
 from __future__ import annotations
 
 import numpy as np
+from sklearn.base import BaseEstimator
+from sklearn.exceptions import NotFittedError
 
 from .candidates import CandidateSet, Projection
 from .clm import CLMResult, CompetitiveLayerModel
@@ -17,7 +19,7 @@ from .compatibility import background_band, candidate_band, order_rating, pair_e
 REJECTED = -1
 
 
-class CLMSegmenter:
+class CLMSegmenter(BaseEstimator):
     """Segment a sequence into candidate motions and background with the UKR/CLM method.
 
     Parameters
@@ -48,13 +50,18 @@ class CLMSegmenter:
     J, eta, tol, max_sweeps, inhibition_margin, spectral : passed to the CLM solver.
     random_state : seed of the stochastic solver.
 
+    The constructor only stores the parameters (scikit-learn convention: ``get_params``,
+    ``set_params`` and ``clone`` work); they are checked, and the solver ``solver_`` with its
+    generator seeded from ``random_state`` is made, by the first segmentation.
+
     After :meth:`fit_predict`: ``labels_``, ``n_sweeps_``, ``energy_``, ``converged_``,
     ``activities_`` (L+1, N) and ``result_``.
     """
 
     def __init__(
         self,
-        candidates: CandidateSet,
+        candidates: CandidateSet | None = None,
+        *,
         history: int = 10,
         order_rating: str = "sign",
         pair_error: str = "mean",
@@ -73,16 +80,12 @@ class CLMSegmenter:
         restarts: int = 3,
         random_state=None,
     ) -> None:
-        if restarts < 1:
-            raise ValueError(f"restarts must be >= 1, got {restarts}")
-        if not error_scale > 0:
-            raise ValueError(f"error_scale must be > 0, got {error_scale}")
         self.candidates = candidates
         self.history = history
         self.order_rating = order_rating
         self.pair_error = pair_error
         self.order_path = order_path
-        self.min_span = int(min_span)
+        self.min_span = min_span
         self.background = background
         self.background_factor = background_factor
         self.background_radius = background_radius
@@ -92,25 +95,46 @@ class CLMSegmenter:
         self.max_sweeps = max_sweeps
         self.inhibition_margin = inhibition_margin
         self.spectral = spectral
-        self.error_scale = float(error_scale)
-        self.restarts = int(restarts)
+        self.error_scale = error_scale
+        self.restarts = restarts
         self.random_state = random_state
-        self.solver_ = self._make_solver(random_state)
 
-    def _make_solver(self, random_state) -> CompetitiveLayerModel:
-        return CompetitiveLayerModel(
-            J=self.J,
-            eta=self.eta,
-            tol=self.tol,
-            max_sweeps=self.max_sweeps,
-            inhibition_margin=self.inhibition_margin,
-            spectral=self.spectral,
-            random_state=random_state,
-        )
+    def set_params(self, **params):
+        self.__dict__.pop("solver_", None)
+        return super().set_params(**params)
+
+    def _solver(self) -> CompetitiveLayerModel:
+        """The CLM solver, made (parameters checked, generator seeded) on first use."""
+        if "solver_" not in self.__dict__:
+            if int(self.restarts) < 1:
+                raise ValueError(f"restarts must be >= 1, got {self.restarts}")
+            if not self.error_scale > 0:
+                raise ValueError(f"error_scale must be > 0, got {self.error_scale}")
+            if int(self.history) < 1:
+                raise ValueError(f"history H must be >= 1, got {self.history}")
+            self.solver_ = CompetitiveLayerModel(
+                J=self.J,
+                eta=self.eta,
+                tol=self.tol,
+                max_sweeps=self.max_sweeps,
+                inhibition_margin=self.inhibition_margin,
+                spectral=self.spectral,
+                random_state=self.random_state,
+            )
+        return self.solver_
 
     @property
     def classes_(self) -> list[str]:
+        if self.candidates is None:
+            raise ValueError("this CLMSegmenter has no candidates (it segments given layer bands only)")
         return self.candidates.classes
+
+    def __getattr__(self, name: str):
+        if name.endswith("_") and not name.startswith("__"):
+            raise NotFittedError(
+                f"{type(self).__name__}.{name} exists after a segmentation: call fit_predict(sequence) first"
+            )
+        raise AttributeError(name)
 
     def background_strength(self, n: int) -> float:
         base = thesis_background_strength(n) if self.background is None else float(self.background)
@@ -118,18 +142,17 @@ class CLMSegmenter:
 
     def widths(self) -> tuple[int, int, int]:
         """Background radius K_bg, candidate neighbourhood ``max(H, min_span)`` and band width."""
-        span = max(self.history, self.min_span)
+        span = max(int(self.history), int(self.min_span))
         radius = span if self.background_radius is None else int(self.background_radius)
         return radius, span, max(span, radius - 1)
 
     def layer_compatibilities(self, proj: Projection) -> tuple[np.ndarray, np.ndarray]:
         """Bands (M+1, N, B) and diagonals (M+1,) of all layers, background last."""
-        if self.history < 1:
-            raise ValueError(f"history H must be >= 1, got {self.history}")
+        self._solver()  # checks the parameters
         _, span, width = self.widths()
         cand = candidate_band(
             proj.latent_time,
-            proj.errors * self.error_scale,
+            proj.errors * float(self.error_scale),
             width,
             order_rating(self.order_rating),
             pair_error(self.pair_error),
@@ -162,10 +185,11 @@ class CLMSegmenter:
     def fit_predict_bands(self, band: np.ndarray, diag: np.ndarray) -> np.ndarray:
         """Segment with given layer compatibilities (:meth:`with_background` adds the background):
         the lowest-energy of ``restarts`` runs; returns layer indices (−1 = background)."""
-        lam = self.solver_.spectral_scale(band, diag)
+        solver = self._solver()
+        lam = solver.spectral_scale(band, diag)
         best = None
-        for _ in range(self.restarts):
-            result = self.solver_.solve(band, diag, lambda_max=lam)
+        for _ in range(int(self.restarts)):
+            result = solver.solve(band, diag, lambda_max=lam)
             if best is None or result.energy < best.energy:
                 best = result
         self._store(best)

@@ -245,18 +245,20 @@ def score_evidence(scores: np.ndarray) -> np.ndarray:
 
 
 def evidence_band(evidence: np.ndarray, width: int, history: int) -> np.ndarray:
-    """Banded CLM compatibilities of classifier evidence: ``f^m_ij = e_im + e_jm − 1`` for
-    ``0 < j − i ≤ history`` (0 beyond, and past the end), laid out as :func:`candidate_band`.
+    """Banded CLM compatibilities of classifier evidence over M classes: ``f^m_ij = e_im + e_jm − 2/M``
+    for ``0 < j − i ≤ history`` (0 beyond, and past the end), laid out as :func:`candidate_band`.
 
     Documented choice (docs/segmentation.md): two frames support each other in layer m when together
-    they lean to m (``e_im + e_jm > 1``) and repel when they lean elsewhere; the range [−1, 1] is
-    that of the UKR compatibilities, so the background strength means the same for both.
+    their evidence for m is above chance (``e_im + e_jm > 2/M``) and repel when it is below.  With a
+    baseline of 1 instead of 2/M, a frame whose best class has evidence below ½ (common with 4+
+    classes) repels every layer and is left to the background: on BasicMotions that rejected 37 % of
+    the frames at background strength 0 and cut the frame accuracy from MiniRocket's 0.91 to 0.61.
     """
     e = np.asarray(evidence, dtype=float)
     n, m = e.shape
     band = np.zeros((m, n, width))
     for k in range(1, min(width, history, n - 1) + 1):
-        band[:, : n - k, k - 1] = (e[: n - k] + e[k:] - 1.0).T
+        band[:, : n - k, k - 1] = (e[: n - k] + e[k:] - 2.0 / m).T
     return band
 
 

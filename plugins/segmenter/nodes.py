@@ -12,9 +12,10 @@ from __future__ import annotations
 from typing import Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import Field
 
 from handflow.framework.messages import Array, JointState, Label, Message, MessageError, SegmentEvent
+from handflow.framework.params import StrictModel
 from handflow.framework.plugin import Node
 
 from .candidates import CandidateSet, load_candidates
@@ -24,8 +25,7 @@ from .ukr_only import UKROnlyRecognizer
 UNKNOWN = "unknown"
 
 
-class RecognizerParams(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+class RecognizerParams(StrictModel):
     models: str | list[str] = Field(description="folder written by `handflow train-classes`, or model files")
     history: int = Field(10, ge=1, description="H: history length / CLM neighbourhood")
     joints: list[str] = Field(

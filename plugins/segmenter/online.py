@@ -166,6 +166,12 @@ class OnlineCLMSegmenter(CLMSegmenter):
         self.edge = self.history if edge is None else int(edge)
         self.reset()
 
+    @classmethod
+    def _get_param_names(cls) -> list[str]:
+        """The window parameters and every :class:`CLMSegmenter` parameter (``**clm_params``)."""
+        own = ["window", "warm_start", "warm_temperature", "warm_bias", "fresh", "cold_every", "confirm", "edge"]
+        return sorted(set(CLMSegmenter._get_param_names()) | set(own))
+
     def reset(self) -> None:
         """Forget the stream."""
         m = len(self.candidates)
@@ -249,7 +255,7 @@ class OnlineCLMSegmenter(CLMSegmenter):
         """:meth:`update` for an observation already projected onto all candidates."""
         self._append(np.asarray(latent_time, dtype=float), np.asarray(errors, dtype=float) * self.error_scale)
         band, diag = self.layers()
-        solver = self.solver_
+        solver = self._solver()
         lam = solver.spectral_scale(band, diag)
         warm = self.warm_start and self._x is not None
         result = None

@@ -38,6 +38,50 @@ def frame_metrics(truth: np.ndarray, pred: np.ndarray, known: Iterable[int]) -> 
     }
 
 
+def runs(labels: np.ndarray) -> list[tuple[int, int, int]]:
+    """Maximal runs of one label as ``(label, start, end)`` with ``end`` exclusive."""
+    labels = np.asarray(labels)
+    if labels.size == 0:
+        return []
+    cuts = np.flatnonzero(np.diff(labels)) + 1
+    starts, ends = np.r_[0, cuts], np.r_[cuts, labels.size]
+    return [(int(labels[a]), int(a), int(b)) for a, b in zip(starts, ends)]
+
+
+def segment_counts(truth: np.ndarray, pred: np.ndarray, known: Iterable[int], min_iou: float = 0.5) -> tuple:
+    """``(matched, predicted, true)`` segment counts of one recording (see :func:`segment_f1`)."""
+    truth, pred = np.asarray(truth), np.asarray(pred)
+    target = np.where(np.isin(truth, sorted({int(k) for k in known})), truth, REJECTED)
+    target = np.where(truth >= 0, target, -2)  # unlabelled frames: no true segment
+    true = [t for t in runs(target) if t[0] != -2]
+    labelled = np.r_[0, np.cumsum(truth >= 0)]
+    predicted = [p for p in runs(pred) if labelled[p[2]] > labelled[p[1]]]
+    matched, used = 0, set()
+    for label, a, b in predicted:
+        for i, (tl, ta, tb) in enumerate(true):
+            if i in used or tl != label or tb <= a or ta >= b:
+                continue
+            if (min(b, tb) - max(a, ta)) / (max(b, tb) - min(a, ta)) >= min_iou:
+                matched += 1
+                used.add(i)
+                break
+    return matched, len(predicted), len(true)
+
+
+def segment_f1(recordings: Iterable[tuple[np.ndarray, np.ndarray]], known: Iterable[int], min_iou: float = 0.5):
+    """Segment F1 over recordings of ``(truth, pred)`` frame labels (docs/segmentation.md).
+
+    Segments are maximal runs of one label within a recording.  True segments: runs of a known
+    class keep their class, runs of unknown classes must be *rejected* (label ``−1``), unlabelled
+    frames form no true segment.  Predicted segments: runs of the predicted label, a rejected run
+    included; a run lying only on unlabelled frames is not counted.  A predicted segment matches
+    an unmatched true one of the same label with intersection-over-union ≥ ``min_iou``;
+    ``F1 = 2·matched / (predicted + true)``, ``None`` without segments.
+    """
+    counts = np.array([segment_counts(t, p, known, min_iou) for t, p in recordings]).reshape(-1, 3).sum(axis=0)
+    return _share(2 * counts[0], counts[1] + counts[2])
+
+
 def _share(num, den) -> float | None:
     return float(num) / float(den) if den else None
 

@@ -43,7 +43,7 @@ def run_stream_evaluation(args, progress) -> int:
 
 
 def format_stream_table(result: dict) -> str:
-    cols = ("known_accuracy", "unknown_rejection", "open_set_accuracy", "macro_f1", "tradeoff_auc")
+    cols = ("known_accuracy", "unknown_rejection", "open_set_accuracy", "macro_f1", "segment_f1", "tradeoff_auc")
     lines = [f"{'method':15s} " + " ".join(f"{c:>18s}" for c in cols)]
     for name, r in result["methods"].items():
         cells = ["—".rjust(18) if r.get(c) is None else f"{r[c]:18.3f}" for c in cols]

@@ -25,7 +25,7 @@ import numpy as np
 
 from .continuous import Recording, RecordingSet, segments
 from .frame_methods import METHODS, Fitted
-from .openset import calibrate, frame_metrics, tradeoff_curve
+from .openset import calibrate, frame_metrics, segment_f1, tradeoff_curve
 
 INNER_FOLDS = 3  # validation recordings of the inner split (each validated by a fit on the others)
 DEFAULT_METHODS = ("ukr_clm", "ukr_clm_online", "ukr_only", "dtw_1nn", "hmm", "minirocket", "clm_minirocket")
@@ -167,6 +167,7 @@ class StreamEvaluator:
         for name in self.methods:
             pred = np.concatenate([f.labels[name] for f in folds])
             res = frame_metrics(truth, pred, self.known)
+            res["segment_f1"] = segment_f1([(f.truth, f.labels[name]) for f in folds], self.known)
             res["tradeoff_auc"] = None
             if name in folds[0].sweeps:  # the first value of every sweep keeps every frame
                 res["no_rejection"] = frame_metrics(
@@ -180,6 +181,7 @@ class StreamEvaluator:
                     "recording": f.recording,
                     "selected": f.selected[name],
                     **frame_metrics(f.truth, f.labels[name], self.known),
+                    "segment_f1": segment_f1([(f.truth, f.labels[name])], self.known),
                 }
                 for f in folds
             ]

@@ -37,6 +37,10 @@ def auto_beta(sequences: list[np.ndarray]) -> float:
 
 
 INITS = ("equidistant", "isomap")
+# ``periodic_quartic`` is compact: class models train on every point through the neighbour-list
+# path (docs/training.md, "Training at scale").  Its auto β has the Gaussian's second moment:
+# the quartic [1 − β²δ²]₊² has variance 1/(7β²), so β = auto_beta / √7.
+KERNELS = ("periodic", "periodic_quartic")
 SCALINGS = ("standard", "none")
 CYCLES = ("none", "auto")
 
@@ -47,13 +51,13 @@ def train_class_models(dataset: LabelledDataset, **options) -> dict:
     return fit_class_models(dataset.by_class("train"), **options)
 
 
-def class_pieces(segments: list[np.ndarray], cycles: str, max_points: int) -> tuple[list[np.ndarray], bool]:
+def class_pieces(segments: list[np.ndarray], cycles: str, max_points: int | None) -> tuple[list[np.ndarray], bool]:
     """Training sequences of one class and whether they are cycles of a periodic motion.
 
     ``cycles="auto"`` cuts every segment into single cycles (:func:`.cycles.split_cycles`;
     segments without repetition stay whole); ``"none"`` keeps the segments.  Documented choice:
     when the pieces hold more than ``max_points`` observations, evenly spaced pieces are kept
-    (UKR training is quadratic in the number of points).
+    (dense UKR training is quadratic in the number of points); ``max_points=None`` keeps all.
     """
     if cycles not in CYCLES:
         raise ValueError(f"cycles must be one of {CYCLES}, got {cycles!r}")
@@ -63,7 +67,7 @@ def class_pieces(segments: list[np.ndarray], cycles: str, max_points: int) -> tu
         periodic |= len(parts) > 1
         pieces += parts
     total = sum(map(len, pieces))
-    if total > max_points:
+    if max_points is not None and total > max_points:
         keep = max(1, int(len(pieces) * max_points / total))
         pieces = [pieces[i] for i in np.linspace(0, len(pieces) - 1, keep).round().astype(int)]
     return pieces, periodic
@@ -80,6 +84,7 @@ def fit_class_models(
     scaling: str = "standard",
     cycles: str = "none",
     max_points: int = 1500,
+    kernel: str = "periodic",
 ) -> dict:
     """One StructuredUKR per class from label → list of (T, d) training segments.
 
@@ -87,26 +92,30 @@ def fit_class_models(
     observations (:mod:`.scaling`); ``"none"`` trains on the raw channels.  ``cycles`` see
     :func:`class_pieces`.  Each model's provenance records the scaling and ``open_stroke``: True
     when the class was trained on whole segments (one stroke per period), False when on cycles
-    of a periodic motion.
+    of a periodic motion.  ``kernel="periodic_quartic"`` (compact, see :data:`KERNELS`) trains
+    on all pieces, ignoring ``max_points``, in time linear in the number of points.
     """
     from handflow.plugins.manifold import StructuredUKR
 
     if init not in INITS:
         raise ValueError(f"init must be one of {INITS}, got {init!r}")
+    if kernel not in KERNELS:
+        raise ValueError(f"kernel must be one of {KERNELS}, got {kernel!r}")
+    compact = kernel == "periodic_quartic"
     if scaling not in SCALINGS:
         raise ValueError(f"scaling must be one of {SCALINGS}, got {scaling!r}")
     scaler = ChannelScaling().fit([s for seqs in by_class.values() for s in seqs]) if scaling == "standard" else None
     models = {}
     for label, segments in by_class.items():
-        seqs, periodic = class_pieces(segments, cycles, max_points)
+        seqs, periodic = class_pieces(segments, cycles, None if compact else max_points)
         if scaler is not None:
             seqs = [scaler.transform(s) for s in seqs]
-        b = auto_beta(seqs) if beta == "auto" else float(beta)
+        b = (auto_beta(seqs) / (np.sqrt(7.0) if compact else 1.0)) if beta == "auto" else float(beta)
         if progress:
             kind = "cycles" if periodic else "sequences"
             progress(f"training '{label}' on {len(seqs)} {kind} ({sum(map(len, seqs))} points, beta={b:.1f})")
         model = StructuredUKR(
-            latent=[{"kernel": "periodic", "beta": b, "time": True}],
+            latent=[{"kernel": kernel, "beta": b, "time": True}],
             lambda_cseq=lambda_cseq,
             lambda_pvar=0.0,
             n_steps=n_steps,

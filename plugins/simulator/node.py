@@ -5,28 +5,34 @@ joints not named keep their last target).  Every tick (``rate_hz``) the node ste
 that simulated time follows ``ctx.now_ns()`` (wall clock live, virtual time in lock-step replay),
 then publishes ``joints`` (collision-corrected JointState), ``contacts`` (Contacts) and ``scene``
 (Array with ``names``: the scene state plus ``sim_time`` and ``holding``); ``image`` (Image) at
-``camera_hz``.  Fail-safe: when no targets arrived for ``hold_safe_after_s`` the node
+``camera_hz``.  For 3D viewers (docs/foxglove.md) it also publishes ``tf`` (Transforms from
+pybullet's link poses, every tick), ``markers`` (the scene's shapes, every tick) and ``description``
+(the viewer-safe URDF, at start and every ``description_period_s``), frames under ``frame_prefix``;
+``view_hz: 0`` turns the three off.
+Fail-safe: when no targets arrived for ``hold_safe_after_s`` the node
 holds the last command, logs it once and reports ``holding = 1`` until targets resume.
 """
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import Field
 
-from handflow.framework.messages import Array, Contacts, Image, JointState, MessageError
+from handflow.framework.messages import Array, Contacts, Image, JointState, Markers, MessageError, Text, Transforms
+from handflow.framework.params import StrictModel
 from handflow.framework.plugin import Node
 
 from .simulation import Simulation
+from .urdf import urdf_text
+from .viewer import scene_markers, simulated_hand_transforms
 
 
-class SimulatorParams(BaseModel):
+class SimulatorParams(StrictModel):
     """Parameters of ``simulator.pybullet``."""
 
-    model_config = ConfigDict(extra="forbid")
-    hand: str = Field("shadow", description="hand model: human | shadow | gifu")
-    scene: str = Field("empty", description="scene: empty | cap | balls | grasp")
+    hand: Literal["human", "shadow", "gifu"] = Field("shadow", description="hand model")
+    scene: Literal["empty", "cap", "balls", "grasp"] = Field("empty", description="scene")
     scene_options: dict[str, Any] = Field(
         default_factory=dict, description="scene fields, e.g. {radius: 0.02} (cap) or {pushes: [[20, 0.3]]} (balls)"
     )
@@ -42,6 +48,12 @@ class SimulatorParams(BaseModel):
     max_catch_up_s: float = Field(
         0.25, gt=0, description="at most this much simulated time per tick; a longer stall is skipped"
     )
+    frame_prefix: str | None = Field(None, description="prefix of the hand's TF frames; default '<node id>/'")
+    world_frame: str = Field("world", description="TF frame of the simulated world")
+    view_hz: float = Field(30.0, ge=0, description="rate of tf and markers (at most the tick rate); 0 = off")
+    description_period_s: float = Field(
+        2.0, ge=0, description="republish the robot description this often (late viewers); 0 = only at start"
+    )
 
 
 class PybulletSimulatorNode(Node):
@@ -49,7 +61,15 @@ class PybulletSimulatorNode(Node):
 
     Params = SimulatorParams
     inputs = {"targets": JointState}
-    outputs = {"joints": JointState, "contacts": Contacts, "scene": Array, "image": Image}
+    outputs = {
+        "joints": JointState,
+        "contacts": Contacts,
+        "scene": Array,
+        "image": Image,
+        "tf": Transforms,
+        "markers": Markers,
+        "description": Text,
+    }
 
     def setup(self) -> None:
         prm = self.params
@@ -60,6 +80,10 @@ class PybulletSimulatorNode(Node):
         self.last_target_ns: int | None = None
         self.last_image_ns: int | None = None
         self.holding = False
+        self.prefix = prm.frame_prefix if prm.frame_prefix is not None else f"{self.ctx.node_id}/"
+        self.description = Text(data=urdf_text(self.sim.skeleton, viewer=True, prefix=self.prefix))
+        self.last_description_ns: int | None = None
+        self.last_view_ns: int | None = None
 
     def on_message(self, port: str, msg: JointState) -> None:
         try:
@@ -105,11 +129,26 @@ class PybulletSimulatorNode(Node):
         state = self.sim.scene_state()
         state.update(sim_time=self.sim.time, holding=float(self.holding))
         self.ctx.publish("scene", Array(data=list(state.values()), names=list(state)))
+        self._publish_viewer(now)
         cam = self.params.camera_hz
         if cam > 0 and (self.last_image_ns is None or now - self.last_image_ns >= 1e9 / cam - 1e3):  # 1 µs slack
             self.last_image_ns = now
             rgb = self.sim.render(self.params.camera_width, self.params.camera_height)
             self.ctx.publish("image", Image.from_array(rgb, frame_id=f"{self.params.scene}_camera"))
+
+    def _publish_viewer(self, now: int) -> None:
+        prm = self.params
+        if prm.view_hz <= 0:
+            return
+        if self.last_view_ns is None or now - self.last_view_ns >= 1e9 / prm.view_hz - 1e3:  # 1 µs slack
+            self.last_view_ns = now
+            self.ctx.publish("tf", simulated_hand_transforms(self.sim, self.prefix, prm.world_frame))
+            self.ctx.publish("markers", scene_markers(self.sim, prm.world_frame))
+        period = prm.description_period_s
+        last = self.last_description_ns
+        if last is None or (period > 0 and now - last >= period * 1e9):
+            self.last_description_ns = now
+            self.ctx.publish("description", self.description)
 
     def teardown(self) -> None:
         sim = getattr(self, "sim", None)

@@ -201,10 +201,14 @@ class BallsScene(Scene):
       ``time_s`` the ball pair is turned by ``angle_deg`` about the cup centre in the palm plane
       (positive: counter-clockwise in the ``(x_P, z_P)`` plane, i.e. *back* against the clockwise
       swapping of :mod:`handflow.plugins.demo.ball_swap`) and both balls are stopped — a ball pushed back
-      along its circular path by a finger, applied kinematically so it is exactly repeatable.
+      along its circular path by a finger, applied kinematically so it is exactly repeatable;
+    - ``holds`` — disturbances ``[(time_s, duration_s), …]``: from the first physics step at or
+      after ``time_s`` both balls are held where they are (positions frozen, velocities zeroed
+      every physics step) for ``duration_s`` — a finger of the other hand pinning the balls for a
+      moment while the hand goes on moving, so the balls fall behind the hand's phase.
 
-    State: world position of each ball (``ball1_x`` …) and of the two marks, ``pushes_done`` and
-    ``turns_done``.
+    State: world position of each ball (``ball1_x`` …) and of the two marks, ``pushes_done``,
+    ``turns_done`` and ``holds_done``.
     """
 
     name: str = "balls"
@@ -222,6 +226,7 @@ class BallsScene(Scene):
     jitter: float = 0.002
     pushes: tuple[tuple[float, float], ...] = ()
     turns: tuple[tuple[float, float], ...] = ()
+    holds: tuple[tuple[float, float], ...] = ()
     marks: dict[str, tuple[float, float]] = field(
         default_factory=lambda: {"mark_a": (0.03, 0.011), "mark_b": (-0.03, 0.011)}
     )
@@ -245,7 +250,16 @@ class BallsScene(Scene):
         if bad:
             raise ValueError(f"turns need time_s >= 0 and -180 <= angle_deg <= 180, got {bad}")
         self.turns = tuple(sorted(self.turns))
-        self.pushes_done = self.turns_done = 0
+        try:
+            self.holds = tuple((float(t), float(d)) for t, d in self.holds)
+        except (TypeError, ValueError):
+            raise ValueError(f"holds must be a list of [time_s, duration_s] pairs, got {self.holds!r}") from None
+        bad = [td for td in self.holds if not (td[0] >= 0 and 0 < td[1] <= 10)]
+        if bad:
+            raise ValueError(f"holds need time_s >= 0 and 0 < duration_s <= 10, got {bad}")
+        self.holds = tuple(sorted(self.holds))
+        self.pushes_done = self.turns_done = self.holds_done = 0
+        self._held: tuple[float, np.ndarray] | None = None
 
     def hand_rotation(self) -> Rotation:
         tilt = Rotation.from_euler("y", self.tilt_deg, degrees=True)
@@ -355,8 +369,24 @@ class BallsScene(Scene):
             p.resetBasePositionAndOrientation(ball, pos.tolist(), [0, 0, 0, 1], physicsClientId=client)
             p.resetBaseVelocity(ball, [0, 0, 0], [0, 0, 0], physicsClientId=client)
 
+    def _hold(self, client: int, t: float) -> None:
+        """Start a due hold; keep the balls at their held positions while one lasts."""
+        if self._held is None and self.holds_done < len(self.holds) and t >= self.holds[self.holds_done][0] - 1e-9:
+            self._held = (t + self.holds[self.holds_done][1], self.ball_positions(client))
+            self.holds_done += 1
+        if self._held is None:
+            return
+        until, positions = self._held
+        if t >= until - 1e-9:
+            self._held = None
+            return
+        for ball, pos in zip(self.balls, positions):
+            p.resetBasePositionAndOrientation(ball, pos.tolist(), [0, 0, 0, 1], physicsClientId=client)
+            p.resetBaseVelocity(ball, [0, 0, 0], [0, 0, 0], physicsClientId=client)
+
     def before_step(self, client: int, t: float) -> None:
-        """Fire every due push and turn (see the class docstring)."""
+        """Fire every due push, turn and hold (see the class docstring)."""
+        self._hold(client, t)
         while self.turns_done < len(self.turns) and t >= self.turns[self.turns_done][0] - 1e-9:
             self.turn_pair(client, self.turns[self.turns_done][1])
             self.turns_done += 1
@@ -397,6 +427,7 @@ class BallsScene(Scene):
             out.update({f"{name}_{axis}": float(v) for axis, v in zip("xyz", pos)})
         out["pushes_done"] = float(self.pushes_done)
         out["turns_done"] = float(self.turns_done)
+        out["holds_done"] = float(self.holds_done)
         return out
 
 

@@ -18,6 +18,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from handflow.framework.messages import Contacts, JointState
 from handflow.plugins.hands.joints import HAND_MODELS
@@ -211,11 +212,23 @@ class Simulation:
         ids = {v: k for k, v in self.link_names.items()}
         if link not in ids:
             raise ValueError(f"hand '{self.model.name}' has no link '{link}'; links: {', '.join(sorted(ids))}")
-        if ids[link] == -1:
-            return np.array(p.getBasePositionAndOrientation(self.hand_id, physicsClientId=self.client)[0])
+        if ids[link] == -1:  # pybullet's base position is its centre of mass, not the link frame
+            return self.link_poses()[link][0]
         return np.array(
             p.getLinkState(self.hand_id, ids[link], computeForwardKinematics=True, physicsClientId=self.client)[4]
         )
+
+    def link_poses(self) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        """World pose (position, quaternion x, y, z, w) of every hand link's URDF frame as pybullet has it now."""
+        com_pos, com_orn = p.getBasePositionAndOrientation(self.hand_id, physicsClientId=self.client)
+        local_pos, local_orn = p.getDynamicsInfo(self.hand_id, -1, physicsClientId=self.client)[3:5]
+        base_rot = Rotation.from_quat(com_orn) * Rotation.from_quat(local_orn).inv()  # base COM → link frame
+        poses = {self.skeleton.base: (np.array(com_pos) - base_rot.apply(local_pos), base_rot.as_quat())}
+        ids = [int(i) for i in sorted(self.link_names) if i >= 0]
+        states = p.getLinkStates(self.hand_id, ids, computeForwardKinematics=True, physicsClientId=self.client)
+        for i, state in zip(ids, states):
+            poses[self.link_names[i]] = (np.array(state[4]), np.array(state[5]))
+        return poses
 
     # -- lifetime ------------------------------------------------------------------------------
     def close(self) -> None:

@@ -5,6 +5,11 @@ box from the wrist to the knuckles; the forearm a box behind the wrist.  Masses 
 density (``DENSITY``); joint limits, axes and the effort limits (``max_torque``) are written into
 the URDF, so pybullet enforces the limits.  :func:`write_urdf` caches the file under a content
 hash, so repeated simulations reuse it and a changed generator never reads a stale file.
+
+``urdf_text(skeleton, viewer=True, prefix=...)`` is the robot description for viewers (docs/foxglove.md):
+the same links and joints, link names prefixed (two hands in one scene), geometry only from URDF's
+standard primitives (a capsule is drawn as a cylinder plus two spheres), no mesh files, no collision
+elements.
 """
 
 from __future__ import annotations
@@ -32,48 +37,59 @@ def _inertial(mass: float, ixx: float, iyy: float, izz: float, z: float = 0.0) -
     )
 
 
-def _box_link(name: str, size, centre, colour: str) -> str:
+def _material(name: str, colour: str) -> str:
+    return f'<material name="{name}_m"><color rgba="{colour}"/></material>'
+
+
+def _box_link(name: str, size, centre, colour: str, viewer: bool = False) -> str:
     sx, sy, sz = size
     mass = DENSITY * sx * sy * sz
     shape = f'<origin xyz="{centre[0]:.6f} {centre[1]:.6f} {centre[2]:.6f}"/><geometry><box size="{sx} {sy} {sz}"/></geometry>'
     inertia = _inertial(
         mass, mass * (sy**2 + sz**2) / 12, mass * (sx**2 + sz**2) / 12, mass * (sx**2 + sy**2) / 12, centre[2]
     )
-    return (
-        f'<link name="{name}">{inertia}<visual>{shape}<material name="{name}_m"><color rgba="{colour}"/></material></visual>'
-        f"<collision>{shape}</collision></link>"
-    )
+    collision = "" if viewer else f"<collision>{shape}</collision>"
+    return f'<link name="{name}">{inertia}<visual>{shape}{_material(name, colour)}</visual>{collision}</link>'
 
 
-def _capsule_link(name: str, length: float, radius: float, colour: str) -> str:
+def _capsule_visuals(name: str, length: float, radius: float, colour: str) -> str:
+    """A capsule along ``+z`` from 0 to ``length`` as standard URDF primitives: cylinder and two spheres."""
+    parts = [
+        f'<origin xyz="0 0 {length / 2:.6f}"/><geometry><cylinder radius="{radius:.5f}" length="{length:.5f}"/></geometry>'
+    ]
+    parts += [f'<origin xyz="0 0 {z:.6f}"/><geometry><sphere radius="{radius:.5f}"/></geometry>' for z in (0.0, length)]
+    return "".join(f"<visual>{shape}{_material(name, colour)}</visual>" for shape in parts)
+
+
+def _capsule_link(name: str, length: float, radius: float, colour: str, viewer: bool = False) -> str:
     if length == 0:  # connector between two joints at one point: no geometry, tiny inertia
         return f'<link name="{name}">{_inertial(0.005, 1e-7, 1e-7, 1e-7)}</link>'
     mass = DENSITY * np.pi * radius**2 * (length + 4 * radius / 3)
     ixx = mass * (3 * radius**2 + length**2) / 12
+    inertial = _inertial(mass, ixx, ixx, mass * radius**2 / 2, length / 2)
+    if viewer:
+        return f'<link name="{name}">{inertial}{_capsule_visuals(name, length, radius, colour)}</link>'
     shape = f'<origin xyz="0 0 {length / 2:.6f}"/><geometry><capsule radius="{radius:.5f}" length="{length:.5f}"/></geometry>'
     return (
-        f'<link name="{name}">{_inertial(mass, ixx, ixx, mass * radius**2 / 2, length / 2)}'
-        f'<visual>{shape}<material name="{name}_m"><color rgba="{colour}"/></material></visual>'
+        f'<link name="{name}">{inertial}<visual>{shape}{_material(name, colour)}</visual>'
         f"<collision>{shape}</collision></link>"
     )
 
 
-def urdf_text(skeleton: HandSkeleton) -> str:
-    """The URDF document of one hand skeleton."""
+def urdf_text(skeleton: HandSkeleton, viewer: bool = False, prefix: str = "") -> str:
+    """The URDF document of one hand skeleton (for pybullet, or ``viewer``-safe with ``prefix`` on link names)."""
     colour = COLOURS[skeleton.model.name]
     w, t, length = skeleton.palm_size
-    palm = _box_link(skeleton.palm_link, (w, t, length * 0.92), (0, 0, length * 0.46 + 0.004), colour)
-    links = [
-        palm
-        if skeleton.base == skeleton.palm_link
-        else _box_link(skeleton.base, (w * 0.7, t * 1.2, 0.08), (0, 0, -0.05), colour)
-    ]
+    palm_link, base = prefix + skeleton.palm_link, prefix + skeleton.base
+    palm = _box_link(palm_link, (w, t, length * 0.92), (0, 0, length * 0.46 + 0.004), colour, viewer)
+    links = [palm if base == palm_link else _box_link(base, (w * 0.7, t * 1.2, 0.08), (0, 0, -0.05), colour, viewer)]
     joints = []
     for j in skeleton.joints:  # links in joint order: pybullet keeps this order (URDF_MAINTAIN_LINK_ORDER)
-        links.append(palm if j.child == skeleton.palm_link else _capsule_link(j.child, j.length, j.radius, colour))
+        child, parent = prefix + j.child, prefix + j.parent
+        links.append(palm if child == palm_link else _capsule_link(child, j.length, j.radius, colour, viewer))
         roll, pitch, yaw = j.rotation.as_euler("xyz")
         joints.append(
-            f'<joint name="{j.name}" type="revolute"><parent link="{j.parent}"/><child link="{j.child}"/>'
+            f'<joint name="{prefix}{j.name}" type="revolute"><parent link="{parent}"/><child link="{child}"/>'
             f'<origin xyz="{j.origin[0]:.6f} {j.origin[1]:.6f} {j.origin[2]:.6f}" rpy="{roll:.6f} {pitch:.6f} {yaw:.6f}"/>'
             f'<axis xyz="{j.axis[0]:.6f} {j.axis[1]:.6f} {j.axis[2]:.6f}"/>'
             f'<limit lower="{j.lower:.6f}" upper="{j.upper:.6f}" effort="{j.max_torque}" velocity="3.0"/>'

@@ -7,9 +7,10 @@ missing) and ``marks`` (Points2D, raw pixel centroids of mark A and mark B, ids 
 
 from __future__ import annotations
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import Field
 
 from handflow.framework.messages import Image, MessageError, Points2D
+from handflow.framework.params import StrictModel
 from handflow.framework.plugin import Node
 
 from .blobs import BALL_HSV, MARK_A_HSV, MARK_B_HSV, BallTracker, HSVRange
@@ -19,10 +20,9 @@ def _range(values: list[int]) -> HSVRange:
     return HSVRange(tuple(values[:3]), tuple(values[3:]))  # type: ignore[arg-type]
 
 
-class TrackerParams(BaseModel):
+class TrackerParams(StrictModel):
     """HSV bounds as [h_lo, s_lo, v_lo, h_hi, s_hi, v_hi] (OpenCV scale; h_lo > h_hi wraps the hue)."""
 
-    model_config = ConfigDict(extra="forbid")
     ball_hsv: list[int] = Field(default_factory=lambda: [*BALL_HSV.lower, *BALL_HSV.upper], min_length=6, max_length=6)
     mark_a_hsv: list[int] = Field(
         default_factory=lambda: [*MARK_A_HSV.lower, *MARK_A_HSV.upper], min_length=6, max_length=6

@@ -144,7 +144,7 @@ def test_foxglove_layout_topics_are_published_by_the_flagship():
     assert topics
     for node, port in topics:
         assert port in graph.nodes[node].cls.outputs, f"{node}/{port}"
-    assert set(re.findall(r'"([A-Za-z]+![a-z]+)"', json.dumps(layout["layout"]))) == set(layout["configById"])
+    assert set(re.findall(r'"([A-Za-z0-9]+![a-z]+)"', json.dumps(layout["layout"]))) == set(layout["configById"])
 
 
 # ----------------------------------------------------------------------------------------------

@@ -27,6 +27,13 @@ EXPECTED = [
     "sim/image",
     "segmenter/labels",
     "segmenter/events",
+    "sim/tf",
+    "sim/markers",
+    "sim/description",
+    "human_tf/tf",
+    "human_tf/description",
+    "gesture/markers",
+    "camera/compressed",
 ]
 
 
@@ -81,3 +88,34 @@ def test_lockstep_replay_into_the_segmenter_reproduces_the_labels(flagship):
     for a, b in zip(live, replayed):
         assert (a.index, a.label, a.header.stamp_ns) == (b["index"], b["label"], b["header"]["stamp_ns"])
         np.testing.assert_array_equal(a.scores, b["scores"])
+
+
+def test_a_ros_2_reader_finds_the_3d_view_in_the_recording(flagship):
+    """rosbags (an independent reader) sees TF trees matching the recorded URDFs, markers, label text, JPEGs."""
+    from mcap.reader import make_reader
+    from rosbags.highlevel import AnyReader
+    from rosbags.typesys import Stores, get_typestore
+
+    from handflow.framework.ros2.types import decode_cdr
+    from tests.simulator.test_viewer import assert_tree_matches_urdf
+
+    _, rec, _ = flagship
+    last: dict[str, object] = {}
+    with AnyReader([rec], default_typestore=get_typestore(Stores.ROS2_JAZZY)) as reader:
+        types = {c.topic.split("/", 2)[2]: c.msgtype for c in reader.connections}
+        for conn, _, raw in reader.messages():
+            last[conn.topic.split("/", 2)[2]] = (reader.deserialize(raw, conn.msgtype), raw, conn.msgtype)
+    assert types["sim/tf"] == types["human_tf/tf"] == "tf2_msgs/msg/TFMessage"
+    assert types["sim/markers"] == types["gesture/markers"] == "visualization_msgs/msg/MarkerArray"
+    assert types["sim/description"] == "std_msgs/msg/String"
+    assert types["camera/compressed"] == "sensor_msgs/msg/CompressedImage"
+    for hand in ("sim", "human_tf"):
+        tf = decode_cdr(bytes(last[f"{hand}/tf"][1]), "tf2_msgs/msg/TFMessage")
+        assert_tree_matches_urdf(tf, last[f"{hand}/description"][0].data)
+    assert {m.type for m in last["sim/markers"][0].markers} == {3}  # bottle and cap cylinders
+    (text,) = last["gesture/markers"][0].markers
+    assert text.type == 9 and text.text.split()[0] in {"grasp", "wave", "pinch", "turn", "unknown"}
+    assert bytes(last["camera/compressed"][0].data[:2]) == b"\xff\xd8"  # JPEG
+    with open(rec, "rb") as f:
+        names = {a.name for a in make_reader(f).iter_attachments()}
+    assert {"handflow/demo/sim/description.urdf", "handflow/demo/human_tf/description.urdf"} <= names

@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+from sklearn.exceptions import NotFittedError
 
 from handflow.plugins.manifold import InvalidInputError, LatentDim, StructuredUKR, toy
 from handflow.plugins.manifold.kernels import Kernel, ProductKernel
@@ -253,7 +254,7 @@ def test_bad_inputs_after_fit(ring_model):
         model.transform(np.zeros((2, 3)), mask=[1, 1])
     with pytest.raises(InvalidInputError, match="not all zero"):
         model.transform(np.zeros((2, 3)), mask=[0, 0, 0])
-    with pytest.raises(RuntimeError, match="not fitted"):
+    with pytest.raises(NotFittedError, match="not fitted"):
         StructuredUKR().transform(np.zeros((1, 3)))
 
 

@@ -162,7 +162,7 @@ def bad_case(tmp_path, kind):
         ("nan", "NaN or inf"),
         ("few", "fewer points than needed"),
         ("dims", "inconsistent dimensions"),
-        ("kernel", "unknown kernel 'cosine'"),
+        ("kernel", "kernel: Input should be 'gaussian'"),
         ("time_dim", "time dimension index 1 is out of range"),
         ("two_sources", "exactly one of csv_dir, npz, mcap"),
         ("typo", "time_colum"),

@@ -97,4 +97,31 @@ def test_error_scale_weakens_the_reconstruction_penalty(candidates, two_letters)
     assert np.all(scaled[:-1][live] >= base[:-1][live] - 1e-12)  # c_sre grows as e shrinks
     assert np.any(scaled[:-1][live] > base[:-1][live] + 1e-3)
     with pytest.raises(ValueError, match="error_scale"):
-        CLMSegmenter(candidates, error_scale=0.0)
+        CLMSegmenter(candidates, error_scale=0.0).layer_compatibilities(proj)
+
+
+def test_clm_estimators_store_only_and_clone():
+    from sklearn.base import clone
+    from sklearn.exceptions import NotFittedError
+
+    from handflow.plugins.segmenter import CLMSegmenter
+
+    clm = CompetitiveLayerModel(eta=0.8, random_state=3)
+    assert "rng_" not in vars(clm) and clm.get_params()["eta"] == 0.8
+    with pytest.raises(TypeError):
+        CompetitiveLayerModel(2.0)  # hyper-parameters are keyword-only
+    band, diag = np.zeros((2, 6, 3)), np.zeros(2)
+    band[0, :3, 0] = band[1, 3:, 0] = 1.0
+    first = clm.solve(band, diag).winners
+    assert np.array_equal(clone(clm).solve(band, diag).winners, first)  # same seed, same run
+    seg = CLMSegmenter(history=3, restarts=0, random_state=1)
+    assert "solver_" not in vars(seg)  # no solver, no generator in the constructor
+    with pytest.raises(NotFittedError, match="fit_predict"):
+        _ = seg.labels_
+    with pytest.raises(ValueError, match="restarts"):
+        seg.fit_predict_bands(*seg.with_background(band))
+    seg.set_params(restarts=2)
+    assert seg.get_params()["restarts"] == 2 and clone(seg).get_params() == seg.get_params()
+    labels = seg.fit_predict_bands(*seg.with_background(band))
+    assert labels.shape == (6,) and hasattr(seg, "labels_")
+    assert np.array_equal(clone(seg).fit_predict_bands(*seg.with_background(band)), labels)

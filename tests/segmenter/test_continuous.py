@@ -15,7 +15,8 @@ from handflow.plugins.segmenter.continuous import (
 )
 from handflow.plugins.segmenter.datasets import DatasetError
 from handflow.plugins.segmenter.frame_methods import METHODS, DTWMethod
-from handflow.plugins.segmenter.openset import calibrate, frame_metrics, tradeoff_curve
+from handflow.plugins.segmenter.openset import calibrate, frame_metrics, runs, segment_f1, tradeoff_curve
+from handflow.plugins.segmenter.stream_cli import format_stream_table
 from handflow.plugins.segmenter.stream_evaluation import StreamEvaluator
 from tests.segmenter.conftest import SHARED
 
@@ -103,6 +104,31 @@ def test_frame_metrics_follow_their_definitions():
     assert frame_metrics(truth[:4], pred[:4], [0, 1])["unknown_rejection"] is None
 
 
+def test_runs_are_maximal_and_cover_the_sequence():
+    assert runs(np.array([1, 1, -1, 2, 2, 2])) == [(1, 0, 2), (-1, 2, 3), (2, 3, 6)]
+    assert runs(np.array([], dtype=int)) == []
+
+
+def test_segment_f1_matches_same_label_at_iou_half():
+    truth = np.array([0] * 10 + [1] * 10 + [2] * 10)  # class 2 unknown → must be a rejected run
+    assert segment_f1([(truth, np.where(truth == 2, -1, truth))], known=[0, 1]) == pytest.approx(1.0)
+    # class-0 run shifted by 5: IoU 5/15 < 0.5 for class 0; class 1 run 15..20 vs 10..20: IoU 0.5 matches
+    pred = np.array([1] * 5 + [0] * 10 + [1] * 5 + [-1] * 10)
+    # predicted runs: 1@0-5, 0@5-15, 1@15-20, -1@20-30; matched: 1@15-20 (IoU 0.5), -1 run → 2 of 4 / 3 true
+    assert segment_f1([(truth, pred)], known=[0, 1]) == pytest.approx(2 * 2 / (4 + 3))
+    flicker = np.where(np.arange(30) % 2, truth, -1)  # frame accuracy 50 %, every run one frame long
+    assert segment_f1([(truth, flicker)], known=[0, 1, 2]) == pytest.approx(0.0)
+
+
+def test_segment_f1_pools_recordings_and_ignores_unlabelled_frames():
+    truth = np.array([-1, -1, 0, 0, 0, 0])
+    pred = np.array([1, 1, 0, 0, 0, 0])  # the class-1 run lies on unlabelled frames only
+    assert segment_f1([(truth, pred)], known=[0]) == pytest.approx(1.0)
+    other = (np.array([0, 0]), np.array([1, 1]))
+    assert segment_f1([(truth, pred), other], known=[0, 1]) == pytest.approx(2 * 1 / (2 + 2))
+    assert segment_f1([(np.array([-1]), np.array([-1]))], known=[0]) is None
+
+
 def test_tradeoff_curve_is_closed_and_its_area_trapezoidal():
     rej, acc, auc = tradeoff_curve([0.9, 0.5], [0.2, 0.6])
     assert rej == [0.0, 0.2, 0.6, 1.0] and acc == [0.9, 0.9, 0.5, 0.0]
@@ -140,6 +166,8 @@ def test_open_set_selection_rejects_a_held_out_class(tmp_path):
     assert res["unknown_rejection"] > 0.5  # class c was never seen: most of its frames are rejected
     assert res["known_accuracy"] > 0.5
     assert 0 <= res["tradeoff_auc"] <= 1
+    assert 0 < res["segment_f1"] <= 1 and all("segment_f1" in f for f in res["folds"])
+    assert "segment_f1" in format_stream_table(ev.evaluate())
     assert DTWMethod().grid(quick=True)
 
 
@@ -160,6 +188,8 @@ def test_clm_over_classifier_scores_groups_frames_and_rejects_with_its_backgroun
     band = evidence_band(evidence, width=4, history=2)
     assert band.shape == (2, 3, 4) and np.allclose(band[:, :, 2:], 0) and np.allclose(band[:, 2], 0)
     assert band[0, 0, 0] > 0 > band[0, 1, 0]  # frames 0,1 lean to class 0 together; frame 2 does not
+    four = evidence_band(np.tile([0.4, 0.2, 0.2, 0.2], (3, 1)), width=2, history=2)
+    assert four[0, 0, 0] > 0 > four[1, 0, 0]  # above chance (1/4) supports, below repels, with 4 classes
 
     X, y = _synthetic_recordings(0)
     method = METHODS["clm_dtw"]

@@ -112,3 +112,31 @@ def test_bad_turns_are_rejected_with_the_expected_form():
         BallsScene(turns=[[1.0]])
     with pytest.raises(ValueError, match="-180 <= angle_deg <= 180"):
         BallsScene(turns=[[1.0, 270.0]])
+
+
+def test_a_hold_keeps_both_balls_in_place_for_its_duration_then_releases_them():
+    from handflow.plugins.hands.joints import GIFU
+
+    motion = BallSwapMotion()
+    with Simulation("gifu", "balls", {"holds": [[0.5, 0.5]]}, seed=0) as sim:
+
+        def run(steps):
+            for _ in range(steps):
+                sim.set_targets(GIFU.names, motion.targets((sim.time % 2.0) / 2.0)[0])
+                sim.step(1)
+
+        run(121)  # the step starting at t = 0.5 s starts the hold
+        held = sim.scene.palm_plane_positions(sim.client)
+        assert sim.scene_state()["holds_done"] == 1
+        run(100)  # the hand goes on moving; the balls stay
+        # reset before every physics step: a held ball strays < 1.5 mm within one step
+        np.testing.assert_allclose(sim.scene.palm_plane_positions(sim.client), held, atol=1.5e-3)
+        run(480)  # released: the hand moves the balls again
+        assert np.abs(sim.scene.palm_plane_positions(sim.client) - held).max() > 2e-3
+
+
+def test_bad_holds_are_rejected_with_the_expected_form():
+    with pytest.raises(ValueError, match=r"\[time_s, duration_s\]"):
+        BallsScene(holds=[[1.0]])
+    with pytest.raises(ValueError, match="0 < duration_s <= 10"):
+        BallsScene(holds=[[1.0, 0.0]])

@@ -1,0 +1,74 @@
+"""Launch → first recorded message of a shipped graph (docs/benchmarks.md, "Distribution and start-up").
+
+Runs ``handflow run GRAPH --duration D --record FILE`` in a fresh directory several times and reads
+the first message's log time from the recording; the time is counted from just before the command
+is started. Baseline, measured in the same run: a bare ``python -c "import numpy, zenoh"`` (what
+every node process pays at least).
+
+    python benchmarks/startup.py --repeats 5 --json
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from handflow.framework.recording import iter_recording
+
+
+def first_message_s(graph: str, duration: float) -> tuple[float, int]:
+    """Seconds from launch to the first recorded message, and the number of recorded messages."""
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "run.mcap"
+        start_ns = time.time_ns()
+        subprocess.run(
+            ["handflow", "run", graph, "--duration", str(duration), "--record", str(out)],
+            cwd=tmp,
+            check=True,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+        )
+        times = [m.log_time_ns for m in iter_recording(out)]
+    return (min(times) - start_ns) / 1e9, len(times)
+
+
+def bare_import_s() -> float:
+    start = time.perf_counter()
+    subprocess.run([sys.executable, "-c", "import numpy, zenoh"], check=True)
+    return time.perf_counter() - start
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--graph", default="demo", help="shipped graph name or path (default: demo)")
+    ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--duration", type=float, default=2.0, help="seconds each run lasts once every node is ready")
+    ap.add_argument("--json", action="store_true")
+    args = ap.parse_args()
+    runs = []
+    for i in range(args.repeats):
+        runs.append(first_message_s(args.graph, args.duration))
+        print(f"run {i + 1}/{args.repeats}: first message after {runs[-1][0]:.2f} s", file=sys.stderr)
+    bare = statistics.median(bare_import_s() for _ in range(args.repeats))
+    first = statistics.median(r[0] for r in runs)
+    result = {
+        "graph": args.graph,
+        "first_message_s": round(first, 3),
+        "first_message_s_runs": [round(r[0], 3) for r in runs],
+        "messages_min": min(r[1] for r in runs),
+        "bare_import_s": round(bare, 3),
+        "ratio_vs_bare_import": round(first / bare, 2),
+        "load_average_1min": os.getloadavg()[0],
+    }
+    print(json.dumps(result, indent=2) if args.json else "\n".join(f"{k}: {v}" for k, v in result.items()))
+
+
+if __name__ == "__main__":
+    main()

@@ -111,11 +111,33 @@ def find_run(graph: str | None = None) -> RunInfo:
     return runs[0]
 
 
-def join(graph: str | None = None, connect: str | None = None) -> tuple[zenoh.Session, RunInfo | None]:
-    """Open a Zenoh peer session on a running graph's network: ``connect`` if given, else via its run-file."""
+def join(
+    graph: str | None = None, connect: str | None = None, certs: str | None = None, name: str | None = None
+) -> tuple[zenoh.Session, RunInfo | None]:
+    """Open a Zenoh peer session on a running graph's network: ``connect`` if given, else via its run-file.
+
+    A ``tls/`` endpoint needs ``certs`` (a ``handflow certs`` directory) and this machine's certificate
+    ``name`` (docs/security.md).
+    """
     from .graph import ZenohSettings
-    from .transport import open_node_session
+    from .transport import open_node_session, open_tls_peer
 
     run = None if connect else find_run(graph)
     endpoint = connect or run.hub
+    if endpoint.startswith("tls/"):
+        from .certs import CertError, check_host_files
+
+        if not (certs and name):
+            raise DiscoveryError(f"{endpoint} is a TLS endpoint: pass --certs DIR --cert-name NAME")
+        try:
+            files = check_host_files(Path(certs), name)
+        except CertError as exc:
+            raise DiscoveryError(str(exc)) from None
+        return open_tls_peer(endpoint, *files), run
     return open_node_session(ZenohSettings(), endpoint), run
+
+
+def add_tls_arguments(parser) -> None:
+    """``--certs DIR --cert-name NAME`` of commands that join a graph over TLS (docs/security.md)."""
+    parser.add_argument("--certs", metavar="DIR", help="with a tls/ --connect endpoint: the `handflow certs` directory")
+    parser.add_argument("--cert-name", metavar="NAME", help="with --certs: this machine's certificate name")

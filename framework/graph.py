@@ -15,9 +15,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
+from pydantic import BaseModel, Field, ValidationError, field_validator
 
 from .messages import Message, message_types
+from .params import StrictModel
 from .plugin import Node
 from .registry import PluginError, load_plugin, plugin_entries
 from .ros2.rmw_zenoh import check_name
@@ -26,11 +27,20 @@ from .yaml_files import Problem, YamlFileError, line_of, parse, pydantic_problem
 _ID = re.compile(r"^[A-Za-z0-9_\-]+$")
 
 
-class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+class TlsSettings(StrictModel):
+    """Mutual TLS between the graph's machines; access rights derived from the graph (docs/security.md)."""
+
+    certs: str = Field(description="directory made by `handflow certs init`, relative to the graph file")
+    host: str | None = Field(None, description="this machine's certificate name (default: `handflow run --host`)")
+    readers: list[str] = Field(
+        default_factory=list, description="certificate names that may read every topic (monitor, record, replay)"
+    )
+    publishers: dict[str, list[str]] = Field(
+        default_factory=dict, description="external topic (node/port) → certificate names that may publish it"
+    )
 
 
-class ZenohSettings(_Strict):
+class ZenohSettings(StrictModel):
     """Transport settings. Default: embedded peer on loopback, multicast scouting off, no router."""
 
     mode: Literal["peer", "client"] = "peer"
@@ -41,9 +51,18 @@ class ZenohSettings(_Strict):
         default_factory=list, description="endpoints of other machines' graphs, e.g. tcp/192.168.1.7:7450"
     )
     multicast_scouting: bool = False
+    tls: TlsSettings | None = Field(None, description="mutual TLS and generated access control (docs/security.md)")
+    insecure: bool = Field(False, description="allow plain endpoints beyond loopback (anyone who reaches them joins)")
 
 
-class RestartPolicy(_Strict):
+def is_loopback_endpoint(endpoint: str) -> bool:
+    """``tcp/127.0.0.1:7447``, ``tcp/localhost:0``, ``tcp/[::1]:7447`` → True; other addresses → False."""
+    addr = endpoint.partition("/")[2].split("#", 1)[0]
+    host = addr.rsplit(":", 1)[0].strip("[]")
+    return host == "localhost" or host.startswith("127.") or host == "::1"
+
+
+class RestartPolicy(StrictModel):
     """Supervision of a node's process (docs/pipelines.md): restarted on failure by default."""
 
     policy: Literal["never", "on-failure"] = "on-failure"
@@ -53,7 +72,7 @@ class RestartPolicy(_Strict):
     window_s: float = Field(60.0, gt=0, description="failures older than this are forgotten")
 
 
-class NodeSpec(_Strict):
+class NodeSpec(StrictModel):
     id: str
     plugin: str
     params: dict[str, Any] = Field(default_factory=dict)
@@ -70,19 +89,19 @@ class NodeSpec(_Strict):
         return v
 
 
-class RecordSpec(_Strict):
+class RecordSpec(StrictModel):
     path: str | None = Field(None, description="MCAP file; `handflow run --record` overrides it")
     topics: list[str] = Field(default_factory=lambda: ["**"], description="globs over node/port, e.g. 'glove/*'")
 
 
-class FoxgloveSettings(_Strict):
+class FoxgloveSettings(StrictModel):
     """Live view: a Foxglove WebSocket server started by the launcher, streaming every topic."""
 
     host: str = "127.0.0.1"
     port: int = Field(8765, ge=0, le=65535, description="0 picks a free port")
 
 
-class Ros2Settings(_Strict):
+class Ros2Settings(StrictModel):
     """Live ROS 2 interop: selected topics republished as rmw_zenoh does it (docs/ros2.md)."""
 
     domain_id: int = Field(0, ge=0, le=232, description="ROS_DOMAIN_ID of the ROS 2 system")
@@ -104,7 +123,7 @@ class Ros2Settings(_Strict):
         return self.node_name or graph_name.replace("-", "_")
 
 
-class GraphSpec(_Strict):
+class GraphSpec(StrictModel):
     name: str
     description: str = ""
     zenoh: ZenohSettings = Field(default_factory=ZenohSettings)
@@ -224,6 +243,7 @@ def read_graph_text(text: str, path: Path, only: Collection[str] | None = None) 
                 )
             )
 
+    problems += _zenoh_problems(spec, lines)
     if spec.ros2 is not None:
         problems += _ros2_problems(graph, spec.ros2, lines)
 
@@ -235,6 +255,50 @@ def read_graph_text(text: str, path: Path, only: Collection[str] | None = None) 
             line = line_of(lines, ("nodes", i, "inputs", port))
             problems += _input_problems(graph, rn, port, source, line)
     return (graph if not problems else None), problems
+
+
+def _zenoh_problems(spec: GraphSpec, lines) -> list[Problem]:
+    """Plain endpoints beyond loopback need TLS or an explicit ``insecure: true`` (docs/security.md)."""
+    z = spec.zenoh
+    problems = []
+    for key in ("listen", "connect"):
+        for i, ep in enumerate(getattr(z, key)):
+            plain = not ep.startswith(("tls/", "quic/"))
+            if z.tls is not None and plain and not is_loopback_endpoint(ep):
+                problems.append(
+                    Problem(
+                        line_of(lines, ("zenoh", key, i)),
+                        f"zenoh {key} endpoint '{ep}' is not TLS although 'zenoh.tls' is set; use tls/{ep.partition('/')[2]}",
+                    )
+                )
+            elif z.tls is None and plain and not z.insecure and not is_loopback_endpoint(ep):
+                problems.append(
+                    Problem(
+                        line_of(lines, ("zenoh", key, i)),
+                        f"zenoh {key} endpoint '{ep}' reaches beyond this machine without TLS: any peer that reaches "
+                        f"it could join, read and publish on every topic. Create certificates "
+                        f"(`handflow certs init certs && handflow certs add-host certs NAME`), set "
+                        f"'zenoh: {{tls: {{certs: certs}}}}' and use tls/ endpoints, or write 'insecure: true' "
+                        f"under 'zenoh:' to accept the risk (docs/security.md)",
+                    )
+                )
+            elif not plain and z.tls is None:
+                problems.append(
+                    Problem(
+                        line_of(lines, ("zenoh", key, i)),
+                        f"zenoh {key} endpoint '{ep}' needs certificates: add 'tls: {{certs: DIR}}' under 'zenoh:'",
+                    )
+                )
+    if z.tls is not None:
+        for topic in z.tls.publishers:
+            if topic not in spec.external:
+                problems.append(
+                    Problem(
+                        line_of(lines, ("zenoh", "tls", "publishers", topic)),
+                        f"zenoh.tls.publishers names '{topic}', which is not an 'external' topic of this graph",
+                    )
+                )
+    return problems
 
 
 def _ros2_problems(graph: Graph, ros2: Ros2Settings, lines: dict) -> list[Problem]:

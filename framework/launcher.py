@@ -74,7 +74,12 @@ class Launcher:
         self.lockstep = lockstep
         self.log_level = log_level
         self.hub_endpoint = transport.hub_endpoint_for()
-        self.session = transport.open_hub(graph.spec.zenoh, self.hub_endpoint)
+        secure = None
+        if graph.spec.zenoh.tls is not None:
+            from . import access
+
+            secure = {"tls": access.tls_settings(graph, host), "access_control": access.access_control(graph, host)}
+        self.session = transport.open_hub(graph.spec.zenoh, self.hub_endpoint, secure)
         self._state_dir = tempfile.TemporaryDirectory(prefix=f"handflow-{graph.name}-")
         self.stopping = False
         self.run_file = discovery.write_run_file(graph.name, self.hub_endpoint, graph.path, lockstep)

@@ -9,7 +9,7 @@ resolve a path relative to the graph file.
 Example::
 
     class Gain(Node):
-        class Params(BaseModel):
+        class Params(StrictModel):
             gain: float = 1.0
         inputs = {"in": Array}
         outputs = {"out": Array}

@@ -191,6 +191,7 @@ class McapWriter:
         self.counts: dict[str, int] = {}
         self._dirty = False
         self._closed = False
+        self.failure: str | None = None  # why writing stopped (disk full, I/O error), docs/reliability.md
         self._stop = threading.Event()
         self._flusher = None
         if flush_interval_s:
@@ -263,12 +264,13 @@ class McapWriter:
         """Store message bytes already in this writer's ``encoding`` (type named by the sender)."""
         with self._lock:
             if self._closed:
-                raise RecordingError(f"recording {self.path} is closed; open a new McapWriter")
+                raise RecordingError(self.failure or f"recording {self.path} is closed; open a new McapWriter")
             cid = self._channel_id(topic, type_name)
             log_time = time.time_ns() if log_time_ns is None else int(log_time_ns)
-            self._writer.add_message(cid, log_time, data, int(publish_time_ns), sequence & 0xFFFFFFFF)
+            self._checked(self._writer.add_message, cid, log_time, data, int(publish_time_ns), sequence & 0xFFFFFFFF)
             if type_name == Image.TYPE and self.foxglove_images:
-                self._writer.add_message(
+                self._checked(
+                    self._writer.add_message,
                     self._view_channel_id(topic),
                     log_time,
                     _foxglove_image(data, publish_time_ns),
@@ -278,14 +280,39 @@ class McapWriter:
             self.counts[topic] = self.counts.get(topic, 0) + 1
             self._dirty = True
 
+    def _fail(self, exc: OSError) -> str:
+        """Stop writing after an OS error (disk full, file too large): the complete chunks stay readable."""
+        self.failure = (
+            f"recording stopped: cannot write {self.path} ({exc.strerror or exc}) after {self.message_count} "
+            f"message(s); the file holds every complete chunk written before (`handflow inspect {self.path}`); "
+            "free disk space or record to another disk"
+        )
+        self._closed = True
+        self._stop.set()
+        try:
+            self._file.close()
+        except OSError:
+            pass  # the buffered tail cannot be written either; the reader recovers the complete chunks
+        log.error("%s", self.failure)
+        return self.failure
+
     def add_metadata(self, name: str, data: dict[str, str]) -> None:
         with self._lock:
-            self._writer.add_metadata(name, {str(k): str(v) for k, v in data.items()})
+            self._checked(self._writer.add_metadata, name, {str(k): str(v) for k, v in data.items()})
 
     def add_attachment(self, name: str, data: bytes, media_type: str = "application/octet-stream") -> None:
         now = time.time_ns()
         with self._lock:
-            self._writer.add_attachment(now, now, name, media_type, bytes(data))
+            self._checked(self._writer.add_attachment, now, now, name, media_type, bytes(data))
+
+    def _checked(self, write, *args) -> None:
+        """One write to the file; an OS error stops the recording (:meth:`_fail`) as a :class:`RecordingError`."""
+        if self._closed:
+            raise RecordingError(self.failure or f"recording {self.path} is closed; open a new McapWriter")
+        try:
+            write(*args)
+        except OSError as exc:
+            raise RecordingError(self._fail(exc)) from None
 
     @property
     def message_count(self) -> int:
@@ -296,7 +323,11 @@ class McapWriter:
         """Close the open chunk and hand everything to the OS (survives a kill of this process)."""
         with self._lock:
             if not self._closed and self._dirty:
-                self._writer.flush()
+                try:
+                    self._writer.flush()
+                except OSError as exc:
+                    self._fail(exc)
+                    return
                 self._dirty = False
 
     def _flush_loop(self, interval: float) -> None:
@@ -312,8 +343,11 @@ class McapWriter:
             if self._closed:
                 return
             self._closed = True
-            self._writer.finish()
-            self._file.close()
+            try:
+                self._writer.finish()
+                self._file.close()
+            except OSError as exc:
+                self._fail(exc)
 
     def __enter__(self) -> McapWriter:
         return self
@@ -458,6 +492,8 @@ class GraphRecorder:
                 self._documents.add(key)
                 self._attach_document(key, msg.data)
         except (MessageError, RecordingError) as exc:
+            if self.writer.failure:
+                return  # reported once by the writer
             if key not in self.skipped:
                 log.warning("not recording a payload on %s: %s", key, exc)
             self.skipped[key] = self.skipped.get(key, 0) + 1

@@ -6,7 +6,9 @@ Keys are ``handflow/<graph>/<node>/<port>``; runtime-internal topics use ports s
 Default topology: the launcher opens a *hub* session (an embedded Zenoh peer listening on a free
 loopback port, multicast scouting off, no router); every node process is a peer that connects to
 the hub and finds the other peers through gossip.  A graph's ``zenoh.listen`` / ``zenoh.connect``
-endpoints are added to the hub so graphs on several machines join one Zenoh network.
+endpoints are added to the hub so graphs on several machines join one Zenoh network.  With
+``zenoh.tls`` the hub is a router speaking mutual TLS to other machines, with access control derived
+from the graph (:mod:`handflow.framework.access`), and node processes are its clients.
 """
 
 from __future__ import annotations
@@ -69,17 +71,21 @@ class EndpointInUse(OSError):
     """A ``zenoh.listen`` endpoint whose address is taken by another program."""
 
 
-def open_hub(settings: ZenohSettings, hub_endpoint: str) -> zenoh.Session:
+def open_hub(settings: ZenohSettings, hub_endpoint: str, secure: dict[str, object] | None = None) -> zenoh.Session:
     """The launcher's session: listens on ``hub_endpoint`` plus the graph's endpoints.
 
-    A listen endpoint already in use raises :class:`EndpointInUse` saying what to change.
+    ``secure`` (``{"tls": ..., "access_control": ...}`` from :mod:`handflow.framework.access`) makes
+    the hub a TLS router.  A listen endpoint already in use raises :class:`EndpointInUse` saying
+    what to change.
     """
+    mode = "router" if secure else settings.mode
+    conf = _config(mode, [hub_endpoint, *settings.listen], list(settings.connect), settings.multicast_scouting)
+    for key, value in (secure or {}).get("tls", {}).items():
+        conf.insert_json5(f"transport/link/tls/{key}", json.dumps(value))
+    if secure:
+        conf.insert_json5("access_control", json.dumps(secure["access_control"]))
     try:
-        return zenoh.open(
-            _config(
-                settings.mode, [hub_endpoint, *settings.listen], list(settings.connect), settings.multicast_scouting
-            )
-        )
+        return zenoh.open(conf)
     except zenoh.ZError as exc:
         busy = [ep for ep in settings.listen if ep.split("/", 1)[-1] in str(exc)]
         if "in use" not in str(exc).lower() or not busy:
@@ -95,8 +101,11 @@ def open_node_session(settings: ZenohSettings, hub_endpoint: str) -> zenoh.Sessi
     """A node process's session: a peer connected to the local hub.
 
     It listens on an ephemeral port of the interface the graph listens on (loopback by default) so
-    gossip can connect peers directly.
+    gossip can connect peers directly.  In a TLS graph it is a client of the hub (a router) and
+    listens nowhere, so every message to or from another machine passes the hub's access control.
     """
+    if settings.tls is not None:
+        return zenoh.open(_config("client", [], [hub_endpoint], False))
     host = "127.0.0.1"
     for ep in settings.listen:
         proto, _, addr = ep.partition("/")
@@ -104,6 +113,15 @@ def open_node_session(settings: ZenohSettings, hub_endpoint: str) -> zenoh.Sessi
             host = addr.rsplit(":", 1)[0]
             break
     return zenoh.open(_config("peer", [f"tcp/{host}:0"], [hub_endpoint], settings.multicast_scouting))
+
+
+def open_tls_peer(endpoint: str, ca: object, cert: object, key: object) -> zenoh.Session:
+    """A peer joining a TLS graph from another machine (monitor, record, replay) with its own certificate."""
+    conf = _config("peer", [], [endpoint], False)
+    tls = {"root_ca_certificate": ca, "connect_certificate": cert, "connect_private_key": key}
+    for k, v in {**tls, "verify_name_on_connect": False}.items():
+        conf.insert_json5(f"transport/link/tls/{k}", json.dumps(str(v) if k != "verify_name_on_connect" else v))
+    return zenoh.open(conf)
 
 
 def hub_endpoint_for(port: int | None = None) -> str:

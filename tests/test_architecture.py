@@ -39,3 +39,35 @@ def test_old_top_level_names_are_not_importable_from_elsewhere(tmp_path):
 def test_ruff_keeps_the_tree_clean(args):
     proc = subprocess.run(["ruff", *args], cwd=REPO, capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stdout + proc.stderr
+
+
+def test_every_parameter_and_config_model_derives_the_one_strict_base():
+    """Node Params, graph settings, training configs, profiles and calibrations reject unknown keys alike."""
+    import importlib
+    import pkgutil
+    import warnings
+
+    from pydantic import BaseModel
+
+    import handflow.framework
+    import handflow.plugins
+    from handflow.framework.params import StrictModel
+
+    loose = []
+    for package in (handflow.framework, handflow.plugins):
+        for info in pkgutil.walk_packages(package.__path__, package.__name__ + "."):
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")  # renamed plugins' aliases warn on import
+                module = importlib.import_module(info.name)
+            for obj in vars(module).values():
+                if (
+                    isinstance(obj, type)
+                    and issubclass(obj, BaseModel)
+                    and obj.__module__ == module.__name__
+                    and not issubclass(obj, StrictModel)
+                ):
+                    loose.append(f"{module.__name__}.{obj.__qualname__}")
+                for inner in vars(obj).values() if isinstance(obj, type) else ():
+                    if isinstance(inner, type) and issubclass(inner, BaseModel) and not issubclass(inner, StrictModel):
+                        loose.append(f"{module.__name__}.{inner.__qualname__}")
+    assert not sorted(set(loose)), f"models that accept unknown keys (derive StrictModel): {sorted(set(loose))}"

@@ -29,7 +29,7 @@ def register(parser: argparse.ArgumentParser) -> None:
         help="live view: stream every topic to Foxglove on ws://127.0.0.1:PORT (default 8765)",
     )
     parser.add_argument("--summary-json", metavar="FILE", help="write per-process restarts and exit codes as JSON")
-    parser.epilog = "exit codes: 0 ok, 1 empty recording, 2 bad graph or arguments, 3 a node in a crash loop"
+    parser.epilog = "exit codes: 0 ok, 1 empty or failed recording, 2 bad graph or arguments, 3 a node in a crash loop"
     parser.set_defaults(func=run)
 
 
@@ -77,6 +77,9 @@ def run(args: argparse.Namespace) -> int:
         for why in launcher.crash_loops:
             print(f"error: crash loop: {why} (see its log above)", file=sys.stderr)
         return 3
+    if recorder is not None and recorder.writer.failure:
+        print(f"error: {recorder.writer.failure}", file=sys.stderr)
+        return 1
     if recorder is not None and recorder.writer.message_count == 0:
         print(
             f"warning: the recording {recorder.writer.path} holds no messages; check the graph's 'record.topics' "

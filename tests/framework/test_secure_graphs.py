@@ -1,0 +1,172 @@
+"""Multi-host graphs over mutual TLS with access control derived from the graph (docs/security.md).
+
+Two real launchers on this machine, each with its own certificate, share one graph over a TLS
+endpoint on 127.0.0.1; real Zenoh sessions play the intruders.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import json
+import time
+from pathlib import Path
+
+import pytest
+
+pytest.importorskip("cryptography")
+
+import zenoh
+
+from handflow.framework import certs
+from handflow.framework.access import access_control
+from handflow.framework.discovery import live_runs
+from handflow.framework.graph import load_graph, validate_file
+from handflow.framework.transport import free_tcp_port
+
+from .test_runtime_e2e import chain_graph, read_sink, start
+
+
+@pytest.fixture
+def ca(tmp_path) -> Path:
+    d = tmp_path / "certs"
+    certs.init_ca(d)
+    for host in ("a", "b", "mallory"):
+        certs.add_host(d, host)
+    return d
+
+
+def _graph(tmp_path: Path, zenoh_yaml: str, hosts=("a", "b", "b")) -> Path:
+    return chain_graph(tmp_path, zenoh=zenoh_yaml, hosts=hosts)
+
+
+def _problems(path: Path) -> str:
+    return " ".join(p.message for p in validate_file(path)[1])
+
+
+def test_listening_beyond_loopback_without_tls_is_refused_unless_insecure(tmp_path):
+    path = _graph(tmp_path, "zenoh: {listen: [tcp/0.0.0.0:7450]}")
+    assert "without TLS" in _problems(path) and "insecure: true" in _problems(path)
+    path.write_text(
+        path.read_text().replace("listen: [tcp/0.0.0.0:7450]", "listen: [tcp/0.0.0.0:7450], insecure: true")
+    )
+    assert _problems(path) == ""
+    path.write_text(
+        path.read_text().replace("listen: [tcp/0.0.0.0:7450], insecure: true", "connect: [tls/10.0.0.2:7450]")
+    )
+    assert "needs certificates" in _problems(path)
+    path.write_text(path.read_text().replace("connect: [tls/10.0.0.2:7450]", "listen: [tcp/127.0.0.1:7450]"))
+    assert _problems(path) == ""  # loopback stays allowed
+
+
+def test_validate_command_explains_the_refusal(tmp_path):
+    path = _graph(tmp_path, "zenoh: {listen: [tcp/0.0.0.0:7450]}")
+    proc = start("validate", str(path))
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 2
+    assert f"{path}:2:" in err and "any peer that reaches it could join" in err
+
+
+def test_missing_expired_and_foreign_certificates_are_clear_errors(ca, tmp_path):
+    with pytest.raises(certs.CertError, match="no certificate for host 'c'.*handflow certs add-host"):
+        certs.check_host_files(ca, "c")
+    certs.add_host(ca, "old", days=1, not_before=dt.datetime.now(dt.timezone.utc) - dt.timedelta(days=3))
+    with pytest.raises(certs.CertError, match="expired"):
+        certs.check_host_files(ca, "old")
+    other = tmp_path / "other"
+    certs.init_ca(other)
+    certs.add_host(other, "x")
+    for suffix in ("pem", "key"):
+        (ca / f"x.{suffix}").write_bytes((other / f"x.{suffix}").read_bytes())
+    with pytest.raises(certs.CertError, match="not signed by the CA"):
+        certs.check_host_files(ca, "x")
+    with pytest.raises(certs.CertError, match="already exists"):
+        certs.init_ca(ca)
+
+
+def test_access_control_follows_the_graph(ca, tmp_path):
+    port = free_tcp_port()
+    z = f"zenoh: {{listen: [tls/127.0.0.1:{port}], tls: {{certs: {ca}, readers: [laptop]}}}}"
+    acl = access_control(load_graph(_graph(tmp_path, z)), "a")
+    rules = {r["id"]: r for r in acl["rules"]}
+    name = load_graph(_graph(tmp_path, z)).name
+    assert rules["b-publish"]["key_exprs"] == [
+        f"handflow/{name}/_runtime/events",
+        f"handflow/{name}/scale/**",
+        f"handflow/{name}/sink/**",
+    ]
+    assert f"handflow/{name}/source/out" in rules["b-receive"]["key_exprs"]  # what b's nodes consume
+    assert "readers-publish" not in rules and rules["readers-receive"]["key_exprs"] == [f"handflow/{name}/**"]
+    assert acl["default_permission"] == "deny"
+
+
+def _session(endpoint: str, ca_dir: Path | None, name: str | None, root: Path | None = None) -> zenoh.Session:
+    conf = zenoh.Config()
+    conf.insert_json5("mode", '"peer"')
+    conf.insert_json5("scouting/multicast/enabled", "false")
+    conf.insert_json5("connect/endpoints", json.dumps([endpoint]))
+    tls = {"root_ca_certificate": str(root or ca_dir / "ca.pem"), "verify_name_on_connect": False}
+    if name:
+        tls |= {"connect_certificate": str(ca_dir / f"{name}.pem"), "connect_private_key": str(ca_dir / f"{name}.key")}
+    for key, value in tls.items():
+        conf.insert_json5(f"transport/link/tls/{key}", json.dumps(value))
+    return zenoh.open(conf)
+
+
+@pytest.mark.slow
+def test_two_graphs_over_mutual_tls_admit_only_rightful_peers(ca, tmp_path, monkeypatch):
+    monkeypatch.setenv("HANDFLOW_RUN_DIR", str(tmp_path / "runs"))
+    port = free_tcp_port()
+    tls_ep = f"tls/127.0.0.1:{port}"
+    graph = _graph(tmp_path, f"zenoh: {{listen: [{tls_ep}], tls: {{certs: {ca}}}}}")
+    graph_b = tmp_path / "graph_b.yaml"
+    graph_b.write_text(graph.read_text().replace(f"listen: [{tls_ep}]", f"connect: [{tls_ep}]"))
+    name = load_graph(graph).name
+    a = start("run", str(graph), "--host", "a", "--duration", "14")
+    try:
+        deadline = time.time() + 20
+        while time.time() < deadline and not live_runs():
+            time.sleep(0.2)
+        assert live_runs(), "launcher a did not start"
+        hub = live_runs()[0].hub
+        b = start("run", str(graph_b), "--host", "b", "--duration", "10")
+        seen: list[tuple[str, bytes]] = []
+        local = _session(hub, None, None, root=ca / "ca.pem")  # a trusted process on machine A (loopback)
+        local.declare_subscriber(f"handflow/{name}/**", lambda s: seen.append((str(s.key_expr), s.payload.to_bytes())))
+        # intruders: no certificate, a certificate of another CA, a valid certificate of an unknown host,
+        # and host b's valid certificate trying to publish a topic only host a's node owns
+        other = tmp_path / "other"
+        certs.init_ca(other)
+        certs.add_host(other, "a")
+        intruders = {
+            "nocert": _session(tls_ep, ca, None),
+            "foreign-ca": _session(tls_ep, other, "a"),
+            "mallory": _session(tls_ep, ca, "mallory"),
+            "b": _session(tls_ep, ca, "b"),
+        }
+        received: dict[str, list[bytes]] = {k: [] for k in intruders}
+        for who, s in intruders.items():
+            s.declare_subscriber(
+                f"handflow/{name}/**", lambda smp, who=who: received[who].append(smp.payload.to_bytes())
+            )
+        time.sleep(4)
+        for _ in range(20):
+            for who, s in intruders.items():
+                s.put(f"handflow/{name}/source/out", b"FORGED " + who.encode())
+                s.put(f"handflow/{name}/scale/out", b"FORGED " + who.encode())
+            time.sleep(0.1)
+        time.sleep(1)
+        _, err_b = b.communicate(timeout=60)
+        _, err_a = a.communicate(timeout=60)
+    finally:
+        if a.poll() is None:
+            a.kill()
+    assert a.returncode == 0 and b.returncode == 0, err_a + err_b
+    assert len(read_sink(tmp_path / "sink.jsonl")) > 100  # a's source reached b's nodes over TLS
+    keys = {k for k, _ in seen}
+    assert f"handflow/{name}/scale/_health" in keys  # b's runtime topics reach a through both access controls
+    assert f"handflow/{name}/scale/out" not in keys  # ... but not outputs no node of a consumes
+    forged = {p for _, p in seen if p.startswith(b"FORGED")}
+    assert forged <= {b"FORGED b"}, forged  # only b's own topic (scale/out) may come from b
+    assert not any(k.endswith("/source/out") and p.startswith(b"FORGED") for k, p in seen)
+    for who in ("nocert", "foreign-ca", "mallory"):  # their own puts echo locally; nothing of the graph arrives
+        assert all(p.startswith(b"FORGED") for p in received[who]), who

@@ -9,6 +9,7 @@ from __future__ import annotations
 from collections import deque
 
 import numpy as np
+from sklearn.base import BaseEstimator
 
 from .candidates import CandidateSet, Projection
 from .compatibility import (
@@ -23,8 +24,11 @@ from .compatibility import (
 REJECTED = -1
 
 
-class UKROnlyRecognizer:
+class UKROnlyRecognizer(BaseEstimator):
     """Winner-take-all over ``C(t) = λ C_rec(t) + (1 − λ) C_his(t)`` per candidate.
+
+    An estimator in the project's style (docs/architecture.md): the trained candidates are its
+    fitted part; the hyper-parameters are keyword-only, stored as given and checked at first use.
 
     Parameters
     ----------
@@ -39,6 +43,7 @@ class UKROnlyRecognizer:
     def __init__(
         self,
         candidates: CandidateSet,
+        *,
         lam: float = 0.3,
         gamma: float = 0.9,
         history: int = 10,
@@ -51,8 +56,6 @@ class UKROnlyRecognizer:
         self.history = history
         self.order_rating = order_rating
         self.threshold = threshold
-        self._check()
-        self.reset()
 
     def _check(self) -> None:
         order_rating(self.order_rating)
@@ -99,6 +102,9 @@ class UKROnlyRecognizer:
 
     def update_projected(self, latent_time: np.ndarray, errors: np.ndarray) -> tuple[int, np.ndarray]:
         """:meth:`update` for an observation already projected onto all candidates."""
+        if not hasattr(self, "_locals"):
+            self._check()
+            self.reset()
         c_rec = reconstruction_compatibility(errors)
         if self._locals.maxlen != self.history:
             self._locals = deque(self._locals, maxlen=self.history)

@@ -1,5 +1,6 @@
 import numpy as np
 import pytest
+from sklearn.base import clone
 
 from handflow.plugins.segmenter import CLMSegmenter, UKROnlyRecognizer
 from handflow.plugins.segmenter.candidates import training_direction
@@ -32,11 +33,14 @@ def test_ukr_only_stream_equals_batch(candidates, two_letters):
     assert np.mean(batch == truth) > 0.8
 
 
-def test_ukr_only_validates_parameters(candidates):
+def test_ukr_only_validates_parameters_at_first_use(candidates, two_letters):
+    Y, _ = two_letters
+    bad = UKROnlyRecognizer(candidates, order_rating="tan")  # the constructor only stores
     with pytest.raises(ValueError, match="order rating"):
-        UKROnlyRecognizer(candidates, order_rating="tan")
+        bad.predict(Y[:5])
     with pytest.raises(ValueError, match="lambda"):
-        UKROnlyRecognizer(candidates, lam=2.0)
+        UKROnlyRecognizer(candidates, lam=2.0).update(Y[0])
+    assert clone(UKROnlyRecognizer(candidates, history=5)).get_params()["history"] == 5
 
 
 def test_clm_segments_two_concatenated_letters(candidates, two_letters):

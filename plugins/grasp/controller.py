@@ -41,9 +41,12 @@ sub-targets.  Documented choices (all in :class:`ControllerConfig`):
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from typing import Literal, get_args
 
 import numpy as np
+from pydantic import ConfigDict, Field
+
+from handflow.framework.params import StrictModel
 
 from .experience import ExperienceBase
 from .hand_layout import Finger, HandLayout
@@ -55,7 +58,8 @@ towards them (THJ5 < 0 opposes in this model), tip slightly flexed; unnamed join
 best tactile pre-grasp of a 12-candidate sweep (THJ4 0.8–1.22 × THJ5 −0.4–0.2) on the evaluation grid
 (docs/benchmarks.md, grasping pass 5): 91.7 % stable tactile grasps on 156 valid poses."""
 
-STEER_MODES = ("closing", "blend", "staged", "all")
+SteerMode = Literal["closing", "blend", "staged", "all"]
+STEER_MODES: tuple[str, ...] = get_args(SteerMode)
 """How a best match steers the free fingers (documented choice ``ControllerConfig.steer``):
 
 - ``closing``: the match is a target shape for the *closing* joints only, approached only where
@@ -74,37 +78,27 @@ APPROACH, CLOSE, WRAP, HOLD = "approach", "close", "wrap", "hold"
 """Per-finger modes: moving to the sub-target, closing with the heuristic, non-tip contact, tip contact."""
 
 
-@dataclass(frozen=True)
-class ControllerConfig:
-    """Parameters of the controller (angles in rad, speeds in rad/s)."""
+class ControllerConfig(StrictModel):
+    """Parameters of the controller (angles in rad, speeds in rad/s); also the ``grasp.experience`` node's."""
 
-    gamma: float = 1.0  # closing speed γ of the distal joints
-    lam: float = 1.0  # proximal joints close at λ·γ (λ > 1: marginal, λ ≈ 1: distinct flexion)
-    approach_speed: float = 1.0  # sub-targets are approached at most this fast per joint (rad/s)
-    synchronous_approach: bool = False  # all joints reach a new sub-target together (else each at approach_speed)
-    control_hz: float = 60.0  # control cycles per second (dt of the closing heuristic)
-    reach_tol: float = 0.05  # a (sub-)target is reached within this error per joint …
-    still_tol: float = 0.002  # … or when no joint moved more than this in one cycle
-    squeeze: float = 0.1  # grip: held closing joints finally target the measured angle plus this
-    steer: str = "staged"  # how a best match steers the free fingers, one of STEER_MODES
-    steer_before_contact: bool = True  # phase B approaches best matches (False: tactile until the first contact)
-    rematch_cycles: int = 3  # a changed contact set must persist this many cycles before a re-match
-    max_lead: float = 0.25  # closing targets lead the measured angle by at most this
-    release_cycles: int = 3  # a lost contact still counts for this many cycles (debounces flicker)
-    pregrasp: dict = field(default_factory=lambda: dict(SHADOW_PREGRASP))
+    model_config = ConfigDict(frozen=True)
 
-    def __post_init__(self) -> None:
-        for name in ("gamma", "lam", "approach_speed", "control_hz", "reach_tol", "still_tol", "max_lead"):
-            if not getattr(self, name) > 0:
-                raise ValueError(f"controller {name} must be positive, got {getattr(self, name)}")
-        if self.release_cycles < 0:
-            raise ValueError(f"controller release_cycles must be ≥ 0, got {self.release_cycles}")
-        if self.squeeze < 0:
-            raise ValueError(f"controller squeeze must be ≥ 0, got {self.squeeze}")
-        if self.steer not in STEER_MODES:
-            raise ValueError(f"controller steer must be one of {STEER_MODES}, got {self.steer!r}")
-        if self.rematch_cycles < 0:
-            raise ValueError(f"controller rematch_cycles must be ≥ 0, got {self.rematch_cycles}")
+    gamma: float = Field(1.0, gt=0, description="closing speed γ of the distal joints (rad/s)")
+    lam: float = Field(1.0, gt=0, description="proximal joints close at λ·γ (λ > 1: marginal, λ ≈ 1: distinct flexion)")
+    approach_speed: float = Field(1.0, gt=0, description="sub-targets are approached at most this fast per joint")
+    synchronous_approach: bool = Field(False, description="all joints reach a new sub-target together")
+    rate_hz: float = Field(60.0, gt=0, description="control cycles per second (dt of the closing heuristic)")
+    reach_tol: float = Field(0.05, gt=0, description="a (sub-)target is reached within this error per joint …")
+    still_tol: float = Field(0.002, gt=0, description="… or when no joint moved more than this in one cycle")
+    squeeze: float = Field(0.1, ge=0, description="grip: held joints finally target the measured angle plus this")
+    steer: SteerMode = Field("staged", description="how a best match steers the free fingers (STEER_MODES)")
+    steer_before_contact: bool = Field(
+        True, description="phase B approaches best matches (false: tactile until the first contact)"
+    )
+    rematch_cycles: int = Field(3, ge=0, description="a changed contact set must persist this many cycles to re-match")
+    max_lead: float = Field(0.25, gt=0, description="closing targets lead the measured angle by at most this")
+    release_cycles: int = Field(3, ge=0, description="a lost contact still counts for this many cycles")
+    pregrasp: dict[str, float] = Field(default_factory=lambda: dict(SHADOW_PREGRASP), description="pre-grasp targets")
 
 
 class ExperienceGraspController:
@@ -166,7 +160,7 @@ class ExperienceGraspController:
 
     @property
     def dt(self) -> float:
-        return 1.0 / self.config.control_hz
+        return 1.0 / self.config.rate_hz
 
     def _debounce(self, touched: frozenset[str]) -> frozenset[str]:
         """A contact counts until it has been absent for ``release_cycles`` cycles (contact flicker)."""

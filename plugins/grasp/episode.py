@@ -15,7 +15,7 @@ a table under the palm-down hand.  Documented choices (:class:`EpisodeConfig`):
   change of the closing speed, the damped one 13, 4 of them box/cylinder instead of 10).  The stability
   test runs with pybullet's default damping (0.04).
 
-The controller runs at ``control_hz`` on the measured posture and the segments touching the object
+The controller runs at ``rate_hz`` on the measured posture and the segments touching the object
 (contacts with ``ignore_bodies``, the table by default, are not object contacts).  The grasp phase
 ends when the controller is finished for ``settle_s`` or after ``grasp_s``; then the wrench-space
 quality is computed and the :class:`DisturbanceTest` runs with gravity on.
@@ -133,9 +133,9 @@ def run_grasp(
         if touched_segments(sim, config.ignore_bodies):  # thesis 4.3: initially colliding placements are ignored
             q = sim.joint_positions()
             return GraspResult(obj, pose.as_array(), False, False, q, [], 0.0, 0.0, 0.0, 0.0, 0)
-        per_cycle = max(1, int(round(config.physics_hz / controller.config.control_hz)))
-        cycles = int(config.grasp_s * controller.config.control_hz)
-        settle = max(1, int(config.settle_s * controller.config.control_hz))
+        per_cycle = max(1, int(round(config.physics_hz / controller.config.rate_hz)))
+        cycles = int(config.grasp_s * controller.config.rate_hz)
+        settle = max(1, int(config.settle_s * controller.config.rate_hz))
         done_for = 0
         for _k in range(cycles):
             q = sim.joint_positions()

@@ -27,7 +27,6 @@ from __future__ import annotations
 import itertools
 import time
 from collections.abc import Callable
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -113,7 +112,7 @@ def evaluate_grasping(
                 f,
                 {
                     c: ExperienceGraspController(
-                        layout, model.lower, model.upper, b, replace(config, gamma=config.gamma * f)
+                        layout, model.lower, model.upper, b, config.model_copy(update={"gamma": config.gamma * f})
                     )
                     for c, b in bases.items()
                 },

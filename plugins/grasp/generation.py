@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import sys
 from collections.abc import Callable
-from dataclasses import replace
 
 import numpy as np
 
@@ -120,7 +119,7 @@ def generate_experience(
                     float(rng.uniform(*LAMBDA_RANGE)),
                     0,
                 )
-            config = replace(base, pregrasp=pregrasp, lam=lam)
+            config = base.model_copy(update={"pregrasp": pregrasp, "lam": lam})
             controller = ExperienceGraspController(layout, model.lower, model.upper, None, config)
             result = run_grasp(obj, pose, controller, episode, seed=int(rng.integers(2**31)), hand=hand)
             valid += result.valid

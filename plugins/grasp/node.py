@@ -17,7 +17,6 @@ import numpy as np
 from pydantic import Field
 
 from handflow.framework.messages import Contacts, JointState, Label, MessageError, Status
-from handflow.framework.params import StrictModel
 from handflow.framework.plugin import Node
 from handflow.plugins.hands.joints import HAND_MODELS
 
@@ -26,23 +25,11 @@ from .experience import ExperienceBase
 from .hand_layout import hand_layout
 
 
-class ExperienceGraspParams(StrictModel):
-    """Parameters of ``grasp.experience``."""
+class ExperienceGraspParams(ControllerConfig):
+    """Parameters of ``grasp.experience``: the controller's (declared once, in :class:`ControllerConfig`) and the node's."""
 
     hand: Literal["shadow", "gifu", "human"] = Field("shadow", description="hand model")
     experience: str | None = Field(None, description="SOM (.npz from grasp-som) or grasp dataset; none = tactile only")
-    rate_hz: float = Field(60.0, gt=0, description="control cycles per second")
-    gamma: float = Field(1.0, gt=0, description="closing speed γ of distal joints (rad/s)")
-    lam: float = Field(1.0, gt=0, description="proximal joints close at λ·γ")
-    squeeze: float = Field(0.1, ge=0, description="grip: held joints finally target measured + squeeze (rad)")
-    max_lead: float = Field(0.25, gt=0, description="closing targets lead the measured angle by at most this (rad)")
-    steer: Literal["closing", "blend", "staged", "all"] = Field(
-        "staged", description="how a best match steers free fingers"
-    )
-    steer_before_contact: bool = Field(
-        True, description="phase B approaches best matches (false: tactile until the first contact)"
-    )
-    rematch_cycles: int = Field(3, ge=0, description="a changed contact set must persist this many cycles to re-match")
     pregrasp: dict[str, float] | None = Field(None, description="pre-grasp joint targets (default: the hand's)")
     ignore_bodies: list[str] = Field(
         default_factory=lambda: ["table"], description="bodies whose contacts do not count"
@@ -64,17 +51,8 @@ class ExperienceGraspNode(Node):
         model = HAND_MODELS[prm.hand]
         experience = ExperienceBase.load(self.ctx.resolve_path(prm.experience)) if prm.experience else None
         pregrasp = prm.pregrasp if prm.pregrasp is not None else (SHADOW_PREGRASP if prm.hand == "shadow" else {})
-        config = ControllerConfig(
-            gamma=prm.gamma,
-            lam=prm.lam,
-            control_hz=prm.rate_hz,
-            squeeze=prm.squeeze,
-            max_lead=prm.max_lead,
-            steer=prm.steer,
-            steer_before_contact=prm.steer_before_contact,
-            rematch_cycles=prm.rematch_cycles,
-            pregrasp=dict(pregrasp),
-        )
+        controller_fields = set(ControllerConfig.model_fields) - {"pregrasp"}
+        config = ControllerConfig(**prm.model_dump(include=controller_fields), pregrasp=dict(pregrasp))
         self.controller = ExperienceGraspController(hand_layout(prm.hand), model.lower, model.upper, experience, config)
         self.model = model
         self.posture: np.ndarray | None = None

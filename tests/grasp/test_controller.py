@@ -10,7 +10,7 @@ from handflow.plugins.hands.joints import HAND_MODELS
 
 MODEL = HAND_MODELS["shadow"]
 LAYOUT = hand_layout("shadow")
-CFG = ControllerConfig(gamma=1.2, lam=1.5, control_hz=60.0, pregrasp={"THJ5": -0.4, "THJ4": 0.2})
+CFG = ControllerConfig(gamma=1.2, lam=1.5, rate_hz=60.0, pregrasp={"THJ5": -0.4, "THJ4": 0.2})
 
 
 def make(experience=None, config=CFG):
@@ -187,7 +187,7 @@ def test_blend_steer_closes_at_least_as_fast_as_the_heuristic_and_faster_towards
 
 
 def test_unknown_steer_mode_is_refused():
-    with pytest.raises(ValueError, match="steer must be one of"):
+    with pytest.raises(ValueError, match="steer"):
         ControllerConfig(steer="sideways")
 
 

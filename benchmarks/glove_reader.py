@@ -27,7 +27,7 @@ from handflow.plugins.glove.reader import GloveReader, ReaderConfig
 
 def throughput(rate_hz: float, seconds: float) -> dict:
     with GloveEmulator(constant_source(77)) as emu:
-        reader = GloveReader(ReaderConfig(emu.path, rate_hz=rate_hz)).start()
+        reader = GloveReader(ReaderConfig(port=emu.path, glove_rate_hz=rate_hz)).start()
         got = []
         end = time.monotonic() + seconds
         while time.monotonic() < end:

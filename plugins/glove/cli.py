@@ -137,7 +137,7 @@ def _record_live(args: argparse.Namespace) -> np.ndarray:
     if port == "emulator":
         emulator = build_emulator(EmulatorParams(motion_period_s=2.0)).start()
         port = emulator.path
-    reader = GloveReader(ReaderConfig(port, rate_hz=args.glove_rate)).start()
+    reader = GloveReader(ReaderConfig(port=port, glove_rate_hz=args.glove_rate)).start()
     rows: list[np.ndarray] = []
     try:
         for i, step in enumerate(CALIBRATION_STEPS, 1):

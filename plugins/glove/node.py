@@ -82,15 +82,12 @@ def missing_device_message(port: str) -> str | None:
 class CyberGloveNode(Node):
     """CyberGlove II reader: raw frames + link status (serial, /dev/rfcommN, bt://ADDR, or emulator)."""
 
-    class Params(StrictModel):
+    class Params(ReaderConfig):
+        """The reader's settings (declared once, in :class:`ReaderConfig`) and the node's."""
+
         port: str = Field("emulator", description="serial device, bt://AA:BB:CC:DD:EE:FF[/channel], or 'emulator'")
-        baudrate: int = 115200
-        glove_rate_hz: float = 100.0
-        rate_hz: float = 500.0
-        timestamp: bool = True
-        status_byte: bool = True
-        stall_timeout_s: float = 0.5
-        status_period_s: float = 1.0
+        rate_hz: float = Field(500.0, gt=0, description="how often the node drains the reader and publishes")
+        status_period_s: float = Field(1.0, gt=0, description="link status is published at least this often")
         emulator: EmulatorParams = Field(default_factory=EmulatorParams)
 
     outputs = {"frames": GloveFrame, "status": Status}
@@ -104,9 +101,7 @@ class CyberGloveNode(Node):
             port = self.emulator.path
         elif (problem := missing_device_message(port)) is not None:
             self.ctx.log.error(problem)
-        cfg = ReaderConfig(
-            port, p.baudrate, p.glove_rate_hz, p.timestamp, p.status_byte, stall_timeout_s=p.stall_timeout_s
-        )
+        cfg = ReaderConfig(**p.model_dump(include=set(ReaderConfig.model_fields) - {"port"}), port=port)
         self.reader = GloveReader(cfg, clock_ns=self.ctx.now_ns).start()
         self._last_state = None
         self._last_status_ns = None

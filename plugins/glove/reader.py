@@ -21,10 +21,11 @@ import socket
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
 
 import serial
+from pydantic import Field
 
+from handflow.framework.params import StrictModel
 from handflow.plugins.hands.sensors import N_SENSORS
 
 from . import protocol as P
@@ -34,21 +35,23 @@ class GloveLinkError(RuntimeError):
     """The glove did not answer as expected during bring-up."""
 
 
-@dataclass
-class ReaderConfig:
-    """Link and stream settings (documented defaults: 115200 8N1, 100 Hz, timestamp + status on)."""
+class ReaderConfig(StrictModel):
+    """Link and stream settings (documented defaults: 115200 8N1, 100 Hz, timestamp + status on).
 
-    port: str
-    baudrate: int = 115200
-    rate_hz: float = 100.0
-    timestamp: bool = True
-    status: bool = True
-    read_timeout_s: float = 0.01
-    reply_timeout_s: float = 0.5
-    stop_drain_s: float = 0.1
-    stall_timeout_s: float = 0.5
-    backoff_initial_s: float = 0.05
-    backoff_max_s: float = 2.0
+    Declared once: the ``glove.cyberglove`` node's parameters extend this model.
+    """
+
+    port: str = Field(description="serial device, /dev/rfcommN or bt://AA:BB:CC:DD:EE:FF[/channel]")
+    baudrate: int = Field(115200, gt=0)
+    glove_rate_hz: float = Field(100.0, gt=0, description="record rate the glove is set to stream (T command)")
+    timestamp: bool = Field(True, description="records carry the glove's timestamp")
+    status_byte: bool = Field(True, description="records carry the glove's status byte")
+    read_timeout_s: float = Field(0.01, gt=0)
+    reply_timeout_s: float = Field(0.5, gt=0, description="wait for a command's reply or acknowledgement")
+    stop_drain_s: float = Field(0.1, ge=0)
+    stall_timeout_s: float = Field(0.5, gt=0, description="no record for this long: the link is reopened")
+    backoff_initial_s: float = Field(0.05, gt=0, description="first wait before reopening a lost link")
+    backoff_max_s: float = Field(2.0, gt=0, description="longest wait between reopening attempts")
 
 
 class RfcommTransport:
@@ -103,13 +106,13 @@ def open_transport(cfg: ReaderConfig):
 
 
 class GloveReader:
-    """``r = GloveReader(ReaderConfig(port)); r.start(); ...; r.drain() -> [(Record, arrival_ns)]``."""
+    """``r = GloveReader(ReaderConfig(port=port)); r.start(); ...; r.drain() -> [(Record, arrival_ns)]``."""
 
     def __init__(self, cfg: ReaderConfig, clock_ns: Callable[[], int] = time.time_ns) -> None:
         self.cfg = cfg
         self.clock_ns = clock_ns
-        self.parser = P.StreamParser(P.RecordFormat(N_SENSORS, cfg.timestamp, cfg.status))
-        self.period_words = P.period_words(cfg.rate_hz)
+        self.parser = P.StreamParser(P.RecordFormat(N_SENSORS, cfg.timestamp, cfg.status_byte))
+        self.period_words = P.period_words(cfg.glove_rate_hz)
         self.link_state = "stopped"
         self.info = ""
         self.counters = {
@@ -224,7 +227,7 @@ class GloveReader:
         if n != N_SENSORS:
             raise GloveLinkError(f"glove reports {n} sensors; this reader supports the 22-sensor CyberGlove II")
         self._set(link, "D", P.set_flag("D", cfg.timestamp))
-        self._set(link, "U", P.set_flag("U", cfg.status))
+        self._set(link, "U", P.set_flag("U", cfg.status_byte))
         self._set(link, "T", P.set_period(*self.period_words))
         link.write(P.start_stream())  # device-time gap tracking continues across reconnects
 

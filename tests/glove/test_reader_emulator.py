@@ -21,7 +21,7 @@ def _frames(n=64):
 def _run(faults, seconds, stall_timeout_s=0.3, **emulator_kw):
     """Stream for ``seconds``; returns (emulator, reader, received records)."""
     with GloveEmulator(array_source(_frames()), faults=faults, seed=3, **emulator_kw) as emu:
-        reader = GloveReader(ReaderConfig(emu.path, rate_hz=RATE, stall_timeout_s=stall_timeout_s)).start()
+        reader = GloveReader(ReaderConfig(port=emu.path, glove_rate_hz=RATE, stall_timeout_s=stall_timeout_s)).start()
         got = []
         end = time.monotonic() + seconds
         while time.monotonic() < end:
@@ -122,7 +122,9 @@ def test_reader_recovers_from_fault(fault):
 
 
 def test_unresponsive_port_is_reported_and_retried(tmp_path):
-    reader = GloveReader(ReaderConfig(str(tmp_path / "nothing"), backoff_initial_s=0.01, backoff_max_s=0.02)).start()
+    reader = GloveReader(
+        ReaderConfig(port=str(tmp_path / "nothing"), backoff_initial_s=0.01, backoff_max_s=0.02)
+    ).start()
     time.sleep(0.2)
     reader.stop()
     _, counters = reader.snapshot()

@@ -70,18 +70,23 @@ def register_train_classes(parser: argparse.ArgumentParser) -> None:
     parser.set_defaults(func=run_train_classes)
 
 
+def _train(ds, args):
+    """One manifold per class of ``ds`` with the command's training options."""
+    return train_class_models(
+        ds,
+        beta=_beta(args),
+        n_steps=args.steps,
+        init=args.init,
+        random_state=args.seed,
+        progress=_progress,
+        kernel=args.kernel,
+    )
+
+
 def run_train_classes(args) -> int:
     try:
         ds = _dataset(args)
-        models = train_class_models(
-            ds,
-            beta=_beta(args),
-            n_steps=args.steps,
-            init=args.init,
-            random_state=args.seed,
-            progress=_progress,
-            kernel=args.kernel,
-        )
+        models = _train(ds, args)
     except (DatasetError, ValueError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
@@ -141,17 +146,7 @@ def run_evaluate(args) -> int:
             candidates = load_candidates(args.models)
         else:
             _progress(f"training one manifold per class ({len(ds.classes)} classes)")
-            candidates = candidate_set(
-                train_class_models(
-                    ds,
-                    beta=_beta(args),
-                    n_steps=args.steps,
-                    init=args.init,
-                    random_state=args.seed,
-                    progress=_progress,
-                    kernel=args.kernel,
-                )
-            )
+            candidates = candidate_set(_train(ds, args))
         evaluator = Evaluator(
             ds, candidates, Protocol.quick() if args.quick else Protocol(), random_state=args.seed, progress=_progress
         )

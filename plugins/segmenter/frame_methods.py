@@ -10,6 +10,7 @@ pseudo-unknown of the calibration).  Labels are global class indices, ``−1`` =
 
 from __future__ import annotations
 
+from abc import ABC, abstractmethod
 from dataclasses import dataclass
 
 import numpy as np
@@ -46,19 +47,22 @@ def _to_global(local: np.ndarray, classes: list[int]) -> np.ndarray:
     return lut[np.where(local < 0, len(classes), local)]
 
 
-class ScoreMethod:
+class ScoreMethod(ABC):
     """Methods with per-frame class scores; rejection = a threshold on the winning score."""
 
     name = ""
 
+    @abstractmethod
     def grid(self, quick: bool) -> list[dict]:
-        raise NotImplementedError
+        """Parameter sets tried on the inner validation split."""
 
+    @abstractmethod
     def fit(self, segments: dict[int, list[np.ndarray]], params: dict, seed: int) -> Fitted:
-        raise NotImplementedError
+        """Fit on training segments per known class (global class indices)."""
 
+    @abstractmethod
     def prepare(self, fitted: Fitted, X: np.ndarray) -> np.ndarray:
-        raise NotImplementedError
+        """Per-frame state of a recording (class scores), from which :meth:`labels` decides."""
 
     def labels(self, fitted: Fitted, state: np.ndarray, reject: float, drop: int | None = None) -> np.ndarray:
         cols = _columns(fitted, drop)

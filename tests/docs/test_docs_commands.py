@@ -8,7 +8,9 @@ it for the test (it stays invisible in rendered Markdown):
 - ``<!-- doc-test: skip REASON -->``: the block is not run (hardware);
 - ``<!-- doc-test: sub "OLD" => "NEW" -->``: replace text in the block's commands (a bounded
   variant, e.g. ``--duration``); several may precede one block;
-- ``<!-- doc-test: drop "TEXT" REASON -->``: leave out the commands containing TEXT.
+- ``<!-- doc-test: drop "TEXT" REASON -->``: leave out the commands containing TEXT;
+- ``<!-- doc-test: needs "MODULE" -->``: the block (and the graphs it names) is checked only where
+  MODULE imports (an optional extra, e.g. ``mne_lsl`` of ``handflow[lsl]``).
 
 Commands run in order, per document, with ``bash`` in a scratch copy of ``configs/``, ``docs/``
 and ``recordings/`` (so nothing in the repository changes); ``handflow`` and ``python`` are this
@@ -18,6 +20,7 @@ interpreter.  ``CMD &`` starts a background job (waited for until its graph's ru
 
 from __future__ import annotations
 
+import importlib.util
 import json
 import os
 import re
@@ -42,7 +45,7 @@ AWAITING_MARKERS = {"grasping.md": "its commands run ~10 min as written; needs d
 """Documents whose owners have not yet added the markers that bound their commands (reported to the lead)."""
 MULTI_PROCESS = ("handflow run", "handflow replay", "handflow calibrate --port", "&")
 FENCE = re.compile(r"^```(\w*)\s*$")
-MARKER = re.compile(r"^<!--\s*doc-test:\s*(skip|sub|drop)\b(.*?)-->\s*$")
+MARKER = re.compile(r"^<!--\s*doc-test:\s*(skip|sub|drop|needs)\b(.*?)-->\s*$")
 QUOTED = re.compile(r'"((?:[^"\\]|\\.)*)"')
 
 
@@ -53,8 +56,18 @@ class Block:
     commands: list[str]
     markers: list[tuple[str, str]] = field(default_factory=list)
 
+    def available(self) -> bool:
+        """Whether every module named by a ``needs`` marker imports here."""
+        return all(
+            importlib.util.find_spec(QUOTED.findall(arg)[0]) is not None
+            for kind, arg in self.markers
+            if kind == "needs"
+        )
+
     def runnable(self) -> list[str]:
         """The commands after the block's markers are applied ([] when skipped)."""
+        if not self.available():
+            return []
         commands = list(self.commands)
         for kind, arg in self.markers:
             quoted = QUOTED.findall(arg)
@@ -126,7 +139,7 @@ def test_markers_and_blocks_are_well_formed():
 def test_graph_files_named_in_doc_commands_validate():
     graphs = set()
     for path in documents() + [REPO / "docs" / d for d in TESTED_ELSEWHERE]:
-        for block in doc_blocks(path):
+        for block in filter(Block.available, doc_blocks(path)):
             for cmd in block.commands:
                 graphs |= {w for w in shlex.split(cmd.rstrip("&")) if w.endswith(".yaml") and "/" in w}
     graphs = {g for g in graphs if (REPO / g).is_file()}  # not files the commands write

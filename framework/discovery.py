@@ -119,8 +119,10 @@ def join(
     A ``tls/`` endpoint needs ``certs`` (a ``handflow certs`` directory) and this machine's certificate
     ``name`` (docs/security.md).
     """
+    import zenoh
+
     from .graph import ZenohSettings
-    from .transport import open_node_session, open_tls_peer
+    from .transport import open_node_session, open_tls_client
 
     run = None if connect else find_run(graph)
     endpoint = connect or run.hub
@@ -133,7 +135,13 @@ def join(
             files = check_host_files(Path(certs), name)
         except CertError as exc:
             raise DiscoveryError(str(exc)) from None
-        return open_tls_peer(endpoint, *files), run
+        try:
+            return open_tls_client(endpoint, *files), run
+        except zenoh.ZError as exc:
+            raise DiscoveryError(
+                f"could not join {endpoint} with certificate '{name}' ({str(exc).split(' at /')[0]}); check that the graph runs there and "
+                f"that its CA signed {files[1]} (docs/security.md)"
+            ) from None
     return open_node_session(ZenohSettings(), endpoint), run
 
 

@@ -115,12 +115,19 @@ def open_node_session(settings: ZenohSettings, hub_endpoint: str) -> zenoh.Sessi
     return zenoh.open(_config("peer", [f"tcp/{host}:0"], [hub_endpoint], settings.multicast_scouting))
 
 
-def open_tls_peer(endpoint: str, ca: object, cert: object, key: object) -> zenoh.Session:
-    """A peer joining a TLS graph from another machine (monitor, record, replay) with its own certificate."""
-    conf = _config("peer", [], [endpoint], False)
-    tls = {"root_ca_certificate": ca, "connect_certificate": cert, "connect_private_key": key}
-    for k, v in {**tls, "verify_name_on_connect": False}.items():
-        conf.insert_json5(f"transport/link/tls/{k}", json.dumps(str(v) if k != "verify_name_on_connect" else v))
+def open_tls_client(endpoint: str, ca: object, cert: object, key: object, timeout_s: float = 10.0) -> zenoh.Session:
+    """A client of a TLS graph's hub from another machine (monitor, record, replay) with its own certificate.
+
+    A client, not a peer: it joins no peer mesh, so everything it reads or writes passes the hub's
+    access control.  ``enable_mtls`` matters on this side too: without it Zenoh does not present the
+    certificate and the hub refuses the link.  Raises ``zenoh.ZError`` when no link is accepted within
+    ``timeout_s`` (hub unreachable, or the certificate refused).
+    """
+    conf = _config("client", [], [endpoint], False)
+    conf.insert_json5("connect/timeout_ms", json.dumps(int(timeout_s * 1000)))
+    tls = {"root_ca_certificate": str(ca), "connect_certificate": str(cert), "connect_private_key": str(key)}
+    for k, v in {**tls, "enable_mtls": True, "verify_name_on_connect": False}.items():
+        conf.insert_json5(f"transport/link/tls/{k}", json.dumps(v))
     return zenoh.open(conf)
 
 

@@ -55,6 +55,8 @@ def _args(**kw) -> argparse.Namespace:
         ready_timeout=30.0,
         step_timeout=10.0,
         record=None,
+        certs=None,
+        cert_name=None,
     )
     return argparse.Namespace(**{**base, **kw})
 

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import datetime as dt
 import json
+import signal
 import time
 from pathlib import Path
 
@@ -19,8 +20,10 @@ import zenoh
 
 from handflow.framework import certs
 from handflow.framework.access import access_control
-from handflow.framework.discovery import live_runs
+from handflow.framework.discovery import join, live_runs
 from handflow.framework.graph import load_graph, validate_file
+from handflow.framework.messages import Array, Header
+from handflow.framework.recording import McapWriter, iter_recording
 from handflow.framework.transport import free_tcp_port
 
 from .test_runtime_e2e import chain_graph, read_sink, start
@@ -170,3 +173,82 @@ def test_two_graphs_over_mutual_tls_admit_only_rightful_peers(ca, tmp_path, monk
     assert not any(k.endswith("/source/out") and p.startswith(b"FORGED") for k, p in seen)
     for who in ("nocert", "foreign-ca", "mallory"):  # their own puts echo locally; nothing of the graph arrives
         assert all(p.startswith(b"FORGED") for p in received[who]), who
+
+
+def _recorded(path: Path) -> list[str]:
+    return [rm.topic for rm in iter_recording(path)] if path.exists() else []
+
+
+def _tool(command: str, target: str, endpoint: str, cert_dir: Path, who: str, *args: str):
+    """``handflow record|replay`` joining over TLS with the certificate ``who`` of ``cert_dir``."""
+    return start(command, target, *args, "--connect", endpoint, "--certs", str(cert_dir), "--cert-name", who)
+
+
+@pytest.mark.slow
+def test_tools_on_another_host_read_with_their_certificate_and_publish_only_when_granted(ca, tmp_path, monkeypatch):
+    monkeypatch.setenv("HANDFLOW_RUN_DIR", str(tmp_path / "runs"))
+    for host in ("viewer", "laptop"):
+        certs.add_host(ca, host)
+    other = tmp_path / "other"  # a certificate named like a reader, from another CA
+    certs.init_ca(other)
+    certs.add_host(other, "viewer")
+    tls_ep = f"tls/127.0.0.1:{free_tcp_port()}"
+    name = f"readers_{tmp_path.name[-8:].replace('-', '_')}"
+    graph = tmp_path / "graph.yaml"
+    graph.write_text(f"""name: {name}
+external: {{glove/raw: Array}}
+zenoh:
+  listen: [{tls_ep}]
+  tls: {{certs: {ca}, readers: [viewer, laptop], publishers: {{glove/raw: [laptop]}}}}
+nodes:
+  - {{id: source, plugin: basic.signal, host: a, params: {{kind: sine, rate_hz: 50, width: 3}}}}
+  - {{id: sink, plugin: basic.sink, host: a, params: {{jsonl: {tmp_path / "sink.jsonl"}}}, inputs: {{in: glove/raw}}}}
+""")
+    take = tmp_path / "take.mcap"  # what the laptop replays: 40 frames of the external topic
+    with McapWriter(take) as w:
+        for i in range(40):
+            msg = Array(data=[float(i), 0.0, 1.0])
+            msg.header = Header("glove", i + 1, 1_700_000_000_000_000_000 + i * 10_000_000)
+            w.write("handflow/field/glove/raw", msg, log_time_ns=msg.header.stamp_ns)
+    a = start("run", str(graph), "--host", "a", "--duration", "60")
+    try:
+        deadline = time.time() + 20
+        while time.time() < deadline and not live_runs():
+            time.sleep(0.2)
+        assert live_runs(), "launcher a did not start"
+        seen: list[tuple[str, bytes]] = []
+        local = join(None, live_runs()[0].hub)[0]  # a trusted process on machine A (loopback)
+        local.declare_subscriber(f"handflow/{name}/**", lambda s: seen.append((str(s.key_expr), s.payload.to_bytes())))
+        while time.time() < deadline + 20 and not any(k.endswith("/source/out") for k, _ in seen):
+            time.sleep(0.2)  # the graph's nodes are up
+        records = {
+            label: _tool("record", name, tls_ep, d, who, "--duration", "3", "--out", str(tmp_path / f"{label}.mcap"))
+            for label, d, who in (("viewer", ca, "viewer"), ("mallory", ca, "mallory"), ("foreign", other, "viewer"))
+        }
+        forgers = {who: join(None, tls_ep, str(ca), who)[0] for who in ("viewer", "laptop")}
+        time.sleep(2)
+        for _ in range(20):
+            for who, s in forgers.items():
+                s.put(f"handflow/{name}/source/out", b"FORGED " + who.encode())
+            forgers["viewer"].put(f"handflow/{name}/glove/raw", b"FORGED viewer")
+            time.sleep(0.05)
+        outputs = {label: p.communicate(timeout=60) for label, p in records.items()}
+        replay = _tool("replay", str(take), tls_ep, ca, "laptop", "--graph", name)
+        _, replay_err = replay.communicate(timeout=60)
+        denied = _tool("replay", str(take), tls_ep, ca, "mallory", "--graph", name)
+        _, denied_err = denied.communicate(timeout=60)
+        a.send_signal(signal.SIGINT)
+        _, err_a = a.communicate(timeout=60)
+    finally:
+        if a.poll() is None:
+            a.kill()
+    assert a.returncode == 0, err_a
+    assert records["viewer"].returncode == 0 and records["mallory"].returncode == 0, outputs
+    assert records["foreign"].returncode == 2 and "could not join" in outputs["foreign"][1]  # refused by TLS
+    viewer = _recorded(tmp_path / "viewer.mcap")
+    assert viewer.count(f"handflow/{name}/source/out") > 50, outputs["viewer"]  # 3 s at 50 Hz, read over TLS
+    assert _recorded(tmp_path / "mallory.mcap") == [] and _recorded(tmp_path / "foreign.mcap") == []
+    assert not [k for k, p in seen if p.startswith(b"FORGED")]  # readers publish nothing of the graph
+    assert replay.returncode == 0, replay_err
+    assert len(read_sink(tmp_path / "sink.jsonl")) == 40  # the granted replay reached the graph's node
+    assert denied.returncode == 1 and "grant certificate 'mallory'" in denied_err

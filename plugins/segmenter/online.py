@@ -174,10 +174,9 @@ class OnlineCLMSegmenter(CLMSegmenter):
 
     def reset(self) -> None:
         """Forget the stream."""
-        m = len(self.candidates)
+        m = self._n_layers()
         self._radius, self._span, self._width = self.widths()
-        self._latent = np.zeros((self.window, m))
-        self._errors = np.zeros((self.window, m))
+        self._rows = self._source_rows(m)  # per-observation source buffers (window, m), slid together
         self._band = np.zeros((m, self.window, self._width))
         self._x: np.ndarray | None = None
         self._labels = np.zeros(0, dtype=int)  # current CLM labels of the window
@@ -188,6 +187,25 @@ class OnlineCLMSegmenter(CLMSegmenter):
         self.seen = 0  # observations consumed in total
         self.segments = SegmentTracker(memory=self.window)
         self.since_cold = 0
+
+    def _n_layers(self) -> int:
+        return len(self.candidates)
+
+    def _source_rows(self, m: int) -> dict[str, np.ndarray]:
+        """Buffers of what the source gives per observation: latent times and errors per candidate."""
+        return {"latent": np.zeros((self.window, m)), "errors": np.zeros((self.window, m))}
+
+    def _recent_band(self, lo: int, j: int) -> np.ndarray:
+        """Band (m, j − lo + 1, width) of the observations ``lo…j`` of the window."""
+        return candidate_band(
+            self._rows["latent"][lo : j + 1],
+            self._rows["errors"][lo : j + 1],
+            self._width,
+            order_rating(self.order_rating),
+            pair_error(self.pair_error),
+            self.order_path,
+            self.candidates.seams(),
+        )
 
     @property
     def window_start(self) -> int:
@@ -209,10 +227,11 @@ class OnlineCLMSegmenter(CLMSegmenter):
         proj = self.candidates.project(np.asarray(y, dtype=float).reshape(1, -1))
         return self.update_projected(proj.latent_time[0], proj.errors[0])
 
-    def _append(self, latent_time: np.ndarray, errors: np.ndarray) -> None:
+    def _append(self, **rows: np.ndarray) -> None:
+        """Add one observation's source rows (:meth:`_source_rows`) and its new band entries."""
         if self.n == self.window:  # slide: drop the oldest observation everywhere
-            self._latent[:-1] = self._latent[1:]
-            self._errors[:-1] = self._errors[1:]
+            for buf in self._rows.values():
+                buf[:-1] = buf[1:]
             self._band[:, :-1] = self._band[:, 1:]
             self._band[:, -1] = 0.0
             if self._x is not None:
@@ -224,17 +243,10 @@ class OnlineCLMSegmenter(CLMSegmenter):
         else:
             self.n += 1
         j = self.n - 1
-        self._latent[j], self._errors[j] = latent_time, errors
+        for name, row in rows.items():
+            self._rows[name][j] = row
         lo = max(0, j - self._width)
-        recent = candidate_band(
-            self._latent[lo : j + 1],
-            self._errors[lo : j + 1],
-            self._width,
-            order_rating(self.order_rating),
-            pair_error(self.pair_error),
-            self.order_path,
-            self.candidates.seams(),
-        )
+        recent = self._recent_band(lo, j)
         for k in range(1, j - lo + 1):  # pair (j − k, j) sits in row j − k, column k − 1
             self._band[:, j - k, k - 1] = recent[:, j - k - lo, k - 1] if k <= self._span else 0.0
         self.seen += 1
@@ -249,11 +261,17 @@ class OnlineCLMSegmenter(CLMSegmenter):
             self._radius,
         )
         band = np.concatenate([self._band[:, :n], bg[None]], axis=0)
-        return band, np.r_[np.zeros(len(self.candidates)), bg_diag]
+        return band, np.r_[np.zeros(self._n_layers()), bg_diag]
 
     def update_projected(self, latent_time: np.ndarray, errors: np.ndarray) -> OnlineUpdate:
         """:meth:`update` for an observation already projected onto all candidates."""
-        self._append(np.asarray(latent_time, dtype=float), np.asarray(errors, dtype=float) * self.error_scale)
+        self._append(
+            latent=np.asarray(latent_time, dtype=float), errors=np.asarray(errors, dtype=float) * self.error_scale
+        )
+        return self._segment()
+
+    def _segment(self) -> OnlineUpdate:
+        """Re-run the CLM over the window (warm when possible) and publish the newest label."""
         band, diag = self.layers()
         solver = self._solver()
         lam = solver.spectral_scale(band, diag)
@@ -293,15 +311,19 @@ class OnlineCLMSegmenter(CLMSegmenter):
         by confirmed revisions) — what a subscriber to the node's labels and events ends up with."""
         Y = np.atleast_2d(np.asarray(Y, dtype=float))
         self.reset()
-        proj = self.candidates.project(Y)
         labels = np.empty(len(Y), dtype=int)
-        for t in range(len(Y)):
-            up = self.update_projected(proj.latent_time[t], proj.errors[t])
-            labels[t] = up.label
+        for up in self._updates(Y):
+            labels[up.index] = up.label
             for ev in up.events:
                 if ev.kind == "revision":
                     labels[ev.start : ev.end + 1] = ev.label
         return labels
+
+    def _updates(self, Y: np.ndarray):
+        """Updates of a whole stream, the source evaluated once for all of it."""
+        proj = self.candidates.project(Y)
+        for t in range(len(Y)):
+            yield self.update_projected(proj.latent_time[t], proj.errors[t])
 
     def _warm_template(self) -> np.ndarray:
         """Bias towards each kept observation's previous winner, scaled by the mean winning activity.

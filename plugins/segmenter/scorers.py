@@ -187,7 +187,7 @@ class MiniRocketScorer(WindowScorer):
     def scores(self, X: np.ndarray) -> np.ndarray:
         Z = (self.check_input(X) - self.mean_) / self.std_
         F = self.features(causal_windows(Z, np.arange(len(Z)), int(self.window)))
-        return F @ self.coef_.T + self.intercept_
+        return F.astype(float) @ self.coef_.T + self.intercept_
 
     def _arrays(self) -> dict[str, np.ndarray]:
         return {

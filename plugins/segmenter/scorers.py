@@ -184,10 +184,16 @@ class MiniRocketScorer(WindowScorer):
             return kernels.uni(X[:, 0], self.parameters_, kernels.indices)
         return kernels.multi(X, self.parameters_, kernels.indices)
 
-    def scores(self, X: np.ndarray) -> np.ndarray:
+    def scores(self, X: np.ndarray, ends: np.ndarray | None = None) -> np.ndarray:
+        """Class scores of the causal windows ending at ``ends`` (default: every frame of X)."""
         Z = (self.check_input(X) - self.mean_) / self.std_
-        F = self.features(causal_windows(Z, np.arange(len(Z)), int(self.window)))
+        ends = np.arange(len(Z)) if ends is None else np.asarray(ends, dtype=int)
+        F = self.features(causal_windows(Z, ends, int(self.window)))
         return F.astype(float) @ self.coef_.T + self.intercept_
+
+    def scores_last(self, recent: np.ndarray) -> np.ndarray:
+        recent = np.atleast_2d(np.asarray(recent, dtype=float))[-int(self.window) :]
+        return self.scores(recent, ends=[len(recent) - 1])[0]
 
     def _arrays(self) -> dict[str, np.ndarray]:
         return {

@@ -24,7 +24,9 @@ from dataclasses import dataclass
 
 import numba
 import numpy as np
+from scipy import sparse
 from scipy.linalg import eigvals_banded
+from scipy.sparse.linalg import ArpackError, eigsh
 from sklearn.base import BaseEstimator
 
 
@@ -86,12 +88,29 @@ def _sweeps(x, colsum, band, diag, J, inhib, T, eta, max_sweeps, tol, seed):  # 
     return max_sweeps, False, T
 
 
+LANCZOS_MIN_N = 200  # from this size on, the largest eigenvalue comes from Lanczos iterations
+
+
 def largest_eigenvalue(band: np.ndarray, diag: float) -> float:
-    """Largest eigenvalue of one symmetric banded compatibility matrix (LAPACK banded solver)."""
+    """Largest eigenvalue of one symmetric banded compatibility matrix.
+
+    Documented choice: below ``LANCZOS_MIN_N`` observations the LAPACK banded solver; from there on
+    ARPACK's Lanczos iterations on the sparse banded matrix (relative tolerance 1e-10) — the
+    banded solver reduces the whole matrix to tridiagonal form, O(N²·B), which cost 0.14 s per
+    layer of 1000 observations and dominated a CLM run over classifier evidence.
+    """
     n, width = band.shape
-    if n == 1:
+    if n == 1 or not band.any():
         return float(diag)
     width = min(width, n - 1)
+    if n >= LANCZOS_MIN_N:
+        offsets = np.r_[0, np.arange(1, width + 1), -np.arange(1, width + 1)]
+        diagonals = [np.full(n, float(diag))] + [band[: n - k, k - 1] for k in range(1, width + 1)] * 2
+        A = sparse.diags(diagonals, offsets, shape=(n, n), format="csr")
+        try:  # deterministic start vector
+            return float(eigsh(A, k=1, which="LA", tol=1e-10, v0=np.ones(n), return_eigenvectors=False)[0])
+        except ArpackError:  # no convergence: the exact banded solver below
+            pass
     lower = np.zeros((width + 1, n))  # LAPACK lower form: lower[k, i] = A[i + k, i]
     lower[0] = diag
     lower[1:] = band[:, :width].T

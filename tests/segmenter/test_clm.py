@@ -29,6 +29,13 @@ def test_largest_eigenvalue_matches_dense():
         assert largest_eigenvalue(band[a], diag[a]) == pytest.approx(np.linalg.eigvalsh(dense(band[a], diag[a]))[-1])
 
 
+def test_largest_eigenvalue_of_long_sequences_matches_dense():  # the Lanczos path (N >= 200)
+    band, diag = random_layers(n=300, width=6)
+    band[1] = 0.0  # an all-zero layer: its eigenvalue is the diagonal
+    for a in range(band.shape[0]):
+        assert largest_eigenvalue(band[a], diag[a]) == pytest.approx(np.linalg.eigvalsh(dense(band[a], diag[a]))[-1])
+
+
 def test_energy_matches_dense_formula():
     band, diag = random_layers(n=12, width=3)
     x = np.random.default_rng(1).uniform(0, 1, size=(band.shape[0], 12))

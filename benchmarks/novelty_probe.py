@@ -68,7 +68,10 @@ def probe(data, held: str, left_out: int, window: int) -> dict:
     _, _, Vt = np.linalg.svd(Z - Z.mean(0), full_matrices=False)
     P = Vt[:PCA_DIMS].T
     T = Z @ P
-    Z_test = ((scorer.features(causal_windows((test.X - scorer.mean_) / scorer.std_, np.arange(len(test.X)), window)) - mu) / sd) @ P
+    Z_test = (
+        (scorer.features(causal_windows((test.X - scorer.mean_) / scorer.std_, np.arange(len(test.X)), window)) - mu)
+        / sd
+    ) @ P
     spread = np.empty(len(known))
     for k in range(len(known)):
         D = nearest(T[owner == k], T[owner == k])

@@ -54,7 +54,7 @@ class WindowScorer(BaseEstimator, ABC):
 
     kind: ClassVar[str] = ""
 
-    def fit(self, segments: dict, random_state=None) -> WindowScorer:
+    def fit(self, segments: dict) -> WindowScorer:
         """Fit on ``{class: [segment (T, D), ...]}``; returns self."""
         if not segments or any(not segs for segs in segments.values()):
             raise ValueError("need at least one training segment for every class")
@@ -135,7 +135,7 @@ class MiniRocketScorer(WindowScorer):
     Training windows end at up to ``WINDOWS_PER_SEGMENT`` evenly spaced frames of each segment
     (a window reaching before a segment's start repeats its first frame; documented choice that
     keeps the ridge fit affordable).  Scores are the ridge decision values, one column per class
-    (two for a binary problem).  Fitted: ``parameters_`` (the MiniRocket transform: channels per
+    (two for a binary problem); the evidence temperature comes from those of the training windows.  Fitted: ``parameters_`` (the MiniRocket transform: channels per
     combination, channel indices, dilations, features per dilation, biases), ``coef_`` (M, F),
     ``intercept_`` (M,).
     """
@@ -154,6 +154,8 @@ class MiniRocketScorer(WindowScorer):
 
         if int(self.window) < 9:
             raise ValueError(f"MiniRocket needs a window of at least 9 frames, got {self.window}")
+        if len(segments) < 2:
+            raise ValueError("a MiniRocket scorer needs at least 2 classes")
         frames = np.vstack([s for segs in segments.values() for s in segs])
         self.mean_ = frames.mean(axis=0)
         sd = frames.std(axis=0)
@@ -171,8 +173,6 @@ class MiniRocketScorer(WindowScorer):
         coef, intercept = ridge.coef_, np.atleast_1d(ridge.intercept_)
         if coef.shape[0] == 1:  # binary: one decision value d, scores (−d, d)
             coef, intercept = np.vstack([-coef, coef]), np.r_[-intercept, intercept]
-        if len(segments) == 1:
-            coef, intercept = coef[:1] * 0.0, np.zeros(1)
         self.coef_, self.intercept_ = coef, intercept
         return F @ coef.T + intercept
 

@@ -213,3 +213,13 @@ def test_fit_scorer_command_writes_a_loadable_scorer(tmp_path, capsys):
     assert zipfile.is_zipfile(out)
     assert run_fit_scorer([str(DEMO), "--known", "jump", "--out", str(out)]) == 2
     assert "lacks" in capsys.readouterr().err
+
+
+@FUZZ
+@given(values=st.lists(st.lists(st.floats(allow_nan=True, allow_infinity=True), max_size=5), min_size=1, max_size=6))
+def test_no_observation_crashes_the_node_with_a_scorer_source(dtw, values):
+    h = NodeHarness(OnlineCLMNode, {"source": "dtw", "scorer": str(dtw[1]), "window": 20, "background_factor": 0.5})
+    h.setup()
+    for v in values:
+        h.send("array", Array(data=v))
+    assert len(h.published["labels"]) + len(h.dropped) == len(values)

@@ -90,8 +90,10 @@ class OnlineCLMNode(_RecognizerNode):
         background: float | None = Field(None, description="λ_bg; null = 1 − 10/N")
         error_scale: float = Field(1.0, gt=0, description="multiplies e_t before c_sre (1 = spec)")
         order_rating: Literal["sign", "cos"] = "sign"
-        warm_temperature: float = Field(0.05, ge=0, description="warm-start temperature / λ_max")
-        max_sweeps: int = Field(150, ge=1, description="CLM sweep budget per update (anytime; bounds latency)")
+        warm_temperature: float = Field(1.0, ge=0, description="start temperature of a new observation / λ_max")
+        update_sweeps: int = Field(3, ge=1, description="sweeps of the fast CLM run per update (labels on arrival)")
+        block: int | None = Field(None, ge=0, description="observations finalised per block run (null = window/2, 0 = none)")
+        block_sweeps: int = Field(10, ge=1, description="sweeps of the running block run per update")
         confirm: int = Field(5, ge=1, description="updates a changed earlier label must hold before a revision")
         seed: int | None = 0
 
@@ -106,7 +108,9 @@ class OnlineCLMNode(_RecognizerNode):
             error_scale=p.error_scale,
             order_rating=p.order_rating,
             warm_temperature=p.warm_temperature,
-            max_sweeps=p.max_sweeps,
+            update_sweeps=p.update_sweeps,
+            block=p.block,
+            block_sweeps=p.block_sweeps,
             confirm=p.confirm,
             random_state=p.seed,
         )

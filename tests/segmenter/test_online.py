@@ -26,7 +26,8 @@ def test_incremental_bands_equal_batch_bands(candidates, two_letters):
     online = OnlineCLMSegmenter(candidates, window=50, history=7, random_state=0)
     stream(online, proj)
     batch = CLMSegmenter(candidates, history=7)
-    band, diag = batch.layer_compatibilities(proj.take(slice(online.window_start, None)))
+    cand, _ = batch.layer_compatibilities(proj.take(slice(online.window_start, None)))
+    band, diag = batch.with_background(cand[:-1], length=len(Y))  # λ_bg of the stream so far
     ob, od = online.layers()
     np.testing.assert_allclose(ob, band, atol=1e-12)
     np.testing.assert_allclose(od, diag)
@@ -37,7 +38,7 @@ def test_warm_start_needs_fewer_sweeps_than_cold_on_a_continuing_motion(candidat
     proj = candidates.project(Y)
     sweeps = {}
     for warm in (True, False):
-        seg = OnlineCLMSegmenter(candidates, window=200, history=10, warm_start=warm, cold_every=None, random_state=0)
+        seg = OnlineCLMSegmenter(candidates, window=200, history=10, warm_start=warm, random_state=0)
         ups = stream(seg, proj)
         sweeps[warm] = np.median([u.sweeps for u in ups[20:]])
         assert np.mean(seg.window_labels == 0) > 0.95

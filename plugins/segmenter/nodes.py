@@ -92,7 +92,9 @@ class OnlineCLMNode(_RecognizerNode):
         order_rating: Literal["sign", "cos"] = "sign"
         warm_temperature: float = Field(1.0, ge=0, description="start temperature of a new observation / λ_max")
         update_sweeps: int = Field(3, ge=1, description="sweeps of the fast CLM run per update (labels on arrival)")
-        block: int | None = Field(None, ge=0, description="observations finalised per block run (null = window/2, 0 = none)")
+        block: int | None = Field(
+            None, ge=0, description="observations finalised per block run (null = window/2, 0 = none)"
+        )
         block_sweeps: int = Field(10, ge=1, description="sweeps of the running block run per update")
         confirm: int = Field(5, ge=1, description="updates a changed earlier label must hold before a revision")
         seed: int | None = 0

@@ -90,8 +90,11 @@ class OnlineCLMNode(_RecognizerNode):
         background: float | None = Field(None, description="λ_bg; null = 1 − 10/N")
         error_scale: float = Field(1.0, gt=0, description="multiplies e_t before c_sre (1 = spec)")
         order_rating: Literal["sign", "cos"] = "sign"
-        warm_temperature: float = Field(1.0, ge=0, description="start temperature of a new observation / λ_max")
-        update_sweeps: int = Field(3, ge=1, description="sweeps of the fast CLM run per update (labels on arrival)")
+        tail: int = Field(60, ge=1, description="newest observations the fast CLM run solves per update")
+        update_eta: float = Field(0.9, gt=0, le=1, description="annealing factor per sweep of the fast run")
+        update_sweeps: int = Field(
+            60, ge=1, description="sweep budget of the fast CLM run per update (labels on arrival)"
+        )
         block: int | None = Field(
             None, ge=0, description="observations finalised per block run (null = window/2, 0 = none)"
         )
@@ -109,7 +112,8 @@ class OnlineCLMNode(_RecognizerNode):
             background_factor=p.background_factor,
             error_scale=p.error_scale,
             order_rating=p.order_rating,
-            warm_temperature=p.warm_temperature,
+            tail=p.tail,
+            update_eta=p.update_eta,
             update_sweeps=p.update_sweeps,
             block=p.block,
             block_sweeps=p.block_sweeps,

@@ -139,6 +139,7 @@ class OnlineCLMSegmenter(CLMSegmenter):
         gives labels).
     block : stride of the block runs (observations finalised per block run); ``None`` = half the
         window; 0 = no block runs (the fast run's labels, with confirmed revisions, are final).
+        A block run is one run of the batch solver (the batch default ``restarts=1``).
     block_sweeps : sweeps of the running block run per update; a run still going when its first
         unfinalised observation is about to leave the window (or the next run is due) is finished
         at once.

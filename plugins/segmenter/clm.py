@@ -38,20 +38,22 @@ def _xorshift(state):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True)
-def _sweeps(x, colsum, band, diag, J, inhib, T, eta, max_sweeps, tol, seed):  # pragma: no cover - compiled
-    """Run annealed sweeps in place (``T`` holds one temperature per column and is annealed in
-    place too); returns (sweeps done, converged flag)."""
+def _sweeps(x, colsum, band, diag, J, inhib, T, eta, max_sweeps, tol, seed, first):  # pragma: no cover - compiled
+    """Run annealed sweeps in place over the columns ``first…N−1`` (the others are held fixed;
+    ``T`` holds one temperature per column and is annealed in place too); returns (sweeps done,
+    converged flag)."""
     state = np.uint64(seed) * np.uint64(2685821657736338717) + np.uint64(1)
     L, N = x.shape
     B = band.shape[2]
-    n_updates = N * L
+    M = N - first
+    n_updates = M * L
     for sweep in range(1, max_sweeps + 1):
         max_change = 0.0
         for _ in range(n_updates):
             state = _xorshift(state)
             pick = state >> np.uint64(11)
-            r = np.int64(pick % np.uint64(N))
-            a = np.int64((pick // np.uint64(N)) % np.uint64(L))
+            r = first + np.int64(pick % np.uint64(M))
+            a = np.int64((pick // np.uint64(M)) % np.uint64(L))
             lat = 0.0
             for k in range(1, B + 1):
                 if r + k < N:
@@ -68,11 +70,11 @@ def _sweeps(x, colsum, band, diag, J, inhib, T, eta, max_sweeps, tol, seed):  # 
             change = abs(new - old)
             if change > max_change:
                 max_change = change
-        for r in range(N):
+        for r in range(first, N):
             T[r] *= eta
         unique = True
         xmax = 0.0
-        for r in range(N):
+        for r in range(first, N):
             active = 0
             for a in range(L):
                 if x[a, r] > 0.0:
@@ -84,7 +86,7 @@ def _sweeps(x, colsum, band, diag, J, inhib, T, eta, max_sweeps, tol, seed):  # 
         if unique:
             if max_change <= tol * xmax:
                 return sweep, True
-            T[:] = 0.0  # quench: the assignment is unique, only the activities still settle
+            T[first:] = 0.0  # quench: the assignment is unique, only the activities still settle
     return max_sweeps, False
 
 
@@ -231,13 +233,16 @@ class CompetitiveLayerModel(BaseEstimator):
         temperature: float | np.ndarray | None = None,
         lambda_max: float | None = None,
         eta: float | None = None,
+        first: int = 0,
     ) -> CLMRun:
         """Set up a run from ``x0`` (default: small positive random values) without sweeping.
 
         ``temperature`` overrides the start temperature, one value or one per column (N,) (the
         online segmenter anneals each observation from its arrival, docs/segmentation.md §C);
         ``lambda_max`` may pass a precomputed largest eigenvalue; ``eta`` overrides the annealing
-        factor of this run.
+        factor of this run; only the columns from ``first`` on are updated (the others, from
+        ``x0``, are a fixed context: the online segmenter's fast run).  The inhibition and the
+        start temperature come from ``band`` (pass ``lambda_max`` for another scale).
         """
         band, diag = self._validate(band, diag)
         L, N, _ = band.shape
@@ -251,7 +256,9 @@ class CompetitiveLayerModel(BaseEstimator):
         if x.shape != (L, N):
             raise ValueError(f"x0 must have shape {(L, N)}, got {x.shape}")
         T = np.array(np.broadcast_to(np.asarray(temperature, dtype=np.float64), (N,)))
-        return CLMRun(self, band, diag, x, T, float(inhib), float(self.eta if eta is None else eta))
+        if not 0 <= first < N:
+            raise ValueError(f"first must lie in 0…{N - 1}, got {first}")
+        return CLMRun(self, band, diag, x, T, float(inhib), float(self.eta if eta is None else eta), int(first))
 
     def solve(
         self,
@@ -275,9 +282,9 @@ class CLMRun:
     The run ends when it converged or used the solver's ``max_sweeps``.
     """
 
-    def __init__(self, solver: CompetitiveLayerModel, band, diag, x, T, inhibition: float, eta: float) -> None:
+    def __init__(self, solver: CompetitiveLayerModel, band, diag, x, T, inhibition: float, eta: float, first: int):
         self.solver, self.band, self.diag, self.x, self.T = solver, band, diag, x, T
-        self.inhibition, self.eta = inhibition, eta
+        self.inhibition, self.eta, self.first = inhibition, eta, first
         self.colsum = x.sum(axis=0)
         self.sweeps = 0
         self.converged = False
@@ -305,6 +312,7 @@ class CLMRun:
             budget,
             float(s.tol),
             seed,
+            self.first,
         )
         self.sweeps += int(done)
         return self.finished

@@ -90,7 +90,7 @@ class OnlineCLMNode(_RecognizerNode):
         background: float | None = Field(None, description="λ_bg; null = 1 − 10/N")
         error_scale: float = Field(1.0, gt=0, description="multiplies e_t before c_sre (1 = spec)")
         order_rating: Literal["sign", "cos"] = "sign"
-        tail: int = Field(60, ge=1, description="newest observations the fast CLM run solves per update")
+        tail: int = Field(30, ge=1, description="newest observations the fast CLM run solves per update")
         update_eta: float = Field(0.9, gt=0, le=1, description="annealing factor per sweep of the fast run")
         update_sweeps: int = Field(
             60, ge=1, description="sweep budget of the fast CLM run per update (labels on arrival)"

@@ -131,8 +131,9 @@ class OnlineCLMSegmenter(CLMSegmenter):
     exact λ_max costs more than the sweeps here) plus the ones below.
 
     window : number of most recent observations the CLM sees (200 = 2 s at 100 Hz).
-    tail : observations the fast run solves (the newest ones); ``None`` = the whole window
-        (every update solves the window cold: the baseline of docs/benchmarks.md).
+    tail : observations the fast run solves (the newest ones; the older ones' activities are a
+        fixed context); ``None`` = the whole window (every update solves the window cold: the
+        baseline of docs/benchmarks.md).
     update_eta : annealing factor per sweep of the fast run (the batch's η = 0.98 needs ~300
         sweeps; the fast run is a quick look at the newest observations).
     update_sweeps : sweep budget of the fast run per update (anytime: an unconverged run still
@@ -153,7 +154,7 @@ class OnlineCLMSegmenter(CLMSegmenter):
         self,
         candidates: CandidateSet,
         window: int = 200,
-        tail: int | None = 60,
+        tail: int | None = 30,
         update_eta: float = 0.9,
         update_sweeps: int = 60,
         block: int | None = None,
@@ -201,6 +202,7 @@ class OnlineCLMSegmenter(CLMSegmenter):
         self._labels = np.zeros(0, dtype=int)  # current labels of the window (fast run, then final)
         self._published = np.zeros(0, dtype=int)  # labels last reported for the window
         self._final = np.zeros(0, dtype=bool)  # labels fixed by a block run
+        self._x = np.zeros((len(self.candidates) + 1, 0))  # activities: fast run's, block run's when final
         self._pending = np.zeros(0, dtype=int)  # consecutive updates a differing label held
         self._pending_label = np.zeros(0, dtype=int)  # the label those updates held
         self._run: tuple[int, int, CLMRun] | None = None  # block run: its first column, end of its finalised part
@@ -237,6 +239,7 @@ class OnlineCLMSegmenter(CLMSegmenter):
             self._band[:, -1] = 0.0
             for name in ("_labels", "_published", "_final", "_pending", "_pending_label"):
                 setattr(self, name, getattr(self, name)[1:])
+            self._x = self._x[:, 1:]
         else:
             self.n += 1
         j = self.n - 1
@@ -271,12 +274,15 @@ class OnlineCLMSegmenter(CLMSegmenter):
         solver = self._solver()
         lam = solver.spectral_scale(band, diag)
         tail = min(self.n, self.tail)
-        run = solver.start(band[:, -tail:], diag, lambda_max=lam, eta=self.update_eta)
+        x0 = np.concatenate([self._x, solver.initial_activities((band.shape[0], 1))], axis=1)
+        x0[:, -tail:] = solver.initial_activities((band.shape[0], tail))
+        run = solver.start(band, diag, x0=x0, lambda_max=lam, eta=self.update_eta, first=self.n - tail)
         run.advance(self.update_sweeps)
         result = run.result(energy=False)
         self._store(result)
+        self._x = result.activities
         labels = np.r_[self._labels, REJECTED]
-        labels[-tail:] = np.where(np.r_[self._final, False][-tail:], labels[-tail:], self.labels_)
+        labels[-tail:] = np.where(np.r_[self._final, False][-tail:], labels[-tail:], self.labels_[-tail:])
         self._labels = labels
         newest = int(labels[-1])
         events = self._revisions()
@@ -319,6 +325,8 @@ class OnlineCLMSegmenter(CLMSegmenter):
         if b <= a:
             return []
         self._labels[a:b] = labels[self._finalised - first : stop - first]
+        if isinstance(run, CLMRun):  # the fast run's fixed context continues from the final solution
+            self._x[:, a:b] = run.x[:, self._finalised - first : stop - first]
         self._final[a:b] = True
         self._finalised = stop
         ready = np.zeros(self.n, dtype=bool)
@@ -335,6 +343,7 @@ class OnlineCLMSegmenter(CLMSegmenter):
             self._run = None
         if self.n:
             events += self._finalise(self.window_start, self.seen, self.fit_predict_bands(*self.layers()))
+            self._x = self.activities_.copy()
         return events
 
     def replay(self, Y: np.ndarray) -> np.ndarray:

@@ -82,7 +82,8 @@ class _RecognizerNode(Node):
 
 
 class OnlineCLMNode(_RecognizerNode):
-    """Online warm-started UKR/CLM segmentation over a sliding window (docs/segmentation.md §C)."""
+    """Online UKR/CLM segmentation over a sliding window: fast labels on arrival, final labels
+    from batch solves of the window, by revision (docs/segmentation.md §C)."""
 
     class Params(RecognizerParams):
         window: int = Field(200, ge=2, description="observations in the sliding window")

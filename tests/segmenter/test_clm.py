@@ -162,3 +162,16 @@ def test_per_column_temperature_freezes_cold_columns():
     np.testing.assert_allclose(res.temperature[-5:], 50.0 * clm.eta**res.sweeps)
     assert np.all(res.temperature[:-5] == 0.0)
     np.testing.assert_array_equal(res.winners[:30], settled.winners[:30])
+
+
+def test_columns_before_first_are_a_fixed_context():
+    band, diag = random_layers(n=50)
+    clm = CompetitiveLayerModel(random_state=2)
+    x0 = clm.solve(band, diag).activities
+    x0[:, 30:] = 0.01
+    run = clm.start(band, diag, x0=x0.copy(), first=30)
+    run.advance(clm.max_sweeps)
+    np.testing.assert_array_equal(run.x[:, :30], x0[:, :30])
+    assert run.converged and np.all((run.x[:, 30:] > 0).sum(axis=0) == 1)
+    with pytest.raises(ValueError, match="first"):
+        clm.start(band, diag, first=50)

@@ -256,12 +256,8 @@ class ScoreCLMMethod:
         return self.scorer.prepare(fitted, X)
 
     def labels(self, fitted, state, reject, drop=None):
-        """One CLM run (documented choice: the best of 3 restarts cost 3× and changed the BasicMotions
-        labels little — the evidence compatibilities are smooth; the UKR/CLM keeps 3)."""
         cols = _columns(fitted, drop)
-        seg = CLMSegmenter(
-            None, history=self.history, background_factor=reject, max_sweeps=300, restarts=1, random_state=0
-        )
+        seg = CLMSegmenter(None, history=self.history, background_factor=reject, max_sweeps=300, random_state=0)
         _, _, width = seg.widths()
         evidence = score_evidence(state)[:, cols]
         evidence /= evidence.sum(axis=1, keepdims=True)

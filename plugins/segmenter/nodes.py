@@ -84,8 +84,9 @@ class _RecognizerNode(Node):
 
 
 class OnlineCLMNode(_RecognizerNode):
-    """Online warm-started CLM segmentation over a sliding window (docs/segmentation.md §C): over
-    the UKR manifolds (``source: ukr``) or a fitted frame scorer's evidence (``minirocket``, ``dtw``)."""
+    """Online CLM segmentation over a sliding window: fast labels on arrival, final labels from
+    batch solves of the window, by revision (docs/segmentation.md §C) — over the UKR manifolds
+    (``source: ukr``) or a fitted frame scorer's evidence (``minirocket``, ``dtw``)."""
 
     class Params(RecognizerParams):
         models: str | list[str] | None = Field(
@@ -100,8 +101,15 @@ class OnlineCLMNode(_RecognizerNode):
         background: float | None = Field(None, description="λ_bg; null = 1 − 10/N")
         error_scale: float = Field(1.0, gt=0, description="multiplies e_t before c_sre (1 = spec)")
         order_rating: Literal["sign", "cos"] = "sign"
-        warm_temperature: float = Field(0.05, ge=0, description="warm-start temperature / λ_max")
-        max_sweeps: int = Field(150, ge=1, description="CLM sweep budget per update (anytime; bounds latency)")
+        tail: int = Field(30, ge=1, description="newest observations the fast CLM run solves per update")
+        update_eta: float = Field(0.9, gt=0, le=1, description="annealing factor per sweep of the fast run")
+        update_sweeps: int = Field(
+            60, ge=1, description="sweep budget of the fast CLM run per update (labels on arrival)"
+        )
+        block: int | None = Field(
+            None, ge=0, description="observations finalised per block run (null = window/2, 0 = none)"
+        )
+        block_sweeps: int = Field(10, ge=1, description="sweeps of the running block run per update")
         confirm: int = Field(5, ge=1, description="updates a changed earlier label must hold before a revision")
         seed: int | None = 0
 
@@ -122,8 +130,11 @@ class OnlineCLMNode(_RecognizerNode):
             background_factor=p.background_factor,
             error_scale=p.error_scale,
             order_rating=p.order_rating,
-            warm_temperature=p.warm_temperature,
-            max_sweeps=p.max_sweeps,
+            tail=p.tail,
+            update_eta=p.update_eta,
+            update_sweeps=p.update_sweeps,
+            block=p.block,
+            block_sweeps=p.block_sweeps,
             confirm=p.confirm,
             random_state=p.seed,
         )

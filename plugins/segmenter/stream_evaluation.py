@@ -159,6 +159,7 @@ class StreamEvaluator:
             history=METHODS["ukr_clm"].history,
             background_factor=reject,
             error_scale=fitted.params["error_scale"],
+            max_sweeps=300,  # as the batch ukr_clm (frame_methods.UKRCLMMethod)
             random_state=0,
         )
         published = np.full(len(X), -1)
@@ -168,6 +169,9 @@ class StreamEvaluator:
             for ev in update.events:
                 if ev.kind == "revision":
                     published[ev.start : ev.end + 1] = ev.label
+        for ev in seg.finish():  # the recording ends: the last observations get their final labels
+            if ev.kind == "revision":
+                published[ev.start : ev.end + 1] = ev.label
         lut = np.r_[np.asarray(fitted.classes), -1]
         return lut[np.where(published < 0, len(fitted.classes), published)]
 

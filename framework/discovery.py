@@ -37,6 +37,7 @@ class RunInfo:
     graph_file: str
     lockstep: bool
     started_ns: int
+    usrpwd: bool = False  # the hub asks every peer for a user and password
 
 
 def run_dir() -> Path:
@@ -47,9 +48,9 @@ def run_dir() -> Path:
     return Path(xdg) / "handflow" / "runs" if xdg else Path.home() / ".cache" / "handflow" / "runs"
 
 
-def write_run_file(graph: str, hub: str, graph_file: str | Path, lockstep: bool = False) -> Path:
+def write_run_file(graph: str, hub: str, graph_file: str | Path, lockstep: bool = False, usrpwd: bool = False) -> Path:
     """Announce a running launcher (atomic write); returns the file to remove on exit."""
-    info = RunInfo(graph, hub, os.getpid(), str(graph_file), lockstep, time.time_ns())
+    info = RunInfo(graph, hub, os.getpid(), str(graph_file), lockstep, time.time_ns(), usrpwd)
     d = run_dir()
     d.mkdir(parents=True, exist_ok=True)
     path = d / f"{graph}.{info.pid}.json"
@@ -112,40 +113,84 @@ def find_run(graph: str | None = None) -> RunInfo:
 
 
 def join(
-    graph: str | None = None, connect: str | None = None, certs: str | None = None, name: str | None = None
+    graph: str | None = None,
+    connect: str | None = None,
+    certs: str | None = None,
+    name: str | None = None,
+    credentials: str | None = None,
+    user: str | None = None,
 ) -> tuple[zenoh.Session, RunInfo | None]:
-    """Open a Zenoh peer session on a running graph's network: ``connect`` if given, else via its run-file.
+    """Open a Zenoh session on a running graph's network: ``connect`` if given, else via its run-file.
 
     A ``tls/`` endpoint needs ``certs`` (a ``handflow certs`` directory) and this machine's certificate
-    ``name`` (docs/security.md).
+    ``name``; a graph with ``zenoh.usrpwd`` needs ``credentials`` (a file of ``user:password`` lines)
+    and ``user`` when it holds several (docs/security.md).  Such sessions are clients of the hub.
     """
     import zenoh
 
     from .graph import ZenohSettings
-    from .transport import open_node_session, open_tls_client
+    from .transport import open_client, open_node_session
 
     run = None if connect else find_run(graph)
     endpoint = connect or run.hub
-    if endpoint.startswith("tls/"):
-        from .certs import CertError, check_host_files
+    certificate = _certificate(endpoint, certs, name)
+    login = _login(run, credentials, user)
+    if certificate is None and login is None:
+        return open_node_session(ZenohSettings(), endpoint), run
+    try:
+        return open_client(endpoint, certificate, login), run
+    except zenoh.ZError as exc:
+        who = " and ".join(
+            ([f"certificate '{name}'"] if certificate else []) + ([f"user '{login['user']}'"] if login else [])
+        )
+        checks = ([f"that its CA signed {certificate[1]}"] if certificate else []) + (
+            ["that its credentials file holds this user with this password"] if login else []
+        )
+        raise DiscoveryError(
+            f"could not join {endpoint} with {who} ({str(exc).split(' at /')[0]}); check that the graph runs there and "
+            f"{' and '.join(checks)} (docs/security.md)"
+        ) from None
 
-        if not (certs and name):
-            raise DiscoveryError(f"{endpoint} is a TLS endpoint: pass --certs DIR --cert-name NAME")
-        try:
-            files = check_host_files(Path(certs), name)
-        except CertError as exc:
-            raise DiscoveryError(str(exc)) from None
-        try:
-            return open_tls_client(endpoint, *files), run
-        except zenoh.ZError as exc:
+
+def _certificate(endpoint: str, certs: str | None, name: str | None) -> tuple[Path, Path, Path] | None:
+    """(CA, certificate, key) for a ``tls/`` endpoint, checked first; None for other endpoints."""
+    if not endpoint.startswith("tls/"):
+        return None
+    from .certs import CertError, check_host_files
+
+    if not (certs and name):
+        raise DiscoveryError(f"{endpoint} is a TLS endpoint: pass --certs DIR --cert-name NAME")
+    try:
+        return check_host_files(Path(certs), name)
+    except CertError as exc:
+        raise DiscoveryError(str(exc)) from None
+
+
+def _login(run: RunInfo | None, credentials: str | None, user: str | None) -> dict[str, str] | None:
+    """``usrpwd`` login from a credentials file; a local graph that needs one and got none is an error."""
+    from .credentials import CredentialsError, read_credentials, usrpwd_settings
+
+    if credentials is None:
+        if user is not None:
+            raise DiscoveryError("--user needs --credentials FILE (its password is read from that file)")
+        if run is not None and run.usrpwd:
             raise DiscoveryError(
-                f"could not join {endpoint} with certificate '{name}' ({str(exc).split(' at /')[0]}); check that the graph runs there and "
-                f"that its CA signed {files[1]} (docs/security.md)"
-            ) from None
-    return open_node_session(ZenohSettings(), endpoint), run
+                f"graph '{run.graph}' asks for a user and password: pass --credentials FILE [--user NAME]"
+            )
+        return None
+    try:
+        creds = read_credentials(credentials)
+        return usrpwd_settings(creds, creds.login(user)[0])
+    except CredentialsError as exc:
+        raise DiscoveryError(str(exc)) from None
 
 
-def add_tls_arguments(parser) -> None:
-    """``--certs DIR --cert-name NAME`` of commands that join a graph over TLS (docs/security.md)."""
+def add_auth_arguments(parser) -> None:
+    """``--certs DIR --cert-name NAME`` and ``--credentials FILE --user NAME`` of commands that join a
+    secure graph (docs/security.md)."""
     parser.add_argument("--certs", metavar="DIR", help="with a tls/ --connect endpoint: the `handflow certs` directory")
     parser.add_argument("--cert-name", metavar="NAME", help="with --certs: this machine's certificate name")
+    parser.add_argument(
+        "--credentials", metavar="FILE", help="for a graph with 'zenoh.usrpwd': a file of user:password lines"
+    )
+    parser.add_argument("--user", metavar="NAME", help="with --credentials: which user (default: the only one)")

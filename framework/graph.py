@@ -40,6 +40,15 @@ class TlsSettings(StrictModel):
     )
 
 
+class UsrPwdSettings(StrictModel):
+    """Zenoh user/password authentication on every link of the graph (docs/security.md)."""
+
+    credentials: str = Field(description="file of 'user:password' lines, relative to the graph file")
+    user: str | None = Field(
+        None, description="this machine's user (default: `handflow run --host`, else the only one)"
+    )
+
+
 class ZenohSettings(StrictModel):
     """Transport settings. Default: embedded peer on loopback, multicast scouting off, no router."""
 
@@ -52,6 +61,7 @@ class ZenohSettings(StrictModel):
     )
     multicast_scouting: bool = False
     tls: TlsSettings | None = Field(None, description="mutual TLS and generated access control (docs/security.md)")
+    usrpwd: UsrPwdSettings | None = Field(None, description="user/password authentication (docs/security.md)")
     insecure: bool = Field(False, description="allow plain endpoints beyond loopback (anyone who reaches them joins)")
 
 
@@ -244,6 +254,8 @@ def read_graph_text(text: str, path: Path, only: Collection[str] | None = None) 
             )
 
     problems += _zenoh_problems(spec, lines)
+    if spec.zenoh.usrpwd is not None:
+        problems += _usrpwd_problems(spec.zenoh.usrpwd, path, lines)
     if spec.ros2 is not None:
         problems += _ros2_problems(graph, spec.ros2, lines)
 
@@ -272,11 +284,16 @@ def _zenoh_problems(spec: GraphSpec, lines) -> list[Problem]:
                     )
                 )
             elif z.tls is None and plain and not z.insecure and not is_loopback_endpoint(ep):
+                risk = (
+                    "user names and passwords of 'usrpwd' travel in clear text and anyone on the network "
+                    "could read every topic"
+                    if z.usrpwd is not None
+                    else "any peer that reaches it could join, read and publish on every topic"
+                )
                 problems.append(
                     Problem(
                         line_of(lines, ("zenoh", key, i)),
-                        f"zenoh {key} endpoint '{ep}' reaches beyond this machine without TLS: any peer that reaches "
-                        f"it could join, read and publish on every topic. Create certificates "
+                        f"zenoh {key} endpoint '{ep}' reaches beyond this machine without TLS: {risk}. Create certificates "
                         f"(`handflow certs init certs && handflow certs add-host certs NAME`), set "
                         f"'zenoh: {{tls: {{certs: certs}}}}' and use tls/ endpoints, or write 'insecure: true' "
                         f"under 'zenoh:' to accept the risk (docs/security.md)",
@@ -299,6 +316,19 @@ def _zenoh_problems(spec: GraphSpec, lines) -> list[Problem]:
                     )
                 )
     return problems
+
+
+def _usrpwd_problems(usrpwd: UsrPwdSettings, path: Path, lines) -> list[Problem]:
+    """The credentials file must exist, parse and name the configured user (docs/security.md)."""
+    from .credentials import CredentialsError, read_credentials
+
+    try:
+        creds = read_credentials(path.parent / usrpwd.credentials)
+        if usrpwd.user is not None:
+            creds.login(usrpwd.user)
+    except CredentialsError as exc:
+        return [Problem(line_of(lines, ("zenoh", "usrpwd", "credentials")), f"zenoh.usrpwd.credentials: {exc}")]
+    return []
 
 
 def _ros2_problems(graph: Graph, ros2: Ros2Settings, lines: dict) -> list[Problem]:

@@ -74,15 +74,13 @@ class Launcher:
         self.lockstep = lockstep
         self.log_level = log_level
         self.hub_endpoint = transport.hub_endpoint_for()
-        secure = None
-        if graph.spec.zenoh.tls is not None:
-            from . import access
-
-            secure = {"tls": access.tls_settings(graph, host), "access_control": access.access_control(graph, host)}
-        self.session = transport.open_hub(graph.spec.zenoh, self.hub_endpoint, secure)
         self._state_dir = tempfile.TemporaryDirectory(prefix=f"handflow-{graph.name}-")
+        self.user: str | None = None
+        self.session = transport.open_hub(graph.spec.zenoh, self.hub_endpoint, self._secure_settings(host))
         self.stopping = False
-        self.run_file = discovery.write_run_file(graph.name, self.hub_endpoint, graph.path, lockstep)
+        self.run_file = discovery.write_run_file(
+            graph.name, self.hub_endpoint, graph.path, lockstep, usrpwd=self.user is not None
+        )
         self.health: dict[str, Status] = {}
         self._health_sub = self.session.declare_subscriber(
             transport.topic_key(graph.name, "*", "_health"), self._on_health
@@ -91,6 +89,22 @@ class Launcher:
         self._event_pub = self.session.declare_publisher(transport.topic_key(graph.name, "_runtime", "events"))
         self._event_seq = 0
         self.ros2 = Ros2Bridge(self.session, graph, host) if graph.spec.ros2 is not None else None
+
+    def _secure_settings(self, host: str | None) -> dict[str, object]:
+        """The hub's TLS, access-control and user/password settings (docs/security.md)."""
+        secure: dict[str, object] = {}
+        if self.graph.spec.zenoh.tls is not None:
+            from . import access
+
+            secure["tls"] = access.tls_settings(self.graph, host)
+            secure["access_control"] = access.access_control(self.graph, host)
+        if self.graph.spec.zenoh.usrpwd is not None:
+            from . import credentials
+
+            creds, self.user = credentials.graph_credentials(self.graph, host)
+            dictionary = credentials.write_dictionary(creds, self._state_dir.name)
+            secure["usrpwd"] = credentials.usrpwd_settings(creds, self.user, dictionary)
+        return secure
 
     def _on_health(self, sample) -> None:
         try:
@@ -125,6 +139,8 @@ class Launcher:
         ]
         if self.lockstep:
             cmd.append("--lockstep")
+        if self.user is not None:  # the node reads its password from the graph's credentials file
+            cmd += ["--user", self.user]
         unit.proc = subprocess.Popen(
             cmd, start_new_session=True, stderr=subprocess.PIPE, text=True, errors="replace", bufsize=1
         )

@@ -38,6 +38,7 @@ from pathlib import Path
 import numpy as np
 
 from . import transport, wire
+from .credentials import read_credentials, usrpwd_settings
 from .drops import DropLedger
 from .graph import Graph, ResolvedNode, load_graph
 from .messages import Header, Message, MessageError, Status
@@ -147,17 +148,32 @@ class _NodeSlot:
         return Status(state="ok", counters=counters, text=f"pid {os.getpid()}")
 
 
+def _login(graph: Graph, user: str | None) -> dict[str, str] | None:
+    """The node's ``usrpwd`` login in a user/password graph, read from the graph's credentials file."""
+    if graph.spec.zenoh.usrpwd is None:
+        return None
+    creds = read_credentials(graph.base_dir / graph.spec.zenoh.usrpwd.credentials)
+    user = user or graph.spec.zenoh.usrpwd.user
+    return usrpwd_settings(creds, creds.login(user, "--user NAME")[0])
+
+
 class GroupRuntime:
     """Runs the named nodes of a graph in this process until stopped."""
 
     def __init__(
-        self, graph: Graph, node_ids: list[str], hub: str, lockstep: bool = False, state_dir: Path | None = None
+        self,
+        graph: Graph,
+        node_ids: list[str],
+        hub: str,
+        lockstep: bool = False,
+        state_dir: Path | None = None,
+        user: str | None = None,
     ) -> None:
         self.graph = graph
         self.lockstep = lockstep
         self.virtual_ns = 0
         self.stop_requested = False
-        self.session = transport.open_node_session(graph.spec.zenoh, hub)
+        self.session = transport.open_node_session(graph.spec.zenoh, hub, _login(graph, user))
         self.inbox: queue.SimpleQueue = queue.SimpleQueue()  # lock-step clock events; None wakes the loop
         self._lock = threading.Lock()
         self.failure: str | None = None
@@ -365,13 +381,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--lockstep", action="store_true")
     ap.add_argument("--state-dir", type=Path)
     ap.add_argument("--log-level", default="INFO")
+    ap.add_argument("--user", help="login of a 'zenoh.usrpwd' graph (password from its credentials file)")
     args = ap.parse_args(argv)
     logging.basicConfig(
         level=args.log_level, stream=sys.stderr, format="%(asctime)s %(levelname)s [%(name)s] %(message)s"
     )
     node_ids = args.nodes.split(",")
     graph = load_graph(args.graph, only=node_ids)
-    rt = GroupRuntime(graph, node_ids, args.hub, args.lockstep, args.state_dir)
+    rt = GroupRuntime(graph, node_ids, args.hub, args.lockstep, args.state_dir, args.user)
 
     def _stop(signum, frame):
         rt.stop_requested = True

@@ -8,7 +8,9 @@ loopback port, multicast scouting off, no router); every node process is a peer 
 the hub and finds the other peers through gossip.  A graph's ``zenoh.listen`` / ``zenoh.connect``
 endpoints are added to the hub so graphs on several machines join one Zenoh network.  With
 ``zenoh.tls`` the hub is a router speaking mutual TLS to other machines, with access control derived
-from the graph (:mod:`handflow.framework.access`), and node processes are its clients.
+from the graph (:mod:`handflow.framework.access`), and node processes are its clients.  With
+``zenoh.usrpwd`` (alone or with TLS) the hub is a router too, checks every link against the graph's
+credentials (:mod:`handflow.framework.credentials`), and its node processes log in as clients.
 """
 
 from __future__ import annotations
@@ -71,18 +73,24 @@ class EndpointInUse(OSError):
     """A ``zenoh.listen`` endpoint whose address is taken by another program."""
 
 
+def _insert(conf: zenoh.Config, prefix: str, values: dict[str, object] | None) -> None:
+    for key, value in (values or {}).items():
+        conf.insert_json5(f"{prefix}/{key}", json.dumps(value))
+
+
 def open_hub(settings: ZenohSettings, hub_endpoint: str, secure: dict[str, object] | None = None) -> zenoh.Session:
     """The launcher's session: listens on ``hub_endpoint`` plus the graph's endpoints.
 
-    ``secure`` (``{"tls": ..., "access_control": ...}`` from :mod:`handflow.framework.access`) makes
-    the hub a TLS router.  A listen endpoint already in use raises :class:`EndpointInUse` saying
-    what to change.
+    ``secure`` makes the hub a router: ``"tls"`` and ``"access_control"`` from
+    :mod:`handflow.framework.access`, ``"usrpwd"`` from :func:`credentials.usrpwd_settings`.  A
+    listen endpoint already in use raises :class:`EndpointInUse` saying what to change.
     """
+    secure = secure or {}
     mode = "router" if secure else settings.mode
     conf = _config(mode, [hub_endpoint, *settings.listen], list(settings.connect), settings.multicast_scouting)
-    for key, value in (secure or {}).get("tls", {}).items():
-        conf.insert_json5(f"transport/link/tls/{key}", json.dumps(value))
-    if secure:
+    _insert(conf, "transport/link/tls", secure.get("tls"))
+    _insert(conf, "transport/auth/usrpwd", secure.get("usrpwd"))
+    if "access_control" in secure:
         conf.insert_json5("access_control", json.dumps(secure["access_control"]))
     try:
         return zenoh.open(conf)
@@ -97,15 +105,20 @@ def open_hub(settings: ZenohSettings, hub_endpoint: str, secure: dict[str, objec
         ) from None
 
 
-def open_node_session(settings: ZenohSettings, hub_endpoint: str) -> zenoh.Session:
+def open_node_session(
+    settings: ZenohSettings, hub_endpoint: str, usrpwd: dict[str, str] | None = None
+) -> zenoh.Session:
     """A node process's session: a peer connected to the local hub.
 
     It listens on an ephemeral port of the interface the graph listens on (loopback by default) so
-    gossip can connect peers directly.  In a TLS graph it is a client of the hub (a router) and
-    listens nowhere, so every message to or from another machine passes the hub's access control.
+    gossip can connect peers directly.  In a TLS or user/password graph it is a client of the hub (a
+    router), logs in with ``usrpwd`` and listens nowhere, so every message to or from another
+    machine passes the hub's checks.
     """
-    if settings.tls is not None:
-        return zenoh.open(_config("client", [], [hub_endpoint], False))
+    if settings.tls is not None or settings.usrpwd is not None:
+        conf = _config("client", [], [hub_endpoint], False)
+        _insert(conf, "transport/auth/usrpwd", usrpwd)
+        return zenoh.open(conf)
     host = "127.0.0.1"
     for ep in settings.listen:
         proto, _, addr = ep.partition("/")
@@ -115,19 +128,27 @@ def open_node_session(settings: ZenohSettings, hub_endpoint: str) -> zenoh.Sessi
     return zenoh.open(_config("peer", [f"tcp/{host}:0"], [hub_endpoint], settings.multicast_scouting))
 
 
-def open_tls_client(endpoint: str, ca: object, cert: object, key: object, timeout_s: float = 10.0) -> zenoh.Session:
-    """A client of a TLS graph's hub from another machine (monitor, record, replay) with its own certificate.
+def open_client(
+    endpoint: str,
+    certificate: tuple[object, object, object] | None = None,
+    usrpwd: dict[str, str] | None = None,
+    timeout_s: float = 10.0,
+) -> zenoh.Session:
+    """A client of a secure graph's hub (monitor, record, replay) with its own certificate and/or login.
 
     A client, not a peer: it joins no peer mesh, so everything it reads or writes passes the hub's
-    access control.  ``enable_mtls`` matters on this side too: without it Zenoh does not present the
-    certificate and the hub refuses the link.  Raises ``zenoh.ZError`` when no link is accepted within
-    ``timeout_s`` (hub unreachable, or the certificate refused).
+    checks.  ``certificate`` is (CA, certificate, key); ``enable_mtls`` matters on this side too:
+    without it Zenoh does not present the certificate and the hub refuses the link.  Raises
+    ``zenoh.ZError`` when no link is accepted within ``timeout_s`` (hub unreachable, certificate or
+    password refused).
     """
     conf = _config("client", [], [endpoint], False)
     conf.insert_json5("connect/timeout_ms", json.dumps(int(timeout_s * 1000)))
-    tls = {"root_ca_certificate": str(ca), "connect_certificate": str(cert), "connect_private_key": str(key)}
-    for k, v in {**tls, "enable_mtls": True, "verify_name_on_connect": False}.items():
-        conf.insert_json5(f"transport/link/tls/{k}", json.dumps(v))
+    if certificate is not None:
+        ca, cert, key = (str(f) for f in certificate)
+        tls = {"root_ca_certificate": ca, "connect_certificate": cert, "connect_private_key": key}
+        _insert(conf, "transport/link/tls", {**tls, "enable_mtls": True, "verify_name_on_connect": False})
+    _insert(conf, "transport/auth/usrpwd", usrpwd)
     return zenoh.open(conf)
 
 

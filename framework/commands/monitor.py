@@ -7,7 +7,7 @@ import json
 import sys
 import time
 
-from ..discovery import DiscoveryError, add_tls_arguments, join
+from ..discovery import DiscoveryError, add_auth_arguments, join
 from ..foxglove_bridge import BridgeError, start_bridge
 from ..monitor import WINDOW_S, Monitor, render
 
@@ -16,7 +16,7 @@ def register(parser: argparse.ArgumentParser) -> None:
     """Live table of a running graph: topics, rates, latency, sequence gaps, last values, node health."""
     parser.add_argument("--graph", help="name of the running graph (default: the only one running)")
     parser.add_argument("--connect", metavar="ENDPOINT", help="join this Zenoh endpoint instead of a run-file")
-    add_tls_arguments(parser)
+    add_auth_arguments(parser)
     parser.add_argument("--once", action="store_true", help="listen for --listen seconds, print one snapshot, exit")
     parser.add_argument("--json", action="store_true", help="with --once: print the snapshot as JSON")
     parser.add_argument("--listen", type=float, default=2.0, help="listening window of --once in seconds (default 2)")
@@ -37,7 +37,7 @@ def run(args: argparse.Namespace) -> int:
         print("error: --json needs --once (the live view is a table)", file=sys.stderr)
         return 2
     try:
-        session, info = join(args.graph, args.connect, args.certs, args.cert_name)
+        session, info = join(args.graph, args.connect, args.certs, args.cert_name, args.credentials, args.user)
     except DiscoveryError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

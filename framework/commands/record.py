@@ -8,7 +8,7 @@ import sys
 import threading
 from pathlib import Path
 
-from ..discovery import DiscoveryError, add_tls_arguments, join
+from ..discovery import DiscoveryError, add_auth_arguments, join
 from ..graph import GraphError, load_graph
 from ..recording import GraphRecorder, McapWriter, RecordingError
 
@@ -27,7 +27,7 @@ def register(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--connect", metavar="ENDPOINT", help="join this Zenoh endpoint instead of finding the graph's run-file"
     )
-    add_tls_arguments(parser)
+    add_auth_arguments(parser)
     parser.set_defaults(func=run)
 
 
@@ -42,7 +42,7 @@ def run(args: argparse.Namespace) -> int:
             return 2
         name = graph.name
     try:
-        session, info = join(name, args.connect, args.certs, args.cert_name)
+        session, info = join(name, args.connect, args.certs, args.cert_name, args.credentials, args.user)
     except DiscoveryError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

@@ -10,7 +10,7 @@ import threading
 from pathlib import Path
 
 from .. import transport
-from ..discovery import DiscoveryError, add_tls_arguments, join
+from ..discovery import DiscoveryError, add_auth_arguments, join
 from ..graph import Graph, GraphError, load_graph
 from ..launcher import Launcher
 from ..recording import GraphRecorder, ReadReport, RecordingError, iter_recording
@@ -52,7 +52,7 @@ def register(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--graph", help="replay into this running graph (default: the recording's graph, if running)")
     parser.add_argument("--connect", metavar="ENDPOINT", help="join this Zenoh endpoint instead of a run-file")
-    add_tls_arguments(parser)
+    add_auth_arguments(parser)
     parser.add_argument("--ready-timeout", type=float, default=30.0, help="seconds to wait for the graph's nodes")
     parser.add_argument(
         "--step-timeout", type=float, default=10.0, help="lock-step: seconds one message may take to settle"
@@ -123,7 +123,9 @@ def _print_stats(stats: ReplayStats, where: str) -> None:
 def _replay_join(args: argparse.Namespace, recorded: str | None, stop: threading.Event) -> int:
     """Publish into an already running graph (found by name, or at --connect)."""
     target = args.graph or recorded
-    session, info = join(None if args.connect else target, args.connect, args.certs, args.cert_name)
+    session, info = join(
+        None if args.connect else target, args.connect, args.certs, args.cert_name, args.credentials, args.user
+    )
     try:
         graph = None
         if info is not None and Path(info.graph_file).is_file():

@@ -178,3 +178,48 @@ def test_a_usrpwd_graph_runs_records_and_admits_only_tools_with_the_right_passwo
     assert not (tmp_path / "wrong.mcap").exists() or _recorded(tmp_path / "wrong.mcap") == []
     assert stolen == [] or set(stolen) == {f"handflow/{info.graph}/source/out"}  # only its own echo
     assert "look:only" not in err and "s3cret" not in err  # no password in the launcher's log
+
+
+@pytest.mark.slow
+def test_over_tls_a_tool_needs_both_its_certificate_and_its_password(tmp_path, monkeypatch):
+    pytest.importorskip("cryptography")
+    from handflow.framework import certs
+    from handflow.framework.transport import free_tcp_port
+
+    monkeypatch.setenv("HANDFLOW_RUN_DIR", str(tmp_path / "runs"))
+    ca = tmp_path / "certs"
+    certs.init_ca(ca)
+    for host in ("a", "viewer"):
+        certs.add_host(ca, host)
+    tls_ep = f"tls/127.0.0.1:{free_tcp_port()}"
+    graph = _graph(tmp_path, extra=f", listen: [{tls_ep}], tls: {{certs: {ca}, host: a, readers: [viewer]}}")
+    (tmp_path / "viewer.credentials").write_text("viewer:look:only\n")
+    (tmp_path / "wrong.credentials").write_text("viewer:guess\n")
+    run = start("run", str(graph), "--duration", "60")
+    try:
+        deadline = time.time() + 20
+        while time.time() < deadline and not live_runs():
+            time.sleep(0.2)
+        assert live_runs(), "the launcher did not start"
+        name = live_runs()[0].graph
+        tls = ("--connect", tls_ep, "--certs", str(ca), "--cert-name", "viewer")
+        tools = {
+            label: start("record", name, "--duration", "3", "--out", str(tmp_path / f"{label}.mcap"), *tls, *args)
+            for label, args in (
+                ("both", ("--credentials", str(tmp_path / "viewer.credentials"))),
+                ("wrong", ("--credentials", str(tmp_path / "wrong.credentials"))),
+                ("certificate-only", ()),
+            )
+        }
+        outputs = {label: p.communicate(timeout=60) for label, p in tools.items()}
+        run.send_signal(signal.SIGINT)
+        _, err = run.communicate(timeout=60)
+    finally:
+        if run.poll() is None:
+            run.kill()
+    assert run.returncode == 0, err
+    assert tools["both"].returncode == 0, outputs["both"]
+    assert _recorded(tmp_path / "both.mcap").count(f"handflow/{name}/source/out") > 100  # 3 s at 100 Hz over TLS
+    assert tools["wrong"].returncode == 2
+    assert "with certificate 'viewer' and user 'viewer'" in outputs["wrong"][1]
+    assert tools["certificate-only"].returncode == 2 and "could not join" in outputs["certificate-only"][1]

@@ -57,6 +57,8 @@ def _args(**kw) -> argparse.Namespace:
         record=None,
         certs=None,
         cert_name=None,
+        credentials=None,
+        user=None,
     )
     return argparse.Namespace(**{**base, **kw})
 

@@ -138,7 +138,8 @@ def plot_success_maps(outcomes: list[dict], grid: GraspGrid, folder) -> list[Pat
             table, rows, cols = success_table(outcomes, grid, obj, cond)
             image = ax.imshow(np.ma.masked_invalid(table), cmap=cmap, vmin=0.0, vmax=1.0, aspect="auto")
             ax.set_xticks(range(len(cols)), [f"{100 * x:.1f},{100 * y:+.1f}" for x, y in cols], rotation=90, fontsize=7)
-            ax.set_yticks(range(len(rows)), [f"{100 * g:.1f} cm, {yaw:+.0f}°" for g, yaw in rows], fontsize=7)
+            labels = [f"{100 * g:.1f} cm, {yaw:+.0f}°" for g, yaw in rows] if cond == conditions[0] else []
+            ax.set_yticks(range(len(rows)), labels, fontsize=7)
             ax.set_xlabel("x, y (cm)")
             valid = np.isfinite(table)
             share = float(np.nanmean(table)) if valid.any() else 0.0

@@ -12,26 +12,37 @@ from threadpoolctl import threadpool_limits
 
 from handflow.framework.resources import shipped
 
-from .evaluation import FULL_GRID, OBJECTS, QUICK_GRID, evaluate_grasping
+from .evaluation import evaluate_grasping
 from .experience import GraspDataset
 from .generation import FIXED_PREGRASP_RANGES, PREGRASP_RANGES, generate_experience
-from .plots import plot_node_postures, plot_u_matrix
+from .grid import GRIDS, HARD_GRID, QUICK_HARD_GRID, THESIS_GRID, GraspGrid
+from .plots import plot_node_postures, plot_success_maps, plot_u_matrix
 from .som import load_som, save_som
 from .training import train_experience_soms, train_grasp_som
 
-DEFAULT_EXPERIENCE = shipped("grasp", "experience")
-"""Shipped experience (grasp dataset + SOMs), regenerated with ``handflow grasp-experience --train-soms``."""
+DEFAULT_EXPERIENCE = {
+    HARD_GRID.name: shipped("grasp", "experience_hard"),
+    THESIS_GRID.name: shipped("grasp", "experience"),
+}
+"""Shipped experience (grasp dataset + SOMs) per grid, regenerated with ``handflow grasp-experience
+--grid GRID --train-soms`` (docs/grasping.md)."""
+GRID_CHOICES = (HARD_GRID.name, THESIS_GRID.name)
 
 
 def _progress(msg: str) -> None:
     print(f"[{time.strftime('%H:%M:%S')}] {msg}", file=sys.stderr, flush=True)
 
 
-def _objects(text: str) -> list[str]:
+def _objects(text: str | None, grid: GraspGrid) -> list[str]:
+    """``--objects``: a comma-separated subset of the grid's objects (``None``: all of them)."""
+    if text is None:
+        return list(grid.objects)
     objs = [o.strip() for o in text.split(",") if o.strip()]
-    bad = [o for o in objs if o not in OBJECTS]
+    bad = [o for o in objs if o not in grid.objects]
     if bad or not objs:
-        raise ValueError(f"--objects takes a comma-separated subset of {','.join(OBJECTS)}, got {text!r}")
+        raise ValueError(
+            f"--objects takes a comma-separated subset of {','.join(grid.objects)} (grid '{grid.name}'), got {text!r}"
+        )
     return objs
 
 
@@ -69,7 +80,13 @@ def register_generate(parser: argparse.ArgumentParser) -> None:
         "Generate grasp experience in pybullet (randomised tactile grasps kept when they pass "
         "the disturbance test) and optionally train the SOM grasp manifolds."
     )
-    parser.add_argument("--objects", default=",".join(OBJECTS), help="comma-separated subset of box,cylinder,sphere")
+    parser.add_argument(
+        "--grid",
+        default=HARD_GRID.name,
+        choices=GRID_CHOICES,
+        help="evaluation grid the experience is for: its objects, ranges and friction; its poses are excluded",
+    )
+    parser.add_argument("--objects", default=None, help="comma-separated subset of the grid's objects (default all)")
     parser.add_argument(
         "--trials",
         default="400",
@@ -95,7 +112,8 @@ def register_generate(parser: argparse.ArgumentParser) -> None:
 
 def run_generate(args) -> int:
     try:
-        objects = _objects(args.objects)
+        grid = GRIDS[args.grid]
+        objects = _objects(args.objects, grid)
         trials = _trials(str(args.trials), objects)
         if min(trials.values() if isinstance(trials, dict) else [trials]) < 1 or args.local_trials < 0:
             raise ValueError("--trials must be ≥ 1 and --local-trials ≥ 0")
@@ -107,7 +125,13 @@ def run_generate(args) -> int:
     with threadpool_limits(1):
         ranges = FIXED_PREGRASP_RANGES if args.fixed_pregrasp else PREGRASP_RANGES
         data = generate_experience(
-            objects, trials, seed=args.seed, local_trials=args.local_trials, progress=_progress, pregrasp_ranges=ranges
+            objects,
+            trials,
+            seed=args.seed,
+            local_trials=args.local_trials,
+            progress=_progress,
+            pregrasp_ranges=ranges,
+            grid=grid,
         )
         data.save(out / "grasps.npz")
         _progress(f"wrote {len(data)} stable grasps to {out / 'grasps.npz'}: {data.metadata['counts']}")
@@ -194,51 +218,79 @@ def run_train_som(args) -> int:
 def register_evaluate(parser: argparse.ArgumentParser) -> None:
     parser.description = (
         "Grasp every object over a grid of poses with the object-specific SOM, without "
-        "experience and with one shared SOM; report the shares of stable grasps."
+        "experience and with one shared SOM; report the shares of stable grasps per object and "
+        "overall, pooled over seeds, with paired McNemar tests against the tactile baseline."
     )
-    parser.add_argument("--quick", action="store_true", help="coarse grid (under 2 minutes), same keys")
+    parser.add_argument("--grid", default=HARD_GRID.name, choices=GRID_CHOICES, help="pose grid and conditions")
+    parser.add_argument("--quick", action="store_true", help=f"the {QUICK_HARD_GRID.name} subset, one seed; same keys")
     parser.add_argument("--json", action="store_true", help="print the result as JSON on stdout")
     parser.add_argument(
-        "--experience", default=str(DEFAULT_EXPERIENCE), help="folder with som_<object>.npz and som_shared.npz"
+        "--experience", default=None, help="folder with som_<object>.npz and som_shared.npz (default: shipped)"
     )
-    parser.add_argument("--objects", default=",".join(OBJECTS))
+    parser.add_argument("--objects", default=None, help="comma-separated subset of the grid's objects (default all)")
+    parser.add_argument("--seeds", type=int, default=None, help="evaluation seeds 0 … N−1 (default 5; 1 with --quick)")
     parser.add_argument(
         "--repeats",
         type=int,
         default=1,
-        help="pool this many runs of the grid with γ jittered "
-        "by ±2 %% steps (a 2 %% change of γ flips ~9 %% of the outcomes; 3 resolves smaller differences)",
+        help="pool this many runs per seed with γ jittered by ±2 %% steps",
     )
+    parser.add_argument("--plots", default=None, help="write grasp success maps (PNG) into this folder")
     parser.set_defaults(func=run_evaluate)
 
 
 def run_evaluate(args) -> int:
     try:
-        objects = _objects(args.objects)
+        if args.quick and args.grid != HARD_GRID.name:
+            raise ValueError(f"--quick evaluates the {HARD_GRID.name} grid's subset; drop --grid {args.grid}")
+        grid = QUICK_HARD_GRID if args.quick else GRIDS[args.grid]
+        objects = _objects(args.objects, grid)
+        seeds = args.seeds if args.seeds is not None else (1 if args.quick else 5)
+        if seeds < 1:
+            raise ValueError(f"--seeds must be ≥ 1, got {seeds}")
+        experience = args.experience or DEFAULT_EXPERIENCE[grid.experience_grid]
         with threadpool_limits(1):
             result = evaluate_grasping(
-                args.experience,
-                QUICK_GRID if args.quick else FULL_GRID,
-                objects,
-                progress=_progress,
-                repeats=args.repeats,
+                experience, grid, objects, progress=_progress, repeats=args.repeats, seeds=range(seeds)
             )
     except (ValueError, FileNotFoundError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    result["grid"] = "quick" if args.quick else "full"
+    outcomes = result.pop("outcomes")
+    if args.plots:
+        for path in plot_success_maps(outcomes, grid, Path(args.plots)):
+            _progress(f"wrote {path}")
     if args.json:
         print(json.dumps(result, indent=2))
     else:
-        print(
-            f"{'object':10s} {'experience':>11s} {'no_exp':>8s} {'shared':>8s} {'n':>5s}  experience vs none: won/lost (sign-test p)"
-        )
-        for key in [*objects, "overall"]:
-            r = result[key]
-            pair = r["paired"]["experience"]
-            print(
-                f"{key:10s} {r['experience']:11.1%} {r['no_experience']:8.1%} {r['shared_som']:8.1%} {r['n_valid']:5d}"
-                f"  {pair['wins']}/{pair['losses']} (p = {pair['p_sign']:.3f})"
-            )
-        print(f"grasps per minute: {result['grasps_per_minute']:.1f}")
+        print_tables(result, objects)
     return 0
+
+
+def print_tables(result: dict, objects) -> None:
+    """Per-object and overall shares with the paired test, then the spread over seeds."""
+    print(
+        f"grid {result['grid']} (friction {result['lateral_friction']:g}), seeds {result['seeds']}, "
+        f"γ factors {result['gamma_factors']}"
+    )
+    print(
+        f"{'object':14s} {'experience':>11s} {'no_exp':>8s} {'shared':>8s} {'n':>5s}  experience vs none: won/lost (McNemar p)"
+    )
+    for key in [*objects, "overall"]:
+        r = result[key]
+        pair = r["paired"]["experience"]
+        print(
+            f"{key:14s} {r['experience']:11.1%} {r['no_experience']:8.1%} {r['shared_som']:8.1%} {r['n_valid']:5d}"
+            f"  {pair['wins']}/{pair['losses']} (p = {pair['p_sign']:.2g})"
+        )
+    print(f"{'seed':14s} {'experience':>11s} {'no_exp':>8s} {'gain':>8s}  won/lost (McNemar p)")
+    for seed, r in result["per_seed"].items():
+        pair = r["paired"]["experience"]
+        gain = r["experience"] - r["no_experience"]
+        print(
+            f"{seed!s:14s} {r['experience']:11.1%} {r['no_experience']:8.1%} {gain:+8.1%}"
+            f"  {pair['wins']}/{pair['losses']} (p = {pair['p_sign']:.2g})"
+        )
+    g = result["spread"]["experience_gain"]
+    print(f"gain over seeds: mean {g['mean']:+.1%}, sd {g['std']:.1%}, range {g['min']:+.1%} … {g['max']:+.1%}")
+    print(f"grasps per minute: {result['grasps_per_minute']:.1f}")

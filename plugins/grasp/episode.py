@@ -13,7 +13,9 @@ a table under the palm-down hand.  Documented choices (:class:`EpisodeConfig`):
   but a touch no longer sends it flying, so the outcome depends on the hand's
   posture rather than on the bounce (the undamped grasp flipped 19 of 150 outcomes for a 2 %
   change of the closing speed, the damped one 13, 4 of them box/cylinder instead of 10).  The stability
-  test runs with pybullet's default damping (0.04).
+  test runs with pybullet's default damping (0.04);
+- ``lateral_friction`` (default 0.8, the scene's): the object's friction coefficient (pybullet
+  multiplies it with the hand's); the evaluation grid's harder conditions lower it.
 
 The controller runs at ``rate_hz`` on the measured posture and the segments touching the object
 (contacts with ``ignore_bodies``, the table by default, are not object contacts).  The grasp phase
@@ -65,11 +67,14 @@ class EpisodeConfig:
     floating: bool = True
     object_damping: float = 0.99
     ignore_bodies: tuple[str, ...] = ("table",)
+    lateral_friction: float = 0.8
     test: DisturbanceTest = field(default_factory=DisturbanceTest)
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.object_damping < 1.0:
             raise ValueError(f"object_damping must be in [0, 1), got {self.object_damping}")
+        if not self.lateral_friction > 0.0:
+            raise ValueError(f"lateral_friction must be > 0, got {self.lateral_friction}")
 
 
 @dataclass
@@ -121,6 +126,7 @@ def run_grasp(
         position=(pose.x, pose.y),
         yaw_deg=pose.yaw_deg,
         gap_below_palm=pose.gap,
+        lateral_friction=config.lateral_friction,
         start_posture=dict(controller.config.pregrasp),
     )
     with Simulation(hand=hand, scene=scene, seed=seed, physics_hz=config.physics_hz) as sim:

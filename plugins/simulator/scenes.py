@@ -435,9 +435,12 @@ GRASP_OBJECTS = {
     "box": (p.GEOM_BOX, {"halfExtents": [0.02, 0.08, 0.02]}, 0.04),
     "cylinder": (p.GEOM_CYLINDER, {"radius": 0.03, "height": 0.16}, 0.06),
     "sphere": (p.GEOM_SPHERE, {"radius": 0.03}, 0.06),
+    "small_sphere": (p.GEOM_SPHERE, {"radius": 0.02}, 0.04),
+    "thin_cylinder": (p.GEOM_CYLINDER, {"radius": 0.015, "height": 0.16}, 0.03),
 }
-"""Grasp objects of thesis chapter 4 (shape, pybullet dimensions, height as placed): box 4×4×16 cm,
-cylinder r 3 cm h 16 cm (lying, axis along world y), sphere r 3 cm."""
+"""Grasp objects (shape, pybullet dimensions, height as placed): those of thesis chapter 4 — box
+4×4×16 cm, cylinder r 3 cm h 16 cm (lying, axis along world y), sphere r 3 cm — and the harder ones of
+the evaluation grid (docs/grasping.md): a small sphere r 2 cm and a thin lying cylinder r 1.5 cm h 16 cm."""
 
 
 @dataclass
@@ -497,7 +500,7 @@ class GraspScene(Scene):
         col = p.createCollisionShape(kind, physicsClientId=client, **dims)
         vis_dims = {("length" if k == "height" else k): v for k, v in dims.items()}  # visual API names it length
         vis = p.createVisualShape(kind, rgbaColor=(0.85, 0.3, 0.1, 1), physicsClientId=client, **vis_dims)
-        lying = Rotation.from_euler("x", 90, degrees=True) if self.object == "cylinder" else Rotation.identity()
+        lying = Rotation.from_euler("x", 90, degrees=True) if kind == p.GEOM_CYLINDER else Rotation.identity()
         orn = (Rotation.from_euler("z", self.yaw_deg, degrees=True) * lying).as_quat()
         self.object_id = p.createMultiBody(self.mass, col, vis, pos.tolist(), orn, physicsClientId=client)
         p.changeDynamics(self.object_id, -1, lateralFriction=self.lateral_friction, physicsClientId=client)

@@ -7,6 +7,7 @@ from handflow.plugins.grasp.controller import SHADOW_PREGRASP
 from handflow.plugins.grasp.episode import GraspPose
 from handflow.plugins.grasp.experience import ExperienceBase, GraspDataset
 from handflow.plugins.grasp.generation import FIXED_PREGRASP_RANGES, PREGRASP_RANGES, _jitter, random_pregrasp
+from handflow.plugins.grasp.grid import HARD_GRID
 from handflow.plugins.grasp.hand_layout import hand_layout
 from handflow.plugins.grasp.pcp import best_match_index, pcp_distances
 from handflow.plugins.grasp.som import SOM, save_som
@@ -93,6 +94,7 @@ def test_wrench_quality_tells_force_closure_apart():
 def test_fixed_pregrasp_ranges_always_give_the_controller_pregrasp():
     rng = np.random.default_rng(0)
     assert random_pregrasp(rng, FIXED_PREGRASP_RANGES) == SHADOW_PREGRASP
-    assert _jitter(rng, GraspPose(0.03), dict(SHADOW_PREGRASP), FIXED_PREGRASP_RANGES)[1] == SHADOW_PREGRASP
+    ranges = HARD_GRID.pose_ranges("box")
+    assert _jitter(rng, GraspPose(0.03), dict(SHADOW_PREGRASP), FIXED_PREGRASP_RANGES, ranges)[1] == SHADOW_PREGRASP
     varied = random_pregrasp(rng, PREGRASP_RANGES)
     assert set(varied) == set(PREGRASP_RANGES) and varied["THJ5"] != SHADOW_PREGRASP["THJ5"]

@@ -8,8 +8,10 @@ of the launcher), and authenticates with its own user like its node processes an
 
 from __future__ import annotations
 
+import logging
 import os
 import re
+import stat
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -17,6 +19,7 @@ from typing import TYPE_CHECKING
 if TYPE_CHECKING:
     from .graph import Graph
 
+log = logging.getLogger("handflow.credentials")
 _USER = re.compile(r"^[A-Za-z0-9_.@\-]+$")
 FORMAT = "one 'user:password' per line (user: letters, digits, '_', '-', '.', '@'; '#' starts a comment line)"
 
@@ -69,8 +72,11 @@ def parse_credentials(text: str, source: str = "<credentials>") -> dict[str, str
     return users
 
 
-def read_credentials(path: str | Path) -> Credentials:
-    """The credentials file at ``path``, or :class:`CredentialsError` saying what to change."""
+def read_credentials(path: str | Path, warn_shared: bool = False) -> Credentials:
+    """The credentials file at ``path``, or :class:`CredentialsError` saying what to change.
+
+    ``warn_shared`` logs a warning when other users may read the file.
+    """
     path = Path(path)
     try:
         text = path.read_text(encoding="utf-8")
@@ -80,14 +86,17 @@ def read_credentials(path: str | Path) -> Credentials:
         raise CredentialsError(f"credentials file {path} is not UTF-8 text; write {FORMAT}") from None
     except OSError as exc:
         raise CredentialsError(f"cannot read credentials file {path}: {exc.strerror}") from None
-    return Credentials(path, parse_credentials(text, str(path)))
+    creds = Credentials(path, parse_credentials(text, str(path)))
+    if warn_shared and path.stat().st_mode & (stat.S_IRWXG | stat.S_IRWXO):
+        log.warning("credentials file %s is readable by other users; restrict it with `chmod 600 %s`", path, path)
+    return creds
 
 
 def graph_credentials(graph: Graph, host: str | None) -> tuple[Credentials, str]:
     """The graph's credentials and this machine's user (``usrpwd.user``, else ``run --host``, else the only user)."""
     usrpwd = graph.spec.zenoh.usrpwd
     assert usrpwd is not None
-    creds = read_credentials(graph.base_dir / usrpwd.credentials)
+    creds = read_credentials(graph.base_dir / usrpwd.credentials, warn_shared=True)
     user = usrpwd.user or (host if host in creds.users else None)
     return creds, creds.login(user, "`handflow run --host NAME` or set 'zenoh: {usrpwd: {user: NAME}}'")[0]
 

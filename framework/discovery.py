@@ -179,7 +179,7 @@ def _login(run: RunInfo | None, credentials: str | None, user: str | None) -> di
             )
         return None
     try:
-        creds = read_credentials(credentials)
+        creds = read_credentials(credentials, warn_shared=True)
         return usrpwd_settings(creds, creds.login(user)[0])
     except CredentialsError as exc:
         raise DiscoveryError(str(exc)) from None

@@ -123,6 +123,19 @@ def test_a_tool_without_credentials_for_a_usrpwd_graph_is_told_what_to_pass(tmp_
         join("g", user="lab")
 
 
+def test_a_credentials_file_others_can_read_is_reported(tmp_path, caplog):
+    path = tmp_path / "c"
+    path.write_text(LOGINS)
+    path.chmod(0o600)
+    read_credentials(path, warn_shared=True)
+    assert "chmod 600" not in caplog.text
+    path.chmod(0o644)
+    read_credentials(path)
+    assert "chmod 600" not in caplog.text  # validation and node processes stay quiet
+    read_credentials(path, warn_shared=True)
+    assert f"readable by other users; restrict it with `chmod 600 {path}`" in caplog.text
+
+
 def _recorded(path: Path) -> list[str]:
     return [rm.topic for rm in iter_recording(path)] if path.exists() else []
 

@@ -236,3 +236,46 @@ def test_over_tls_a_tool_needs_both_its_certificate_and_its_password(tmp_path, m
     assert tools["wrong"].returncode == 2
     assert "with certificate 'viewer' and user 'viewer'" in outputs["wrong"][1]
     assert tools["certificate-only"].returncode == 2 and "could not join" in outputs["certificate-only"][1]
+
+
+@pytest.mark.slow
+def test_two_graphs_log_in_to_each_other_and_a_wrong_password_joins_nothing(tmp_path, monkeypatch):
+    from handflow.framework.transport import free_tcp_port
+
+    monkeypatch.setenv("HANDFLOW_RUN_DIR", str(tmp_path / "runs"))
+    endpoint = f"tcp/127.0.0.1:{free_tcp_port()}"
+    template = chain_graph(
+        tmp_path, zenoh="zenoh: {usrpwd: {credentials: site.credentials}, ZENOH}", hosts=("a", "b", "b")
+    )
+    sides = {"a": ("listen", "a:alpha\nb:beta\n"), "b": ("connect", "a:alpha\nb:beta\n"), "c": ("connect", "b:wrong\n")}
+    runs = {}
+    try:
+        for side, (key, logins) in sides.items():
+            d = tmp_path / side
+            d.mkdir()
+            (d / "site.credentials").write_text(logins)
+            graph = (
+                template.read_text()
+                .replace("ZENOH", f"{key}: [{endpoint}]")
+                .replace(str(tmp_path / "sink"), str(d / "sink"))
+            )
+            (d / "graph.yaml").write_text(graph)
+            runs[side] = start("run", str(d / "graph.yaml"), "--host", "a" if side == "a" else "b", "--duration", "60")
+            if side == "a":
+                deadline = time.time() + 20
+                while time.time() < deadline and not live_runs():
+                    time.sleep(0.2)
+        deadline = time.time() + 30
+        while time.time() < deadline and len(read_sink(tmp_path / "b" / "sink.jsonl")) < 100:
+            time.sleep(0.2)
+        time.sleep(1)
+        for p in runs.values():
+            p.send_signal(signal.SIGINT)
+        errors = {side: p.communicate(timeout=60)[1] for side, p in runs.items()}
+    finally:
+        for p in runs.values():
+            if p.poll() is None:
+                p.kill()
+    assert all(p.returncode == 0 for p in runs.values()), errors
+    assert len(read_sink(tmp_path / "b" / "sink.jsonl")) >= 100  # a's source reached b's nodes
+    assert read_sink(tmp_path / "c" / "sink.jsonl") == []  # c's hub never got in

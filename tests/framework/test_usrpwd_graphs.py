@@ -171,6 +171,8 @@ def test_a_usrpwd_graph_runs_records_and_admits_only_tools_with_the_right_passwo
             )
         }
         outputs = {label: p.communicate(timeout=60) for label, p in tools.items()}
+        monitor = start("monitor", "--once", "--json", "--credentials", str(tmp_path / "viewer.credentials"))
+        watched, _ = monitor.communicate(timeout=60)
         for _ in range(20):
             intruder.put(f"handflow/{info.graph}/source/out", b"FORGED")
         time.sleep(0.5)
@@ -184,6 +186,7 @@ def test_a_usrpwd_graph_runs_records_and_admits_only_tools_with_the_right_passwo
     assert len(read_sink(tmp_path / "sink.jsonl")) > 100  # the nodes logged in to their own hub
     assert _recorded(tmp_path / "run.mcap").count(f"handflow/{info.graph}/scale/out") > 100
     assert tools["viewer"].returncode == 0, outputs["viewer"]
+    assert monitor.returncode == 0 and {n["id"] for n in json.loads(watched)["nodes"]} == {"source", "scale", "sink"}
     assert _recorded(tmp_path / "viewer.mcap").count(f"handflow/{info.graph}/source/out") > 100  # 3 s at 100 Hz
     assert tools["wrong"].returncode == 2 and "could not join" in outputs["wrong"][1]
     assert "with user 'viewer'" in outputs["wrong"][1] and "guess" not in outputs["wrong"][1]

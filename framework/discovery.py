@@ -140,15 +140,16 @@ def join(
     try:
         return open_client(endpoint, certificate, login), run
     except zenoh.ZError as exc:
-        who = " and ".join(
-            ([f"certificate '{name}'"] if certificate else []) + ([f"user '{login['user']}'"] if login else [])
-        )
-        checks = ([f"that its CA signed {certificate[1]}"] if certificate else []) + (
-            ["that its credentials file holds this user with this password"] if login else []
-        )
+        who, checks = [], ["that the graph runs there"]
+        if certificate is not None:
+            who.append(f"certificate '{name}'")
+            checks.append(f"that its CA signed {certificate[1]}")
+        if login is not None:
+            who.append(f"user '{login['user']}'")
+            checks.append("that its credentials file holds this user with this password")
         raise DiscoveryError(
-            f"could not join {endpoint} with {who} ({str(exc).split(' at /')[0]}); check that the graph runs there and "
-            f"{' and '.join(checks)} (docs/security.md)"
+            f"could not join {endpoint} with {' and '.join(who)} ({str(exc).split(' at /')[0]}); "
+            f"check {' and '.join(checks)} (docs/security.md)"
         ) from None
 
 

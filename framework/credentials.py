@@ -86,6 +86,8 @@ def read_credentials(path: str | Path, warn_shared: bool = False) -> Credentials
         raise CredentialsError(f"credentials file {path} is not UTF-8 text; write {FORMAT}") from None
     except OSError as exc:
         raise CredentialsError(f"cannot read credentials file {path}: {exc.strerror}") from None
+    except ValueError:  # a NUL byte or lone surrogate in the name
+        raise CredentialsError(f"{str(path)!r} is not a usable file name; name the credentials file") from None
     creds = Credentials(path, parse_credentials(text, str(path)))
     if warn_shared and path.stat().st_mode & (stat.S_IRWXG | stat.S_IRWXO):
         log.warning("credentials file %s is readable by other users; restrict it with `chmod 600 %s`", path, path)

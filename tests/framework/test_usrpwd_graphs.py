@@ -90,6 +90,22 @@ def test_mutated_credentials_parse_or_fail_clearly(lines):
     assert parse_credentials("\n".join(f"{u}:{p}" for u, p in users.items())) == users  # what the hub is given
 
 
+_SETTING = st.one_of(st.text(max_size=20), st.integers(), st.none(), st.lists(st.text(max_size=5), max_size=2))
+
+
+@settings(max_examples=150, deadline=None)
+@given(credentials=_SETTING, user=_SETTING, contents=st.binary(max_size=40))
+def test_mutated_usrpwd_settings_validate_or_fail_with_a_line(tmp_path_factory, credentials, user, contents):
+    d = tmp_path_factory.mktemp("fuzz")
+    (d / "site.credentials").write_bytes(contents)
+    settings_yaml = json.dumps({"credentials": credentials, "user": user})  # JSON is YAML
+    path = d / "graph.yaml"
+    path.write_text(f"name: fuzz\nzenoh: {{usrpwd: {settings_yaml}}}\nnodes: []\n")
+    graph, problems = validate_file(path)
+    assert (graph is None) == bool(problems)
+    assert all(p.line >= 1 and p.message for p in problems)
+
+
 def test_validate_explains_a_missing_malformed_or_mismatched_credentials_file(tmp_path):
     path = _graph(tmp_path, "{credentials: nowhere.credentials}")
     assert _problems(path) == [

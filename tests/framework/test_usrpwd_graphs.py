@@ -122,6 +122,13 @@ def test_validate_explains_a_missing_malformed_or_mismatched_credentials_file(tm
     assert _problems(_graph(tmp_path)) == []
 
 
+def test_run_says_which_login_to_choose_when_the_file_holds_several(tmp_path, monkeypatch):
+    monkeypatch.setenv("HANDFLOW_RUN_DIR", str(tmp_path / "runs"))
+    proc = start("run", str(_graph(tmp_path, "{credentials: site.credentials}")), "--duration", "1")
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 2 and "holds several users (lab, viewer); pass `handflow run --host NAME`" in err
+
+
 def test_passwords_over_plain_tcp_beyond_loopback_need_insecure(tmp_path):
     path = _graph(tmp_path, extra=", listen: [tcp/0.0.0.0:7450]")
     (problem,) = _problems(path)

@@ -267,7 +267,7 @@ class EvalPlan:
     disturb_every_s: float = 12.0
     cycle_s: float = 2.0
     seeds: tuple[int, ...] = (0, 1, 2)
-    controllers: tuple[str, ...] = BALL_CONTROLLERS
+    controllers: tuple[str, ...] = ("open_loop", "feedback_init", "closed_loop")
     classes: tuple[str, ...] = tuple(BALL_CLASSES)
     cap_classes: tuple[str, ...] = tuple(CAP_CLASSES)
     cap_disturbance_radius_cm: float = 2.5
@@ -279,7 +279,6 @@ class EvalPlan:
             cap=CapSettings(cycles=2),
             balls=BallSettings(duration_s=30.0, camera=False),
             seeds=(0,),
-            controllers=("open_loop", "feedback_init", "closed_loop"),
             cap_disturbance_cycles=3,
         )
 

@@ -100,6 +100,7 @@ def register_evaluate(parser: argparse.ArgumentParser) -> None:
         default=None,
         help="number of seeds (disturbance timing, camera noise, start jitter); default 3, quick 1",
     )
+    parser.add_argument("--jobs", type=int, default=1, help="worker processes for the ball-swap runs (default 1)")
     parser.set_defaults(func=run_evaluate)
 
 
@@ -116,6 +117,10 @@ def run_evaluate(args: argparse.Namespace) -> int:
             print(f"handflow evaluate manipulation: error: --seeds must be >= 1, got {args.seeds}", file=sys.stderr)
             return 2
         plan.seeds = tuple(range(args.seeds))
+    if args.jobs < 1:
+        print(f"handflow evaluate manipulation: error: --jobs must be >= 1, got {args.jobs}", file=sys.stderr)
+        return 2
+    plan.jobs = args.jobs
     try:
         result = evaluate(
             manifolds["constructed"],

@@ -23,6 +23,7 @@ The plain controller classes drive the plain :class:`~handflow.plugins.simulator
 from __future__ import annotations
 
 import time
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -257,12 +258,13 @@ class EvalPlan:
     cycle (``cycle_s``; period_s = 4 s per ball period = two hand cycles) seed 0 hits the open
     loop always at the same phase, a quarter into the rake stroke; every other seed shifts each
     disturbance by a seeded offset within one hand cycle (:func:`.disturbances.schedule_times`)
-    and draws its own camera noise.  Cap disturbances: one at ``cap_disturbance_cycle`` + a
+    and draws its own camera noise.  ``jobs``: worker processes for the ball runs (one task per
+    seed and controller).  Cap disturbances: one at ``cap_disturbance_cycle`` + a
     quarter cycle into the turning of a ``cap_disturbance_radius_cm`` cap."""
 
     radii_cm: tuple[float, ...] = TRAINING_RADII_CM + INTERMEDIATE_RADII_CM
     cap: CapSettings = field(default_factory=CapSettings)
-    balls: BallSettings = field(default_factory=lambda: BallSettings(duration_s=60.0, image_noise=6.0))
+    balls: BallSettings = field(default_factory=lambda: BallSettings(duration_s=48.0, image_noise=6.0))
     first_disturbance_s: float = 10.5
     disturb_every_s: float = 12.0
     cycle_s: float = 2.0
@@ -272,6 +274,7 @@ class EvalPlan:
     cap_classes: tuple[str, ...] = tuple(CAP_CLASSES)
     cap_disturbance_radius_cm: float = 2.5
     cap_disturbance_cycles: int = 4
+    jobs: int = 1
 
     @classmethod
     def quick(cls) -> EvalPlan:
@@ -288,21 +291,37 @@ class EvalPlan:
         return schedule_times(nominal, seed, self.cycle_s)
 
 
+def _controller_runs(manifold: ManipulationManifold, plan: EvalPlan, seed: int, name: str) -> dict:
+    """``{"calm": run, CLASS: (times, run)}`` of one controller and seed (:func:`ball_swap` runs)."""
+    times = plan.disturbances(seed)
+    base = BallSettings(**{**plan.balls.__dict__, "seed": seed})
+    row = {"calm": ball_swap(manifold, name, base)}
+    for cls in plan.classes:
+        opts = BALL_CLASSES[cls].scene_options(times)
+        row[cls] = (times, ball_swap(manifold, name, BallSettings(**{**base.__dict__, "scene_options": opts})))
+    return row
+
+
 def _ball_runs(manifold: ManipulationManifold, plan: EvalPlan, progress) -> dict:
-    """``{seed: {controller: {"calm": run, CLASS: (times, run)}}}`` of :func:`ball_swap` runs."""
-    runs: dict = {}
-    for seed in plan.seeds:
-        times = plan.disturbances(seed)
-        for name in plan.controllers:
-            base = BallSettings(**{**plan.balls.__dict__, "seed": seed})
-            row = runs.setdefault(seed, {})[name] = {"calm": ball_swap(manifold, name, base)}
-            for cls in plan.classes:
-                opts = BALL_CLASSES[cls].scene_options(times)
-                run = ball_swap(manifold, name, BallSettings(**{**base.__dict__, "scene_options": opts}))
-                row[cls] = (times, run)
-            rates = {k: round(_rate(v if k == "calm" else v[1], "progress"), 1) for k, v in row.items()}
-            progress(f"ball swap seed {seed} {name}: swaps/min {rates}")
-    return runs
+    """``{seed: {controller: {"calm": run, CLASS: (times, run)}}}``; ``plan.jobs`` worker processes."""
+    tasks = [(seed, name) for seed in plan.seeds for name in plan.controllers]
+    runs: dict = {seed: {} for seed in plan.seeds}
+
+    def done(seed, name, row):
+        runs[seed][name] = row
+        direction = 1.0 if filled(row["calm"]["progress"])[-1] >= 0 else -1.0
+        rates = {k: round(_rate(v if k == "calm" else v[1], "progress", direction), 1) for k, v in row.items()}
+        progress(f"ball swap seed {seed} {name}: swaps/min {rates}")
+
+    if plan.jobs <= 1:
+        for seed, name in tasks:
+            done(seed, name, _controller_runs(manifold, plan, seed, name))
+    else:
+        with ProcessPoolExecutor(plan.jobs) as pool:
+            futures = {pool.submit(_controller_runs, manifold, plan, seed, name): (seed, name) for seed, name in tasks}
+            for future in as_completed(futures):
+                done(*futures[future], future.result())
+    return {seed: {name: runs[seed][name] for name in plan.controllers} for seed in plan.seeds}
 
 
 def _class_summary(runs: dict, classes: dict, key: str, cycle_s: float) -> dict:
@@ -382,7 +401,8 @@ def cap_disturbance_report(manifold: ManipulationManifold, plan: EvalPlan, progr
             for cls in plan.cap_classes:
                 opts = CAP_CLASSES[cls].scene_options(times)
                 row[cls] = (times, cap_turning(manifold, radius, settings, seed, opts, open_loop))
-            rates = {k: round(_rate(v if k == "calm" else v[1], "turns"), 1) for k, v in row.items()}
+            direction = 1.0 if calm["turns"][-1] >= 0 else -1.0
+            rates = {k: round(_rate(v if k == "calm" else v[1], "turns", direction), 1) for k, v in row.items()}
             progress(f"cap seed {seed} {name}: deg/min {rates}")
     classes = _class_summary(runs, {c: CAP_CLASSES[c] for c in plan.cap_classes}, "turns", settings.cycle_s)
     return classes, runs

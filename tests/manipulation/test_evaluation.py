@@ -33,7 +33,11 @@ def test_recovery_time_is_the_delay_to_half_the_calm_rate_within_ten_seconds():
     np.testing.assert_allclose(recovery_times(t, -progress, [5.0, 35.0], calm, direction=-1.0), rec[[0, 2]])
     assert np.isinf(recovery_times(t, progress, [5.0], 0.0)).all()  # a controller that never swaps
     summary = summarise(rec, cycle_s=2.0)
-    assert summary == {"recovered_share": pytest.approx(1 / 3), "failures": 1, "recovery_s": pytest.approx(1.5, abs=0.03)}
+    assert summary == {
+        "recovered_share": pytest.approx(1 / 3),
+        "failures": 1,
+        "recovery_s": pytest.approx(1.5, abs=0.03),
+    }
 
 
 def test_progress_gaps_hold_the_last_value_and_the_rate_follows_the_slope():

@@ -358,7 +358,7 @@ def _rate(run: dict, key: str, direction: float = 1.0) -> float:
     t, prog = run["times"], direction * filled(run[key])
     minutes = float(t[-1] - t[0]) / 60.0
     if key == "progress":
-        return max(np.floor(prog[-1] + 1e-9), 0.0) / minutes
+        return max(float(np.floor(prog[-1] + 1e-9)), 0.0) / minutes
     return 360.0 * float(prog[-1] - prog[0]) / minutes
 
 

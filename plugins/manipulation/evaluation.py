@@ -280,7 +280,7 @@ class EvalPlan:
     def quick(cls) -> EvalPlan:
         return cls(
             cap=CapSettings(cycles=2),
-            balls=BallSettings(duration_s=30.0, camera=False),
+            balls=BallSettings(duration_s=22.0, camera=False),
             seeds=(0,),
             cap_disturbance_cycles=3,
         )

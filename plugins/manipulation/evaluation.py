@@ -137,7 +137,8 @@ def ideal_balls(sim: Simulation, width: int = 240, height: int = 180) -> np.ndar
 @dataclass
 class BallSettings:
     """Ball-swap run settings (closed loop: ``k`` steps of ``delta``, ``mask``, ``tolerance``,
-    ``lag`` and ``max_error`` of :class:`ClosedLoopController`; all: ``period_s`` per latent period
+    ``lag``, ``max_error`` and ``refractory`` — given as ``refractory_s`` seconds of hand motion,
+    one hand cycle by default, 0 = off — of :class:`ClosedLoopController`; all: ``period_s`` per latent period
     at the control rate; ``scene_options``: the balls scene's disturbance schedules, e.g.
     ``{"holds": [[10.5, 1.0]]}``; ``image_noise``: σ of seeded Gaussian pixel noise (grey levels)
     added to every camera image before the tracker; ``init_after_s``: when the feedback-initialised
@@ -160,6 +161,7 @@ class BallSettings:
     tolerance: float = 0.05
     lag: float = 0.5
     max_error: float = 0.1
+    refractory_s: float = 2.0
 
 
 BALL_CONTROLLERS = ("open_loop", "feedback_init", "closed_loop", "closed_loop_thesis")
@@ -198,7 +200,14 @@ def ball_swap(manifold: ManipulationManifold, controller: str, settings: BallSet
     with Simulation("gifu", "balls", settings.scene_options, seed=settings.seed, physics_hz=settings.physics_hz) as sim:
         open_ctl = OpenLoopController(manifold, [t_lo], delta)
         closed = ClosedLoopController(
-            manifold, settings.k, delta, settings.mask, tolerance, settings.lag, settings.max_error
+            manifold,
+            settings.k,
+            delta,
+            settings.mask,
+            tolerance,
+            settings.lag,
+            settings.max_error,
+            refractory=settings.refractory_s / settings.period_s * (t_hi - t_lo),
         )
         plan: list = []
         last = None

@@ -115,3 +115,16 @@ def test_quick_evaluation_turns_the_smallest_and_largest_cap_forward(radius_cm):
     assert res["grasp_complete"]
     assert res["deg_per_cycle"] >= 10.0
     assert len(res["per_cycle_deg"]) == EvalPlan.quick().cap.cycles
+
+
+@pytest.mark.parametrize("flag", ["--seeds", "--jobs"])
+def test_evaluate_command_rejects_fewer_than_one_seed_or_job(flag, capsys):
+    import argparse
+
+    from handflow.plugins.manipulation.cli import register_evaluate
+
+    parser = argparse.ArgumentParser()
+    register_evaluate(parser)
+    args = parser.parse_args(["--quick", flag, "0"])
+    assert args.func(args) == 2
+    assert f"{flag} must be >= 1" in capsys.readouterr().err

@@ -8,8 +8,9 @@ hand cycle, so seeds hit the hand at different phases.
 
 **Recovery** (documented definition, :func:`recovery_times`): after a disturbance *ends* (its
 time plus its duration, 0 for instantaneous ones), the recovery time is the delay to the first
-moment from which a ``window_s`` window shows progress (swaps, or cap rotation) of at least
-``fraction`` (50 %) of the same controller's calm rate; searched up to ``within_s`` after the end,
+moment from which a ``window_s`` window (the evaluation uses one hand cycle, 2 s) shows progress
+(swaps, or cap rotation) of at least ``fraction`` (50 %) of the same controller's calm rate;
+searched up to ``within_s`` after the end,
 otherwise the disturbance is a **failure** (not recovered, time ``inf``).  A disturbance counts as
 recovered within one hand cycle when its recovery time is at most ``cycle_s``.
 """

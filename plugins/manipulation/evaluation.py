@@ -333,10 +333,10 @@ def _ball_runs(manifold: ManipulationManifold, plan: EvalPlan, progress) -> dict
     return {seed: {name: runs[seed][name] for name in plan.controllers} for seed in plan.seeds}
 
 
-def _class_summary(runs: dict, classes: dict, key: str, cycle_s: float, window_s: float = 4.0) -> dict:
+def _class_summary(runs: dict, classes: dict, key: str, cycle_s: float) -> dict:
     """``{CLASS: {controller: {rate, rate_spread, calm_rate, recovered_share, failures,
-    recovery_s, disturbances}}}`` pooled over seeds (rates: median over seeds; recovery window
-    ``window_s``, see :func:`.disturbances.recovery_times`)."""
+    recovery_s, disturbances}}}`` pooled over seeds (rates: median over seeds; recovery: rate
+    over one hand cycle ``cycle_s`` back to half the calm rate, :func:`.disturbances.recovery_times`)."""
     out: dict = {}
     seeds = list(runs)
     for cls in classes:
@@ -352,7 +352,7 @@ def _class_summary(runs: dict, classes: dict, key: str, cycle_s: float, window_s
                 calms.append(calm_rate)
                 ends = np.asarray(times) + classes[cls].duration_s
                 rec.extend(
-                    recovery_times(run["times"], run[key], ends, calm_rate, window_s=window_s, direction=direction)
+                    recovery_times(run["times"], run[key], ends, calm_rate, window_s=cycle_s, direction=direction)
                 )
             out[cls][name] = {
                 "rate": float(np.median(rates)),
@@ -401,7 +401,7 @@ def ball_swap_report(manifold: ManipulationManifold, plan: EvalPlan, progress=la
 def cap_disturbance_report(manifold: ManipulationManifold, plan: EvalPlan, progress=lambda line: None) -> tuple:
     """Cap classes on the constructed manifold: open loop at the known radius vs feedback-initialised
     (grasp by navigation); rate = cap rotation in degrees per minute; one disturbance per run;
-    recovery window: one cycle (the runs are short)."""
+    recovery as for the balls, over one turning cycle."""
     settings = CapSettings(**{**plan.cap.__dict__, "cycles": plan.cap_disturbance_cycles})
     radius = plan.cap_disturbance_radius_cm
     runs: dict = {}
@@ -418,7 +418,7 @@ def cap_disturbance_report(manifold: ManipulationManifold, plan: EvalPlan, progr
             rates = {k: round(_rate(v if k == "calm" else v[1], "turns", direction), 1) for k, v in row.items()}
             progress(f"cap seed {seed} {name}: deg/min {rates}")
     cap_classes = {c: CAP_CLASSES[c] for c in plan.cap_classes}
-    classes = _class_summary(runs, cap_classes, "turns", settings.cycle_s, window_s=settings.cycle_s)
+    classes = _class_summary(runs, cap_classes, "turns", settings.cycle_s)
     return classes, runs
 
 

@@ -1,7 +1,8 @@
 """Rate-over-time figures of the disturbance evaluation (docs/manipulation.md §5).
 
 One PNG per scene (``balls``, ``cap``): a panel per disturbance class, one line per controller
-(the first seed's run), the progress rate over the trailing hand cycle, the calm rate dashed,
+(the first seed's run), the progress rate over the trailing hand cycle in the direction of the
+controller's calm run, the calm rate dashed,
 and a shaded band from each disturbance's start to its end (a line for instantaneous ones).
 """
 
@@ -14,7 +15,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 
-from .disturbances import rate_over_time
+from .disturbances import filled, rate_over_time
 
 UNITS = {"progress": "swaps/min", "turns": "deg/min"}
 
@@ -30,10 +31,10 @@ def plot_rates(runs: dict, classes: dict, key: str, folder, scene: str, cycle_s:
     for ax, (cls, spec) in zip(axes[:, 0], classes.items()):
         for i, (name, row) in enumerate(runs[seed].items()):
             times, run = row[cls]
-            colour = f"C{i}"
-            ax.plot(run["times"], scale * rate_over_time(run["times"], run[key], cycle_s), colour, lw=1.2, label=name)
-            calm = row["calm"]
-            ax.plot(calm["times"], scale * rate_over_time(calm["times"], calm[key], cycle_s), colour, lw=0.6, ls="--")
+            calm, colour = row["calm"], f"C{i}"
+            sign = scale if filled(calm[key])[-1] >= 0 else -scale
+            ax.plot(run["times"], sign * rate_over_time(run["times"], run[key], cycle_s), colour, lw=1.2, label=name)
+            ax.plot(calm["times"], sign * rate_over_time(calm["times"], calm[key], cycle_s), colour, lw=0.6, ls="--")
         for t in times:
             if spec.duration_s > 0:
                 ax.axvspan(t, t + spec.duration_s, color="red", alpha=0.15)

@@ -352,7 +352,9 @@ def _class_summary(runs: dict, classes: dict, key: str, cycle_s: float) -> dict:
                 calms.append(calm_rate)
                 ends = np.asarray(times) + classes[cls].duration_s
                 rec.extend(
-                    recovery_times(run["times"], run[key], ends, calm_rate, window_s=cycle_s, direction=direction)
+                    recovery_times(
+                        run["times"], run[key], ends, calm_rate / UNIT[key], window_s=cycle_s, direction=direction
+                    )
                 )
             out[cls][name] = {
                 "rate": float(np.median(rates)),
@@ -364,6 +366,10 @@ def _class_summary(runs: dict, classes: dict, key: str, cycle_s: float) -> dict:
     return out
 
 
+UNIT = {"progress": 1.0, "turns": 360.0}
+"""Reported rate units per progress unit: swaps per swap, degrees per cap turn."""
+
+
 def _rate(run: dict, key: str, direction: float = 1.0) -> float:
     """Progress per minute of a run in ``direction`` (balls: net whole swaps per minute, as
     :func:`~handflow.plugins.simulator.metrics.swaps_per_minute`; cap: degrees per minute)."""
@@ -371,7 +377,7 @@ def _rate(run: dict, key: str, direction: float = 1.0) -> float:
     minutes = float(t[-1] - t[0]) / 60.0
     if key == "progress":
         return max(float(np.floor(prog[-1] + 1e-9)), 0.0) / minutes
-    return 360.0 * float(prog[-1] - prog[0]) / minutes
+    return UNIT[key] * float(prog[-1] - prog[0]) / minutes
 
 
 def hardest_class(classes: dict) -> str:

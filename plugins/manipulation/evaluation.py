@@ -381,8 +381,8 @@ def _rate(run: dict, key: str, direction: float = 1.0) -> float:
 
 
 def hardest_class(classes: dict) -> str:
-    """The class in which the open loop's rate is lowest."""
-    return min(classes, key=lambda c: classes[c]["open_loop"]["rate"])
+    """The class in which the open loop's rate is lowest (without an open loop: the first controller's)."""
+    return min(classes, key=lambda c: classes[c].get("open_loop", next(iter(classes[c].values())))["rate"])
 
 
 def ball_swap_report(manifold: ManipulationManifold, plan: EvalPlan, progress=lambda line: None) -> tuple:

@@ -71,13 +71,13 @@ class CLMSegmenter(BaseEstimator):
         background_factor: float = 1.0,
         background_radius: int | None = None,
         J: float = 2.0,
-        eta: float = 0.9,
+        eta: float = 0.98,
         tol: float = 1e-3,
         max_sweeps: int = 1000,
         inhibition_margin: float = 1.5,
         spectral: str = "eigen",
         error_scale: float = 1.0,
-        restarts: int = 3,
+        restarts: int = 1,
         random_state=None,
     ) -> None:
         self.candidates = candidates
@@ -162,11 +162,12 @@ class CLMSegmenter(BaseEstimator):
         cand[:, :, span:] = 0.0
         return self.with_background(cand)
 
-    def with_background(self, cand: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Candidate bands (M, N, B) → all layers' bands and diagonals, the background layer last."""
+    def with_background(self, cand: np.ndarray, length: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Candidate bands (M, N, B) → all layers' bands and diagonals, the background layer last;
+        λ_bg is that of a sequence of ``length`` observations (default N)."""
         n = cand.shape[1]
         radius, _, width = self.widths()
-        bg, bg_diag = background_band(n, width, self.background_strength(n), radius)
+        bg, bg_diag = background_band(n, width, self.background_strength(n if length is None else length), radius)
         band = np.concatenate([cand, bg[None]], axis=0)
         diag = np.r_[np.zeros(cand.shape[0]), bg_diag]
         return band, diag

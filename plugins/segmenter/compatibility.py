@@ -224,21 +224,34 @@ def candidate_band(
     return np.where(valid, band, 0.0)
 
 
-def score_evidence(scores: np.ndarray) -> np.ndarray:
+def evidence_temperature(scores: np.ndarray) -> float:
+    """τ of :func:`score_evidence`: the median over frames of the gap between the best and the
+    second-best class score (1 when it is 0 or there is one class)."""
+    S = np.asarray(scores, dtype=float)
+    if S.ndim != 2 or S.shape[1] < 2:
+        return 1.0
+    top2 = np.sort(np.where(np.isfinite(S), S, np.nan), axis=1)[:, -2:]
+    gap = top2[:, 1] - top2[:, 0]
+    gap = gap[np.isfinite(gap)]
+    tau = float(np.median(gap)) if gap.size else 0.0
+    return tau if tau > 0 else 1.0
+
+
+def score_evidence(scores: np.ndarray, temperature: float | None = None) -> np.ndarray:
     """Per-frame class evidence in [0, 1] from any classifier's per-class scores (N, M), larger =
-    more likely: a softmax over the classes at temperature τ = the median over frames of the gap
-    between the best and the second-best score (documented choice, docs/segmentation.md: it makes
-    the mapping independent of the scorer's units — ridge decision values, negative DTW
-    distances, HMM log-likelihoods — and gives a frame with a median gap ≈ 0.73 for its best
-    class against one rival)."""
+    more likely: a softmax over the classes at temperature τ, by default the median over frames of
+    the gap between the best and the second-best score (:func:`evidence_temperature`; documented
+    choice, docs/segmentation.md: it makes the mapping independent of the scorer's units — ridge
+    decision values, negative DTW distances, HMM log-likelihoods — and gives a frame with a median
+    gap ≈ 0.73 for its best class against one rival).  A fitted scorer passes the τ of its
+    training frames, so a stream is mapped the same way sample by sample."""
     S = np.asarray(scores, dtype=float)
     if S.ndim != 2 or S.shape[1] < 1:
         raise ValueError(f"scores must be (frames, classes), got shape {S.shape}")
     S = np.where(np.isfinite(S), S, np.nanmin(np.where(np.isfinite(S), S, np.nan)) if np.isfinite(S).any() else 0.0)
     if S.shape[1] == 1:
         return np.ones_like(S)
-    top2 = np.sort(S, axis=1)[:, -2:]
-    tau = float(np.median(top2[:, 1] - top2[:, 0])) or 1.0
+    tau = evidence_temperature(S) if temperature is None else float(temperature)
     z = (S - S.max(axis=1, keepdims=True)) / tau
     e = np.exp(z)
     return e / e.sum(axis=1, keepdims=True)

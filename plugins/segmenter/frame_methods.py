@@ -21,10 +21,10 @@ from .clm_segmenter import CLMSegmenter
 from .compatibility import evidence_band, score_evidence
 from .cycles import phase_direction, split_cycles
 from .openset import REJECTED, score_thresholds, threshold_labels
+from .scorers import MiniRocketScorer
 from .training import auto_beta, candidate_set
 from .ukr_only import UKROnlyRecognizer
 
-WINDOWS_PER_SEGMENT = 12  # MiniRocket training windows per segment
 MAX_POINTS_PER_CLASS = 400
 MIN_PERIOD = 5  # frames; shortest cycle the class models look for  # UKR training points per class (documented choice: every k-th frame above it)
 
@@ -51,6 +51,11 @@ class ScoreMethod(ABC):
     """Methods with per-frame class scores; rejection = a threshold on the winning score."""
 
     name = ""
+
+    @property
+    def fit_key(self) -> str:
+        """Methods with the same key share fitted models and prepared states (the evaluation caches them)."""
+        return self.name
 
     @abstractmethod
     def grid(self, quick: bool) -> list[dict]:
@@ -107,14 +112,9 @@ class HMMMethod(ScoreMethod):
 
 
 class MiniRocketMethod(ScoreMethod):
-    """MiniRocket features of the causal window ending at each frame + a ridge classifier (aeon).
-
-    Training windows end at up to ``WINDOWS_PER_SEGMENT`` evenly spaced frames of each segment (a
-    window reaching before a segment's start repeats its first frame; documented choice that keeps
-    the ridge fit affordable).  Scores are the ridge decision values.  With a class
-    dropped (calibration), its column is removed from the decision values (the ridge is not
-    refitted: documented approximation).
-    """
+    """MiniRocket features of the causal window ending at each frame + a ridge classifier
+    (:class:`.scorers.MiniRocketScorer`, aeon).  With a class dropped (calibration), its column is
+    removed from the decision values (the ridge is not refitted: documented approximation)."""
 
     name = "minirocket"
 
@@ -122,43 +122,11 @@ class MiniRocketMethod(ScoreMethod):
         return [{"window": w} for w in ((32,) if quick else (16, 48))]
 
     def fit(self, segments, params, seed) -> Fitted:
-        MiniRocket, RidgeClassifierCV = _aeon()
-        w = params["window"]
-        classes = sorted(segments)
-        windows, targets = [], []
-        for c in classes:
-            for seg in segments[c]:
-                ends = np.unique(np.linspace(0, len(seg) - 1, WINDOWS_PER_SEGMENT).astype(int))
-                windows.append(_windows(seg, ends, w))
-                targets.append(np.full(len(ends), c))
-        transform = MiniRocket(random_state=seed)
-        F = transform.fit_transform(np.concatenate(windows))
-        ridge = RidgeClassifierCV(alphas=np.logspace(-3, 3, 10)).fit(F, np.concatenate(targets))
-        return Fitted((transform, ridge), list(ridge.classes_.astype(int)), params)
+        scorer = MiniRocketScorer(window=params["window"], random_state=seed).fit(dict(sorted(segments.items())))
+        return Fitted(scorer, list(scorer.classes_), params)
 
     def prepare(self, fitted, X):
-        transform, ridge = fitted.model
-        F = transform.transform(_windows(X, np.arange(len(X)), fitted.params["window"]))
-        d = ridge.decision_function(F)
-        return d if d.ndim == 2 else np.c_[-d, d]
-
-
-def _aeon():
-    try:
-        from aeon.transformations.collection.convolution_based import MiniRocket
-    except ImportError:
-        raise ImportError(
-            "the MiniRocket baseline needs aeon: pip install 'handflow[minirocket]' (or leave 'minirocket' out)"
-        ) from None
-    from sklearn.linear_model import RidgeClassifierCV
-
-    return MiniRocket, RidgeClassifierCV
-
-
-def _windows(X: np.ndarray, ends: np.ndarray, width: int) -> np.ndarray:
-    """(len(ends), channels, width) causal windows ending at ``ends``; the first frame pads the start."""
-    idx = np.clip(ends[:, None] - np.arange(width - 1, -1, -1)[None], 0, None)
-    return np.ascontiguousarray(X[idx].transpose(0, 2, 1))
+        return fitted.model.scores(X)
 
 
 def _thin(seqs: list[np.ndarray], k: int) -> list[np.ndarray]:
@@ -173,6 +141,10 @@ class UKRMethod:
 
     name = ""
     steps = 150
+
+    @property
+    def fit_key(self) -> str:
+        return "ukr"
 
     def _fit_candidates(self, segments, seed) -> CandidateSet:
         from handflow.plugins.manifold import StructuredUKR
@@ -276,14 +248,19 @@ class ScoreCLMMethod:
     def fit(self, segments, params, seed) -> Fitted:
         return self.scorer.fit(segments, params, seed)
 
+    @property
+    def fit_key(self) -> str:
+        return self.scorer.fit_key
+
     def prepare(self, fitted, X) -> np.ndarray:
-        return score_evidence(self.scorer.prepare(fitted, X))
+        return self.scorer.prepare(fitted, X)
 
     def labels(self, fitted, state, reject, drop=None):
         cols = _columns(fitted, drop)
         seg = CLMSegmenter(None, history=self.history, background_factor=reject, max_sweeps=300, random_state=0)
         _, _, width = seg.widths()
-        evidence = state[:, cols] / state[:, cols].sum(axis=1, keepdims=True)
+        evidence = score_evidence(state)[:, cols]
+        evidence /= evidence.sum(axis=1, keepdims=True)
         local = seg.fit_predict_bands(*seg.with_background(evidence_band(evidence, width, self.history)))
         return _to_global(local, [fitted.classes[k] for k in cols])
 

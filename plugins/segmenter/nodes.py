@@ -12,7 +12,7 @@ from __future__ import annotations
 from typing import Literal
 
 import numpy as np
-from pydantic import Field
+from pydantic import Field, model_validator
 
 from handflow.framework.messages import Array, JointState, Label, Message, MessageError, SegmentEvent
 from handflow.framework.params import StrictModel
@@ -20,6 +20,8 @@ from handflow.framework.plugin import Node
 
 from .candidates import CandidateSet, load_candidates
 from .online import OnlineCLMSegmenter, SegmentChange, SegmentTracker
+from .online_scores import OnlineScoreCLMSegmenter
+from .scorers import ScorerFileError, WindowScorer, load_scorer
 from .ukr_only import UKROnlyRecognizer
 
 UNKNOWN = "unknown"
@@ -82,35 +84,74 @@ class _RecognizerNode(Node):
 
 
 class OnlineCLMNode(_RecognizerNode):
-    """Online warm-started UKR/CLM segmentation over a sliding window (docs/segmentation.md §C)."""
+    """Online CLM segmentation over a sliding window: fast labels on arrival, final labels from
+    batch solves of the window, by revision (docs/segmentation.md §C) — over the UKR manifolds
+    (``source: ukr``) or a fitted frame scorer's evidence (``minirocket``, ``dtw``)."""
 
     class Params(RecognizerParams):
+        models: str | list[str] | None = Field(
+            None, description="source ukr: folder written by `handflow train-classes`, or model files"
+        )
+        source: Literal["ukr", "minirocket", "dtw"] = Field(
+            "ukr", description="what the CLM groups: UKR manifolds (models) or a fitted scorer's class scores (scorer)"
+        )
+        scorer: str | None = Field(None, description="source minirocket/dtw: file written by `handflow fit-scorer`")
         window: int = Field(200, ge=2, description="observations in the sliding window")
-        background_factor: float = Field(1.0, gt=0, description="multiplies λ_bg (3 = strong background)")
+        background_factor: float = Field(1.0, ge=0, description="multiplies λ_bg (3 = strong background; 0 = none)")
         background: float | None = Field(None, description="λ_bg; null = 1 − 10/N")
         error_scale: float = Field(1.0, gt=0, description="multiplies e_t before c_sre (1 = spec)")
         order_rating: Literal["sign", "cos"] = "sign"
-        warm_temperature: float = Field(0.05, ge=0, description="warm-start temperature / λ_max")
-        max_sweeps: int = Field(150, ge=1, description="CLM sweep budget per update (anytime; bounds latency)")
+        tail: int = Field(30, ge=1, description="newest observations the fast CLM run solves per update")
+        update_eta: float = Field(0.9, gt=0, le=1, description="annealing factor per sweep of the fast run")
+        update_sweeps: int = Field(
+            60, ge=1, description="sweep budget of the fast CLM run per update (labels on arrival)"
+        )
+        block: int | None = Field(
+            None, ge=0, description="observations finalised per block run (null = window/2, 0 = none)"
+        )
+        block_sweeps: int = Field(10, ge=1, description="sweeps of the running block run per update")
         confirm: int = Field(5, ge=1, description="updates a changed earlier label must hold before a revision")
         seed: int | None = 0
 
+        @model_validator(mode="after")
+        def _source_file(self):
+            if self.source == "ukr" and not self.models:
+                raise ValueError("source 'ukr' needs 'models' (a folder from `handflow train-classes`)")
+            if self.source != "ukr" and not self.scorer:
+                raise ValueError(f"source '{self.source}' needs 'scorer' (a file from `handflow fit-scorer`)")
+            return self
+
     def setup(self) -> None:
         p = self.params
-        self.segmenter = OnlineCLMSegmenter(
-            self.load_models(),
+        common = dict(
             window=p.window,
             history=p.history,
             background=p.background,
             background_factor=p.background_factor,
             error_scale=p.error_scale,
             order_rating=p.order_rating,
-            warm_temperature=p.warm_temperature,
-            max_sweeps=p.max_sweeps,
+            tail=p.tail,
+            update_eta=p.update_eta,
+            update_sweeps=p.update_sweeps,
+            block=p.block,
+            block_sweeps=p.block_sweeps,
             confirm=p.confirm,
             random_state=p.seed,
         )
+        if p.source == "ukr":
+            self.segmenter = OnlineCLMSegmenter(self.load_models(), **common)
+        else:
+            self.segmenter = OnlineScoreCLMSegmenter(self.load_scorer(), **common)
         self.classes = self.segmenter.classes_
+
+    def load_scorer(self) -> WindowScorer:
+        scorer = load_scorer(self.ctx.resolve_path(self.params.scorer))
+        if scorer.kind != self.params.source:
+            raise ScorerFileError(
+                f"{self.params.scorer} holds a '{scorer.kind}' scorer, but the node's source is "
+                f"'{self.params.source}'; set source: {scorer.kind}"
+            )
+        return scorer
 
     def recognise(self, y: np.ndarray, stamp: int) -> None:
         up = self.segmenter.update(y)

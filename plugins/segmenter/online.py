@@ -2,16 +2,25 @@
 
 :class:`OnlineCLMSegmenter` keeps a sliding window of the last ``window`` observations.  Each new
 observation is projected onto the candidates once; only the compatibilities that involve it (one
-new band row per layer) are computed, the others shift with the window.  The CLM is then re-run
-**warm**: kept neurons start from their previous activities (biased towards their previous
-winner) plus small random values on every layer (so the start is not unique), the new column
-starts small and random, and the temperature starts at ``warm_temperature · λ_max`` instead of
-``λ_max``.  When later evidence changes the label of an earlier observation in the window, a
-revision is reported — only once it is *confirmed* (documented choice, see
-:meth:`OnlineCLMSegmenter._revisions`): the changed label must have held for ``confirm``
-consecutive updates, and observations within ``edge`` of the window's oldest end (they are about
-to leave and have lost their older neighbours) are never revised.  A confirmed revision moves the
-published segment boundaries (:class:`SegmentTracker`).
+new band row per layer) are computed, the others shift with the window.  Two CLM runs share the
+batch solver (:class:`~handflow.plugins.segmenter.clm.CompetitiveLayerModel`):
+
+* the **fast** run gives each observation its label on arrival: the previous activities are kept,
+  the new column starts small and random at the batch start temperature, and every column is
+  annealed from its own arrival (one temperature per column, ``T ← η T`` per sweep) by
+  ``update_sweeps`` sweeps per update — a streaming version of the batch annealing whose cost does
+  not grow with the number of sweeps a cold solve needs;
+* the **block** run makes the *final* labels: every ``block`` observations a cold, annealed solve of
+  the whole window starts — the batch solve, with the batch's parameters — and is advanced
+  ``block_sweeps`` sweeps per update; when it ends, the observations in the middle ``block`` of its
+  window (the first ones too, at the start of the stream) take its labels for good.  They have
+  ``(window − block)/2`` observations of context on either side, where the whole-stream batch
+  solution is, in practice, already fixed (docs/benchmarks.md); :meth:`OnlineCLMSegmenter.finish`
+  solves what is left at the end of a stream.
+
+A changed label of an already published observation is reported as a revision: from a block run at
+once, from the fast run once *confirmed* (documented choice, see :meth:`OnlineCLMSegmenter._revisions`).
+A revision moves the published segment boundaries (:class:`SegmentTracker`).
 """
 
 from __future__ import annotations
@@ -21,8 +30,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .candidates import CandidateSet
+from .clm import CLMRun
 from .clm_segmenter import REJECTED, CLMSegmenter
-from .compatibility import background_band, candidate_band, order_rating, pair_error
+from .compatibility import candidate_band, order_rating, pair_error
 
 
 @dataclass
@@ -115,53 +125,63 @@ class OnlineUpdate:
 
 
 class OnlineCLMSegmenter(CLMSegmenter):
-    """Sliding-window warm-started CLM segmentation of a stream.
+    """Sliding-window CLM segmentation of a stream: fast labels on arrival, batch-equal final labels.
 
-    Takes the parameters of :class:`CLMSegmenter` (with ``spectral="gershgorin"`` and
-    ``max_sweeps=150`` by default) plus the ones below.  Documented choice: ``max_sweeps`` is a
-    per-update budget — an online update is anytime: an unconverged solution still gives labels
-    (the strongest layer per observation) and the next update continues warm from it, which bounds
-    the per-sample latency (a cold check or an unlucky warm run could otherwise take 1000 sweeps).
+    Takes the parameters of :class:`CLMSegmenter` (with ``spectral="gershgorin"`` by default: the
+    exact λ_max costs more than the sweeps here) plus the ones below.
 
-    window : number of most recent observations the CLM sees (thesis-free choice; 200 = 2 s at 100 Hz).
-    warm_start : re-use the previous solution (False = every update solves cold, for comparison).
-    warm_temperature : start temperature of a warm run as a fraction of λ_max.
-    warm_bias : strength of the bias towards the previous winner (times the mean winning activity).
-    fresh : the most recent observations that start unbiased; ``None`` = 2H.
-    cold_every : every this many warm updates also solve cold and keep the solution of lower
-        energy (the warm dynamics can stay in the local minimum of a running segment that
-        swallows the next motion; ``None`` = never).
-    confirm : a changed label of an already published observation is reported as a revision only
-        after it held for this many consecutive updates (1 = report every change at once).
-    edge : observations this close to the window's oldest end are not revised; ``None`` = H.
+    window : number of most recent observations the CLM sees (200 = 2 s at 100 Hz).
+    tail : observations the fast run solves (the newest ones; the older ones' activities are a
+        fixed context); ``None`` = the whole window (every update solves the window cold: the
+        baseline of docs/benchmarks.md).
+    update_eta : annealing factor per sweep of the fast run (the batch's η = 0.98 needs ~300
+        sweeps; the fast run is a quick look at the newest observations).
+    update_sweeps : sweep budget of the fast run per update (anytime: an unconverged run still
+        gives labels).
+    block : stride of the block runs (observations finalised per block run); ``None`` = half the
+        window; 0 = no block runs (the fast run's labels, with confirmed revisions, are final).
+        A block run is one run of the batch solver (the batch default ``restarts=1``).
+    block_sweeps : sweeps of the running block run per update; a run still going when its first
+        unfinalised observation is about to leave the window (or the next run is due) is finished
+        at once.
+    confirm : a changed label from the fast run is reported as a revision only after it held for
+        this many consecutive updates (1 = report every change at once).
+    edge : observations this close to the window's oldest end are not revised by the fast run;
+        ``None`` = H.
     """
 
     def __init__(
         self,
         candidates: CandidateSet,
         window: int = 200,
-        warm_start: bool = True,
-        warm_temperature: float = 0.05,
-        warm_bias: float = 1.0,
-        fresh: int | None = None,
-        cold_every: int | None = 10,
+        tail: int | None = 30,
+        update_eta: float = 0.9,
+        update_sweeps: int = 60,
+        block: int | None = None,
+        block_sweeps: int = 10,
         confirm: int = 5,
         edge: int | None = None,
         **clm_params,
     ) -> None:
         clm_params.setdefault("spectral", "gershgorin")
-        clm_params.setdefault("max_sweeps", 150)
         super().__init__(candidates, **clm_params)
         if window < 2:
             raise ValueError(f"window must hold at least 2 observations, got {window}")
-        self.window = window
-        self.warm_start = warm_start
-        self.warm_temperature = warm_temperature
-        self.warm_bias = warm_bias
-        self.fresh = 2 * self.history if fresh is None else int(fresh)
-        self.cold_every = cold_every
+        block = window // 2 if block is None else int(block)
+        if not 0 <= block <= window:
+            raise ValueError(f"block must lie in 0…window ({window}), got {block}")
+        if update_sweeps < 1 or block_sweeps < 1:
+            raise ValueError(f"update_sweeps and block_sweeps must be >= 1, got {update_sweeps}, {block_sweeps}")
         if confirm < 1:
             raise ValueError(f"confirm must be >= 1 update, got {confirm}")
+        self.window = window
+        self.tail = window if tail is None else min(int(tail), window)
+        if self.tail < 1:
+            raise ValueError(f"tail must be >= 1 observation, got {tail}")
+        self.update_eta = update_eta
+        self.update_sweeps = int(update_sweeps)
+        self.block = int(block)
+        self.block_sweeps = int(block_sweeps)
         self.confirm = int(confirm)
         self.edge = self.history if edge is None else int(edge)
         self.reset()
@@ -169,25 +189,45 @@ class OnlineCLMSegmenter(CLMSegmenter):
     @classmethod
     def _get_param_names(cls) -> list[str]:
         """The window parameters and every :class:`CLMSegmenter` parameter (``**clm_params``)."""
-        own = ["window", "warm_start", "warm_temperature", "warm_bias", "fresh", "cold_every", "confirm", "edge"]
+        own = ["window", "tail", "update_eta", "update_sweeps", "block", "block_sweeps", "confirm", "edge"]
         return sorted(set(CLMSegmenter._get_param_names()) | set(own))
 
     def reset(self) -> None:
         """Forget the stream."""
-        m = len(self.candidates)
+        m = self._n_layers()
         self._radius, self._span, self._width = self.widths()
-        self._latent = np.zeros((self.window, m))
-        self._errors = np.zeros((self.window, m))
+        self._rows = self._source_rows(m)  # per-observation source buffers (window, m), slid together
         self._band = np.zeros((m, self.window, self._width))
-        self._x: np.ndarray | None = None
-        self._labels = np.zeros(0, dtype=int)  # current CLM labels of the window
+        self._labels = np.zeros(0, dtype=int)  # current labels of the window (fast run, then final)
         self._published = np.zeros(0, dtype=int)  # labels last reported for the window
+        self._final = np.zeros(0, dtype=bool)  # labels fixed by a block run
+        self._x = np.zeros((m + 1, 0))  # activities: fast run's, block run's when final
         self._pending = np.zeros(0, dtype=int)  # consecutive updates a differing label held
         self._pending_label = np.zeros(0, dtype=int)  # the label those updates held
+        self._run: tuple[int, int, CLMRun] | None = None  # block run: its first column, end of its finalised part
+        self._finalised = 0  # global index of the first observation without a final label
         self.n = 0  # observations in the window
         self.seen = 0  # observations consumed in total
         self.segments = SegmentTracker(memory=self.window)
-        self.since_cold = 0
+
+    def _n_layers(self) -> int:
+        return len(self.candidates)
+
+    def _source_rows(self, m: int) -> dict[str, np.ndarray]:
+        """Buffers of what the source gives per observation: latent times and errors per candidate."""
+        return {"latent": np.zeros((self.window, m)), "errors": np.zeros((self.window, m))}
+
+    def _recent_band(self, lo: int, j: int) -> np.ndarray:
+        """Band (m, j − lo + 1, width) of the observations ``lo…j`` of the window."""
+        return candidate_band(
+            self._rows["latent"][lo : j + 1],
+            self._rows["errors"][lo : j + 1],
+            self._width,
+            order_rating(self.order_rating),
+            pair_error(self.pair_error),
+            self.order_path,
+            self.candidates.seams(),
+        )
 
     @property
     def window_start(self) -> int:
@@ -201,7 +241,7 @@ class OnlineCLMSegmenter(CLMSegmenter):
 
     @property
     def published_labels(self) -> np.ndarray:
-        """Labels as reported so far (on arrival, then by confirmed revisions), oldest first."""
+        """Labels as reported so far (on arrival, then by revisions), oldest first."""
         return self._published.copy()
 
     def update(self, y: np.ndarray) -> OnlineUpdate:
@@ -209,122 +249,149 @@ class OnlineCLMSegmenter(CLMSegmenter):
         proj = self.candidates.project(np.asarray(y, dtype=float).reshape(1, -1))
         return self.update_projected(proj.latent_time[0], proj.errors[0])
 
-    def _append(self, latent_time: np.ndarray, errors: np.ndarray) -> None:
+    def _append(self, **rows: np.ndarray) -> None:
+        """Add one observation's source rows (:meth:`_source_rows`) and its new band entries."""
         if self.n == self.window:  # slide: drop the oldest observation everywhere
-            self._latent[:-1] = self._latent[1:]
-            self._errors[:-1] = self._errors[1:]
+            for buf in self._rows.values():
+                buf[:-1] = buf[1:]
             self._band[:, :-1] = self._band[:, 1:]
             self._band[:, -1] = 0.0
-            if self._x is not None:
-                self._x = self._x[:, 1:]
-            self._labels = self._labels[1:]
-            self._published = self._published[1:]
-            self._pending = self._pending[1:]
-            self._pending_label = self._pending_label[1:]
+            for name in ("_labels", "_published", "_final", "_pending", "_pending_label"):
+                setattr(self, name, getattr(self, name)[1:])
+            self._x = self._x[:, 1:]
         else:
             self.n += 1
         j = self.n - 1
-        self._latent[j], self._errors[j] = latent_time, errors
+        for name, row in rows.items():
+            self._rows[name][j] = row
         lo = max(0, j - self._width)
-        recent = candidate_band(
-            self._latent[lo : j + 1],
-            self._errors[lo : j + 1],
-            self._width,
-            order_rating(self.order_rating),
-            pair_error(self.pair_error),
-            self.order_path,
-            self.candidates.seams(),
-        )
-        for k in range(1, j - lo + 1):  # pair (j − k, j) sits in row j − k, column k − 1
-            self._band[:, j - k, k - 1] = recent[:, j - k - lo, k - 1] if k <= self._span else 0.0
+        recent = self._recent_band(lo, j)
+        k = np.arange(1, min(j - lo, self._span) + 1)  # pair (j − k, j) sits in row j − k, column k − 1
+        self._band[:, j - k, k - 1] = recent[:, j - k - lo, k - 1]
         self.seen += 1
 
     def layers(self) -> tuple[np.ndarray, np.ndarray]:
-        """Bands and diagonals of all layers over the current window (background last)."""
-        n = self.n
-        bg, bg_diag = background_band(
-            n,
-            self._width,
-            self.background_strength(n),
-            self._radius,
-        )
-        band = np.concatenate([self._band[:, :n], bg[None]], axis=0)
-        return band, np.r_[np.zeros(len(self.candidates)), bg_diag]
+        """Bands and diagonals of all layers over the current window (background last).
+
+        Documented choice: λ_bg is that of the stream so far (``seen`` observations), not of the
+        window — the thesis rule ``1 − 10/N`` takes N = the length of the segmented sequence, and the
+        whole-stream batch uses the stream's length.
+        """
+        return self.with_background(self._band[:, : self.n], length=self.seen)
 
     def update_projected(self, latent_time: np.ndarray, errors: np.ndarray) -> OnlineUpdate:
         """:meth:`update` for an observation already projected onto all candidates."""
-        self._append(np.asarray(latent_time, dtype=float), np.asarray(errors, dtype=float) * self.error_scale)
+        self._append(
+            latent=np.asarray(latent_time, dtype=float), errors=np.asarray(errors, dtype=float) * self.error_scale
+        )
+        return self._segment()
+
+    def _segment(self) -> OnlineUpdate:
+        """Re-run the CLM over the window (fast run, block runs) and publish the newest label."""
         band, diag = self.layers()
         solver = self._solver()
         lam = solver.spectral_scale(band, diag)
-        warm = self.warm_start and self._x is not None
-        result = None
-        if warm:
-            x0 = solver.initial_activities((band.shape[0], self.n))
-            x0[:, :-1] += self.warm_bias * self._warm_template()
-            result = solver.solve(band, diag, x0=x0, temperature=self.warm_temperature * max(lam, 0.0), lambda_max=lam)
-            self.since_cold += 1
-        if not warm or (self.cold_every and self.since_cold >= self.cold_every):
-            cold = solver.solve(band, diag, lambda_max=lam)
-            self.since_cold = 0
-            if result is None or cold.energy < result.energy:
-                result = cold
+        tail = min(self.n, self.tail)
+        x0 = np.concatenate([self._x, solver.initial_activities((band.shape[0], 1))], axis=1)
+        x0[:, -tail:] = solver.initial_activities((band.shape[0], tail))
+        run = solver.start(band, diag, x0=x0, lambda_max=lam, eta=self.update_eta, first=self.n - tail)
+        run.advance(self.update_sweeps)
+        result = run.result(energy=False)
         self._store(result)
         self._x = result.activities
-        self._labels = self.labels_.copy()
-        newest = int(self._labels[-1])
+        labels = np.r_[self._labels, REJECTED]
+        labels[-tail:] = np.where(np.r_[self._final, False][-tail:], labels[-tail:], self.labels_[-tail:])
+        self._labels = labels
+        newest = int(labels[-1])
         events = self._revisions()
         self._published = np.r_[self._published, newest]
+        self._final = np.r_[self._final, False]
         self._pending = np.r_[self._pending, 0]
         self._pending_label = np.r_[self._pending_label, newest]
         events += self.segments.update(self.seen - 1, newest)
+        events += self._blocks(band, diag, lam)
         return OnlineUpdate(
             index=self.seen - 1,
             label=newest,
             scores=result.activities[:-1, -1].copy(),
-            sweeps=result.sweeps,
-            converged=result.converged,
+            sweeps=run.sweeps,
+            converged=run.converged,
             events=events,
         )
 
+    def _blocks(self, band: np.ndarray, diag: np.ndarray, lam: float) -> list[SegmentChange]:
+        """Advance the running block run, finalise its labels when it ends, start the next one."""
+        if not self.block:
+            return []
+        events = []
+        due = self.seen % self.block == 0
+        # the run must end before its first unfinalised observation leaves the window
+        last_chance = due or self._finalised <= self.window_start + (self.n == self.window)
+        if self._run is not None and self._run[2].advance(self.max_sweeps if last_chance else self.block_sweeps):
+            events = self._finalise(*self._run)
+            self._run = None
+        stop = self.seen - (self.window - self.block) // 2  # observations with that much context after them
+        if due and stop > self._finalised:
+            self._run = (self.window_start, stop, self._solver().start(band, diag, lambda_max=lam))
+        return events
+
+    def _finalise(self, first: int, stop: int, run: CLMRun | np.ndarray) -> list[SegmentChange]:
+        """Fix the labels of observations ``self._finalised … stop − 1`` (global) to those of a
+        block run (or given labels) over the observations from ``first`` on."""
+        labels = self.labels_from(run.result()) if isinstance(run, CLMRun) else run
+        a, b = self._finalised - self.window_start, min(stop, self.seen) - self.window_start
+        if b <= a:
+            return []
+        self._labels[a:b] = labels[self._finalised - first : stop - first]
+        if isinstance(run, CLMRun):  # the fast run's fixed context continues from the final solution
+            self._x[:, a:b] = run.x[:, self._finalised - first : stop - first]
+        self._final[a:b] = True
+        self._finalised = stop
+        ready = np.zeros(self.n, dtype=bool)
+        ready[a:b] = True
+        return self._publish(ready)
+
+    def finish(self) -> list[SegmentChange]:
+        """End of stream: complete the running block run, solve the window cold as the batch does
+        and fix every label not yet final; returns the revisions (the stream may go on after it)."""
+        events = []
+        if self._run is not None:
+            self._run[2].advance(self.max_sweeps)
+            events = self._finalise(*self._run)
+            self._run = None
+        if self.n:
+            events += self._finalise(self.window_start, self.seen, self.fit_predict_bands(*self.layers()))
+            self._x = self.activities_.copy()
+        return events
+
     def replay(self, Y: np.ndarray) -> np.ndarray:
         """Feed a whole (N, d) stream through :meth:`update` (the node's code path) from a fresh
-        state; returns each observation's *final* published label (on arrival, then changed only
-        by confirmed revisions) — what a subscriber to the node's labels and events ends up with."""
+        state and :meth:`finish` it; returns each observation's *final* published label (on
+        arrival, then changed only by revisions) — what a subscriber to the node's labels and
+        events ends up with."""
         Y = np.atleast_2d(np.asarray(Y, dtype=float))
         self.reset()
-        proj = self.candidates.project(Y)
         labels = np.empty(len(Y), dtype=int)
-        for t in range(len(Y)):
-            up = self.update_projected(proj.latent_time[t], proj.errors[t])
-            labels[t] = up.label
-            for ev in up.events:
+
+        def apply(events):
+            for ev in events:
                 if ev.kind == "revision":
                     labels[ev.start : ev.end + 1] = ev.label
+
+        for up in self._updates(Y):
+            labels[up.index] = up.label
+            apply(up.events)
+        apply(self.finish())
         return labels
 
-    def _warm_template(self) -> np.ndarray:
-        """Bias towards each kept observation's previous winner, scaled by the mean winning activity.
-
-        Documented choices: only observations previously assigned to a *candidate* layer are
-        biased — rejected (background) ones restart like new neurons, so a new motion first
-        rejected for lack of support can still form its group later; and the ``fresh`` most recent
-        observations are never biased, so a running segment cannot simply swallow the start of the
-        next motion.
-        """
-        prev = self._x
-        cols = np.arange(prev.shape[1])
-        winners = prev.argmax(axis=0)
-        top = prev[winners, cols]
-        scale = float(top[top > 0].mean()) if (top > 0).any() else 0.0
-        out = np.zeros_like(prev)
-        keep = (top > 0) & (winners < prev.shape[0] - 1) & (cols < prev.shape[1] - self.fresh)
-        out[winners[keep], cols[keep]] = scale
-        return out
+    def _updates(self, Y: np.ndarray):
+        """Updates of a whole stream, the source evaluated once for all of it."""
+        proj = self.candidates.project(Y)
+        for t in range(len(Y)):
+            yield self.update_projected(proj.latent_time[t], proj.errors[t])
 
     def _revisions(self) -> list[SegmentChange]:
-        """Confirmed revisions of published labels, one event per (old → new) run, each followed by
-        the segment boundaries it moved.
+        """Confirmed revisions by the fast run (labels fixed by a block run excepted).
 
         Documented choice: observation ``i`` is revised when its current label differs from the
         published one and has differed (with the same new label) for ``confirm`` consecutive
@@ -333,13 +400,23 @@ class OnlineCLMSegmenter(CLMSegmenter):
         revises the same observations but releases them one per update, as many single-point events.
         """
         new, old = self._labels[:-1], self._published
-        differs = new != old
+        differs = (new != old) & ~self._final
         held = differs & (self._pending_label == new)
         self._pending = np.where(differs, np.where(held, self._pending + 1, 1), 0)
         self._pending_label = new.copy()
         ready = self._pending >= self.confirm
         if self.n == self.window:
             ready[: self.edge] = False
+        self._pending[ready] = 0
+        return self._publish(np.r_[ready, np.zeros(len(self._labels) - len(ready), dtype=bool)])
+
+    def _publish(self, ready: np.ndarray) -> list[SegmentChange]:
+        """Publish the current labels of the ``ready`` window positions that differ from the
+        published ones: one revision event per (old → new) run, each followed by the segment
+        boundaries it moved."""
+        new = self._labels[: len(self._published)]
+        old = self._published
+        ready = ready[: len(old)] & (new != old)
         events: list[SegmentChange] = []
         base = self.window_start
         for i in np.flatnonzero(ready).tolist():
@@ -349,7 +426,6 @@ class OnlineCLMSegmenter(CLMSegmenter):
             else:
                 events.append(SegmentChange("revision", int(new[i]), base + i, base + i, int(old[i])))
         self._published[ready] = new[ready]
-        self._pending[ready] = 0
         return [out for ev in events for out in [ev, *self.segments.revise(ev.start, ev.end, ev.label)]]
 
 

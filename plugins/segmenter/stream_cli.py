@@ -1,4 +1,5 @@
-"""``handflow evaluate segmentation`` on continuous recordings (docs/segmentation.md)."""
+"""``handflow evaluate segmentation`` on continuous recordings, ``basicmotions-continuous`` and
+``fit-scorer`` (docs/segmentation.md)."""
 
 from __future__ import annotations
 
@@ -9,7 +10,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .continuous import basicmotions_continuous, load_recordings
+from .continuous import basicmotions_continuous, load_recordings, segments
+from .scorers import SCORERS
 from .stream_evaluation import DEFAULT_METHODS, StreamEvaluator
 
 
@@ -90,4 +92,46 @@ def run_make_continuous(args) -> int:
     out.parent.mkdir(parents=True, exist_ok=True)
     np.savez(out, **arrays)
     print(f"wrote {args.recordings} recordings to {out}")
+    return 0
+
+
+def register_fit_scorer(parser) -> None:
+    parser.description = (
+        "Fit a frame scorer (MiniRocket or DTW 1-NN over the causal window) on every labelled segment of "
+        "continuous recordings and save it without pickle, for the segmenter.online_clm node (docs/segmentation.md)."
+    )
+    parser.add_argument("recordings", help="folder of labelled CSV recordings or a continuous .npz")
+    parser.add_argument("--source", choices=sorted(SCORERS), default="minirocket")
+    parser.add_argument("--out", required=True, help="scorer file to write (.npz)")
+    parser.add_argument("--window", type=int, default=32, help="frames of the causal window (MiniRocket: >= 9)")
+    parser.add_argument("--known", help="comma-separated classes to model (default: all)")
+    parser.add_argument("--seed", type=int, default=0, help="MiniRocket's random state")
+    parser.set_defaults(func=run_fit_scorer)
+
+
+def run_fit_scorer(args) -> int:
+    t0 = time.perf_counter()
+    try:
+        data = load_recordings(args.recordings)
+        names = args.known.split(",") if args.known else data.class_names
+        missing = sorted(set(names) - set(data.class_names))
+        if missing:
+            raise ValueError(f"--known names classes {missing} that the data lacks; it has {data.class_names}")
+        segs = segments(data.recordings, [data.class_names.index(n) for n in names])
+        empty = [n for n in names if not segs[data.class_names.index(n)]]
+        if empty:
+            raise ValueError(f"classes {empty} have no labelled segment of 2+ frames")
+        cls = SCORERS[args.source]
+        scorer = (
+            cls(window=args.window, random_state=args.seed) if args.source == "minirocket" else cls(window=args.window)
+        )
+        scorer.fit({n: segs[data.class_names.index(n)] for n in names})
+    except (ValueError, ImportError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    out = scorer.save(args.out)
+    print(
+        f"wrote {args.source} scorer ({len(names)} classes: {', '.join(names)}; window {args.window}) "
+        f"to {out} in {time.perf_counter() - t0:.1f}s"
+    )
     return 0

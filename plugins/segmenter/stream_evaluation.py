@@ -75,6 +75,7 @@ class StreamEvaluator:
         self.quick = quick
         self.random_state = random_state
         self.progress = progress
+        self._cache: dict[tuple, object] = {}
 
     # -- one fold ---------------------------------------------------------------------------
     def _segments(self, recs: list[Recording]) -> dict[int, list[np.ndarray]]:
@@ -92,8 +93,8 @@ class StreamEvaluator:
         present = [c for c in self.known if np.any(truth == c)]
         best = (None, None, -np.inf)
         for params in method.grid(self.quick):
-            fits = [(method.fit(self._segments(rest), params, self.random_state), v) for v, rest in folds]
-            states = [(f, method.prepare(f, v.X)) for f, v in fits]
+            fits = [(self._fit(method, rest, params), v) for v, rest in folds]
+            states = [(f, self._prepare(method, f, v)) for f, v in fits]
             grid = method.reject_grid(fits[0][0], [s for _, s in states])
 
             def pred(r, drop=None, states=states):
@@ -111,13 +112,27 @@ class StreamEvaluator:
                 best = (params, value, score)
         return best
 
+    def _fit(self, method, train: list[Recording], params: dict) -> Fitted:
+        """``method.fit`` on ``train``, shared within a fold by the methods of one ``fit_key``
+        (minirocket and clm_minirocket fit the same classifier on the same data)."""
+        key = (method.fit_key, repr(sorted(params.items())), tuple(r.name for r in train))
+        if key not in self._cache:
+            self._cache[key] = method.fit(self._segments(train), params, self.random_state)
+        return self._cache[key]
+
+    def _prepare(self, method, fitted: Fitted, rec: Recording):
+        key = (method.fit_key, id(fitted), rec.name)
+        if key not in self._cache:
+            self._cache[key] = method.prepare(fitted, rec.X)
+        return self._cache[key]
+
     def run_fold(self, held: str) -> FoldResult:
         train = self.data.without(held)
         recs = _zscore(train, self.data.recordings)
         by_name = {r.name: r for r in recs}
         train = [by_name[r.name] for r in train]
         test = by_name[held]
-        segs = self._segments(train)
+        self._cache.clear()  # fits and states hold this fold's normalisation
         labels, selected, sweeps = {}, {}, {}
         for name in self.methods:
             if name == "ukr_clm_online":
@@ -125,8 +140,8 @@ class StreamEvaluator:
             t0 = time.perf_counter()
             params, reject, score = self._select(name, train)
             method = METHODS[name]
-            fitted = method.fit(segs, params, self.random_state)
-            state = method.prepare(fitted, test.X)
+            fitted = self._fit(method, train, params)
+            state = self._prepare(method, fitted, test)
             labels[name] = method.labels(fitted, state, reject)
             sweeps[name] = [method.labels(fitted, state, r) for r in method.reject_grid(fitted, [state])]
             selected[name] = {**params, "reject": float(reject), "validation_objective": score}
@@ -144,6 +159,7 @@ class StreamEvaluator:
             history=METHODS["ukr_clm"].history,
             background_factor=reject,
             error_scale=fitted.params["error_scale"],
+            max_sweeps=300,  # as the batch ukr_clm (frame_methods.UKRCLMMethod)
             random_state=0,
         )
         published = np.full(len(X), -1)
@@ -153,6 +169,9 @@ class StreamEvaluator:
             for ev in update.events:
                 if ev.kind == "revision":
                     published[ev.start : ev.end + 1] = ev.label
+        for ev in seg.finish():  # the recording ends: the last observations get their final labels
+            if ev.kind == "revision":
+                published[ev.start : ev.end + 1] = ev.label
         lut = np.r_[np.asarray(fitted.classes), -1]
         return lut[np.where(published < 0, len(fitted.classes), published)]
 

@@ -29,6 +29,13 @@ def test_largest_eigenvalue_matches_dense():
         assert largest_eigenvalue(band[a], diag[a]) == pytest.approx(np.linalg.eigvalsh(dense(band[a], diag[a]))[-1])
 
 
+def test_largest_eigenvalue_of_long_sequences_matches_dense():  # the Lanczos path (N >= 200)
+    band, diag = random_layers(n=300, width=6)
+    band[1] = 0.0  # an all-zero layer: its eigenvalue is the diagonal
+    for a in range(band.shape[0]):
+        assert largest_eigenvalue(band[a], diag[a]) == pytest.approx(np.linalg.eigvalsh(dense(band[a], diag[a]))[-1])
+
+
 def test_energy_matches_dense_formula():
     band, diag = random_layers(n=12, width=3)
     x = np.random.default_rng(1).uniform(0, 1, size=(band.shape[0], 12))
@@ -125,3 +132,53 @@ def test_clm_estimators_store_only_and_clone():
     labels = seg.fit_predict_bands(*seg.with_background(band))
     assert labels.shape == (6,) and hasattr(seg, "labels_")
     assert np.array_equal(clone(seg).fit_predict_bands(*seg.with_background(band)), labels)
+
+
+def test_run_advanced_in_pieces_ends_at_a_fixed_point_like_one_solve():
+    band, diag = random_layers(n=60)
+    clm = CompetitiveLayerModel(random_state=0)
+    x0 = clm.initial_activities((band.shape[0], band.shape[1]))
+    run = clm.start(band, diag, x0=x0)
+    pieces = 0
+    while not run.advance(7):
+        pieces += 1
+    assert run.converged and pieces > 1 and run.sweeps <= clm.max_sweeps
+    res = run.result()
+    one = CompetitiveLayerModel(random_state=0).solve(band, diag, x0=x0)
+    np.testing.assert_array_equal(res.winners, one.winners)
+    # fixed point of the un-annealed dynamics: every neuron is its own coordinate-wise minimiser
+    x, inhib = res.activities, res.inhibition
+    L, N, B = band.shape
+    for a in range(L):
+        for r in range(N):
+            lat = sum(band[a, r, k - 1] * x[a, r + k] for k in range(1, B + 1) if r + k < N)
+            lat += sum(band[a, r - k, k - 1] * x[a, r - k] for k in range(1, B + 1) if r - k >= 0)
+            best = max(0.0, (2.0 - inhib * (x[:, r].sum() - x[a, r]) + lat) / (inhib - diag[a]))
+            assert abs(best - x[a, r]) <= 1e-2 * x.max()
+
+
+def test_per_column_temperature_freezes_cold_columns():
+    band, diag = random_layers(n=40)
+    clm = CompetitiveLayerModel(random_state=1, max_sweeps=5)
+    settled = CompetitiveLayerModel(random_state=1).solve(band, diag)
+    T = np.zeros(40)
+    T[-5:] = 50.0  # only the last columns are hot
+    x0 = settled.activities.copy()
+    x0[:, -5:] = 0.01
+    res = clm.solve(band, diag, x0=x0, temperature=T)
+    np.testing.assert_allclose(res.temperature[-5:], 50.0 * clm.eta**res.sweeps)
+    assert np.all(res.temperature[:-5] == 0.0)
+    np.testing.assert_array_equal(res.winners[:30], settled.winners[:30])
+
+
+def test_columns_before_first_are_a_fixed_context():
+    band, diag = random_layers(n=50)
+    clm = CompetitiveLayerModel(random_state=2)
+    x0 = clm.solve(band, diag).activities
+    x0[:, 30:] = 0.01
+    run = clm.start(band, diag, x0=x0.copy(), first=30)
+    run.advance(clm.max_sweeps)
+    np.testing.assert_array_equal(run.x[:, :30], x0[:, :30])
+    assert run.converged and np.all((run.x[:, 30:] > 0).sum(axis=0) == 1)
+    with pytest.raises(ValueError, match="first"):
+        clm.start(band, diag, first=50)

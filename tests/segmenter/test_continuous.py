@@ -140,6 +140,27 @@ def test_calibration_picks_the_point_that_keeps_known_and_rejects_pseudo_unknown
     assert value == 2 and score == pytest.approx(0.9)
 
 
+@settings(max_examples=100, deadline=None)
+@given(st.lists(st.tuples(st.floats(0, 1), st.floats(0, 1)), min_size=1, max_size=9))
+def test_calibration_shortcuts_find_the_brute_force_optimum(points):
+    """Skipping values that cannot win, and stopping at known accuracy 0, never changes the answer
+    when known accuracy falls to 0 and stays there (the grids run from keep-all to reject-all)."""
+    known = sorted((k for k, _ in points), reverse=True)
+    zero = next((i for i, k in enumerate(known) if k == 0.0), len(known))
+    known = known[:zero] + [0.0] * (len(known) - zero)
+    pseudo = [p for _, p in points]
+    asked = []
+
+    def pseudo_at(i):
+        asked.append(i)
+        return pseudo[i]
+
+    value, score = calibrate(lambda i: known[i], pseudo_at, range(len(points)))
+    brute = [0.5 * (k + p) for k, p in zip(known, pseudo)]
+    assert score == pytest.approx(max(brute)) and brute[value] == pytest.approx(score)
+    assert 0 in asked and all(0.5 * (known[i] + 1.0) > max(brute[:i]) for i in asked if i > 0)
+
+
 def _synthetic_recordings(seed: int):
     """Three smooth motion classes (distinct sinusoid shapes) concatenated in random order."""
     rng = np.random.default_rng(seed)

@@ -6,11 +6,12 @@ A class is one scene disturbance (:mod:`handflow.plugins.simulator.scenes`: the 
 times of one seed: the plan's nominal times each shifted by a seeded uniform offset within one
 hand cycle, so seeds hit the hand at different phases.
 
-**Recovery** (documented definition, :func:`recovery_times`): after a disturbance *ends* (its
-time plus its duration, 0 for instantaneous ones), the recovery time is the delay to the first
-moment from which a ``window_s`` window (the evaluation uses one hand cycle, 2 s) shows progress
-(swaps, or cap rotation) of at least ``fraction`` (50 %) of the same controller's calm rate;
-searched up to ``within_s`` after the end,
+**Recovery** (documented definition, :func:`recovery_times`): the progress rate (swaps, or cap
+rotation) over the trailing ``window_s`` (the evaluation uses one hand cycle, 2 s) is followed
+from the disturbance's start; if it never drops below ``fraction`` (50 %) of the same
+controller's calm rate until one window after the disturbance's *end* (its time plus its
+duration, 0 for instantaneous ones), the recovery time is 0; otherwise it is the delay from the
+end until the rate is back at or above that level; searched up to ``within_s`` after the end,
 otherwise the disturbance is a **failure** (not recovered, time ``inf``).  A disturbance counts as
 recovered within one hand cycle when its recovery time is at most ``cycle_s``.
 """
@@ -89,6 +90,7 @@ def filled(progress) -> np.ndarray:
 def recovery_times(
     times,
     progress,
+    starts_s,
     ends_s,
     calm_rate_per_min: float,
     within_s: float = 10.0,
@@ -96,19 +98,23 @@ def recovery_times(
     fraction: float = 0.5,
     direction: float = 1.0,
 ) -> np.ndarray:
-    """Recovery time (s) after each disturbance end in ``ends_s``; ``inf`` = not recovered within
-    ``within_s`` (see the module docstring).  A calm rate of 0 recovers nothing."""
-    t, prog = np.asarray(times, dtype=float), direction * filled(progress)
-    need = fraction * abs(calm_rate_per_min) / 60.0 * window_s
+    """Recovery time (s) after each disturbance (``starts_s``, ``ends_s``); ``inf`` = not
+    recovered within ``within_s`` of its end (see the module docstring).  A calm rate of 0
+    recovers nothing."""
+    t = np.asarray(times, dtype=float)
+    need = fraction * abs(calm_rate_per_min)
     out = np.full(len(ends_s), np.inf)
     if need <= 0:
         return out
-    for i, te in enumerate(ends_s):
-        starts = t[(t >= te) & (t <= te + within_s - window_s)]
-        gain = np.interp(starts + window_s, t, prog) - np.interp(starts, t, prog)
-        hit = np.flatnonzero(gain >= need)
-        if hit.size:
-            out[i] = starts[hit[0]] - te
+    rate = direction * rate_over_time(t, progress, window_s)
+    for i, (ts, te) in enumerate(zip(starts_s, ends_s)):
+        dipped = np.flatnonzero((t >= ts) & (t <= te + window_s) & (rate < need))
+        if dipped.size == 0:
+            out[i] = 0.0
+            continue
+        back = np.flatnonzero((t > t[dipped[0]]) & (t <= te + within_s) & (rate >= need))
+        if back.size:
+            out[i] = max(t[back[0]] - te, 0.0)
     return out
 
 

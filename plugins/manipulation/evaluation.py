@@ -353,7 +353,13 @@ def _class_summary(runs: dict, classes: dict, key: str, cycle_s: float) -> dict:
                 ends = np.asarray(times) + classes[cls].duration_s
                 rec.extend(
                     recovery_times(
-                        run["times"], run[key], ends, calm_rate / UNIT[key], window_s=cycle_s, direction=direction
+                        run["times"],
+                        run[key],
+                        times,
+                        ends,
+                        calm_rate / UNIT[key],
+                        window_s=cycle_s,
+                        direction=direction,
                     )
                 )
             out[cls][name] = {

@@ -21,22 +21,26 @@ from handflow.plugins.manipulation.evaluation import (
 )
 
 
-def test_recovery_time_is_the_delay_to_half_the_calm_rate_within_ten_seconds():
+def test_recovery_time_is_the_time_below_half_the_calm_rate_after_the_end():
     t = np.arange(0.0, 60.0, 0.05)
     calm = 30.0  # swaps/min = 0.5 swaps/s
     progress = np.where(t < 10, 0.5 * t, 5.0)  # stalls for good at 10 s
     progress = np.where(t > 40, 5.0 + 0.5 * (t - 40), progress)  # resumes at 40 s
-    # end at 5 s: the window 5–9 s still runs at the calm rate; 12 s: stalled for 10 s;
-    # 35 s: swaps resume at 40 s, the window 38–42 s holds 1 swap = exactly 50 %: 3 s
-    rec = recovery_times(t, progress, [5.0, 12.0, 35.0], calm)
-    assert rec[0] == pytest.approx(0.0) and np.isinf(rec[1]) and rec[2] == pytest.approx(3.0, abs=0.06)
-    np.testing.assert_allclose(recovery_times(t, -progress, [5.0, 35.0], calm, direction=-1.0), rec[[0, 2]])
-    assert np.isinf(recovery_times(t, progress, [5.0], 0.0)).all()  # a controller that never swaps
+    # 5 s: the 4 s trailing rate stays at the calm rate until 9 s: 0; 12 s: stalled for good;
+    # 35 s: stalled, back to 15 swaps/min when the trailing 4 s hold 1 swap (42 s): 7 s
+    starts = [5.0, 12.0, 35.0]
+    rec = recovery_times(t, progress, starts, starts, calm)
+    assert rec[0] == 0.0 and np.isinf(rec[1]) and rec[2] == pytest.approx(7.0, abs=0.06)
+    np.testing.assert_allclose(
+        recovery_times(t, -progress, [5.0, 35.0], [5.0, 35.0], calm, direction=-1.0), rec[[0, 2]]
+    )
+    assert recovery_times(t, progress, [35.0], [39.0], calm)[0] == pytest.approx(3.0, abs=0.06)  # from the end
+    assert np.isinf(recovery_times(t, progress, [5.0], [5.0], 0.0)).all()  # a controller that never swaps
     summary = summarise(rec, cycle_s=2.0)
     assert summary == {
         "recovered_share": pytest.approx(1 / 3),
         "failures": 1,
-        "recovery_s": pytest.approx(1.5, abs=0.03),
+        "recovery_s": pytest.approx(3.5, abs=0.03),
     }
 
 

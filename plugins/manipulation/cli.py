@@ -91,6 +91,16 @@ def register_evaluate(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--models", type=Path, default=CONFIGS_MODELS, help="folder of cached manifolds (built on first use)"
     )
+    parser.add_argument(
+        "--plots", type=Path, default=None, metavar="DIR", help="write rate-over-time figures (PNG) into DIR"
+    )
+    parser.add_argument(
+        "--seeds",
+        type=int,
+        default=None,
+        help="number of seeds (disturbance timing, camera noise, start jitter); default 3, quick 1",
+    )
+    parser.add_argument("--jobs", type=int, default=1, help="worker processes for the ball-swap runs (default 1)")
     parser.set_defaults(func=run_evaluate)
 
 
@@ -102,9 +112,24 @@ def run_evaluate(args: argparse.Namespace) -> int:
         print(f"handflow evaluate manipulation: error: {exc}", file=sys.stderr)
         return 2
     plan = EvalPlan.quick() if args.quick else EvalPlan()
+    if args.seeds is not None:
+        if args.seeds < 1:
+            print(f"handflow evaluate manipulation: error: --seeds must be >= 1, got {args.seeds}", file=sys.stderr)
+            return 2
+        plan.seeds = tuple(range(args.seeds))
+    if args.jobs < 1:
+        print(f"handflow evaluate manipulation: error: --jobs must be >= 1, got {args.jobs}", file=sys.stderr)
+        return 2
+    plan.jobs = args.jobs
     try:
         result = evaluate(
-            manifolds["constructed"], manifolds["learned"], manifolds["balls"], plan, paths["balls"], progress=_say
+            manifolds["constructed"],
+            manifolds["learned"],
+            manifolds["balls"],
+            plan,
+            paths["balls"],
+            progress=_say,
+            plots=args.plots,
         )
     except Exception as exc:
         print(f"handflow evaluate manipulation: failed: {type(exc).__name__}: {exc}", file=sys.stderr)
@@ -125,12 +150,17 @@ def _print_table(result: dict) -> None:
             f"  {r:>9}  {v['deg_per_cycle']:9.1f}  {v['found_radius']:8.2f} | "
             f"{w['deg_per_cycle']:9.1f}  {w['found_radius']:12.2f}"
         )
-    print("ball swapping (swaps/min calm; per disturbance class: swaps/min, share recovered)")
-    for name, v in result["ball_swap"].items():
-        classes = "  ".join(
-            f"{cls} {c[name]['rate']:6.2f} ({c[name]['recovered_share']:.0%})"
-            for cls, c in result["disturbance_classes"].items()
-        )
-        print(f"  {name:<18} calm {v['swaps_per_min']:6.2f}  {classes}")
+    print(
+        f"disturbances (seeds {result['seeds']}; balls: swaps/min, cap: deg/min; median over seeds; "
+        "recovered = back to >= 50 % of the calm rate within one hand cycle)"
+    )
+    print(f"  {'class':<13} {'controller':<14} {'calm':>7} {'rate':>7} {'x open':>6} {'recovered':>9} {'failed':>6}")
+    for cls, row in result["disturbance_details"].items():
+        for name, v in row.items():
+            ratio = v["rate"] / row["open_loop"]["rate"] if row["open_loop"]["rate"] else float("nan")
+            print(
+                f"  {cls:<13} {name:<14} {v['calm_rate']:7.1f} {v['rate']:7.1f} {ratio:6.2f} "
+                f"{v['recovered_share']:9.0%} {v['failures']:>3}/{v['disturbances']}"
+            )
     print(f"learned radius: Spearman {result['radius_spearman']}, separation {result['radius_separation']}")
     print(f"control-loop latency ms (median, p99): {result['loop_latency_ms']}")

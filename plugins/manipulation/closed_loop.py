@@ -23,7 +23,11 @@
    matches the balls.  If even the best phase explains the balls worse than ``max_error``
    (default ∞), the balls are off the manifold (e.g. the resting start configuration) and carry
    no phase information: the commanded phase is kept.  Otherwise the prior never outweighs the
-   balls, it only breaks their ties;
+   balls, it only breaks their ties.  ``refractory`` (latent units, default 0 = off): after a jump
+   the commanded phase is kept until the hand has advanced that far from the jump — without it,
+   balls that still trail the replayed stroke by a bit more than ``lag`` trigger the next jump
+   before the stroke has moved them, and the hand can replay the same part of the motion over and
+   over (measured after 1 s holds with the camera tracker, docs/benchmarks.md);
 3. plan ``x̂ + lΔ``, l = 1…k, along the time dimension;
 4. map the plan with f; the hand-posture part is the command sequence;
 5. the caller actuates it in order and observes again.
@@ -66,6 +70,7 @@ class ClosedLoopController:
         lag: float = 0.5,
         max_error: float = np.inf,
         grid_size: int = 512,
+        refractory: float = 0.0,
     ) -> None:
         if manifold.ball_index.size != 4:
             raise ValueError("closed-loop ball control needs a manifold with ball dimensions (p1_x, p1_y, p2_x, p2_y)")
@@ -75,13 +80,14 @@ class ClosedLoopController:
             raise ValueError(f"k must be >= 1, got {k}")
         if manifold.q != 1:
             raise ValueError(f"closed-loop control needs a 1D (phase) manifold, got {manifold.latent_names}")
-        if not (tolerance >= 0 and lag >= 0):
-            raise ValueError(f"tolerance and lag must be >= 0, got {tolerance} and {lag}")
+        if not (tolerance >= 0 and lag >= 0 and refractory >= 0):
+            raise ValueError(f"tolerance, lag and refractory must be >= 0, got {tolerance}, {lag} and {refractory}")
         self.manifold, self.k, self.mask = manifold, int(k), mask
         self.delta = float(delta) * manifold.time_sign  # the demonstrations' direction
         self.slot1, self.slot2 = manifold.ball_index[:2], manifold.ball_index[2:]
         self.clock = LatentClock(*manifold.range(manifold.time_dim), manifold.periodic)
         self.tolerance, self.lag, self.max_error = float(tolerance), float(lag), float(max_error)
+        self.refractory, self.jumped_at = float(refractory), None
         lo, hi = manifold.range(0)
         self.grid = np.linspace(lo, hi, int(grid_size), endpoint=not manifold.periodic)
         self.grid_obs = manifold.observation(self.grid[:, None])
@@ -121,6 +127,15 @@ class ClosedLoopController:
             d = np.minimum(np.mod(d, span), span - np.mod(d, span))
         return d
 
+    def _refractory(self, prior) -> bool:
+        """Whether the hand has advanced less than ``refractory`` since the last jump."""
+        if self.jumped_at is None or self.refractory <= 0:
+            return False
+        gone = (float(np.ravel(prior)[self.manifold.time_dim]) - self.jumped_at) * np.sign(self.delta)
+        if self.manifold.periodic:
+            gone = np.mod(gone, self.clock.hi - self.clock.lo)
+        return bool(0 <= gone < self.refractory)
+
     def estimate(self, points, valid, prior=None) -> PhaseEstimate | None:
         """Phase estimate from observed ball positions (n, 2) with validity flags (n,);
         ``prior``: latent of the last command (used when ``tolerance > 0``)."""
@@ -133,8 +148,10 @@ class ClosedLoopController:
             err = np.einsum("cgd,cd->cg", R2, S)  # both balls
             dist = np.where(err <= err.min() + self.tolerance, self._distance(prior)[None, :], np.inf)
             c, g = np.unravel_index(int(np.argmin(dist)), dist.shape)
-            keep = dist[c, g] <= self.lag or err.min() > self.max_error
+            keep = dist[c, g] <= self.lag or err.min() > self.max_error or self._refractory(prior)
             x = np.ravel(prior)[:1].astype(float) if keep else self.grid[g][None]
+            if not keep:
+                self.jumped_at = float(self.grid[g])
             return PhaseEstimate(x, float(err[c, g]), swapped[c])
         idx = np.argmin(np.einsum("cgd,cd->cg", R2, W), axis=1)
         err = np.einsum("cd,cd->c", R2[np.arange(len(Y)), idx], S)

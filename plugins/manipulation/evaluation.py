@@ -23,6 +23,7 @@ The plain controller classes drive the plain :class:`~handflow.plugins.simulator
 from __future__ import annotations
 
 import time
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -34,7 +35,8 @@ from handflow.plugins.simulator.simulation import Simulation
 from handflow.plugins.tracker.blobs import BallTracker, normalise_points
 
 from .closed_loop import ClosedLoopController
-from .feedback_init import TURNING, GraspByNavigation, touching_fingers
+from .disturbances import BALL_CLASSES, CAP_CLASSES, filled, recovery_times, schedule_times, summarise
+from .feedback_init import CLOSING, TURNING, GraspByNavigation, touching_fingers
 from .manifold_file import ManipulationManifold
 from .nodes import ClosedLoopNode
 from .open_loop import OpenLoopController
@@ -58,12 +60,21 @@ class CapSettings:
 
 
 def cap_turning(
-    manifold: ManipulationManifold, radius_cm: float, settings: CapSettings = CapSettings(), seed: int = 0
+    manifold: ManipulationManifold,
+    radius_cm: float,
+    settings: CapSettings = CapSettings(),
+    seed: int = 0,
+    scene_options: dict | None = None,
+    open_loop: bool = False,
 ) -> dict:
     """Grasp by navigation then turn ``settings.cycles`` cycles; returns deg_per_cycle (net rotation
     over all cycles / cycles), per_cycle_deg (rotation of each cycle: the first one carries the
-    grasp's settling transient, see docs/manipulation.md) and found_radius (the frozen latent
-    radius: cm on a constructed manifold, latent units on a learned one)."""
+    grasp's settling transient, see docs/manipulation.md), found_radius (the frozen latent
+    radius: cm on a constructed manifold, latent units on a learned one) and the turning phase's
+    ``times`` (s) and cap ``turns`` (rotations, positive forward) per control step.
+    ``scene_options``: extra cap-scene options (e.g. ``torques``); ``open_loop``: no grasp
+    feedback — the radius is frozen at ``radius_cm`` (a constructed manifold's cm axis) after the
+    approach, i.e. the open loop of a user who knows the cap."""
     t_dim = manifold.time_dim
     lo, hi = manifold.range(t_dim)
     delta = (hi - lo) / (settings.cycle_s * settings.control_hz)
@@ -76,46 +87,62 @@ def cap_turning(
         approach_steps=int(settings.approach_s * settings.control_hz),
     )
     turning_steps = int(round(settings.cycles * (hi - lo) / delta))
-    with Simulation("shadow", "cap", {"radius": radius_cm / 100.0}, seed=seed, physics_hz=settings.physics_hz) as sim:
+    options = {"radius": radius_cm / 100.0, **(scene_options or {})}
+    with Simulation("shadow", "cap", options, seed=seed, physics_hz=settings.physics_hz) as sim:
         max_grasp = int((settings.approach_s + settings.max_closing_s) * settings.control_hz)
         for _ in range(max_grasp):
             x = ctl.update(touching_fingers(sim.contacts()))
+            if open_loop and ctl.state == CLOSING:
+                ctl.x[ctl.r_dim] = radius_cm
+                ctl.start_turning(False)
+                x = ctl.x.copy()
             sim.set_targets(manifold.joint_names, ctl.posture(x))
             sim.step(per_control)
             if ctl.state == TURNING:
                 break
-        angles = [sim.scene_state()["cap_angle"]]
-        for step in range(1, turning_steps + 1):
+        angles, times = [sim.scene_state()["cap_angle"]], [sim.time]
+        for _ in range(turning_steps):
             x = ctl.update(())
             sim.set_targets(manifold.joint_names, ctl.posture(x))
             sim.step(per_control)
-            if step * settings.cycles // turning_steps > len(angles) - 1:
-                angles.append(sim.scene_state()["cap_angle"])
-    per_cycle = np.degrees(np.diff(angles))
+            angles.append(sim.scene_state()["cap_angle"])
+            times.append(sim.time)
+    turns = np.asarray(angles) / (2 * np.pi)
+    ends = np.linspace(0, turning_steps, settings.cycles + 1).round().astype(int)
+    per_cycle = np.degrees(np.diff(np.asarray(angles)[ends]))
     return {
         "deg_per_cycle": float(per_cycle.sum() / settings.cycles),
         "per_cycle_deg": per_cycle.tolist(),
         "found_radius": float(ctl.radius),
         "grasp_complete": bool(ctl.grasp_complete),
+        "times": np.asarray(times),
+        "turns": turns - turns[0],
     }
 
 
 # -- ball swapping -----------------------------------------------------------------------------
 def ideal_balls(sim: Simulation, width: int = 240, height: int = 180) -> np.ndarray:
-    """Ground-truth ball positions (2, 2) normalised to the marks exactly as the tracker does."""
+    """Ground-truth ball positions (2, 2) normalised to the marks exactly as the tracker does
+    (NaN for a ball taken out of the hand)."""
     scene = sim.scene
     cam = scene.camera()
     balls_px = cam.project(scene.ball_positions(sim.client), width, height)
     marks_px = cam.project(scene.mark_positions(), width, height)
-    return normalise_points(balls_px, marks_px[0], marks_px[1])
+    out = normalise_points(balls_px, marks_px[0], marks_px[1])
+    if scene.removed is not None:  # a ball out of the hand is not seen
+        out[scene.removed] = np.nan
+    return out
 
 
 @dataclass
 class BallSettings:
-    """Ball-swap run settings (closed loop: ``k`` steps of ``delta``, ``mask`` and ``tolerance`` of
-    :class:`ClosedLoopController`; both: ``period_s`` per latent period at the control rate;
-    disturbances: ``push_times_s`` at ``push_speed`` m/s, ``turn_times_s`` by ``turn_deg``,
-    ``hold_times_s`` for ``hold_s`` s)."""
+    """Ball-swap run settings (closed loop: ``k`` steps of ``delta``, ``mask``, ``tolerance``,
+    ``lag``, ``max_error`` and ``refractory`` — given as ``refractory_s`` seconds of hand motion,
+    one hand cycle by default, 0 = off — of :class:`ClosedLoopController`; all: ``period_s`` per latent period
+    at the control rate; ``scene_options``: the balls scene's disturbance schedules, e.g.
+    ``{"holds": [[10.5, 1.0]]}``; ``image_noise``: σ of seeded Gaussian pixel noise (grey levels)
+    added to every camera image before the tracker; ``init_after_s``: when the feedback-initialised
+    open loop takes its phase from the balls)."""
 
     duration_s: float = 120.0
     period_s: float = 4.0
@@ -126,50 +153,79 @@ class BallSettings:
     camera: bool = True
     width: int = 240
     height: int = 180
-    push_times_s: tuple[float, ...] = ()
-    push_speed: float = 0.3
-    turn_times_s: tuple[float, ...] = ()
-    turn_deg: float = 90.0
-    hold_times_s: tuple[float, ...] = ()
-    hold_s: float = 1.0
+    scene_options: dict = field(default_factory=dict)
+    image_noise: float = 0.0
+    init_after_s: float = 4.0
     seed: int = 0
     mask: str = "ball1"
     tolerance: float = 0.05
     lag: float = 0.5
     max_error: float = 0.1
+    refractory_s: float = 2.0
 
 
-def ball_swap(manifold: ManipulationManifold, closed_loop: bool, settings: BallSettings) -> dict:
-    """One run; returns swaps_per_min, times (s) and swap progress (signed swaps, see
-    :func:`handflow.plugins.simulator.metrics.swap_progress`) per control step."""
+BALL_CONTROLLERS = ("open_loop", "feedback_init", "closed_loop", "closed_loop_thesis")
+"""Ball-swap controllers: fixed-phase open loop; open loop whose phase is projected once from the
+balls at ``init_after_s`` (feedback-initialised); ball-gated closed loop; closed loop with the
+thesis' pure projection (τ = 0)."""
+
+
+def _observe(sim: Simulation, tracker: BallTracker, settings: BallSettings, rng: np.random.Generator):
+    """Ball observation (2, 2) and validity: camera + tracker, or the ideal tracker."""
+    if settings.camera:
+        image = sim.render(settings.width, settings.height)
+        if settings.image_noise > 0:
+            noisy = image + rng.normal(0.0, settings.image_noise, image.shape)
+            image = np.clip(noisy, 0, 255).astype(np.uint8)
+        res = tracker.update(image)
+        return res.balls, res.balls_valid
+    balls = ideal_balls(sim, settings.width, settings.height)
+    return balls, np.isfinite(balls).all(axis=1)
+
+
+def ball_swap(manifold: ManipulationManifold, controller: str, settings: BallSettings) -> dict:
+    """One run of ``controller`` (one of :data:`BALL_CONTROLLERS`); returns swaps_per_min, times (s)
+    and swap progress (signed swaps, see :func:`handflow.plugins.simulator.metrics.swap_progress`;
+    NaN while a ball is out of the hand) per control step."""
+    if controller not in BALL_CONTROLLERS:
+        raise ValueError(f"unknown ball controller {controller!r}; choose one of {', '.join(BALL_CONTROLLERS)}")
     t_lo, t_hi = manifold.range(manifold.time_dim)
     delta = (t_hi - t_lo) / (settings.period_s * settings.control_hz)
     per_control = int(round(settings.physics_hz / settings.control_hz))
     per_camera = max(int(round(settings.control_hz / settings.camera_hz)), 1)
-    tracker = BallTracker()
-    options = {
-        "pushes": [[t, settings.push_speed] for t in settings.push_times_s],
-        "turns": [[t, settings.turn_deg] for t in settings.turn_times_s],
-        "holds": [[t, settings.hold_s] for t in settings.hold_times_s],
-    }
-    with Simulation("gifu", "balls", options, seed=settings.seed, physics_hz=settings.physics_hz) as sim:
+    init_step = int(round(settings.init_after_s * settings.control_hz))
+    tracker, rng = BallTracker(), np.random.default_rng(settings.seed)
+    closed_loop = controller.startswith("closed_loop")
+    tolerance = 0.0 if controller == "closed_loop_thesis" else settings.tolerance
+    with Simulation("gifu", "balls", settings.scene_options, seed=settings.seed, physics_hz=settings.physics_hz) as sim:
         open_ctl = OpenLoopController(manifold, [t_lo], delta)
         closed = ClosedLoopController(
-            manifold, settings.k, delta, settings.mask, settings.tolerance, settings.lag, settings.max_error
+            manifold,
+            settings.k,
+            delta,
+            settings.mask,
+            tolerance,
+            settings.lag,
+            settings.max_error,
+            refractory=settings.refractory_s / settings.period_s * (t_hi - t_lo),
         )
         plan: list = []
         last = None
         positions, times = [], []
         for step in range(int(settings.duration_s * settings.control_hz)):
-            if closed_loop and step % per_camera == 0:
-                if settings.camera:
-                    res = tracker.update(sim.render(settings.width, settings.height))
-                    balls, valid = res.balls, res.balls_valid
+            observe = closed_loop and step % per_camera == 0
+            initialise = controller == "feedback_init" and step >= init_step and last is None
+            if observe or (initialise and step % per_camera == 0):
+                balls, valid = _observe(sim, tracker, settings, rng)
+                if initialise:
+                    est = closed.estimate(balls, valid)
+                    if est is not None and est.error <= settings.max_error:
+                        last = est.x
+                        open_ctl = OpenLoopController(manifold, est.x, delta)
                 else:
-                    balls, valid = ideal_balls(sim, settings.width, settings.height), [True, True]
-                out = closed.update(balls, valid, last)
-                if out is not None:
-                    plan = list(zip(out[1], out[2]))
+                    out = closed.update(balls, valid, last)
+                    if out is not None:
+                        plan = list(zip(out[1], out[2]))
             if closed_loop:
                 if plan:
                     last, q = plan.pop(0)
@@ -185,31 +241,6 @@ def ball_swap(manifold: ManipulationManifold, closed_loop: bool, settings: BallS
         "times": times,
         "progress": swap_progress(P[:, 0], P[:, 1]),
     }
-
-
-def recoveries(
-    times,
-    progress,
-    disturbances_s,
-    calm_swaps_per_min: float,
-    within_s: float = 10.0,
-    window_s: float = 4.0,
-    fraction: float = 0.5,
-    direction: float = 1.0,
-) -> int:
-    """How many disturbances were recovered: within ``within_s`` after the disturbance some
-    ``window_s`` window shows swap progress (in ``direction``, ±1) of at least ``fraction`` of the
-    calm rate.  A calm rate of 0 (a controller that never swaps) recovers nothing."""
-    t, prog = np.asarray(times, dtype=float), direction * np.asarray(progress, dtype=float)
-    need = fraction * abs(calm_swaps_per_min) / 60.0 * window_s
-    if need <= 0:
-        return 0
-    count = 0
-    for td in disturbances_s:
-        starts = t[(t >= td) & (t <= td + within_s - window_s)]
-        gain = np.interp(starts + window_s, t, prog) - np.interp(starts, t, prog)
-        count += int(np.any(gain >= need))
-    return count
 
 
 def loop_latency_ms(manifold_path, n: int = 200, k: int = 5, seed: int = 0) -> list[float]:
@@ -230,73 +261,184 @@ def loop_latency_ms(manifold_path, n: int = 200, k: int = 5, seed: int = 0) -> l
 
 @dataclass
 class EvalPlan:
-    """What ``handflow evaluate manipulation`` runs (``quick()`` is the < 2 min variant).
+    """What ``handflow evaluate manipulation`` runs (``quick()`` is the short variant).
 
-    Disturbances every ``disturb_every_s`` starting at ``first_disturbance_s``: with a 2 s hand
-    cycle (period_s = 4 s per ball period = two hand cycles) every disturbance falls at the same
-    open-loop hand phase, a quarter into the cycle (the rake stroke)."""
+    Disturbances every ``disturb_every_s`` starting at ``first_disturbance_s``; with the 2 s hand
+    cycle (``cycle_s``; period_s = 4 s per ball period = two hand cycles) seed 0 hits the open
+    loop always at the same phase, a quarter into the rake stroke; every other seed shifts each
+    disturbance by a seeded offset within one hand cycle (:func:`.disturbances.schedule_times`)
+    and draws its own camera noise.  ``jobs``: worker processes for the ball runs (one task per
+    seed and controller).  Cap disturbances: one at ``cap_disturbance_cycle`` + a
+    quarter cycle into the turning of a ``cap_disturbance_radius_cm`` cap."""
 
     radii_cm: tuple[float, ...] = TRAINING_RADII_CM + INTERMEDIATE_RADII_CM
     cap: CapSettings = field(default_factory=CapSettings)
-    balls: BallSettings = field(default_factory=BallSettings)
+    balls: BallSettings = field(default_factory=lambda: BallSettings(duration_s=48.0, image_noise=6.0))
     first_disturbance_s: float = 10.5
-    disturb_every_s: float = 15.0
+    disturb_every_s: float = 12.0
+    cycle_s: float = 2.0
+    seeds: tuple[int, ...] = (0, 1, 2)
+    controllers: tuple[str, ...] = ("open_loop", "feedback_init", "closed_loop")
+    classes: tuple[str, ...] = tuple(BALL_CLASSES)
+    cap_classes: tuple[str, ...] = tuple(CAP_CLASSES)
+    cap_disturbance_radius_cm: float = 2.5
+    cap_disturbance_cycles: int = 4
+    jobs: int = 1
 
     @classmethod
     def quick(cls) -> EvalPlan:
-        return cls(cap=CapSettings(cycles=2), balls=BallSettings(duration_s=30.0, camera=False), disturb_every_s=12.0)
-
-    def disturbances(self) -> tuple[float, ...]:
-        end = self.balls.duration_s - 1e-9
-        return tuple(np.arange(self.first_disturbance_s, end, self.disturb_every_s).tolist())
-
-
-DISTURBANCE_CLASSES = {
-    "turn_back": ("turn_times_s", ""),
-    "push": ("push_times_s", "_pushed"),
-    "hold": ("hold_times_s", "_held"),
-}
-"""Disturbance class → (:class:`BallSettings` field of its times, key suffix in the per-controller rows)."""
-
-BALL_CONTROLLERS = {"open_loop": (False, None), "closed_loop": (True, None), "closed_loop_thesis": (True, 0.0)}
-"""Evaluation name → (closed loop?, tolerance override: None = the plan's, 0 = pure projection)."""
-
-
-def ball_swap_report(manifold: ManipulationManifold, plan: EvalPlan, progress=lambda line: None) -> dict:
-    """Per controller: calm rate, rate and recoveries under turn-backs (``swaps_per_min_disturbed``,
-    ``recoveries``, the thesis scenario), pushes (``…_pushed``) and holds (``…_held``)."""
-    times = plan.disturbances()
-    out = {}
-    for name, (closed, tolerance) in BALL_CONTROLLERS.items():
-        base = BallSettings(
-            **{**plan.balls.__dict__, "tolerance": plan.balls.tolerance if tolerance is None else tolerance}
+        return cls(
+            cap=CapSettings(cycles=2),
+            balls=BallSettings(duration_s=22.0, camera=False),
+            seeds=(0,),
+            cap_disturbance_cycles=3,
         )
-        calm = ball_swap(manifold, closed, base)
-        direction = 1.0 if calm["progress"][-1] >= 0 else -1.0
-        row = {"swaps_per_min": calm["swaps_per_min"]}
-        for field_name, key in DISTURBANCE_CLASSES.values():
-            run = ball_swap(manifold, closed, BallSettings(**{**base.__dict__, field_name: times}))
-            row[f"swaps_per_min_disturbed{key}"] = run["swaps_per_min"]
-            row[f"recoveries{key}"] = recoveries(
-                run["times"], run["progress"], times, calm["swaps_per_min"], direction=direction
-            )
-        row["disturbances"] = len(times)
-        out[name] = row
-        progress(f"ball swap {name}: {row}")
+
+    def disturbances(self, seed: int = 0) -> tuple[float, ...]:
+        end = self.balls.duration_s - self.disturb_every_s / 2
+        nominal = np.arange(self.first_disturbance_s, end, self.disturb_every_s)
+        return schedule_times(nominal, seed, self.cycle_s)
+
+
+def _controller_runs(manifold: ManipulationManifold, plan: EvalPlan, seed: int, name: str) -> dict:
+    """``{"calm": run, CLASS: (times, run)}`` of one controller and seed (:func:`ball_swap` runs)."""
+    times = plan.disturbances(seed)
+    base = BallSettings(**{**plan.balls.__dict__, "seed": seed})
+    row = {"calm": ball_swap(manifold, name, base)}
+    for cls in plan.classes:
+        opts = BALL_CLASSES[cls].scene_options(times)
+        row[cls] = (times, ball_swap(manifold, name, BallSettings(**{**base.__dict__, "scene_options": opts})))
+    return row
+
+
+def _ball_runs(manifold: ManipulationManifold, plan: EvalPlan, progress) -> dict:
+    """``{seed: {controller: {"calm": run, CLASS: (times, run)}}}``; ``plan.jobs`` worker processes."""
+    tasks = [(seed, name) for seed in plan.seeds for name in plan.controllers]
+    runs: dict = {seed: {} for seed in plan.seeds}
+
+    def done(seed, name, row):
+        runs[seed][name] = row
+        direction = 1.0 if filled(row["calm"]["progress"])[-1] >= 0 else -1.0
+        rates = {k: round(_rate(v if k == "calm" else v[1], "progress", direction), 1) for k, v in row.items()}
+        progress(f"ball swap seed {seed} {name}: swaps/min {rates}")
+
+    if plan.jobs <= 1:
+        for seed, name in tasks:
+            done(seed, name, _controller_runs(manifold, plan, seed, name))
+    else:
+        with ProcessPoolExecutor(plan.jobs) as pool:
+            futures = {pool.submit(_controller_runs, manifold, plan, seed, name): (seed, name) for seed, name in tasks}
+            for future in as_completed(futures):
+                done(*futures[future], future.result())
+    return {seed: {name: runs[seed][name] for name in plan.controllers} for seed in plan.seeds}
+
+
+def _class_summary(runs: dict, classes: dict, key: str, cycle_s: float) -> dict:
+    """``{CLASS: {controller: {rate, rate_spread, calm_rate, recovered_share, failures,
+    recovery_s, disturbances}}}`` pooled over seeds (rates: median over seeds; recovery: rate
+    over one hand cycle ``cycle_s`` back to half the calm rate, :func:`.disturbances.recovery_times`)."""
+    out: dict = {}
+    seeds = list(runs)
+    for cls in classes:
+        out[cls] = {}
+        for name in runs[seeds[0]]:
+            rates, calms, rec = [], [], []
+            for seed in seeds:
+                calm = runs[seed][name]["calm"]
+                times, run = runs[seed][name][cls]
+                direction = 1.0 if filled(calm[key])[-1] >= 0 else -1.0
+                calm_rate = _rate(calm, key, direction)
+                rates.append(_rate(run, key, direction))
+                calms.append(calm_rate)
+                ends = np.asarray(times) + classes[cls].duration_s
+                rec.extend(
+                    recovery_times(
+                        run["times"],
+                        run[key],
+                        times,
+                        ends,
+                        calm_rate / UNIT[key],
+                        window_s=cycle_s,
+                        direction=direction,
+                    )
+                )
+            out[cls][name] = {
+                "rate": float(np.median(rates)),
+                "rate_spread": [float(min(rates)), float(max(rates))],
+                "calm_rate": float(np.median(calms)),
+                **summarise(rec, cycle_s),
+                "disturbances": len(rec),
+            }
     return out
 
 
-def disturbance_classes(rows: dict) -> dict:
-    """``{class: {controller: {"rate", "recovered_share"}}}`` from the rows of :func:`ball_swap_report`."""
-    return {
-        cls: {
-            name: {
-                "rate": row[f"swaps_per_min_disturbed{key}"],
-                "recovered_share": row[f"recoveries{key}"] / max(row["disturbances"], 1),
-            }
-            for name, row in rows.items()
+UNIT = {"progress": 1.0, "turns": 360.0}
+"""Reported rate units per progress unit: swaps per swap, degrees per cap turn."""
+
+
+def _rate(run: dict, key: str, direction: float = 1.0) -> float:
+    """Progress per minute of a run in ``direction`` (balls: net whole swaps per minute, as
+    :func:`~handflow.plugins.simulator.metrics.swaps_per_minute`; cap: degrees per minute)."""
+    t, prog = run["times"], direction * filled(run[key])
+    minutes = float(t[-1] - t[0]) / 60.0
+    if key == "progress":
+        return max(float(np.floor(prog[-1] + 1e-9)), 0.0) / minutes
+    return UNIT[key] * float(prog[-1] - prog[0]) / minutes
+
+
+def hardest_class(classes: dict) -> str:
+    """The class in which the open loop's rate is lowest (without an open loop: the first controller's)."""
+    return min(classes, key=lambda c: classes[c].get("open_loop", next(iter(classes[c].values())))["rate"])
+
+
+def ball_swap_report(manifold: ManipulationManifold, plan: EvalPlan, progress=lambda line: None) -> tuple:
+    """Per controller the calm rate and the rate under the hardest class (``ball_swap`` rows),
+    the per-class summary (:func:`_class_summary`) and the runs (for plots)."""
+    runs = _ball_runs(manifold, plan, progress)
+    classes = _class_summary(runs, {c: BALL_CLASSES[c] for c in plan.classes}, "progress", plan.cycle_s)
+    hardest = hardest_class(classes)
+    rows = {
+        name: {
+            "swaps_per_min": classes[hardest][name]["calm_rate"],
+            "swaps_per_min_disturbed": classes[hardest][name]["rate"],
+            "hardest_class": hardest,
+            "recovered_share": classes[hardest][name]["recovered_share"],
+            "disturbances": classes[hardest][name]["disturbances"],
         }
-        for cls, (_, key) in DISTURBANCE_CLASSES.items()
+        for name in plan.controllers
+    }
+    return rows, classes, runs
+
+
+def cap_disturbance_report(manifold: ManipulationManifold, plan: EvalPlan, progress=lambda line: None) -> tuple:
+    """Cap classes on the constructed manifold: open loop at the known radius vs feedback-initialised
+    (grasp by navigation); rate = cap rotation in degrees per minute; one disturbance per run;
+    recovery as for the balls, over one turning cycle."""
+    settings = CapSettings(**{**plan.cap.__dict__, "cycles": plan.cap_disturbance_cycles})
+    radius = plan.cap_disturbance_radius_cm
+    runs: dict = {}
+    for seed in plan.seeds:
+        for name, open_loop in (("open_loop", True), ("feedback_init", False)):
+            calm = cap_turning(manifold, radius, settings, seed=seed, open_loop=open_loop)
+            row = runs.setdefault(seed, {})[name] = {"calm": calm}
+            start = calm["times"][0]
+            times = schedule_times([start + settings.cycle_s * 1.25], seed, settings.cycle_s)
+            for cls in plan.cap_classes:
+                opts = CAP_CLASSES[cls].scene_options(times)
+                row[cls] = (times, cap_turning(manifold, radius, settings, seed, opts, open_loop))
+            direction = 1.0 if calm["turns"][-1] >= 0 else -1.0
+            rates = {k: round(_rate(v if k == "calm" else v[1], "turns", direction), 1) for k, v in row.items()}
+            progress(f"cap seed {seed} {name}: deg/min {rates}")
+    cap_classes = {c: CAP_CLASSES[c] for c in plan.cap_classes}
+    classes = _class_summary(runs, cap_classes, "turns", settings.cycle_s)
+    return classes, runs
+
+
+def disturbance_classes(classes: dict) -> dict:
+    """``{class: {controller: {"rate", "recovered_share"}}}`` (the JSON's short form)."""
+    return {
+        cls: {name: {"rate": v["rate"], "recovered_share": v["recovered_share"]} for name, v in row.items()}
+        for cls, row in classes.items()
     }
 
 
@@ -307,20 +449,31 @@ def evaluate(
     plan: EvalPlan,
     ball_path,
     progress=lambda line: None,
+    plots=None,
 ) -> dict:
-    """The JSON of ``handflow evaluate manipulation``."""
+    """The JSON of ``handflow evaluate manipulation``; ``plots``: folder for the rate-over-time
+    figures (:mod:`.plots`), ``None`` = none."""
     cap = {}
     for key, manifold in (("cap_turning", constructed), ("cap_turning_learned", learned)):
         cap[key] = {}
         for r in sorted(plan.radii_cm):
-            res = cap[key][f"{r:g}"] = cap_turning(manifold, r, plan.cap)
+            res = cap_turning(manifold, r, plan.cap)
+            cap[key][f"{r:g}"] = {k: v for k, v in res.items() if k not in ("times", "turns")}
             progress(f"{key} r={r:g} cm: {res['deg_per_cycle']:.1f} deg/cycle, found radius {res['found_radius']:.2f}")
     report = learned.model.provenance_
-    rows = ball_swap_report(balls, plan, progress)
+    rows, classes, runs = ball_swap_report(balls, plan, progress)
+    cap_classes, cap_runs = cap_disturbance_report(constructed, plan, progress)
+    if plots is not None:
+        from .plots import plot_rates
+
+        plot_rates(runs, {c: BALL_CLASSES[c] for c in plan.classes}, "progress", plots, "balls", plan.cycle_s)
+        plot_rates(cap_runs, {c: CAP_CLASSES[c] for c in plan.cap_classes}, "turns", plots, "cap", plan.cycle_s)
     return {
         **cap,
         "ball_swap": rows,
-        "disturbance_classes": disturbance_classes(rows),
+        "disturbance_classes": disturbance_classes({**classes, **cap_classes}),
+        "disturbance_details": {**classes, **cap_classes},
+        "seeds": list(plan.seeds),
         "radius_spearman": report.get("spearman"),
         "radius_separation": report.get("separation"),
         "loop_latency_ms": loop_latency_ms(ball_path, k=plan.balls.k),

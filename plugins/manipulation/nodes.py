@@ -178,6 +178,11 @@ class ClosedLoopParams(_ControllerParams):
     max_error: float = Field(
         0.1, gt=0, description="ball error above which the balls are off the manifold and the commanded phase is kept"
     )
+    refractory: float = Field(
+        0.0,
+        ge=0,
+        description="after a jump keep the commanded phase until the hand has advanced this latent distance (0 = off)",
+    )
     stale_after_s: float = Field(0.5, gt=0, description="fail-safe: no ball observation for this long")
 
 
@@ -192,7 +197,7 @@ class ClosedLoopNode(_ManifoldController):
         super().setup()
         prm = self.params
         self.controller = ClosedLoopController(
-            self.manifold, prm.k, prm.delta, prm.mask, prm.tolerance, prm.lag, prm.max_error
+            self.manifold, prm.k, prm.delta, prm.mask, prm.tolerance, prm.lag, prm.max_error, refractory=prm.refractory
         )
         self.plan: list = []
 

@@ -99,6 +99,43 @@ def _prism(radius: float, height: float, sides: int = 32) -> list[list[float]]:
     return [[x, y, z] for z in (-height / 2, height / 2) for x, y in ring]
 
 
+def schedule(name: str, value, form: tuple[str, ...], valid, rule: str) -> tuple[tuple[float, ...], ...]:
+    """Parse a disturbance schedule ``[[time_s, …], …]`` (entries of the fields ``form``) sorted by
+    time; a malformed entry or one failing ``valid(*entry)`` raises ``ValueError`` naming ``rule``."""
+    try:
+        items = tuple(tuple(float(v) for v in entry) for entry in value)
+        if any(len(entry) != len(form) for entry in items):
+            raise ValueError
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a list of [{', '.join(form)}] entries, got {value!r}") from None
+    bad = [entry for entry in items if not (entry[0] >= 0 and valid(*entry))]
+    if bad:
+        raise ValueError(f"{name} need time_s >= 0 and {rule}, got {bad}")
+    return tuple(sorted(items))
+
+
+class Timed:
+    """Cursor over a schedule whose entries last ``entry[1]`` seconds: :meth:`poll` returns
+    ``("start", entry)`` at the first call at or after an entry's time, ``("end", entry)`` at the
+    first call at or after its end, else ``None``; one entry is active at a time (overlaps wait)."""
+
+    def __init__(self, entries) -> None:
+        self.entries, self.done, self.active = tuple(entries), 0, None
+
+    def poll(self, t: float):
+        if self.active is not None:
+            entry = self.active
+            if t >= self.started + entry[1] - 1e-9:
+                self.active = None
+                return "end", entry
+            return None
+        if self.done < len(self.entries) and t >= self.entries[self.done][0] - 1e-9:
+            self.active, self.started = self.entries[self.done], t
+            self.done += 1
+            return "start", self.active
+        return None
+
+
 @dataclass
 class CapScene(Scene):
     """Fixed bottle with a cap on a vertical revolute joint under the palm (docs/simulator.md).
@@ -108,6 +145,12 @@ class CapScene(Scene):
     (N·m·s/rad, the thread's drag); ``cap_angle`` is the joint
     angle (unwrapped, positive = counter-clockwise seen from above).  The cap axis lies under the
     palm at ``centre_palm`` = (x_P, z_P); its top is ``top_below_palm`` below the palm surface.
+
+    ``torques`` — disturbances ``[(time_s, duration_s, friction_torque), …]``: from the first
+    physics step at or after ``time_s`` the thread's friction torque is ``friction_torque`` N·m
+    for ``duration_s``, then back to ``friction_torque`` of the scene: a thread that binds for a
+    moment (a large torque, e.g. 10 N·m, blocks the cap: the fingers cannot turn it) or a cap
+    whose friction changes mid-turn.  ``torques_done`` in the state counts them.
     """
 
     name: str = "cap"
@@ -118,10 +161,19 @@ class CapScene(Scene):
     lateral_friction: float = 1.0
     centre_palm: tuple[float, float] = (0.0, 0.085)
     top_below_palm: float = 0.035
+    torques: tuple[tuple[float, float, float], ...] = ()
 
     def __post_init__(self) -> None:
         if not 0.01 <= self.radius <= 0.05:
             raise ValueError(f"cap radius {self.radius} m is outside 0.01–0.05 m (the scenes use 0.015–0.035)")
+        self.torques = schedule(
+            "torques",
+            self.torques,
+            ("time_s", "duration_s", "friction_torque"),
+            lambda t, d, f: 0 < d <= 10 and 0 <= f <= 100,
+            "0 < duration_s <= 10 and 0 <= friction_torque <= 100",
+        )
+        self._torques = Timed(self.torques)
 
     def cap_top(self) -> np.ndarray:
         x, z = self.centre_palm
@@ -173,10 +225,29 @@ class CapScene(Scene):
         )
         self.bottle = body
         self.bodies = {(body, -1): "bottle", (body, 0): "cap"}
+        self._torques = Timed(self.torques)
+
+    def set_friction_torque(self, client: int, torque: float) -> None:
+        """Friction torque (N·m) of the cap's thread from now on."""
+        p.setJointMotorControl2(
+            self.bottle, 0, p.VELOCITY_CONTROL, targetVelocity=0.0, force=float(torque), physicsClientId=client
+        )
+
+    def before_step(self, client: int, t: float) -> None:
+        """Start or end a due friction change (see ``torques``)."""
+        event = self._torques.poll(t)
+        if event is not None:
+            kind, (_, _, torque) = event
+            self.set_friction_torque(client, torque if kind == "start" else self.friction_torque)
 
     def state(self, client: int) -> dict[str, float]:
         angle, velocity, _, _ = p.getJointState(self.bottle, 0, physicsClientId=client)
-        return {"cap_angle": float(angle), "cap_velocity": float(velocity), "cap_radius": self.radius}
+        return {
+            "cap_angle": float(angle),
+            "cap_velocity": float(velocity),
+            "cap_radius": self.radius,
+            "torques_done": float(self._torques.done),
+        }
 
 
 @dataclass
@@ -205,10 +276,21 @@ class BallsScene(Scene):
     - ``holds`` — disturbances ``[(time_s, duration_s), …]``: from the first physics step at or
       after ``time_s`` both balls are held where they are (positions frozen, velocities zeroed
       every physics step) for ``duration_s`` — a finger of the other hand pinning the balls for a
-      moment while the hand goes on moving, so the balls fall behind the hand's phase.
+      moment while the hand goes on moving, so the balls fall behind the hand's phase;
+    - ``frictions`` — ``[(time_s, duration_s, rolling_friction), …]``: both balls roll with
+      ``rolling_friction`` (instead of the scene's) for ``duration_s`` — a sticky spill on the
+      palm that slows the balls while the hand keeps its pace;
+    - ``removals`` — ``[(time_s, duration_s), …]``: the ball nearer the finger end is taken out
+      of the hand (parked out of view, 1 m below the hand) for ``duration_s`` while the other one
+      stays and is moved by the hand alone; then it is put back where it fits, diametrically
+      opposite the remaining ball about the cup centre (the pair nudged into contact, both at
+      rest) — so the pair's phase is wherever the lone ball went, not where the hand is;
+    - ``resizes`` — ``[(time_s, radius_m), …]``: both balls are swapped for a pair of radius
+      ``radius_m`` (same density, same pair direction, in contact about the cup centre, at rest)
+      — Baoding balls of another size put into the hand mid-cycle.
 
     State: world position of each ball (``ball1_x`` …) and of the two marks, ``pushes_done``,
-    ``turns_done`` and ``holds_done``.
+    ``turns_done``, ``holds_done``, ``frictions_done``, ``removals_done``, ``resizes_done``.
     """
 
     name: str = "balls"
@@ -227,6 +309,9 @@ class BallsScene(Scene):
     pushes: tuple[tuple[float, float], ...] = ()
     turns: tuple[tuple[float, float], ...] = ()
     holds: tuple[tuple[float, float], ...] = ()
+    frictions: tuple[tuple[float, float, float], ...] = ()
+    removals: tuple[tuple[float, float], ...] = ()
+    resizes: tuple[tuple[float, float], ...] = ()
     marks: dict[str, tuple[float, float]] = field(
         default_factory=lambda: {"mark_a": (0.03, 0.011), "mark_b": (-0.03, 0.011)}
     )
@@ -234,32 +319,35 @@ class BallsScene(Scene):
     def __post_init__(self) -> None:
         if not 0.01 <= self.ball_radius <= 0.03:
             raise ValueError(f"ball_radius {self.ball_radius} m is outside 0.01–0.03 m")
-        try:
-            self.pushes = tuple((float(t), float(v)) for t, v in self.pushes)
-        except (TypeError, ValueError):
-            raise ValueError(f"pushes must be a list of [time_s, speed_m_s] pairs, got {self.pushes!r}") from None
-        bad = [pv for pv in self.pushes if pv[0] < 0 or pv[1] < 0]
-        if bad:
-            raise ValueError(f"pushes need time_s >= 0 and speed_m_s >= 0, got {bad}")
-        self.pushes = tuple(sorted(self.pushes))
-        try:
-            self.turns = tuple((float(t), float(a)) for t, a in self.turns)
-        except (TypeError, ValueError):
-            raise ValueError(f"turns must be a list of [time_s, angle_deg] pairs, got {self.turns!r}") from None
-        bad = [ta for ta in self.turns if ta[0] < 0 or not -180 <= ta[1] <= 180]
-        if bad:
-            raise ValueError(f"turns need time_s >= 0 and -180 <= angle_deg <= 180, got {bad}")
-        self.turns = tuple(sorted(self.turns))
-        try:
-            self.holds = tuple((float(t), float(d)) for t, d in self.holds)
-        except (TypeError, ValueError):
-            raise ValueError(f"holds must be a list of [time_s, duration_s] pairs, got {self.holds!r}") from None
-        bad = [td for td in self.holds if not (td[0] >= 0 and 0 < td[1] <= 10)]
-        if bad:
-            raise ValueError(f"holds need time_s >= 0 and 0 < duration_s <= 10, got {bad}")
-        self.holds = tuple(sorted(self.holds))
-        self.pushes_done = self.turns_done = self.holds_done = 0
-        self._held: tuple[float, np.ndarray] | None = None
+        self.pushes = schedule("pushes", self.pushes, ("time_s", "speed_m_s"), lambda t, v: v >= 0, "speed_m_s >= 0")
+        self.turns = schedule(
+            "turns", self.turns, ("time_s", "angle_deg"), lambda t, a: -180 <= a <= 180, "-180 <= angle_deg <= 180"
+        )
+        lasting = (lambda t, d, *_: 0 < d <= 10), "0 < duration_s <= 10"
+        self.holds = schedule("holds", self.holds, ("time_s", "duration_s"), *lasting)
+        self.removals = schedule("removals", self.removals, ("time_s", "duration_s"), *lasting)
+        self.frictions = schedule(
+            "frictions",
+            self.frictions,
+            ("time_s", "duration_s", "rolling_friction"),
+            lambda t, d, f: 0 < d <= 10 and 0 <= f <= 1,
+            "0 < duration_s <= 10 and 0 <= rolling_friction <= 1",
+        )
+        self.resizes = schedule(
+            "resizes",
+            self.resizes,
+            ("time_s", "radius_m"),
+            lambda t, r: 0.01 <= r <= self.ball_radius,
+            f"0.01 <= radius_m <= ball_radius ({self.ball_radius}: a larger pair does not fit the cup)",
+        )
+        self._reset_disturbances()
+
+    def _reset_disturbances(self) -> None:
+        self.pushes_done = self.turns_done = self.resizes_done = 0
+        self._holds, self._frictions, self._removals = Timed(self.holds), Timed(self.frictions), Timed(self.removals)
+        self._held: np.ndarray | None = None
+        self._parked: tuple[int, np.ndarray] | None = None
+        self.radius_now = self.ball_radius
 
     def hand_rotation(self) -> Rotation:
         tilt = Rotation.from_euler("y", self.tilt_deg, degrees=True)
@@ -319,28 +407,30 @@ class BallsScene(Scene):
         self.bodies = {(self.rim, -1): "rim"}
         self.balls = []
         cx, cz = self.cup_centre
-        for k, side in enumerate((1.0, -1.0)):
+        for side in (1.0, -1.0):
             local = np.array(
                 [cx + side * (self.ball_radius + self.cup_gap / 2), surface - self.ball_radius - 0.001, cz]
             )
             local[[0, 2]] += rng.uniform(-self.jitter, self.jitter, 2)
-            pos = self.palm_to_world(local)[0]
-            col = p.createCollisionShape(p.GEOM_SPHERE, radius=self.ball_radius, physicsClientId=client)
-            vis = p.createVisualShape(
-                p.GEOM_SPHERE, radius=self.ball_radius, rgbaColor=BALL_COLOUR, physicsClientId=client
-            )
-            ball = p.createMultiBody(self.ball_mass, col, vis, pos, physicsClientId=client)
-            p.changeDynamics(
-                ball,
-                -1,
-                lateralFriction=self.lateral_friction,
-                rollingFriction=self.rolling_friction,
-                restitution=self.restitution,
-                physicsClientId=client,
-            )
-            self.balls.append(ball)
-            self.bodies[(ball, -1)] = f"ball{k + 1}"
-        self.pushes_done = self.turns_done = 0
+            self._add_ball(client, self.palm_to_world(local)[0], self.ball_radius)
+        self._reset_disturbances()
+
+    def _add_ball(self, client: int, pos, radius: float) -> None:
+        """Create a ball of ``radius`` at world ``pos`` (mass scaled to the scene's ball density)."""
+        col = p.createCollisionShape(p.GEOM_SPHERE, radius=radius, physicsClientId=client)
+        vis = p.createVisualShape(p.GEOM_SPHERE, radius=radius, rgbaColor=BALL_COLOUR, physicsClientId=client)
+        mass = self.ball_mass * (radius / self.ball_radius) ** 3
+        ball = p.createMultiBody(mass, col, vis, list(pos), physicsClientId=client)
+        p.changeDynamics(
+            ball,
+            -1,
+            lateralFriction=self.lateral_friction,
+            rollingFriction=self.rolling_friction,
+            restitution=self.restitution,
+            physicsClientId=client,
+        )
+        self.balls.append(ball)
+        self.bodies[(ball, -1)] = f"ball{len(self.balls)}"
 
     # -- disturbance ---------------------------------------------------------------------
     def push(self, client: int, ball_index: int, velocity_world) -> None:
@@ -369,24 +459,68 @@ class BallsScene(Scene):
             p.resetBasePositionAndOrientation(ball, pos.tolist(), [0, 0, 0, 1], physicsClientId=client)
             p.resetBaseVelocity(ball, [0, 0, 0], [0, 0, 0], physicsClientId=client)
 
-    def _hold(self, client: int, t: float) -> None:
-        """Start a due hold; keep the balls at their held positions while one lasts."""
-        if self._held is None and self.holds_done < len(self.holds) and t >= self.holds[self.holds_done][0] - 1e-9:
-            self._held = (t + self.holds[self.holds_done][1], self.ball_positions(client))
-            self.holds_done += 1
-        if self._held is None:
-            return
-        until, positions = self._held
-        if t >= until - 1e-9:
-            self._held = None
-            return
-        for ball, pos in zip(self.balls, positions):
+    def _place(self, client: int, local) -> None:
+        """Put both balls at palm-frame positions ``local`` (2, 3), at rest."""
+        for ball, pos in zip(self.balls, self.palm_to_world(local)):
             p.resetBasePositionAndOrientation(ball, pos.tolist(), [0, 0, 0, 1], physicsClientId=client)
             p.resetBaseVelocity(ball, [0, 0, 0], [0, 0, 0], physicsClientId=client)
 
+    def _pair_in_contact(self, direction, radius: float) -> np.ndarray:
+        """Palm-frame positions (2, 3) of two touching balls of ``radius`` resting on the palm,
+        centred on the cup centre, ball 1 along ``direction`` (x_P, z_P) from the centre."""
+        u = np.asarray(direction, dtype=float)
+        norm = np.linalg.norm(u)
+        u = u / norm if norm > 1e-9 else np.array([0.0, -1.0])
+        centre = np.array(self.cup_centre)
+        y = -self.palm_thickness / 2 - radius - 0.001
+        return np.array([[*c, y] for c in (centre + u * radius, centre - u * radius)])[:, [0, 2, 1]]
+
+    def _remove_or_return(self, client: int, t: float) -> None:
+        """Start or end a due removal (see ``removals``); keep a removed ball parked meanwhile."""
+        event = self._removals.poll(t)
+        if event is not None and event[0] == "start":
+            z = self.to_palm(self.ball_positions(client))[:, 2]
+            k = int(np.argmax(z))  # the ball nearer the finger end
+            self._parked = (k, HAND_BASE + np.array([0.0, 0.0, -1.0]))
+        elif event is not None:
+            k = self._parked[0]
+            self._parked = None
+            stays = self.to_palm(self.ball_positions(client))[1 - k, [0, 2]]
+            pair = self._pair_in_contact(stays - np.array(self.cup_centre), self.radius_now)
+            self._place(client, pair if k == 1 else pair[::-1])
+        if self._parked is not None:
+            k, pos = self._parked
+            p.resetBasePositionAndOrientation(self.balls[k], pos.tolist(), [0, 0, 0, 1], physicsClientId=client)
+            p.resetBaseVelocity(self.balls[k], [0, 0, 0], [0, 0, 0], physicsClientId=client)
+
+    def _resize(self, client: int, radius: float) -> None:
+        """Swap the pair for balls of ``radius`` in contact about the cup centre, same direction, at rest."""
+        local = self.to_palm(self.ball_positions(client))
+        pair = self._pair_in_contact(local[0, [0, 2]] - local[1, [0, 2]], radius)
+        for ball in self.balls:
+            p.removeBody(ball, physicsClientId=client)
+            del self.bodies[(ball, -1)]
+        self.balls = []
+        for pos in self.palm_to_world(pair):
+            self._add_ball(client, pos, radius)
+        self.radius_now = radius
+
     def before_step(self, client: int, t: float) -> None:
-        """Fire every due push, turn and hold (see the class docstring)."""
-        self._hold(client, t)
+        """Fire every due disturbance (see the class docstring)."""
+        event = self._holds.poll(t)
+        if event is not None:
+            self._held = self.to_palm(self.ball_positions(client)) if event[0] == "start" else None
+        if self._held is not None:
+            self._place(client, self._held)
+        event = self._frictions.poll(t)
+        if event is not None:
+            rolling = event[1][2] if event[0] == "start" else self.rolling_friction
+            for ball in self.balls:
+                p.changeDynamics(ball, -1, rollingFriction=rolling, physicsClientId=client)
+        self._remove_or_return(client, t)
+        while self.resizes_done < len(self.resizes) and t >= self.resizes[self.resizes_done][0] - 1e-9:
+            self._resize(client, self.resizes[self.resizes_done][1])
+            self.resizes_done += 1
         while self.turns_done < len(self.turns) and t >= self.turns[self.turns_done][0] - 1e-9:
             self.turn_pair(client, self.turns[self.turns_done][1])
             self.turns_done += 1
@@ -402,6 +536,11 @@ class BallsScene(Scene):
             self.push(client, k, speed * direction)
             self.pushes_done += 1
 
+    @property
+    def removed(self) -> int | None:
+        """Index of the ball taken out of the hand (``removals``), ``None`` when both are in."""
+        return None if self._parked is None else self._parked[0]
+
     def ball_positions(self, client: int) -> np.ndarray:
         """World positions of the two balls (2, 3)."""
         return np.array([p.getBasePositionAndOrientation(b, physicsClientId=client)[0] for b in self.balls])
@@ -411,8 +550,12 @@ class BallsScene(Scene):
         return self.hand_rotation().inv().apply(np.atleast_2d(np.asarray(points, dtype=float)) - HAND_BASE)
 
     def palm_plane_positions(self, client: int) -> np.ndarray:
-        """Ball centres (2, 2) in the palm plane, ``(x_P, z_P)`` (m): the input of :mod:`handflow.plugins.simulator.metrics`."""
-        return self.to_palm(self.ball_positions(client))[:, [0, 2]]
+        """Ball centres (2, 2) in the palm plane, ``(x_P, z_P)`` (m): the input of
+        :mod:`handflow.plugins.simulator.metrics`; NaN for a ball taken out (``removals``)."""
+        out = self.to_palm(self.ball_positions(client))[:, [0, 2]]
+        if self.removed is not None:
+            out[self.removed] = np.nan
+        return out
 
     def mark_positions(self) -> np.ndarray:
         """World positions of ``mark_a`` and ``mark_b`` (2, 3)."""
@@ -427,7 +570,10 @@ class BallsScene(Scene):
             out.update({f"{name}_{axis}": float(v) for axis, v in zip("xyz", pos)})
         out["pushes_done"] = float(self.pushes_done)
         out["turns_done"] = float(self.turns_done)
-        out["holds_done"] = float(self.holds_done)
+        out["holds_done"] = float(self._holds.done)
+        out["frictions_done"] = float(self._frictions.done)
+        out["removals_done"] = float(self._removals.done)
+        out["resizes_done"] = float(self.resizes_done)
         return out
 
 

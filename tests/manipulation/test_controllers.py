@@ -166,6 +166,26 @@ def test_closed_loop_jumps_back_to_the_phase_of_a_pushed_back_ball(ball_manifold
     assert _circ(est.x[0], back, np.pi / 2) < 0.1 and _circ(est.x[0], 1.0, np.pi) > 0.4
 
 
+def test_after_a_jump_the_closed_loop_keeps_its_phase_for_the_refractory_span(ball_manifold):
+    sign = ball_manifold.time_sign
+    back = 1.0 - 0.6 * sign
+    guarded = ClosedLoopController(ball_manifold, tolerance=0.02, lag=0.3, refractory=1.0)
+    free = ClosedLoopController(ball_manifold, tolerance=0.02, lag=0.3)
+    for ctl in (guarded, free):
+        first = ctl.estimate(_balls_at(ball_manifold, back), [True, True], prior=np.array([1.0]))
+        assert _circ(first.x[0], back, np.pi / 2) < 0.1  # both jump the first time
+    # the replayed stroke has gone 0.5 on; the balls still trail it by 0.6
+    prior = np.array([first.x[0] + 0.5 * sign])
+    balls = _balls_at(ball_manifold, first.x[0] - 0.1 * sign)
+    assert guarded.estimate(balls, [True, True], prior=prior).x[0] == pytest.approx(prior[0])
+    assert free.estimate(balls, [True, True], prior=prior).x[0] != pytest.approx(prior[0])
+    # once the hand has gone past the refractory span, the balls decide again
+    later = np.array([first.x[0] + 1.2 * sign])
+    assert guarded.estimate(_balls_at(ball_manifold, later[0] - 0.6 * sign), [True, True], prior=later).x[0] != (
+        pytest.approx(later[0])
+    )
+
+
 def test_closed_loop_keeps_the_commanded_phase_when_the_balls_are_off_the_manifold(ball_manifold):
     far = np.array([[3.0, 3.0], [-3.0, 3.0]])
     loose = ClosedLoopController(ball_manifold, tolerance=0.05, lag=0.1, max_error=0.5)
@@ -175,8 +195,10 @@ def test_closed_loop_keeps_the_commanded_phase_when_the_balls_are_off_the_manifo
 
 
 def test_closed_loop_rejects_negative_tolerances(ball_manifold):
-    with pytest.raises(ValueError, match="tolerance and lag"):
+    with pytest.raises(ValueError, match="tolerance, lag and refractory"):
         ClosedLoopController(ball_manifold, tolerance=-0.1)
+    with pytest.raises(ValueError, match="tolerance, lag and refractory"):
+        ClosedLoopController(ball_manifold, refractory=-1.0)
 
 
 def test_closed_loop_plans_k_steps_ahead(ball_manifold):

@@ -1,0 +1,103 @@
+"""Scene disturbances where the phase matters (plugins/simulator/scenes.py): added ball friction,
+a ball taken out and put back, a pair of another size, a cap thread that binds."""
+
+import numpy as np
+import pybullet as p
+import pytest
+
+from handflow.plugins.demo.ball_swap import BallSwapMotion
+from handflow.plugins.hands.joints import GIFU
+from handflow.plugins.simulator.scenes import BallsScene, CapScene
+from handflow.plugins.simulator.simulation import Simulation
+
+
+def _swap(sim, steps):
+    motion = BallSwapMotion()
+    for _ in range(steps):
+        sim.set_targets(GIFU.names, motion.targets((sim.time % 2.0) / 2.0)[0])
+        sim.step(1)
+
+
+def _rolling(sim, k):
+    return p.getDynamicsInfo(sim.scene.balls[k], -1, physicsClientId=sim.client)[6]
+
+
+def test_a_friction_spell_sets_the_balls_rolling_friction_for_its_duration():
+    with Simulation("gifu", "balls", {"frictions": [[0.5, 0.5, 0.05]]}, seed=0) as sim:
+        _swap(sim, 121)
+        assert _rolling(sim, 0) == pytest.approx(0.05) and _rolling(sim, 1) == pytest.approx(0.05)
+        _swap(sim, 121)
+        assert _rolling(sim, 0) == pytest.approx(BallsScene().rolling_friction)
+        assert sim.scene_state()["frictions_done"] == 1
+
+
+def test_a_removed_ball_is_out_of_the_hand_then_put_back_opposite_the_other():
+    with Simulation("gifu", "balls", {"removals": [[1.0, 0.5]]}, seed=0) as sim:
+        _swap(sim, 242)
+        k = sim.scene.removed
+        assert k is not None
+        pos = sim.scene.palm_plane_positions(sim.client)
+        assert np.isnan(pos[k]).all() and np.isfinite(pos[1 - k]).all()
+        _swap(sim, 120)  # the lone ball goes on moving, then the other comes back
+        assert sim.scene.removed is None and sim.scene_state()["removals_done"] == 1
+        back = sim.scene.palm_plane_positions(sim.client)
+        centre = np.array(sim.scene.cup_centre)
+        # put back in contact, on the other side of the cup centre
+        assert np.linalg.norm(back[0] - back[1]) == pytest.approx(2 * sim.scene.ball_radius, abs=4e-3)
+        assert np.dot(back[0] - centre, back[1] - centre) < 0
+
+
+def test_a_resize_swaps_the_pair_for_smaller_balls_in_the_same_direction():
+    with Simulation("gifu", "balls", {"resizes": [[0.5, 0.014]]}, seed=0) as sim:
+        _swap(sim, 120)
+        before = sim.scene.palm_plane_positions(sim.client)
+        old_ids = list(sim.scene.balls)
+        _swap(sim, 2)
+        after = sim.scene.palm_plane_positions(sim.client)
+        radii = [p.getCollisionShapeData(b, -1, physicsClientId=sim.client)[0][3][0] for b in sim.scene.balls]
+        assert sim.scene.balls != old_ids and radii == pytest.approx([0.014, 0.014])
+        assert sim.scene_state()["resizes_done"] == 1
+        d0, d1 = before[0] - before[1], after[0] - after[1]
+        assert np.dot(d0, d1) / (np.linalg.norm(d0) * np.linalg.norm(d1)) > 0.99  # same pair direction
+        assert set(sim.scene.bodies.values()) >= {"ball1", "ball2"}
+
+
+def _cap_angle_under_torque(options, steps=240, torque=0.1):
+    with Simulation("shadow", "cap", {"radius": 0.025, **options}, seed=0) as sim:
+        angles = []
+        for _ in range(steps):
+            p.applyExternalTorque(sim.scene.bottle, 0, [0, 0, torque], p.WORLD_FRAME, physicsClientId=sim.client)
+            sim.step(1)
+            angles.append(sim.scene_state()["cap_angle"])
+    return np.array(angles)
+
+
+def test_a_blocked_cap_does_not_turn_while_blocked_and_turns_again_after():
+    free = _cap_angle_under_torque({})
+    blocked = _cap_angle_under_torque({"torques": [[0.25, 0.5, 10.0]]})
+    assert free[-1] > 0.5  # 0.1 N·m beats the thread's 0.06 N·m
+    i0, i1 = 61, 178  # inside the block 0.25–0.75 s
+    assert abs(blocked[i1] - blocked[i0]) < 0.02 * abs(free[i1] - free[i0])
+    assert blocked[-1] - blocked[190] > 0.01  # released
+
+
+@pytest.mark.parametrize(
+    "options, message",
+    [
+        ({"frictions": [[1.0, 2.0]]}, r"\[time_s, duration_s, rolling_friction\]"),
+        ({"frictions": [[1.0, 2.0, 5.0]]}, "rolling_friction <= 1"),
+        ({"removals": [[1.0, 0.0]]}, "0 < duration_s <= 10"),
+        ({"resizes": [[1.0, 0.03]]}, "does not fit the cup"),
+        ({"removals": "soon"}, r"\[time_s, duration_s\]"),
+    ],
+)
+def test_bad_ball_disturbances_are_rejected_naming_the_form(options, message):
+    with pytest.raises(ValueError, match=message):
+        BallsScene(**options)
+
+
+def test_bad_cap_torques_are_rejected_naming_the_form():
+    with pytest.raises(ValueError, match=r"\[time_s, duration_s, friction_torque\]"):
+        CapScene(torques=[[1.0, 0.5]])
+    with pytest.raises(ValueError, match="time_s >= 0"):
+        CapScene(torques=[[-1.0, 0.5, 1.0]])

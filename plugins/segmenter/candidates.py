@@ -20,6 +20,7 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
+from .delay import DelayEmbedding
 from .scaling import ChannelScaling
 
 INDEX_FILE = "classes.json"
@@ -162,6 +163,15 @@ class CandidateSet:
                 raise TypeError(f"candidate {name!r} has no project(Y) method")
         self.models = dict(models)
         self._batched = None
+        provenances = [getattr(getattr(m, "model", None), "provenance_", None) or {} for m in self.models.values()]
+        delays = {DelayEmbedding.from_provenance(p) for p in provenances}
+        if len(delays) > 1:
+            raise ValueError(
+                f"candidates were trained on different delay embeddings {sorted(map(str, delays))}; retrain them alike"
+            )
+        self.delay = delays.pop()
+        self.evidence_temperature = float(provenances[0].get("evidence_temperature", 1.0))
+        self.own_errors = np.array([float(p.get("own_error", 1.0)) for p in provenances])
 
     def _batched_projector(self):
         """The batched projector over all candidates, or None when some are not 1D periodic UKR."""
@@ -192,16 +202,26 @@ class CandidateSet:
     def __len__(self) -> int:
         return len(self.models)
 
-    def project(self, Y: np.ndarray) -> Projection:
-        """Project (N, d) observations onto every candidate."""
+    def scaled(self, Y: np.ndarray) -> np.ndarray:
+        """Observations in the channel scaling of the (first) candidate."""
+        first = next(iter(self.models.values()))
+        return first.scaled(Y) if isinstance(first, UKRCandidate) else np.asarray(Y, dtype=float)
+
+    def project(self, Y: np.ndarray, embedded: bool = False) -> Projection:
+        """Project (N, d) observations — a contiguous stretch of a stream from its start — onto every
+        candidate; candidates trained on a delay embedding (:mod:`.delay`) embed Y first.
+        ``embedded=True``: the rows are already scaled and embedded (the online segmenter's stream)."""
         Y = np.atleast_2d(np.asarray(Y, dtype=float))
         if not np.isfinite(Y).all():
             raise ValueError("observations hold NaN/inf; drop or repair those rows before recognition")
         lt = np.empty((Y.shape[0], len(self)))
         e = np.empty_like(lt)
         batched = self._batched_projector()
+        if self.delay.window > 1 and batched is None:
+            raise ValueError("a delay embedding needs 1D periodic UKR candidates with one shared channel scaling")
         if batched is not None:
-            Y = next(iter(self.models.values())).scaled(Y)
+            if not embedded:
+                Y = self.delay.transform(self.scaled(Y))
             X, F = batched.project(Y)
             for j, m in enumerate(self.models.values()):
                 lt[:, j] = np.mod(m.direction * X[:, j], np.pi)

@@ -14,9 +14,18 @@ from sklearn.exceptions import NotFittedError
 
 from .candidates import CandidateSet, Projection
 from .clm import CLMResult, CompetitiveLayerModel
-from .compatibility import background_band, candidate_band, order_rating, pair_error, thesis_background_strength
+from .compatibility import (
+    background_band,
+    candidate_band,
+    evidence_band,
+    order_rating,
+    pair_error,
+    score_evidence,
+    thesis_background_strength,
+)
 
 REJECTED = -1
+RECONSTRUCTIONS = ("absolute", "relative")
 
 
 class CLMSegmenter(BaseEstimator):
@@ -43,6 +52,19 @@ class CLMSegmenter(BaseEstimator):
         variance, ``e_t`` of noisy multi-channel data is ~1 even on the right manifold (BasicMotions:
         median 0.97), so ``c_sre ≈ −0.5…−1`` for every candidate, every candidate layer is
         repulsive and the background takes everything; a scale of 0.1 restores the contrast.
+    reconstruction : how the projection errors enter the layers.  ``"absolute"`` (the spec):
+        ``f^m_ij = ½ (c_loc_ij + c_sre_ij)`` with ``c_sre = −1 + 2 exp(−ē_ij)`` and the thesis'
+        background layer.  ``"relative"`` (documented choice for real recordings,
+        docs/segmentation.md): per frame the scaled errors of all candidates and of a *null
+        model* that explains every frame at the error ``1 / background_factor`` become evidence,
+        a softmax of ``−error_scale·e`` at the candidates' fitted temperature
+        (:attr:`.candidates.CandidateSet.evidence_temperature`), and every layer — the null
+        model's being the background — gets ``f_ij = ε_i + ε_j − 2/(M+1)`` within H
+        (:func:`.compatibility.evidence_band`): a layer is supported where its manifold explains the
+        frames better than the others, whatever the absolute error level of the data, and the
+        background where even the best-fitting manifold explains a frame worse than
+        ``1 / background_factor`` times its own typical error on its training frames
+        (:attr:`.candidates.CandidateSet.own_errors`; factor 0 = no background).
     restarts : independent cold runs per sequence; the lowest-energy solution is kept
         (documented choice: the annealed Gauss–Seidel dynamics end in a local minimum of the
         CLM energy — on real letter pairs the true segmentation often has lower energy than a
@@ -77,6 +99,7 @@ class CLMSegmenter(BaseEstimator):
         inhibition_margin: float = 1.5,
         spectral: str = "eigen",
         error_scale: float = 1.0,
+        reconstruction: str = "absolute",
         restarts: int = 1,
         random_state=None,
     ) -> None:
@@ -96,6 +119,7 @@ class CLMSegmenter(BaseEstimator):
         self.inhibition_margin = inhibition_margin
         self.spectral = spectral
         self.error_scale = error_scale
+        self.reconstruction = reconstruction
         self.restarts = restarts
         self.random_state = random_state
 
@@ -110,6 +134,8 @@ class CLMSegmenter(BaseEstimator):
                 raise ValueError(f"restarts must be >= 1, got {self.restarts}")
             if not self.error_scale > 0:
                 raise ValueError(f"error_scale must be > 0, got {self.error_scale}")
+            if self.reconstruction not in RECONSTRUCTIONS:
+                raise ValueError(f"reconstruction must be one of {RECONSTRUCTIONS}, got {self.reconstruction!r}")
             if int(self.history) < 1:
                 raise ValueError(f"history H must be >= 1, got {self.history}")
             self.solver_ = CompetitiveLayerModel(
@@ -150,6 +176,8 @@ class CLMSegmenter(BaseEstimator):
         """Bands (M+1, N, B) and diagonals (M+1,) of all layers, background last."""
         self._solver()  # checks the parameters
         _, span, width = self.widths()
+        if self.reconstruction == "relative":
+            return self.with_background(self.relative_band(proj.errors * float(self.error_scale), width, span))
         cand = candidate_band(
             proj.latent_time,
             proj.errors * float(self.error_scale),
@@ -162,9 +190,25 @@ class CLMSegmenter(BaseEstimator):
         cand[:, :, span:] = 0.0
         return self.with_background(cand)
 
+    def relative_band(self, scaled_errors: np.ndarray, width: int, span: int) -> np.ndarray:
+        """Bands (M+1, N, width) of ``reconstruction="relative"`` from errors (N, M) already
+        multiplied by ``error_scale``; the null model (the background) is the last layer."""
+        E = np.asarray(scaled_errors, dtype=float)
+        factor = float(self.background_factor)
+        if factor > 0:  # the null model's error: 1/factor times the best-fitting model's own typical error
+            own = self.candidates.own_errors[np.argmin(E, axis=1)]
+            null = (float(self.error_scale) / factor * own)[:, None]
+            evidence = score_evidence(-np.hstack([E, null]), self.candidates.evidence_temperature)
+        else:
+            evidence = np.hstack([score_evidence(-E, self.candidates.evidence_temperature), np.zeros((len(E), 1))])
+        return evidence_band(evidence, width, span)
+
     def with_background(self, cand: np.ndarray, length: int | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Candidate bands (M, N, B) → all layers' bands and diagonals, the background layer last;
-        λ_bg is that of a sequence of ``length`` observations (default N)."""
+        λ_bg is that of a sequence of ``length`` observations (default N).  With
+        ``reconstruction="relative"`` the bands already end with the background's."""
+        if self.reconstruction == "relative":  # a copy: the online segmenter slides its bands in place
+            return cand.copy(), np.zeros(cand.shape[0])
         n = cand.shape[1]
         radius, _, width = self.widths()
         bg, bg_diag = background_band(n, width, self.background_strength(n if length is None else length), radius)

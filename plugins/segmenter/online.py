@@ -197,7 +197,7 @@ class OnlineCLMSegmenter(CLMSegmenter):
         m = self._n_layers()
         self._radius, self._span, self._width = self.widths()
         self._rows = self._source_rows(m)  # per-observation source buffers (window, m), slid together
-        self._band = np.zeros((m, self.window, self._width))
+        self._band = np.zeros((m + (self.reconstruction == "relative"), self.window, self._width))  # + background
         self._labels = np.zeros(0, dtype=int)  # current labels of the window (fast run, then final)
         self._published = np.zeros(0, dtype=int)  # labels last reported for the window
         self._final = np.zeros(0, dtype=bool)  # labels fixed by a block run
@@ -209,6 +209,7 @@ class OnlineCLMSegmenter(CLMSegmenter):
         self.n = 0  # observations in the window
         self.seen = 0  # observations consumed in total
         self.segments = SegmentTracker(memory=self.window)
+        self._delay = self.candidates.delay.stream() if self.candidates is not None else None
 
     def _n_layers(self) -> int:
         return len(self.candidates)
@@ -219,6 +220,8 @@ class OnlineCLMSegmenter(CLMSegmenter):
 
     def _recent_band(self, lo: int, j: int) -> np.ndarray:
         """Band (m, j − lo + 1, width) of the observations ``lo…j`` of the window."""
+        if self.reconstruction == "relative":  # errors already scaled in update_projected
+            return self.relative_band(self._rows["errors"][lo : j + 1], self._width, self._span)
         return candidate_band(
             self._rows["latent"][lo : j + 1],
             self._rows["errors"][lo : j + 1],
@@ -246,7 +249,13 @@ class OnlineCLMSegmenter(CLMSegmenter):
 
     def update(self, y: np.ndarray) -> OnlineUpdate:
         """Consume one observation (d,) and re-segment the window."""
-        proj = self.candidates.project(np.asarray(y, dtype=float).reshape(1, -1))
+        y = np.asarray(y, dtype=float).reshape(1, -1)
+        if not np.isfinite(y).all():  # checked before it enters the delay buffer
+            raise ValueError("observations hold NaN/inf; drop or repair those rows before recognition")
+        if self.candidates.delay.window > 1:  # the candidates' delay embedding, sample by sample
+            proj = self.candidates.project(self._delay.push(self.candidates.scaled(y)[0]), embedded=True)
+        else:
+            proj = self.candidates.project(y)
         return self.update_projected(proj.latent_time[0], proj.errors[0])
 
     def _append(self, **rows: np.ndarray) -> None:

@@ -154,14 +154,9 @@ class StreamEvaluator:
     def _online(self, fitted: Fitted, reject: float, X: np.ndarray) -> np.ndarray:
         from .online import OnlineCLMSegmenter
 
-        seg = OnlineCLMSegmenter(
-            fitted.model,
-            history=METHODS["ukr_clm"].history,
-            background_factor=reject,
-            error_scale=fitted.params["error_scale"],
-            max_sweeps=300,  # as the batch ukr_clm (frame_methods.UKRCLMMethod)
-            random_state=0,
-        )
+        batch = METHODS["ukr_clm"].segmenter(fitted.model, reject).get_params()
+        same = ("history", "background_factor", "reconstruction", "error_scale", "max_sweeps", "random_state")
+        seg = OnlineCLMSegmenter(fitted.model, **{k: batch[k] for k in same})
         published = np.full(len(X), -1)
         for y in X:  # each sample's final published label: on arrival, then confirmed revisions
             update = seg.update(y)

@@ -1,0 +1,107 @@
+"""Delay-embedded class manifolds with relative reconstruction evidence (docs/segmentation.md,
+"Continuous recordings")."""
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from handflow.plugins.segmenter import CLMSegmenter, OnlineCLMSegmenter
+from handflow.plugins.segmenter.delay import DelayEmbedding
+from handflow.plugins.segmenter.frame_methods import METHODS
+
+from .test_continuous import _synthetic_recordings
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    n=st.integers(1, 30),
+    d=st.integers(1, 3),
+    window=st.integers(1, 6),
+    step=st.integers(1, 3),
+    seed=st.integers(0, 9),
+)
+def test_streamed_embedding_equals_the_whole_recording_embedded(n, d, window, step, seed):
+    X = np.random.default_rng(seed).normal(size=(n, d))
+    delay = DelayEmbedding(window, step)
+    stream = delay.stream()
+    np.testing.assert_array_equal(np.array([stream.push(x) for x in X]), delay.transform(X))
+
+
+def test_embedding_is_causal_and_complete_windows_lie_inside_the_segment():
+    X = np.arange(10.0)[:, None]
+    E = DelayEmbedding(3, 2).transform(X)
+    assert E.shape == (10, 3)
+    assert E[6].tolist() == [2.0, 4.0, 6.0]  # frames t−4, t−2, t, oldest first
+    assert E[1].tolist() == [0.0, 0.0, 1.0]  # the first frame stands in for the missing past
+    assert DelayEmbedding(3, 2).complete(X)[0].tolist() == [0.0, 2.0, 4.0]
+    with pytest.raises(ValueError, match="window and step"):
+        DelayEmbedding(0)
+
+
+@pytest.fixture(scope="module")
+def fitted():
+    X, y = _synthetic_recordings(0)
+    method = METHODS["ukr_clm"]
+    return method, method.fit({c: [X[y == c]] for c in (0, 1, 2)}, {"delay": 4}, seed=0), X, y
+
+
+def test_delay_models_label_frames_and_the_null_model_rejects(fitted):
+    method, fit, X, y = fitted
+    assert fit.model.delay == DelayEmbedding(4) and fit.model.evidence_temperature > 0
+    state = method.prepare(fit, X)
+    assert state.errors.shape == (len(X), 3)
+    kept = method.labels(fit, state, reject=0.0)
+    assert np.mean(kept == y) > 0.8 and not np.any(kept == -1)  # factor 0: no background
+    assert np.all(method.labels(fit, state, reject=1e6) == -1)  # the null model explains everything better
+    dropped = method.labels(fit, state, reject=1.0, drop=2)
+    assert not np.any(dropped == 2)
+    assert np.mean(dropped[y == 2] == -1) > np.mean(dropped[y != 2] == -1)  # the left-out class goes to the background
+
+
+def test_errors_share_one_metric_across_class_models(fitted):
+    _, fit, _, _ = fitted
+    variances = [c.model.train_variance_ for c in fit.model.models.values()]
+    references = {c.error_reference for c in fit.model.models.values()}
+    assert all(np.array_equal(v, variances[0]) for v in variances) and len(references) == 1
+    assert len(fit.model.own_errors) == 3 and np.all(fit.model.own_errors > 0)
+
+
+def test_online_relative_segmenter_equals_the_batch_and_embeds_sample_by_sample(fitted):
+    method, fit, X, _ = fitted
+    batch = method.segmenter(fit.model, 0.0)
+    params = {k: batch.get_params()[k] for k in ("history", "background_factor", "reconstruction", "random_state")}
+    online = OnlineCLMSegmenter(fit.model, window=len(X), block=0, **params)  # one window: the batch's problem
+    by_update = []
+    for x in X:
+        up = online.update(x)
+        by_update.append(up.label)
+    replayed = OnlineCLMSegmenter(fit.model, window=len(X), block=0, **params).replay(X)
+    assert np.mean(replayed == CLMSegmenter(fit.model, **params).fit_predict(X)) >= 0.99
+    assert len(by_update) == len(X)
+    with pytest.raises(ValueError, match="NaN"):
+        online.update(np.full(X.shape[1], np.nan))
+    with pytest.raises(ValueError, match="reconstruction"):
+        CLMSegmenter(fit.model, reconstruction="other").fit_predict(X)
+
+
+def test_saved_delay_models_keep_their_embedding(fitted, tmp_path):
+    from handflow.plugins.segmenter.candidates import load_candidates
+    from handflow.plugins.segmenter.training import save_class_models
+
+    _, fit, X, _ = fitted
+    save_class_models({k: c.model for k, c in fit.model.models.items()}, tmp_path)
+    loaded = load_candidates(tmp_path)
+    assert loaded.delay == fit.model.delay
+    assert loaded.evidence_temperature == pytest.approx(fit.model.evidence_temperature)
+    np.testing.assert_allclose(loaded.own_errors, fit.model.own_errors)
+
+
+def test_online_block_runs_over_a_sliding_window_agree_with_the_batch(fitted):
+    """Regression: the relative bands are handed to a block run that goes on while the window
+    slides; it must not see the window's bands shift under it."""
+    method, fit, X, _ = fitted
+    params = {"history": 10, "background_factor": 0.0, "reconstruction": "relative", "random_state": 0}
+    online = OnlineCLMSegmenter(fit.model, window=100, **params).replay(X)
+    assert len(X) > 3 * 100
+    assert np.mean(online == CLMSegmenter(fit.model, **params).fit_predict(X)) >= 0.98

@@ -78,9 +78,9 @@ class UKRCandidate:
     ``sin(2 Δx)`` over consecutive training latents (period π), and latent times are multiplied by
     it, so forward motion always means increasing latent time.
 
-    ``error_reference`` divides ``e_t`` (default 1 = the thesis' definition); the continuous
-    evaluation sets it to the median ``e_t`` of the model's own training frames, so that the errors
-    of a tight and of a loose class model are on one scale (docs/segmentation.md).
+    ``error_reference`` divides ``e_t`` (default: the model's provenance ``error_reference``, else
+    1 = the thesis' definition); models for real recordings share one
+    (:func:`.training.fit_recording_models`, docs/segmentation.md).
 
     ``seam``: for a model of an *open stroke* (trained on whole strokes, not cycles; flagged
     ``open_stroke`` in its provenance) the latent time where the stroke's end meets its start on
@@ -92,13 +92,13 @@ class UKRCandidate:
     observation the same way before projecting.
     """
 
-    def __init__(self, model, error_reference: float = 1.0) -> None:
+    def __init__(self, model, error_reference: float | None = None) -> None:
         self.model = model
-        self.error_reference = float(error_reference)
+        prov = getattr(model, "provenance_", None) or {}
+        self.error_reference = float(prov.get("error_reference", 1.0) if error_reference is None else error_reference)
         self.scaling = ChannelScaling.from_model(model)
         self.time_dim = int(getattr(model, "time_dim_", 0) or 0)
         self.direction = training_direction(model.latents_[:, self.time_dim], model.sequence_ids_)
-        prov = getattr(model, "provenance_", None) or {}
         self.seam = (
             stroke_seam(np.mod(self.direction * model.latents_[:, self.time_dim], np.pi), model.sequence_ids_)
             if prov.get("open_stroke")
@@ -172,6 +172,7 @@ class CandidateSet:
         self.delay = delays.pop()
         self.evidence_temperature = float(provenances[0].get("evidence_temperature", 1.0))
         self.own_errors = np.array([float(p.get("own_error", 1.0)) for p in provenances])
+        self.reconstruction = str(provenances[0].get("reconstruction", "absolute"))  # what the models were made for
 
     def _batched_projector(self):
         """The batched projector over all candidates, or None when some are not 1D periodic UKR."""

@@ -12,7 +12,7 @@ from .candidates import ModelsMissingError, load_candidates
 from .continuous import is_continuous
 from .datasets import DatasetError, load_dataset
 from .evaluation import EXPERIMENTS, METHODS, Evaluator, Protocol
-from .stream_cli import run_stream_evaluation
+from .stream_cli import run_stream_evaluation, run_train_recording_models
 from .training import INITS, KERNELS, candidate_set, save_class_models, train_class_models
 
 
@@ -64,9 +64,19 @@ def _beta(args):
 
 # -- train-classes ------------------------------------------------------------------------------
 def register_train_classes(parser: argparse.ArgumentParser) -> None:
-    parser.description = "Train one structured UKR manifold (1D periodic time) per class of a labelled dataset."
+    parser.description = (
+        "Train one structured UKR manifold (1D periodic time) per class: of a labelled dataset's train split "
+        "(the thesis' models), or of every labelled segment of continuous recordings (delay-embedded models "
+        "for real streams, docs/segmentation.md)."
+    )
     _add_dataset_args(parser)
     parser.add_argument("--out", required=True, help="output folder (gets <label>.npz and classes.json)")
+    parser.add_argument(
+        "--delay",
+        type=int,
+        default=8,
+        help="continuous recordings: frames of the delay embedding of the class models (docs/segmentation.md)",
+    )
     parser.set_defaults(func=run_train_classes)
 
 
@@ -84,6 +94,8 @@ def _train(ds, args):
 
 
 def run_train_classes(args) -> int:
+    if is_continuous(args.dataset):
+        return run_train_recording_models(args, _progress)
     try:
         ds = _dataset(args)
         models = _train(ds, args)

@@ -18,16 +18,11 @@ import numpy as np
 from .baselines import PerClassHMM, SlidingDTW1NN
 from .candidates import CandidateSet, Projection
 from .clm_segmenter import CLMSegmenter
-from .compatibility import evidence_band, evidence_temperature, score_evidence
-from .cycles import phase_direction, split_cycles
-from .delay import DelayEmbedding
+from .compatibility import evidence_band, score_evidence
 from .openset import REJECTED, score_thresholds, threshold_labels
 from .scorers import MiniRocketScorer
-from .training import auto_beta, candidate_set
+from .training import fit_recording_models
 from .ukr_only import UKROnlyRecognizer
-
-MAX_POINTS_PER_CLASS = 400
-MIN_PERIOD = 5  # frames; shortest cycle the class models look for  # UKR training points per class (documented choice: every k-th frame above it)
 
 
 @dataclass
@@ -136,18 +131,9 @@ def _thin(seqs: list[np.ndarray], k: int) -> list[np.ndarray]:
 
 
 class UKRMethod:
-    """Shared part of the manifold methods: one periodic structured UKR per class over a causal
-    delay embedding of the frames (:mod:`.delay`, window chosen on validation), trained on the
-    cycles of its segments (:func:`split_cycles`; a segment without a period stays whole).
-
-    Documented choice (docs/segmentation.md, "Continuous recordings"): errors are measured in one
-    metric for all class models — Σ = the variance of all classes' training frames together, and
-    one ``error_reference`` (the median error of the training frames on their own class's model)
-    — not in each model's own training variance (the spec's Σ_m): with Σ_m, a model of a class
-    that moves a lot (Running) has a large Σ_m and explains every quiet frame with a small error
-    (BasicMotions, frames argmin-labelled: 0.48 of the frames right with Σ_m, 0.68 with one Σ,
-    0.84 with one Σ and an 8-frame delay window).  The candidates' evidence temperature is that
-    of the training frames (:func:`.compatibility.evidence_temperature`), fixed for the stream."""
+    """Shared part of the manifold methods: one periodic structured UKR per class over a delay
+    embedding of the frames, errors in one metric (:func:`.training.fit_recording_models`); the
+    delay window is chosen on validation."""
 
     name = ""
     steps = 150
@@ -157,42 +143,9 @@ class UKRMethod:
     def fit_key(self) -> str:
         return "ukr"
 
-    def _fit_candidates(self, segments, seed, delay: int = 1) -> CandidateSet:
-        from handflow.plugins.manifold import StructuredUKR
-
-        embedding = DelayEmbedding(int(delay))
-        embedded = {c: [embedding.complete(s) for s in segments[c]] for c in sorted(segments)}
-        pooled_variance = np.vstack([e for seqs in embedded.values() for e in seqs]).var(axis=0)
-        pooled_variance = np.where(pooled_variance > 0, pooled_variance, 1.0)
-        models = {}
-        for c, segs in embedded.items():
-            direction = phase_direction(np.vstack(segs))
-            seqs = [cyc for s in segs for cyc in split_cycles(s, direction, MIN_PERIOD) if len(cyc) >= 4]
-            total = sum(map(len, seqs))
-            k = max(1, int(np.ceil(total / MAX_POINTS_PER_CLASS)))
-            seqs = [s[::k] for s in seqs if len(s) >= 4 * k] or [max(segs, key=len)[::k]]
-            model = StructuredUKR(
-                latent=[{"kernel": "periodic", "beta": auto_beta(seqs), "time": True}],
-                lambda_cseq=1.0,
-                lambda_pvar=0.0,
-                n_steps=self.steps,
-                init="equidistant",
-                random_state=seed,
-            ).fit(seqs)
-            model.train_variance_ = pooled_variance
-            model.provenance_ = dict(model.provenance_, **embedding.to_provenance())
-            models[str(c)] = model
-        cands = candidate_set(models)
-        own = [cands.project(s) for c in sorted(segments) for s in segments[c]]
-        columns = [j for j, c in enumerate(sorted(segments)) for _ in segments[c]]
-        reference = float(np.median(np.concatenate([p.errors[:, j] for p, j in zip(own, columns)]))) or 1.0
-        for cand in cands.models.values():
-            cand.error_reference = reference
-        tau = evidence_temperature(-np.vstack([p.errors for p in own]) / reference)
-        for j, cand in enumerate(cands.models.values()):
-            own_error = np.median(np.concatenate([p.errors[:, j] for p, i in zip(own, columns) if i == j])) / reference
-            cand.model.provenance_ = dict(cand.model.provenance_, evidence_temperature=tau, own_error=own_error)
-        return CandidateSet(cands.models)  # reads the temperature and own errors from the provenance
+    def _fit_candidates(self, segments, seed, delay: int) -> CandidateSet:
+        by_class = {str(c): segments[c] for c in sorted(segments)}
+        return fit_recording_models(by_class, delay=delay, n_steps=self.steps, random_state=seed)
 
     def prepare(self, fitted: Fitted, X: np.ndarray) -> Projection:
         return fitted.model.project(X)
@@ -210,18 +163,19 @@ class UKRCLMMethod(UKRMethod):
     1 / factor in units of the training frames' median error)."""
 
     name = "ukr_clm"
-    history = 10
+    histories = ((20,), (10, 20))  # CLM neighbourhood H of the quick and the full grid
+    label_params = ("history",)  # chosen without refitting the class models
 
     def grid(self, quick: bool) -> list[dict]:
-        return [{"delay": w} for w in self.delays[not quick]]
+        return [{"delay": w, "history": h} for w in self.delays[not quick] for h in self.histories[not quick]]
 
     def fit(self, segments, params, seed) -> Fitted:
         return Fitted(self._fit_candidates(segments, seed, params["delay"]), sorted(segments), params)
 
-    def segmenter(self, candidates: CandidateSet, reject: float) -> CLMSegmenter:
+    def segmenter(self, candidates: CandidateSet, reject: float, history: int) -> CLMSegmenter:
         return CLMSegmenter(
             candidates,
-            history=self.history,
+            history=history,
             background_factor=reject,
             reconstruction="relative",
             max_sweeps=300,
@@ -230,16 +184,17 @@ class UKRCLMMethod(UKRMethod):
 
     def labels(self, fitted, state, reject, drop=None):
         cands, proj, classes = self._view(fitted, state, drop)
-        return _to_global(self.segmenter(cands, reject).fit_predict_projected(proj), classes)
+        return _to_global(self.segmenter(cands, reject, fitted.params["history"]).fit_predict_projected(proj), classes)
 
     def reject_grid(self, fitted, states) -> np.ndarray:
-        return np.array([0.0, 0.0625, 0.125, 0.25, 0.5, 1.0, 2.0, 4.0, 8.0, 16.0, 64.0])
+        return np.array([0.0, 1 / 32, 1 / 16, 1 / 8, 1 / 4, 1 / 2, 1.0, 2.0, 4.0, 8.0, 16.0, 64.0])
 
 
 class UKROnlyMethod(UKRMethod):
     """Winner-take-all over the UKR compatibilities; rejection = a threshold on the winning C."""
 
     name = "ukr_only"
+    label_params = ("lam", "order_rating")  # chosen without refitting the class models
 
     def grid(self, quick: bool) -> list[dict]:
         lams = (0.5,) if quick else (0.3, 0.5)

@@ -100,6 +100,10 @@ class OnlineCLMNode(_RecognizerNode):
         background_factor: float = Field(1.0, ge=0, description="multiplies λ_bg (3 = strong background; 0 = none)")
         background: float | None = Field(None, description="λ_bg; null = 1 − 10/N")
         error_scale: float = Field(1.0, gt=0, description="multiplies e_t before c_sre (1 = spec)")
+        reconstruction: Literal["auto", "absolute", "relative"] = Field(
+            "auto",
+            description="how UKR errors enter the CLM (docs/segmentation.md); auto = what the models were trained for",
+        )
         order_rating: Literal["sign", "cos"] = "sign"
         tail: int = Field(30, ge=1, description="newest observations the fast CLM run solves per update")
         update_eta: float = Field(0.9, gt=0, le=1, description="annealing factor per sweep of the fast run")
@@ -139,7 +143,9 @@ class OnlineCLMNode(_RecognizerNode):
             random_state=p.seed,
         )
         if p.source == "ukr":
-            self.segmenter = OnlineCLMSegmenter(self.load_models(), **common)
+            models = self.load_models()
+            reconstruction = models.reconstruction if p.reconstruction == "auto" else p.reconstruction
+            self.segmenter = OnlineCLMSegmenter(models, reconstruction=reconstruction, **common)
         else:
             self.segmenter = OnlineScoreCLMSegmenter(self.load_scorer(), **common)
         self.classes = self.segmenter.classes_

@@ -13,6 +13,7 @@ import numpy as np
 from .continuous import basicmotions_continuous, load_recordings, segments
 from .scorers import SCORERS
 from .stream_evaluation import DEFAULT_METHODS, StreamEvaluator
+from .training import fit_recording_models, save_class_models
 
 
 def run_stream_evaluation(args, progress) -> int:
@@ -109,23 +110,56 @@ def register_fit_scorer(parser) -> None:
     parser.set_defaults(func=run_fit_scorer)
 
 
+def known_segments(path: str, known: str | None, option: str = "--known") -> dict[str, list[np.ndarray]]:
+    """Class name → labelled segments of the classes ``known`` (comma-separated; None = all) of
+    continuous recordings, or a ValueError that says what to change (naming the ``option``)."""
+    data = load_recordings(path)
+    names = known.split(",") if known else data.class_names
+    missing = sorted(set(names) - set(data.class_names))
+    if missing:
+        raise ValueError(f"{option} names classes {missing} that the data lacks; it has {data.class_names}")
+    segs = segments(data.recordings, [data.class_names.index(n) for n in names])
+    empty = [n for n in names if not segs[data.class_names.index(n)]]
+    if empty:
+        raise ValueError(f"classes {empty} have no labelled segment of 2+ frames")
+    return {n: segs[data.class_names.index(n)] for n in names}
+
+
+def run_train_recording_models(args, progress) -> int:
+    """``train-classes`` on continuous recordings: :func:`.training.fit_recording_models` on every
+    labelled segment (``--classes`` = the classes to model), channels z-scored with the models."""
+    t0 = time.perf_counter()
+    try:
+        by_class = known_segments(args.dataset, args.classes, "--classes")
+        if args.delay < 1:
+            raise ValueError(f"--delay must be >= 1 frame, got {args.delay}")
+        cands = fit_recording_models(
+            by_class,
+            delay=args.delay,
+            n_steps=args.steps,
+            random_state=args.seed,
+            scaling="standard",
+            progress=progress,
+        )
+    except ValueError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    models = {label: cand.model for label, cand in cands.models.items()}
+    out = save_class_models(models, args.out, provenance={"dataset": str(args.dataset), "steps": args.steps})
+    progress(f"wrote {len(models)} models (delay {args.delay}) to {out} in {time.perf_counter() - t0:.1f}s")
+    return 0
+
+
 def run_fit_scorer(args) -> int:
     t0 = time.perf_counter()
     try:
-        data = load_recordings(args.recordings)
-        names = args.known.split(",") if args.known else data.class_names
-        missing = sorted(set(names) - set(data.class_names))
-        if missing:
-            raise ValueError(f"--known names classes {missing} that the data lacks; it has {data.class_names}")
-        segs = segments(data.recordings, [data.class_names.index(n) for n in names])
-        empty = [n for n in names if not segs[data.class_names.index(n)]]
-        if empty:
-            raise ValueError(f"classes {empty} have no labelled segment of 2+ frames")
+        segs = known_segments(args.recordings, args.known)
+        names = list(segs)
         cls = SCORERS[args.source]
         scorer = (
             cls(window=args.window, random_state=args.seed) if args.source == "minirocket" else cls(window=args.window)
         )
-        scorer.fit({n: segs[data.class_names.index(n)] for n in names})
+        scorer.fit(segs)
     except (ValueError, ImportError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -114,14 +114,16 @@ class StreamEvaluator:
 
     def _fit(self, method, train: list[Recording], params: dict) -> Fitted:
         """``method.fit`` on ``train``, shared within a fold by the methods of one ``fit_key``
-        (minirocket and clm_minirocket fit the same classifier on the same data)."""
-        key = (method.fit_key, repr(sorted(params.items())), tuple(r.name for r in train))
+        (minirocket and clm_minirocket fit the same classifier on the same data) and by the
+        parameter sets that differ only in a method's ``label_params`` (used after the fit)."""
+        fit_params = {k: v for k, v in params.items() if k not in getattr(method, "label_params", ())}
+        key = (method.fit_key, repr(sorted(fit_params.items())), tuple(r.name for r in train))
         if key not in self._cache:
             self._cache[key] = method.fit(self._segments(train), params, self.random_state)
-        return self._cache[key]
+        return replace(self._cache[key], params=params)
 
     def _prepare(self, method, fitted: Fitted, rec: Recording):
-        key = (method.fit_key, id(fitted), rec.name)
+        key = (method.fit_key, id(fitted.model), rec.name)
         if key not in self._cache:
             self._cache[key] = method.prepare(fitted, rec.X)
         return self._cache[key]
@@ -154,7 +156,7 @@ class StreamEvaluator:
     def _online(self, fitted: Fitted, reject: float, X: np.ndarray) -> np.ndarray:
         from .online import OnlineCLMSegmenter
 
-        batch = METHODS["ukr_clm"].segmenter(fitted.model, reject).get_params()
+        batch = METHODS["ukr_clm"].segmenter(fitted.model, reject, fitted.params["history"]).get_params()
         same = ("history", "background_factor", "reconstruction", "error_scale", "max_sweeps", "random_state")
         seg = OnlineCLMSegmenter(fitted.model, **{k: batch[k] for k in same})
         published = np.full(len(X), -1)

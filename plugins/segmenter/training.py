@@ -26,8 +26,10 @@ from pathlib import Path
 import numpy as np
 
 from .candidates import INDEX_FILE, CandidateSet, UKRCandidate
-from .cycles import split_cycles
+from .compatibility import evidence_temperature
+from .cycles import phase_direction, split_cycles
 from .datasets import LabelledDataset
+from .delay import DelayEmbedding
 from .scaling import ChannelScaling
 
 
@@ -127,6 +129,87 @@ def fit_class_models(
         )
         models[label] = model
     return models
+
+
+MAX_POINTS_PER_CLASS = 800  # UKR training points per class of fit_recording_models (thin_pieces above it)
+MIN_PERIOD = 5  # frames; the shortest cycle fit_recording_models looks for
+
+
+def thin_pieces(pieces: list[np.ndarray], max_points: int) -> list[np.ndarray]:
+    """Evenly spaced whole pieces holding at most ``max_points`` observations in all (documented
+    choice: every kept piece keeps its full time resolution; one piece at least, cut to ``max_points``)."""
+    stride = max(1, int(np.ceil(sum(map(len, pieces)) / max_points)))
+    kept = pieces[::stride]
+    while len(kept) > 1 and sum(map(len, kept)) > max_points:
+        kept = kept[::2]
+    return kept if sum(map(len, kept)) <= max_points else [kept[0][:max_points]]
+
+
+def fit_recording_models(
+    by_class: dict[str, list[np.ndarray]],
+    delay: int = 8,
+    n_steps: int = 150,
+    random_state: int | None = 0,
+    scaling: str = "none",
+    progress: Callable[[str], None] | None = None,
+) -> CandidateSet:
+    """Class models for real recordings (docs/segmentation.md, "Class models for real recordings"):
+    label → training segments (T, d), each holding any number of repetitions.
+
+    Each segment is delay-embedded (``delay`` frames, :mod:`.delay`; complete windows only), cut
+    into cycles (period detection on the embedded class data, :func:`.cycles.split_cycles`), and one
+    periodic StructuredUKR per class is fitted on at most :data:`MAX_POINTS_PER_CLASS` evenly
+    thinned points.  Documented choice: errors are measured in one metric for all models — Σ =
+    the variance of all classes' embedded training frames, one ``error_reference`` (the median
+    error of the training frames on their own class's model) — and each model stores its own
+    typical error relative to it (``own_error``) and the evidence temperature of the training
+    frames (``evidence_temperature``), as :class:`CLMSegmenter`'s ``reconstruction="relative"``
+    uses them.  ``scaling="standard"`` z-scores the channels with all training frames first and
+    stores the scaling with the models (for models used outside the evaluation).
+    """
+    from handflow.plugins.manifold import StructuredUKR
+
+    if scaling not in SCALINGS:
+        raise ValueError(f"scaling must be one of {SCALINGS}, got {scaling!r}")
+    raw = {c: [np.asarray(s, dtype=float) for s in segs] for c, segs in by_class.items()}
+    scaler = ChannelScaling().fit([s for segs in raw.values() for s in segs]) if scaling == "standard" else None
+    embedding = DelayEmbedding(int(delay))
+    embedded = {c: [embedding.complete(scaler.transform(s) if scaler else s) for s in segs] for c, segs in raw.items()}
+    pooled_variance = np.vstack([e for segs in embedded.values() for e in segs]).var(axis=0)
+    pooled_variance = np.where(pooled_variance > 0, pooled_variance, 1.0)
+    extra = {**embedding.to_provenance(), **(scaler.to_provenance() if scaler else {}), "reconstruction": "relative"}
+    models = {}
+    for c, segs in embedded.items():
+        direction = phase_direction(np.vstack(segs))
+        seqs = [cyc for s in segs for cyc in split_cycles(s, direction, MIN_PERIOD) if len(cyc) >= 4] or segs
+        seqs = thin_pieces(seqs, MAX_POINTS_PER_CLASS)
+        if progress:
+            progress(f"training '{c}' on {len(seqs)} pieces ({sum(map(len, seqs))} points, delay {delay})")
+        model = StructuredUKR(
+            latent=[{"kernel": "periodic", "beta": auto_beta(seqs), "time": True}],
+            lambda_cseq=1.0,
+            lambda_pvar=0.0,
+            n_steps=n_steps,
+            init="equidistant",
+            random_state=random_state,
+        ).fit(seqs)
+        model.train_variance_ = pooled_variance
+        model.provenance_ = dict(model.provenance_, **extra)
+        models[c] = model
+    cands = candidate_set(models)
+    own = {c: np.concatenate([cands.project(s).errors[:, j] for s in raw[c]]) for j, c in enumerate(raw)}
+    reference = float(np.median(np.concatenate(list(own.values())))) or 1.0
+    everything = np.vstack([cands.project(s).errors for segs in raw.values() for s in segs])
+    tau = evidence_temperature(-everything / reference)
+    for c, cand in cands.models.items():
+        cand.error_reference = reference
+        cand.model.provenance_ = dict(
+            cand.model.provenance_,
+            error_reference=reference,
+            evidence_temperature=tau,
+            own_error=float(np.median(own[c])) / reference,
+        )
+    return candidate_set(models)  # reads the shared settings back from the provenance
 
 
 def candidate_set(models: dict) -> CandidateSet:

@@ -49,7 +49,7 @@ def test_a_model_trained_on_multi_cycle_segments_labels_a_single_cycle():
     rng = np.random.default_rng(0)
     segments = {0: [_cycles(circle, 5, rng) for _ in range(2)], 1: [_cycles(figure_eight, 5, rng) for _ in range(2)]}
     method = UKRCLMMethod()
-    fitted = method.fit(segments, {"delay": 4}, seed=0)
+    fitted = method.fit(segments, {"delay": 4, "history": 10}, seed=0)
     one = circle(np.linspace(0, 2 * np.pi, 24, endpoint=False))
     labels = method.labels(fitted, method.prepare(fitted, one), reject=0.0)
     assert np.mean(labels == 0) >= 0.8

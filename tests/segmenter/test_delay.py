@@ -43,7 +43,7 @@ def test_embedding_is_causal_and_complete_windows_lie_inside_the_segment():
 def fitted():
     X, y = _synthetic_recordings(0)
     method = METHODS["ukr_clm"]
-    return method, method.fit({c: [X[y == c]] for c in (0, 1, 2)}, {"delay": 4}, seed=0), X, y
+    return method, method.fit({c: [X[y == c]] for c in (0, 1, 2)}, {"delay": 4, "history": 10}, seed=0), X, y
 
 
 def test_delay_models_label_frames_and_the_null_model_rejects(fitted):
@@ -69,7 +69,7 @@ def test_errors_share_one_metric_across_class_models(fitted):
 
 def test_online_relative_segmenter_equals_the_batch_and_embeds_sample_by_sample(fitted):
     method, fit, X, _ = fitted
-    batch = method.segmenter(fit.model, 0.0)
+    batch = method.segmenter(fit.model, 0.0, history=10)
     params = {k: batch.get_params()[k] for k in ("history", "background_factor", "reconstruction", "random_state")}
     online = OnlineCLMSegmenter(fit.model, window=len(X), block=0, **params)  # one window: the batch's problem
     by_update = []
@@ -105,3 +105,44 @@ def test_online_block_runs_over_a_sliding_window_agree_with_the_batch(fitted):
     online = OnlineCLMSegmenter(fit.model, window=100, **params).replay(X)
     assert len(X) > 3 * 100
     assert np.mean(online == CLMSegmenter(fit.model, **params).fit_predict(X)) >= 0.98
+
+
+def test_train_classes_on_recordings_feeds_the_online_node_in_relative_mode(tmp_path):
+    """`handflow train-classes RECORDINGS` writes delay models with their scaling; the online node
+    picks the relative reconstruction they were made for and labels the raw stream as the batch does."""
+    import subprocess
+    import sys
+
+    from handflow.framework.messages import Array
+    from handflow.framework.testing import NodeHarness
+    from handflow.plugins.segmenter.candidates import load_candidates
+    from handflow.plugins.segmenter.nodes import OnlineCLMNode
+
+    arrays = {"class_names": np.array(["a", "b", "c"])}
+    for k in range(3):
+        X, y = _synthetic_recordings(k)
+        arrays[f"X_r{k}"], arrays[f"y_r{k}"] = 5.0 * X + 3.0, y  # raw units: the models carry the z-scoring
+    np.savez(tmp_path / "rec.npz", **arrays)
+    cmd = [sys.executable, "-m", "handflow.framework.cli", "train-classes", str(tmp_path / "rec.npz")]
+    done = subprocess.run(
+        [*cmd, "--out", str(tmp_path / "m"), "--delay", "4", "--steps", "60"], capture_output=True, text=True
+    )
+    assert done.returncode == 0, done.stderr
+    bad = subprocess.run([*cmd, "--out", str(tmp_path / "x"), "--classes", "a,zz"], capture_output=True, text=True)
+    assert bad.returncode == 2 and "--classes names classes ['zz']" in bad.stderr
+
+    models = load_candidates(tmp_path / "m")
+    assert models.delay == DelayEmbedding(4) and models.reconstruction == "relative"
+    X, y = _synthetic_recordings(7)
+    X = 5.0 * X + 3.0
+    params = {"models": str(tmp_path / "m"), "window": 400, "history": 10, "background_factor": 0.0, "block": 0}
+    h = NodeHarness(OnlineCLMNode, params).setup()
+    assert h.node.segmenter.reconstruction == "relative"
+    for i, x in enumerate(X):
+        h.send("array", Array(data=x), stamp_ns=i * 10_000_000)
+    on_arrival = np.array(
+        [models.classes.index(m.label) if m.label in models.classes else -1 for m in h.published["labels"]]
+    )
+    assert len(on_arrival) == len(X) and np.mean(on_arrival == y) > 0.7
+    batch = CLMSegmenter(models, history=10, background_factor=0.0, reconstruction="relative", random_state=0)
+    assert np.mean(batch.fit_predict(X) == y) > 0.8

@@ -15,6 +15,12 @@ revisions counted the old way (every change of an earlier label, ``confirm=1``, 
 BLAS is limited to one thread (one core); numba code is single-threaded.
 
     python benchmarks/online_segmenter.py [--seconds 20] [--dataset letters.npz] [--classes 16] [--json]
+        [--reconstruction absolute|relative] [--delay 8] [--background-factor F]
+
+``--reconstruction relative`` uses the class models for real recordings
+(:func:`handflow.plugins.segmenter.training.fit_recording_models`: delay embedding, relative
+evidence with a null-model background; docs/segmentation.md) instead of the thesis' models; each
+sample is then embedded sample by sample as the node does.
 """
 
 from __future__ import annotations
@@ -39,6 +45,7 @@ from handflow.plugins.segmenter import (  # noqa: E402
     load_dataset,
     train_class_models,
 )
+from handflow.plugins.segmenter.training import fit_recording_models  # noqa: E402
 
 RATE_HZ = 100.0
 
@@ -49,7 +56,11 @@ def make_stream(args):
         ds = ds.restrict(ds.classes[: args.classes])
     else:
         ds = LetterGenerator(n_classes=args.classes, random_state=args.seed, noise=0.01).dataset((5, 5, 5))
-    cands = candidate_set(train_class_models(ds, n_steps=200, random_state=args.seed))
+    if args.reconstruction == "relative":
+        by_class = {c: [t.data for t in ts] for c, ts in ds.by_class("train").items()}
+        cands = fit_recording_models(by_class, delay=args.delay, random_state=args.seed, scaling="standard")
+    else:
+        cands = candidate_set(train_class_models(ds, n_steps=200, random_state=args.seed))
     pool = ds.test + ds.validation
     rng = np.random.default_rng(args.seed)
     parts, truth, n = [], [], int(args.seconds * RATE_HZ)
@@ -73,14 +84,16 @@ def per_model_projection_ms(cands, Y):
 
 
 def run(cands, Y, truth, seed: int, confirm: int = 5, edge=None, **params):
-    seg = OnlineCLMSegmenter(cands, window=200, history=10, confirm=confirm, edge=edge, random_state=seed, **params)
+    seg = OnlineCLMSegmenter(cands, window=200, confirm=confirm, edge=edge, random_state=seed, **params)
+    delayed = cands.delay.window > 1
+    stream = cands.delay.stream()
     lat, cpu, sweeps, revisions, proj_t, clm_t, arrival = [], [], [], 0, [], [], []
     to_truth = from_truth = 0
     final = np.empty(len(Y), dtype=int)
     for y in Y:
         c0 = time.thread_time()
         t0 = time.perf_counter()
-        p = cands.project(y[None])
+        p = cands.project(stream.push(cands.scaled(y[None])[0]) if delayed else y[None], embedded=delayed)
         t1 = time.perf_counter()
         up = seg.update_projected(p.latent_time[0], p.errors[0])
         t2 = time.perf_counter()
@@ -126,16 +139,25 @@ def main(argv=None) -> int:
     ap.add_argument("--dataset", help="labelled dataset (its first --classes classes); default synthetic letters")
     ap.add_argument("--classes", type=int, default=4, help="number of candidate manifolds (16 = all real letters)")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--reconstruction", choices=("absolute", "relative"), default="absolute")
+    ap.add_argument("--delay", type=int, default=8, help="delay window of the relative models (frames)")
+    ap.add_argument("--history", type=int, default=10, help="CLM neighbourhood H")
+    ap.add_argument(
+        "--background-factor", type=float, help="background factor (default 1; 0.25 with --reconstruction relative)"
+    )
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args(argv)
     cands, Y, truth = make_stream(args)
-    run(cands, Y[:60], truth[:60], args.seed)  # compile numba kernels outside the measurement
+    factor = args.background_factor
+    factor = (0.25 if args.reconstruction == "relative" else 1.0) if factor is None else factor
+    clm = {"history": args.history, "reconstruction": args.reconstruction, "background_factor": factor}
+    run(cands, Y[:60], truth[:60], args.seed, **clm)  # compile numba kernels outside the measurement
     load = os.getloadavg()[0]
-    online = run(cands, Y, truth, args.seed)
-    whole = run(cands, Y, truth, args.seed, tail=None)
-    every_change = run(cands, Y, truth, args.seed, confirm=1, edge=0)
-    base_med, base_p99 = per_model_projection_ms(cands, Y[:500])
-    batch = CLMSegmenter(cands, history=10, random_state=args.seed).fit_predict(Y)
+    online = run(cands, Y, truth, args.seed, **clm)
+    whole = run(cands, Y, truth, args.seed, tail=None, **clm)
+    every_change = run(cands, Y, truth, args.seed, confirm=1, edge=0, **clm)
+    base_med, base_p99 = per_model_projection_ms(cands, Y[:500]) if args.reconstruction == "absolute" else (None, None)
+    batch = CLMSegmenter(cands, random_state=args.seed, **clm).fit_predict(Y)
     out = {
         **{k: v for k, v in online.items() if k != "final"},
         "online_batch_agreement": float(np.mean(online["final"] == batch)),
@@ -152,10 +174,11 @@ def main(argv=None) -> int:
         "clm_ratio_tail_vs_whole_window": online["clm_ms_median"] / whole["clm_ms_median"],
         "per_model_projection_ms_median": base_med,
         "per_model_projection_ms_p99": base_p99,
-        "projection_speedup_median": base_med / online["projection_ms_median"],
+        "projection_speedup_median": base_med / online["projection_ms_median"] if base_med else None,
         "samples": int(len(Y)),
         "candidates": len(cands),
         "window": 200,
+        **clm,
         "rate_hz": RATE_HZ,
         "data": args.dataset or "synthetic letters",
         "load_average_1min": [load, os.getloadavg()[0]],

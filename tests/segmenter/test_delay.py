@@ -146,3 +146,20 @@ def test_train_classes_on_recordings_feeds_the_online_node_in_relative_mode(tmp_
     assert len(on_arrival) == len(X) and np.mean(on_arrival == y) > 0.7
     batch = CLMSegmenter(models, history=10, background_factor=0.0, reconstruction="relative", random_state=0)
     assert np.mean(batch.fit_predict(X) == y) > 0.8
+
+
+@pytest.mark.slow
+def test_open_set_selection_of_the_ukr_clm_rejects_a_held_out_class(tmp_path):
+    """The calibrated null model: class c is never trained on, most of its frames are rejected,
+    the known classes are kept (pseudo-unknowns of the inner folds chose the operating point)."""
+    from handflow.plugins.segmenter.continuous import load_recordings
+    from handflow.plugins.segmenter.stream_evaluation import StreamEvaluator
+
+    arrays = {"class_names": np.array(["a", "b", "c"])}
+    for k in range(5):
+        arrays[f"X_r{k}"], arrays[f"y_r{k}"] = _synthetic_recordings(k)
+    np.savez(tmp_path / "s.npz", **arrays)
+    ev = StreamEvaluator(load_recordings(tmp_path / "s.npz"), known=["a", "b"], methods=("ukr_clm",), quick=True)
+    res = ev.evaluate()["methods"]["ukr_clm"]
+    assert res["unknown_rejection"] > 0.5 and res["known_accuracy"] > 0.5
+    assert all(f["selected"]["reject"] > 0 for f in res["folds"])

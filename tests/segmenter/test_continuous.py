@@ -177,13 +177,18 @@ def _synthetic_recordings(seed: int):
     return np.vstack(X), np.concatenate(y)
 
 
-def test_open_set_selection_rejects_a_held_out_class(tmp_path):
+def held_out_class_evaluation(tmp_path, method: str) -> tuple[StreamEvaluator, dict]:
+    """Five synthetic recordings of classes a, b, c evaluated with c unknown (never trained on)."""
     arrays = {"class_names": np.array(["a", "b", "c"])}
     for k in range(5):
         arrays[f"X_r{k}"], arrays[f"y_r{k}"] = _synthetic_recordings(k)
     np.savez(tmp_path / "s.npz", **arrays)
-    ev = StreamEvaluator(load_recordings(tmp_path / "s.npz"), known=["a", "b"], methods=("dtw_1nn",), quick=True)
-    res = ev.evaluate()["methods"]["dtw_1nn"]
+    ev = StreamEvaluator(load_recordings(tmp_path / "s.npz"), known=["a", "b"], methods=(method,), quick=True)
+    return ev, ev.evaluate()["methods"][method]
+
+
+def test_open_set_selection_rejects_a_held_out_class(tmp_path):
+    ev, res = held_out_class_evaluation(tmp_path, "dtw_1nn")
     assert res["unknown_rejection"] > 0.5  # class c was never seen: most of its frames are rejected
     assert res["known_accuracy"] > 0.5
     assert 0 <= res["tradeoff_auc"] <= 1

@@ -10,7 +10,7 @@ from handflow.plugins.segmenter import CLMSegmenter, OnlineCLMSegmenter
 from handflow.plugins.segmenter.delay import DelayEmbedding
 from handflow.plugins.segmenter.frame_methods import METHODS
 
-from .test_continuous import _synthetic_recordings
+from .test_continuous import _synthetic_recordings, held_out_class_evaluation
 
 
 @settings(max_examples=40, deadline=None)
@@ -152,14 +152,6 @@ def test_train_classes_on_recordings_feeds_the_online_node_in_relative_mode(tmp_
 def test_open_set_selection_of_the_ukr_clm_rejects_a_held_out_class(tmp_path):
     """The calibrated null model: class c is never trained on, most of its frames are rejected,
     the known classes are kept (pseudo-unknowns of the inner folds chose the operating point)."""
-    from handflow.plugins.segmenter.continuous import load_recordings
-    from handflow.plugins.segmenter.stream_evaluation import StreamEvaluator
-
-    arrays = {"class_names": np.array(["a", "b", "c"])}
-    for k in range(5):
-        arrays[f"X_r{k}"], arrays[f"y_r{k}"] = _synthetic_recordings(k)
-    np.savez(tmp_path / "s.npz", **arrays)
-    ev = StreamEvaluator(load_recordings(tmp_path / "s.npz"), known=["a", "b"], methods=("ukr_clm",), quick=True)
-    res = ev.evaluate()["methods"]["ukr_clm"]
+    _, res = held_out_class_evaluation(tmp_path, "ukr_clm")
     assert res["unknown_rejection"] > 0.5 and res["known_accuracy"] > 0.5
     assert all(f["selected"]["reject"] > 0 for f in res["folds"])

@@ -114,7 +114,8 @@ class UKRCandidate:
     def normalised_errors(self, Y: np.ndarray, reconstruction: np.ndarray) -> np.ndarray:
         """``e_t`` of observations Y (N, d) given their reconstructions ``f(g(y))``."""
         residual = Y - reconstruction
-        return np.sum(residual * residual / self.model.train_variance_, axis=1) / self.error_reference
+        with np.errstate(over="ignore"):  # an observation astronomically far off has the error inf
+            return np.sum(residual * residual / self.model.train_variance_, axis=1) / self.error_reference
 
     def scaled(self, Y: np.ndarray) -> np.ndarray:
         """Observations in the channel scaling the model was trained in."""

@@ -155,3 +155,34 @@ def test_open_set_selection_of_the_ukr_clm_rejects_a_held_out_class(tmp_path):
     _, res = held_out_class_evaluation(tmp_path, "ukr_clm")
     assert res["unknown_rejection"] > 0.5 and res["known_accuracy"] > 0.5
     assert all(f["selected"]["reject"] > 0 for f in res["folds"])
+
+
+@pytest.fixture(scope="module")
+def relative_model_dir(tmp_path_factory):
+    from handflow.plugins.segmenter.training import fit_recording_models, save_class_models
+
+    X, y = _synthetic_recordings(0)
+    cands = fit_recording_models({c: [X[y == i]] for i, c in enumerate("abc")}, delay=4, n_steps=40, scaling="standard")
+    return save_class_models({k: c.model for k, c in cands.models.items()}, tmp_path_factory.mktemp("relative"))
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    values=st.lists(
+        st.lists(st.floats(allow_nan=True, allow_infinity=True, width=64), min_size=0, max_size=4),
+        min_size=1,
+        max_size=8,
+    )
+)
+def test_no_observation_crashes_the_node_with_delay_models(relative_model_dir, values):
+    """Any observation — wrong size, NaN/inf, ±1e308 — is labelled or dropped with a reason; the
+    delay buffer never takes a bad one."""
+    from handflow.framework.messages import Array
+    from handflow.framework.testing import NodeHarness
+    from handflow.plugins.segmenter.nodes import OnlineCLMNode
+
+    h = NodeHarness(OnlineCLMNode, {"models": str(relative_model_dir), "window": 20, "background_factor": 0.25})
+    h.setup()
+    for v in values:
+        h.send("array", Array(data=v))
+    assert len(h.published["labels"]) + len(h.dropped) == len(values)

@@ -3,6 +3,7 @@
 import argparse
 import json
 import math
+import struct
 import zipfile
 from pathlib import Path
 
@@ -113,6 +114,13 @@ def test_missing_and_foreign_files_are_refused(tmp_path):
     (tmp_path / "text.npz").write_text("hello")
     with pytest.raises(ScorerFileError, match="not a readable scorer file"):
         load_scorer(tmp_path / "text.npz")
+    # an .npy header cut inside its dictionary: numpy's reader raises tokenize.TokenError
+    header = b"{'descr': '<f8', 'fortran_order': False, 'shape': (3,"
+    header += b" " * (53 - len(header)) + b"\n"
+    with zipfile.ZipFile(tmp_path / "header.npz", "w") as z:
+        z.writestr("metadata.npy", b"\x93NUMPY\x01\x00" + struct.pack("<H", len(header)) + header + bytes(24))
+    with pytest.raises(ScorerFileError, match="not a readable scorer file"):
+        load_scorer(tmp_path / "header.npz")
 
 
 @FUZZ

@@ -177,7 +177,8 @@ class CLMSegmenter(BaseEstimator):
         self._solver()  # checks the parameters
         _, span, width = self.widths()
         if self.reconstruction == "relative":
-            return self.with_background(self.relative_band(proj.errors * float(self.error_scale), width, span))
+            evidence = self.relative_evidence(proj.errors * float(self.error_scale))
+            return self.with_background(evidence_band(evidence, width, span))
         cand = candidate_band(
             proj.latent_time,
             proj.errors * float(self.error_scale),
@@ -190,18 +191,17 @@ class CLMSegmenter(BaseEstimator):
         cand[:, :, span:] = 0.0
         return self.with_background(cand)
 
-    def relative_band(self, scaled_errors: np.ndarray, width: int, span: int) -> np.ndarray:
-        """Bands (M+1, N, width) of ``reconstruction="relative"`` from errors (N, M) already
-        multiplied by ``error_scale``; the null model (the background) is the last layer."""
+    def relative_evidence(self, scaled_errors: np.ndarray) -> np.ndarray:
+        """Evidence (N, M+1) of ``reconstruction="relative"`` from errors (N, M) already multiplied
+        by ``error_scale``; the null model (the background) is the last column.  Per frame: it
+        depends on nothing but that frame's errors."""
         E = np.asarray(scaled_errors, dtype=float)
         factor = float(self.background_factor)
         if factor > 0:  # the null model's error: 1/factor times the best-fitting model's own typical error
             own = self.candidates.own_errors[np.argmin(E, axis=1)]
             null = (float(self.error_scale) / factor * own)[:, None]
-            evidence = score_evidence(-np.hstack([E, null]), self.candidates.evidence_temperature)
-        else:
-            evidence = np.hstack([score_evidence(-E, self.candidates.evidence_temperature), np.zeros((len(E), 1))])
-        return evidence_band(evidence, width, span)
+            return score_evidence(-np.hstack([E, null]), self.candidates.evidence_temperature)
+        return np.hstack([score_evidence(-E, self.candidates.evidence_temperature), np.zeros((len(E), 1))])
 
     def with_background(self, cand: np.ndarray, length: int | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Candidate bands (M, N, B) → all layers' bands and diagonals, the background layer last;

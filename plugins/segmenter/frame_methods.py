@@ -172,8 +172,9 @@ class UKRCLMMethod(UKRMethod):
     def fit(self, segments, params, seed) -> Fitted:
         return Fitted(self._fit_candidates(segments, seed, params["delay"]), sorted(segments), params)
 
-    def segmenter(self, candidates: CandidateSet, reject: float, history: int) -> CLMSegmenter:
-        return CLMSegmenter(
+    def segmenter(self, candidates: CandidateSet, reject: float, history: int, kind=CLMSegmenter) -> CLMSegmenter:
+        """The batch segmenter of this method, or (``kind=OnlineCLMSegmenter``) the online one with the same settings."""
+        return kind(
             candidates,
             history=history,
             background_factor=reject,

@@ -32,7 +32,7 @@ import numpy as np
 from .candidates import CandidateSet
 from .clm import CLMRun
 from .clm_segmenter import REJECTED, CLMSegmenter
-from .compatibility import candidate_band, order_rating, pair_error
+from .compatibility import candidate_band, evidence_band, order_rating, pair_error
 
 
 @dataclass
@@ -215,13 +215,16 @@ class OnlineCLMSegmenter(CLMSegmenter):
         return len(self.candidates)
 
     def _source_rows(self, m: int) -> dict[str, np.ndarray]:
-        """Buffers of what the source gives per observation: latent times and errors per candidate."""
+        """Buffers of what the source gives per observation: latent times and errors per candidate,
+        or (``reconstruction="relative"``) the evidence per candidate and the null model."""
+        if self.reconstruction == "relative":
+            return {"evidence": np.zeros((self.window, m + 1))}
         return {"latent": np.zeros((self.window, m)), "errors": np.zeros((self.window, m))}
 
     def _recent_band(self, lo: int, j: int) -> np.ndarray:
         """Band (m, j − lo + 1, width) of the observations ``lo…j`` of the window."""
-        if self.reconstruction == "relative":  # errors already scaled in update_projected
-            return self.relative_band(self._rows["errors"][lo : j + 1], self._width, self._span)
+        if "evidence" in self._rows:  # per-observation evidence (relative errors, or a scorer's)
+            return evidence_band(self._rows["evidence"][lo : j + 1], self._width, self._span)
         return candidate_band(
             self._rows["latent"][lo : j + 1],
             self._rows["errors"][lo : j + 1],
@@ -290,9 +293,11 @@ class OnlineCLMSegmenter(CLMSegmenter):
 
     def update_projected(self, latent_time: np.ndarray, errors: np.ndarray) -> OnlineUpdate:
         """:meth:`update` for an observation already projected onto all candidates."""
-        self._append(
-            latent=np.asarray(latent_time, dtype=float), errors=np.asarray(errors, dtype=float) * self.error_scale
-        )
+        errors = np.asarray(errors, dtype=float) * self.error_scale
+        if self.reconstruction == "relative":
+            self._append(evidence=self.relative_evidence(errors[None])[0])
+        else:
+            self._append(latent=np.asarray(latent_time, dtype=float), errors=errors)
         return self._segment()
 
     def _segment(self) -> OnlineUpdate:

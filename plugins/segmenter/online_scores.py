@@ -51,9 +51,6 @@ class OnlineScoreCLMSegmenter(OnlineCLMSegmenter):
     def _source_rows(self, m: int) -> dict[str, np.ndarray]:
         return {"evidence": np.zeros((self.window, m))}
 
-    def _recent_band(self, lo: int, j: int) -> np.ndarray:
-        return evidence_band(self._rows["evidence"][lo : j + 1], self._width, self._span)
-
     def update(self, y: np.ndarray) -> OnlineUpdate:
         """Consume one observation (d,): score its causal window, then re-segment the window."""
         y = self.scorer.check_input(y)[0]

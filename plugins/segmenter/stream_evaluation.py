@@ -156,9 +156,7 @@ class StreamEvaluator:
     def _online(self, fitted: Fitted, reject: float, X: np.ndarray) -> np.ndarray:
         from .online import OnlineCLMSegmenter
 
-        batch = METHODS["ukr_clm"].segmenter(fitted.model, reject, fitted.params["history"]).get_params()
-        same = ("history", "background_factor", "reconstruction", "error_scale", "max_sweeps", "random_state")
-        seg = OnlineCLMSegmenter(fitted.model, **{k: batch[k] for k in same})
+        seg = METHODS["ukr_clm"].segmenter(fitted.model, reject, fitted.params["history"], kind=OnlineCLMSegmenter)
         published = np.full(len(X), -1)
         for y in X:  # each sample's final published label: on arrival, then confirmed revisions
             update = seg.update(y)

@@ -53,6 +53,27 @@ def train_class_models(dataset: LabelledDataset, **options) -> dict:
     return fit_class_models(dataset.by_class("train"), **options)
 
 
+def periodic_class_model(
+    sequences: list[np.ndarray],
+    beta: float,
+    kernel: str = "periodic",
+    lambda_cseq: float = 1.0,
+    init: str = "equidistant",
+    **options,
+):
+    """A StructuredUKR with one periodic latent time dimension fitted on a class's sequences
+    (``λ_pvar = 0`` as for the thesis' 1D models); ``options``: ``n_steps``, ``random_state``."""
+    from handflow.plugins.manifold import StructuredUKR
+
+    return StructuredUKR(
+        latent=[{"kernel": kernel, "beta": beta, "time": True}],
+        lambda_cseq=lambda_cseq,
+        lambda_pvar=0.0,
+        init=init,
+        **options,
+    ).fit(sequences)
+
+
 def class_pieces(segments: list[np.ndarray], cycles: str, max_points: int | None) -> tuple[list[np.ndarray], bool]:
     """Training sequences of one class and whether they are cycles of a periodic motion.
 
@@ -97,8 +118,6 @@ def fit_class_models(
     of a periodic motion.  ``kernel="periodic_quartic"`` (compact, see :data:`KERNELS`) trains
     on all pieces, ignoring ``max_points``, in time linear in the number of points.
     """
-    from handflow.plugins.manifold import StructuredUKR
-
     if init not in INITS:
         raise ValueError(f"init must be one of {INITS}, got {init!r}")
     if kernel not in KERNELS:
@@ -116,14 +135,9 @@ def fit_class_models(
         if progress:
             kind = "cycles" if periodic else "sequences"
             progress(f"training '{label}' on {len(seqs)} {kind} ({sum(map(len, seqs))} points, beta={b:.1f})")
-        model = StructuredUKR(
-            latent=[{"kernel": kernel, "beta": b, "time": True}],
-            lambda_cseq=lambda_cseq,
-            lambda_pvar=0.0,
-            n_steps=n_steps,
-            init=init,
-            random_state=random_state,
-        ).fit(seqs)
+        model = periodic_class_model(
+            seqs, b, kernel=kernel, lambda_cseq=lambda_cseq, n_steps=n_steps, init=init, random_state=random_state
+        )
         model.provenance_ = dict(
             model.provenance_, **(scaler.to_provenance() if scaler else {}), open_stroke=not periodic
         )
@@ -167,8 +181,6 @@ def fit_recording_models(
     uses them.  ``scaling="standard"`` z-scores the channels with all training frames first and
     stores the scaling with the models (for models used outside the evaluation).
     """
-    from handflow.plugins.manifold import StructuredUKR
-
     if scaling not in SCALINGS:
         raise ValueError(f"scaling must be one of {SCALINGS}, got {scaling!r}")
     raw = {c: [np.asarray(s, dtype=float) for s in segs] for c, segs in by_class.items()}
@@ -185,26 +197,18 @@ def fit_recording_models(
         seqs = thin_pieces(seqs, MAX_POINTS_PER_CLASS)
         if progress:
             progress(f"training '{c}' on {len(seqs)} pieces ({sum(map(len, seqs))} points, delay {delay})")
-        model = StructuredUKR(
-            latent=[{"kernel": "periodic", "beta": auto_beta(seqs), "time": True}],
-            lambda_cseq=1.0,
-            lambda_pvar=0.0,
-            n_steps=n_steps,
-            init="equidistant",
-            random_state=random_state,
-        ).fit(seqs)
+        model = periodic_class_model(seqs, auto_beta(seqs), n_steps=n_steps, random_state=random_state)
         model.train_variance_ = pooled_variance
         model.provenance_ = dict(model.provenance_, **extra)
         models[c] = model
     cands = candidate_set(models)
-    own = {c: np.concatenate([cands.project(s).errors[:, j] for s in raw[c]]) for j, c in enumerate(raw)}
+    errors = {c: np.vstack([cands.project(s).errors for s in segs]) for c, segs in raw.items()}  # (frames, M)
+    own = {c: errors[c][:, j] for j, c in enumerate(raw)}
     reference = float(np.median(np.concatenate(list(own.values())))) or 1.0
-    everything = np.vstack([cands.project(s).errors for segs in raw.values() for s in segs])
-    tau = evidence_temperature(-everything / reference)
-    for c, cand in cands.models.items():
-        cand.error_reference = reference
-        cand.model.provenance_ = dict(
-            cand.model.provenance_,
+    tau = evidence_temperature(-np.vstack(list(errors.values())) / reference)
+    for c, model in models.items():
+        model.provenance_ = dict(
+            model.provenance_,
             error_reference=reference,
             evidence_temperature=tau,
             own_error=float(np.median(own[c])) / reference,

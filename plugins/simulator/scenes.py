@@ -114,6 +114,20 @@ def schedule(name: str, value, form: tuple[str, ...], valid, rule: str) -> tuple
     return tuple(sorted(items))
 
 
+def lasting_schedule(name: str, value, quantity: str | None = None, low: float = 0.0, high: float = 0.0):
+    """:func:`schedule` of disturbances that last: ``[time_s, duration_s]`` entries, or
+    ``[time_s, duration_s, quantity]`` with ``low <= quantity <= high``; ``0 < duration_s <= 10``."""
+    if quantity is None:
+        return schedule(name, value, ("time_s", "duration_s"), lambda t, d: 0 < d <= 10, "0 < duration_s <= 10")
+    return schedule(
+        name,
+        value,
+        ("time_s", "duration_s", quantity),
+        lambda t, d, q: 0 < d <= 10 and low <= q <= high,
+        f"0 < duration_s <= 10 and {low:g} <= {quantity} <= {high:g}",
+    )
+
+
 class Timed:
     """Cursor over a schedule whose entries last ``entry[1]`` seconds: :meth:`poll` returns
     ``("start", entry)`` at the first call at or after an entry's time, ``("end", entry)`` at the
@@ -166,13 +180,7 @@ class CapScene(Scene):
     def __post_init__(self) -> None:
         if not 0.01 <= self.radius <= 0.05:
             raise ValueError(f"cap radius {self.radius} m is outside 0.01–0.05 m (the scenes use 0.015–0.035)")
-        self.torques = schedule(
-            "torques",
-            self.torques,
-            ("time_s", "duration_s", "friction_torque"),
-            lambda t, d, f: 0 < d <= 10 and 0 <= f <= 100,
-            "0 < duration_s <= 10 and 0 <= friction_torque <= 100",
-        )
+        self.torques = lasting_schedule("torques", self.torques, "friction_torque", 0.0, 100.0)
         self._torques = Timed(self.torques)
 
     def cap_top(self) -> np.ndarray:
@@ -323,16 +331,9 @@ class BallsScene(Scene):
         self.turns = schedule(
             "turns", self.turns, ("time_s", "angle_deg"), lambda t, a: -180 <= a <= 180, "-180 <= angle_deg <= 180"
         )
-        lasting = (lambda t, d, *_: 0 < d <= 10), "0 < duration_s <= 10"
-        self.holds = schedule("holds", self.holds, ("time_s", "duration_s"), *lasting)
-        self.removals = schedule("removals", self.removals, ("time_s", "duration_s"), *lasting)
-        self.frictions = schedule(
-            "frictions",
-            self.frictions,
-            ("time_s", "duration_s", "rolling_friction"),
-            lambda t, d, f: 0 < d <= 10 and 0 <= f <= 1,
-            "0 < duration_s <= 10 and 0 <= rolling_friction <= 1",
-        )
+        self.holds = lasting_schedule("holds", self.holds)
+        self.removals = lasting_schedule("removals", self.removals)
+        self.frictions = lasting_schedule("frictions", self.frictions, "rolling_friction", 0.0, 1.0)
         self.resizes = schedule(
             "resizes",
             self.resizes,

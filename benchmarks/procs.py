@@ -44,10 +44,13 @@ def rss_mb(pid: int) -> float | None:
 
 
 def unit_name(pid: int) -> str:
-    """The node ids a runner process hosts (its ``--nodes`` argument), or ``launcher``."""
+    """The node ids a runner process hosts (its ``--nodes`` argument), ``zygote`` or ``launcher``.
+
+    A node process forked by the zygote shows its command line as one title (spaces, not NULs)."""
     try:
-        argv = Path(f"/proc/{pid}/cmdline").read_bytes().split(b"\0")
+        argv = Path(f"/proc/{pid}/cmdline").read_bytes().replace(b"\0", b" ").decode().split()
     except OSError:
         return str(pid)
-    argv = [a.decode() for a in argv if a]
-    return argv[argv.index("--nodes") + 1] if "--nodes" in argv else "launcher"
+    if "--nodes" in argv:
+        return argv[argv.index("--nodes") + 1]
+    return "zygote" if "handflow.framework.zygote" in argv else "launcher"

@@ -25,6 +25,7 @@ from .graph import Graph, RestartPolicy
 from .messages import Header, MessageError, RuntimeEvent, Status
 from .ros2.bridge import Ros2Bridge
 from .runner import START_WAIT_S
+from .zygote import ForkedProcess, Zygote
 
 log = logging.getLogger("handflow.launcher")
 
@@ -39,7 +40,7 @@ class Unit:
     name: str
     node_ids: list[str]
     policy: RestartPolicy
-    proc: subprocess.Popen | None = None
+    proc: subprocess.Popen | ForkedProcess | None = None
     restarts: int = 0
     restart_at: float | None = None
     exit_codes: list[int] = field(default_factory=list)
@@ -65,7 +66,14 @@ def plan_units(graph: Graph, host: str | None = None) -> list[Unit]:
 class Launcher:
     """Runs a validated graph until stopped; see :func:`run_graph`."""
 
-    def __init__(self, graph: Graph, host: str | None = None, lockstep: bool = False, log_level: str = "INFO") -> None:
+    def __init__(
+        self,
+        graph: Graph,
+        host: str | None = None,
+        lockstep: bool = False,
+        log_level: str = "INFO",
+        zygote: Zygote | None = None,
+    ) -> None:
         self.graph = graph
         self.units = plan_units(graph, host)
         if not self.units:
@@ -73,10 +81,16 @@ class Launcher:
             raise ValueError(f"graph '{graph.name}' has no nodes to run{where}; check the nodes' 'host' fields")
         self.lockstep = lockstep
         self.log_level = log_level
+        self.zygote = zygote or Zygote.start(graph.path)  # before any Zenoh session: it forks node processes
         self.hub_endpoint = transport.hub_endpoint_for()
         self._state_dir = tempfile.TemporaryDirectory(prefix=f"handflow-{graph.name}-")
         self.user: str | None = None
-        self.session = transport.open_hub(graph.spec.zenoh, self.hub_endpoint, self._secure_settings(host))
+        try:
+            self.session = transport.open_hub(graph.spec.zenoh, self.hub_endpoint, self._secure_settings(host))
+        except BaseException:
+            self.zygote.close()
+            self._state_dir.cleanup()
+            raise
         self.stopping = False
         self.run_file = discovery.write_run_file(
             graph.name, self.hub_endpoint, graph.path, lockstep, usrpwd=self.user is not None
@@ -123,10 +137,8 @@ class Launcher:
 
     # -- processes --------------------------------------------------------------------------
     def _spawn(self, unit: Unit) -> None:
-        cmd = [
-            sys.executable,
-            "-m",
-            "handflow.framework.runner",
+        """Fork the unit's process from the zygote (its plugins already imported), or start it afresh."""
+        args = [
             str(self.graph.path),
             "--nodes",
             ",".join(unit.node_ids),
@@ -138,12 +150,20 @@ class Launcher:
             self.log_level,
         ]
         if self.lockstep:
-            cmd.append("--lockstep")
+            args.append("--lockstep")
         if self.user is not None:  # the node reads its password from the graph's credentials file
-            cmd += ["--user", self.user]
-        unit.proc = subprocess.Popen(
-            cmd, start_new_session=True, stderr=subprocess.PIPE, text=True, errors="replace", bufsize=1
-        )
+            args += ["--user", self.user]
+        unit.proc = self.zygote.spawn(args)
+        if unit.proc is None:
+            log.warning("the zygote cannot fork %s; starting it as a new interpreter", unit.name)
+            unit.proc = subprocess.Popen(
+                [sys.executable, "-m", "handflow.framework.runner", *args],
+                start_new_session=True,
+                stderr=subprocess.PIPE,
+                text=True,
+                errors="replace",
+                bufsize=1,
+            )
         threading.Thread(target=_forward_log, args=(unit.proc.stderr, unit.log_tail), daemon=True).start()
         log.info("started %s (pid %d)", unit.name, unit.proc.pid)
 
@@ -229,6 +249,7 @@ class Launcher:
         self._start_pub.undeclare()
         self._event_pub.undeclare()
         self.session.close()
+        self.zygote.close()
         self._state_dir.cleanup()
 
     def summary(self) -> dict[str, dict[str, object]]:
@@ -257,14 +278,20 @@ def _forward_log(stream, tail: collections.deque) -> None:
 
 
 def run_graph(
-    graph: Graph, duration_s: float | None = None, host: str | None = None, on_ready=None, lockstep: bool = False
+    graph: Graph,
+    duration_s: float | None = None,
+    host: str | None = None,
+    on_ready=None,
+    lockstep: bool = False,
+    zygote: Zygote | None = None,
 ) -> Launcher:
     """Run ``graph`` until Ctrl-C/SIGTERM or ``duration_s``; returns the stopped launcher (for its summary).
 
     ``on_ready(launcher)`` runs once the hub session is open and before any node starts (attach a
-    recorder or a live view there, so they miss nothing); if it raises, nothing is started.
+    recorder or a live view there, so they miss nothing); if it raises, nothing is started.  A
+    ``zygote`` started before the graph was loaded imports the plugins meanwhile (one is started otherwise).
     """
-    launcher = Launcher(graph, host, lockstep, logging.getLevelName(logging.getLogger().level))
+    launcher = Launcher(graph, host, lockstep, logging.getLevelName(logging.getLogger().level), zygote)
     if on_ready is not None:
         try:
             on_ready(launcher)

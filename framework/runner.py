@@ -371,7 +371,9 @@ def _exit_with_parent(parent: int) -> None:
     os._exit(1)
 
 
-def main(argv: list[str] | None = None) -> int:
+def main(argv: list[str] | None = None, parent: int | None = None) -> int:
+    """Run the nodes; stop with the ``parent`` process (default: the one that started this one)."""
+    parent = os.getppid() if parent is None else parent
     ap = argparse.ArgumentParser(
         prog="python -m handflow.framework.runner", description="Run nodes of a graph (used by the launcher)."
     )
@@ -395,7 +397,7 @@ def main(argv: list[str] | None = None) -> int:
 
     signal.signal(signal.SIGTERM, _stop)
     signal.signal(signal.SIGINT, _stop)
-    threading.Thread(target=_exit_with_parent, args=(os.getppid(),), daemon=True).start()
+    threading.Thread(target=_exit_with_parent, args=(parent,), daemon=True).start()
     faulthandler.register(signal.SIGUSR1, all_threads=True)  # the launcher asks for stacks before a kill
     code = 0
     try:

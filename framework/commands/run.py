@@ -10,6 +10,7 @@ from ..foxglove_bridge import BridgeError, start_bridge
 from ..graph import FoxgloveSettings, GraphError, load_graph
 from ..launcher import run_graph
 from ..transport import EndpointInUse
+from ..zygote import Zygote
 
 
 def register(parser: argparse.ArgumentParser) -> None:
@@ -34,9 +35,11 @@ def register(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    zygote = Zygote.start(args.graph)  # imports the plugins for the node processes while the graph is checked here
     try:
         graph = load_graph(args.graph)
     except GraphError as exc:
+        zygote.close()
         print(exc, file=sys.stderr)
         print(f"{args.graph}: fix the problems above (see `handflow validate {args.graph}`)", file=sys.stderr)
         return 2
@@ -57,11 +60,9 @@ def run(args: argparse.Namespace) -> int:
             recorder.attach(launcher.session)
 
     try:
-        launcher = run_graph(graph, args.duration, args.host, on_ready=attach)
-    except ValueError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
-    except (BridgeError, EndpointInUse) as exc:
+        launcher = run_graph(graph, args.duration, args.host, on_ready=attach, zygote=zygote)
+    except (ValueError, BridgeError, EndpointInUse) as exc:
+        zygote.close()
         print(f"error: {exc}", file=sys.stderr)
         return 2
     finally:

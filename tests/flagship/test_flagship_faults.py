@@ -19,14 +19,21 @@ from tests.conftest import REPO
 pytestmark = pytest.mark.slow
 
 
+def _children(pid: int) -> list[str]:
+    try:
+        return Path(f"/proc/{pid}/task/{pid}/children").read_text().split()
+    except OSError:
+        return []
+
+
 def _units(launcher_pid: int) -> dict[str, int]:
-    """Node processes of a launcher: their ``--nodes`` argument → pid (zombies excluded)."""
+    """Node processes of a launcher (forked by its zygote): their ``--nodes`` argument → pid (zombies excluded)."""
     out = {}
-    for pid in Path(f"/proc/{launcher_pid}/task/{launcher_pid}/children").read_text().split():
+    for pid in [p for z in _children(launcher_pid) for p in _children(int(z))]:
         try:
             if Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] == "Z":
                 continue
-            argv = [a.decode() for a in Path(f"/proc/{pid}/cmdline").read_bytes().split(b"\0") if a]
+            argv = Path(f"/proc/{pid}/cmdline").read_bytes().replace(b"\0", b" ").decode().split()
         except OSError:
             continue
         if "--nodes" in argv:

@@ -160,6 +160,13 @@ def _running(pid: int) -> bool:
         return False
 
 
+def _descendants(pid: int) -> list[int]:
+    found = []
+    for child in subprocess.run(["pgrep", "-P", str(pid)], capture_output=True, text=True).stdout.split():
+        found += [int(child), *_descendants(int(child))]
+    return found
+
+
 def test_no_node_outlives_a_killed_launcher(tmp_path):
     graph = chain_graph(tmp_path)
     proc = start("run", str(graph))
@@ -167,11 +174,8 @@ def test_no_node_outlives_a_killed_launcher(tmp_path):
         deadline = time.monotonic() + 60
         while not read_sink(tmp_path / "sink.jsonl") and time.monotonic() < deadline:
             time.sleep(0.2)
-        children = [
-            int(p)
-            for p in subprocess.run(["pgrep", "-P", str(proc.pid)], capture_output=True, text=True).stdout.split()
-        ]
-        assert len(children) == 3
+        children = _descendants(proc.pid)
+        assert len(children) == 4  # the zygote and the three node processes it forked
     finally:
         proc.kill()  # SIGKILL: no chance to stop the nodes itself
         proc.wait()

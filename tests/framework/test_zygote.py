@@ -1,0 +1,77 @@
+"""The fork server that starts node processes (docs/architecture.md, "Process start-up"): a forked
+child runs the node runtime in the launcher's directory and environment, its stderr reaches the
+launcher, its exit status (a signal as a negative code) is reported, and the zygote ends with the
+launcher's end of the socket."""
+
+from __future__ import annotations
+
+import signal
+import time
+from pathlib import Path
+
+import pytest
+
+from handflow.framework.zygote import Zygote
+
+SINK_GRAPH = """name: zygote_probe
+external: {{nobody/out: JointState}}
+nodes:
+  - id: sink
+    plugin: basic.sink
+    params: {{jsonl: {out}}}
+    inputs: {{in: nobody/out}}
+"""
+
+
+def _title(pid: int) -> str:
+    return Path(f"/proc/{pid}/cmdline").read_bytes().replace(b"\0", b" ").decode()
+
+
+def _running(pid: int) -> bool:
+    """Whether a process exists and is not a zombie (an exited child nobody reaped yet)."""
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
+    except OSError:
+        return False
+
+
+@pytest.fixture
+def zygote(tmp_path, monkeypatch):
+    graph = tmp_path / "graph.yaml"
+    graph.write_text(SINK_GRAPH.format(out=tmp_path / "sink.jsonl"))
+    z = Zygote.start(graph)
+    yield z
+    z.close()
+
+
+def test_a_failing_child_reports_its_exit_code_and_stderr(zygote, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # a relative graph path resolves against the launcher's directory
+    (tmp_path / "broken.yaml").write_text("name: [unclosed\n")
+    proc = zygote.spawn(["broken.yaml", "--nodes", "sink", "--hub", "tcp/127.0.0.1:9"])
+    assert proc is not None
+    assert proc.wait(timeout=60) == 1
+    err = proc.stderr.read()
+    assert "broken.yaml" in err, err
+
+
+def test_a_killed_child_reports_the_signal_and_shows_its_command(zygote, tmp_path):
+    proc = zygote.spawn([str(tmp_path / "graph.yaml"), "--nodes", "sink", "--hub", "tcp/127.0.0.1:9"])
+    assert proc.poll() is None
+    deadline = time.monotonic() + 15  # the child names itself first thing
+    while "--nodes sink" not in _title(proc.pid) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert "-m handflow.framework.runner" in _title(proc.pid) and "--nodes sink" in _title(proc.pid)
+    proc.send_signal(signal.SIGKILL)
+    assert proc.wait(timeout=30) == -signal.SIGKILL
+    proc.send_signal(signal.SIGTERM)  # a process that has exited is not signalled again
+
+
+def test_the_zygote_ends_with_the_launchers_socket(zygote, tmp_path):
+    proc = zygote.spawn([str(tmp_path / "graph.yaml"), "--nodes", "sink", "--hub", "tcp/127.0.0.1:9"])
+    zygote.close()
+    assert zygote.proc.returncode == 0
+    assert zygote.spawn(["x"]) is None  # the launcher then starts node processes afresh
+    deadline = time.monotonic() + 15  # the orphaned child sees its parent gone and stops
+    while _running(proc.pid) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert not _running(proc.pid)

@@ -230,7 +230,7 @@ class Zygote:
             self.usable = False  # a late reply would be taken for the next request's
             os.close(read_fd)
             return None
-        stderr = open(read_fd, encoding="utf-8", errors="replace", buffering=1)  # noqa: SIM115 (the launcher's reader closes it)
+        stderr = open(read_fd, encoding="utf-8", errors="replace", buffering=1)
         return ForkedProcess(self, pid, stderr, ["handflow.framework.runner", *argv])
 
     def exit_code(self, pid: int) -> int | None:

@@ -2,8 +2,9 @@
 
 Runs ``handflow run GRAPH --duration D --record FILE`` in a fresh directory several times and reads
 the first message's log time from the recording; the time is counted from just before the command
-is started. Baseline, measured in the same run: a bare ``python -c "import numpy, zenoh"`` (what
-every node process pays at least).
+is started. Baselines, measured in the same run, alternating with it: the same command with node
+processes started as fresh interpreters (``HANDFLOW_ZYGOTE=0``, docs/architecture.md, "Process
+start-up"), and a bare ``python -c "import numpy, zenoh"`` (what every node process pays at least).
 
     python benchmarks/startup.py --repeats 5 --json
 """
@@ -23,8 +24,9 @@ from pathlib import Path
 from handflow.framework.recording import iter_recording
 
 
-def first_message_s(graph: str, duration: float) -> tuple[float, int]:
+def first_message_s(graph: str, duration: float, fork: bool = True) -> tuple[float, int]:
     """Seconds from launch to the first recorded message, and the number of recorded messages."""
+    env = {**os.environ, "HANDFLOW_ZYGOTE": "1" if fork else "0"}
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "run.mcap"
         start_ns = time.time_ns()
@@ -34,6 +36,7 @@ def first_message_s(graph: str, duration: float) -> tuple[float, int]:
             check=True,
             stdout=subprocess.DEVNULL,
             stderr=subprocess.DEVNULL,
+            env=env,
         )
         times = [m.log_time_ns for m in iter_recording(out)]
     return (min(times) - start_ns) / 1e9, len(times)
@@ -52,17 +55,25 @@ def main() -> None:
     ap.add_argument("--duration", type=float, default=2.0, help="seconds each run lasts once every node is ready")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
-    runs = []
+    runs, fresh = [], []
     for i in range(args.repeats):
         runs.append(first_message_s(args.graph, args.duration))
-        print(f"run {i + 1}/{args.repeats}: first message after {runs[-1][0]:.2f} s", file=sys.stderr)
+        fresh.append(first_message_s(args.graph, args.duration, fork=False))
+        print(
+            f"run {i + 1}/{args.repeats}: first message after {runs[-1][0]:.2f} s "
+            f"(fresh interpreters: {fresh[-1][0]:.2f} s)",
+            file=sys.stderr,
+        )
     bare = statistics.median(bare_import_s() for _ in range(args.repeats))
     first = statistics.median(r[0] for r in runs)
+    first_fresh = statistics.median(r[0] for r in fresh)
     result = {
         "graph": args.graph,
         "first_message_s": round(first, 3),
         "first_message_s_runs": [round(r[0], 3) for r in runs],
-        "messages_min": min(r[1] for r in runs),
+        "messages_min": min(r[1] for r in runs + fresh),
+        "fresh_interpreters_first_message_s": round(first_fresh, 3),
+        "ratio_vs_fresh_interpreters": round(first / first_fresh, 2),
         "bare_import_s": round(bare, 3),
         "ratio_vs_bare_import": round(first / bare, 2),
         "load_average_1min": os.getloadavg()[0],

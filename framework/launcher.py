@@ -21,6 +21,7 @@ import time
 from dataclasses import dataclass, field
 
 from . import discovery, transport, wire
+from . import zygote as forking
 from .graph import Graph, RestartPolicy
 from .messages import Header, MessageError, RuntimeEvent, Status
 from .ros2.bridge import Ros2Bridge
@@ -81,14 +82,16 @@ class Launcher:
             raise ValueError(f"graph '{graph.name}' has no nodes to run{where}; check the nodes' 'host' fields")
         self.lockstep = lockstep
         self.log_level = log_level
-        self.zygote = zygote or Zygote.start(graph.path)  # before any Zenoh session: it forks node processes
+        # before any Zenoh session: it forks the node processes (docs/architecture.md, "Process start-up")
+        self.zygote = zygote or (Zygote.start(graph.path) if forking.enabled() else None)
         self.hub_endpoint = transport.hub_endpoint_for()
         self._state_dir = tempfile.TemporaryDirectory(prefix=f"handflow-{graph.name}-")
         self.user: str | None = None
         try:
             self.session = transport.open_hub(graph.spec.zenoh, self.hub_endpoint, self._secure_settings(host))
         except BaseException:
-            self.zygote.close()
+            if self.zygote is not None:
+                self.zygote.close()
             self._state_dir.cleanup()
             raise
         self.stopping = False
@@ -153,9 +156,10 @@ class Launcher:
             args.append("--lockstep")
         if self.user is not None:  # the node reads its password from the graph's credentials file
             args += ["--user", self.user]
-        unit.proc = self.zygote.spawn(args)
+        unit.proc = self.zygote.spawn(args) if self.zygote is not None else None
         if unit.proc is None:
-            log.warning("the zygote cannot fork %s; starting it as a new interpreter", unit.name)
+            if self.zygote is not None:
+                log.warning("the zygote cannot fork %s; starting it as a new interpreter", unit.name)
             unit.proc = subprocess.Popen(
                 [sys.executable, "-m", "handflow.framework.runner", *args],
                 start_new_session=True,
@@ -249,7 +253,8 @@ class Launcher:
         self._start_pub.undeclare()
         self._event_pub.undeclare()
         self.session.close()
-        self.zygote.close()
+        if self.zygote is not None:
+            self.zygote.close()
         self._state_dir.cleanup()
 
     def summary(self) -> dict[str, dict[str, object]]:

@@ -134,6 +134,11 @@ def _reply(sock: socket.socket, body: dict) -> bool:
     return True
 
 
+def enabled() -> bool:
+    """Whether node processes are forked from a zygote (``HANDFLOW_ZYGOTE=0`` starts fresh interpreters)."""
+    return os.environ.get("HANDFLOW_ZYGOTE", "1") != "0"
+
+
 class ForkedProcess:
     """A node process forked by the zygote, with the part of :class:`subprocess.Popen`'s interface the
     launcher uses (``pid``, ``stderr``, ``poll``, ``wait``, ``send_signal``, ``kill``, ``returncode``)."""

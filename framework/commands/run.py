@@ -6,6 +6,7 @@ import argparse
 import json
 import sys
 
+from .. import zygote as forking
 from ..foxglove_bridge import BridgeError, start_bridge
 from ..graph import FoxgloveSettings, GraphError, load_graph
 from ..launcher import run_graph
@@ -35,11 +36,13 @@ def register(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    zygote = Zygote.start(args.graph)  # imports the plugins for the node processes while the graph is checked here
+    # imports the plugins for the node processes while the graph is checked here
+    zygote = Zygote.start(args.graph) if forking.enabled() else None
     try:
         graph = load_graph(args.graph)
     except GraphError as exc:
-        zygote.close()
+        if zygote is not None:
+            zygote.close()
         print(exc, file=sys.stderr)
         print(f"{args.graph}: fix the problems above (see `handflow validate {args.graph}`)", file=sys.stderr)
         return 2
@@ -62,7 +65,8 @@ def run(args: argparse.Namespace) -> int:
     try:
         launcher = run_graph(graph, args.duration, args.host, on_ready=attach, zygote=zygote)
     except (ValueError, BridgeError, EndpointInUse) as exc:
-        zygote.close()
+        if zygote is not None:
+            zygote.close()
         print(f"error: {exc}", file=sys.stderr)
         return 2
     finally:

@@ -75,3 +75,16 @@ def test_the_zygote_ends_with_the_launchers_socket(zygote, tmp_path):
     while _running(proc.pid) and time.monotonic() < deadline:
         time.sleep(0.1)
     assert not _running(proc.pid)
+
+
+def test_without_the_zygote_node_processes_are_fresh_interpreters(tmp_path, monkeypatch):
+    from handflow.framework.graph import load_graph
+    from handflow.framework.launcher import run_graph
+    from tests.framework.test_runtime_e2e import chain_graph, read_sink
+
+    monkeypatch.setenv("HANDFLOW_ZYGOTE", "0")
+    launcher = run_graph(load_graph(chain_graph(tmp_path)), duration_s=1.0)
+    launcher.close()
+    assert launcher.zygote is None
+    assert read_sink(tmp_path / "sink.jsonl")
+    assert all(u["exit_codes"] == [0] for u in launcher.summary().values())

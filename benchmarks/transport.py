@@ -250,7 +250,7 @@ def recording_rate(frames: int = 300, repeats: int = 3) -> dict:
             ours.append(time.perf_counter() - t0)
             t0 = time.perf_counter()
             with open(path, "wb") as fh:
-                bw = Writer(fh, chunk_size=256 * 1024, compression=CompressionType.ZSTD)
+                bw = Writer(fh, chunk_size=McapWriter.CHUNK_SIZE, compression=CompressionType.ZSTD)
                 bw.start(profile="ros2", library="bench")
                 sid = bw.register_schema("sensor_msgs/msg/Image", "ros2msg", b"")
                 cid = bw.register_channel("handflow/bench/cam/image", "cdr", sid)

@@ -302,3 +302,19 @@ def test_a_second_type_on_a_topic_gets_its_own_channel(tmp_path):
         w.write(TOPIC, Label(label="stray"))  # e.g. published by an outside peer
         w.write(TOPIC, _array(2))
     assert [type(m).__name__ for _, m, _ in read_messages(path)] == ["Array", "Label", "Array"]
+
+
+def test_a_second_of_camera_frames_is_one_chunk(tmp_path):
+    """The writer keeps an index entry per chunk until the summary: at the flagship's camera rate a
+    second of frames (5 × 320×240 RGB) fills one default chunk, not one per frame (docs/recording.md)."""
+    path = tmp_path / "cam.mcap"
+    rng = np.random.default_rng(0)
+    with McapWriter(path, flush_interval_s=None) as w:
+        for i in range(5):
+            img = Image.from_array(rng.integers(0, 255, size=(240, 320, 3), dtype=np.uint8))
+            img.header = Header("cam", i + 1, 1_000 + i)
+            w.write("handflow/g/cam/image", img, log_time_ns=1_000 + i)
+    with open(path, "rb") as f:
+        summary = make_reader(f).get_summary()
+    assert summary.statistics.message_count == 5
+    assert len(summary.chunk_indexes) == 1

@@ -2,7 +2,8 @@
 
 Setup: 24-float messages.  handflow: ``basic.signal → basic.transform → basic.sink`` (three
 processes, the sink writes arrival − source stamp per message) and the single hop
-``basic.signal → basic.sink`` (two processes).  Baseline: bare Zenoh publisher → subscriber (two
+``basic.signal → basic.sink`` (two processes).  24-joint states (``JointState``, names and
+positions): ``basic.signal (message: joint_state) → basic.select → basic.sink`` at the top rate.  Baseline: bare Zenoh publisher → subscriber (two
 processes) and publisher → relay → subscriber (three processes) with the same payload (the same
 CDR bytes and attachment, docs/ros2.md), the same session topology (a hub peer plus gossip) and the
 same rates.
@@ -18,7 +19,8 @@ next to the bare ``mcap`` writer with the same bytes and settings.
 
 ``overhead_ratio`` = median latency of the handflow chain / median of the bare-Zenoh chain with
 the same number of hops; ``overhead_ratio_single_hop`` compares the two-process set-ups;
-``image_overhead_ratio`` = median image latency handflow / bare Zenoh.
+``image_overhead_ratio`` = median image latency handflow / bare Zenoh;
+``joint_state_overhead_ratio`` = the chain's ratio for 24-joint states.
 """
 
 from __future__ import annotations
@@ -57,7 +59,7 @@ def _image(seq: int):
 def _role(args: argparse.Namespace) -> None:
     from handflow.framework import transport, wire
     from handflow.framework.graph import ZenohSettings
-    from handflow.framework.messages import Array, Header
+    from handflow.framework.messages import Array, Header, JointState
 
     settings = ZenohSettings()
     session = transport.open_node_session(settings, args.hub)
@@ -80,7 +82,12 @@ def _role(args: argparse.Namespace) -> None:
                 struct.pack_into("<iI", body, 4, now // 1_000_000_000, now % 1_000_000_000)
                 pub.put(bytes(body), attachment=wire.attachment("handflow.Image", "pub", seq))
                 continue
-            msg = frames[seq % len(frames)] if frames else Array(data=data + seq)
+            if frames:
+                msg = frames[seq % len(frames)]
+            elif args.payload == "joint_state":
+                msg = JointState(names=[f"j{k}" for k in range(WIDTH)], positions=data + seq)
+            else:
+                msg = Array(data=data + seq)
             msg.header = Header("pub", seq, now)
             payload, att = wire.pack(msg)
             pub.put(payload, attachment=att)
@@ -150,17 +157,22 @@ def run_raw(rate: float, seconds: float, hops: int, payload: str = "joints", mod
 # ------------------------------------------------------------------------------------------------
 # handflow graph
 # ------------------------------------------------------------------------------------------------
-def run_handflow(rate: float, seconds: float, hops: int) -> dict:
+def run_handflow(rate: float, seconds: float, hops: int, message: str = "array") -> dict:
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
-        middle = "  - id: scale\n    plugin: basic.transform\n    inputs: {in: source/out}\n" if hops == 2 else ""
+        middle = (
+            "  - id: scale\n    plugin: basic.select\n    inputs: {primary: source/out}\n"
+            if message == "joint_state"
+            else "  - id: scale\n    plugin: basic.transform\n    inputs: {in: source/out}\n"
+        )
+        middle = middle if hops == 2 else ""
         sink_src = "scale/out" if hops == 2 else "source/out"
         graph = tmp / "bench.yaml"
         graph.write_text(f"""name: bench
 nodes:
   - id: source
     plugin: basic.signal
-    params: {{kind: noise, rate_hz: {rate}, width: {WIDTH}}}
+    params: {{kind: noise, rate_hz: {rate}, width: {WIDTH}, message: {message}}}
 {middle}  - id: sink
     plugin: basic.sink
     params: {{jsonl: sink.jsonl}}
@@ -324,6 +336,18 @@ def main() -> None:
             "lost_at_top_rate": top["handflow_chain"]["lost"],
         }
     )
+    top_rate = max(args.rates)
+    joint_state = {
+        "handflow_chain": run_handflow(top_rate, args.seconds, 2, "joint_state"),
+        "raw_chain": run_raw(top_rate, args.seconds, 2, "joint_state", mode="raw"),
+    }
+    results.update(
+        {
+            "joint_state": joint_state,
+            "joint_state_overhead_ratio": joint_state["handflow_chain"]["median_us"]
+            / joint_state["raw_chain"]["median_us"],
+        }
+    )
     image = {
         "handflow": run_raw(IMAGE_RATE_HZ, args.seconds, 1, "image", "handflow"),
         "raw": run_raw(IMAGE_RATE_HZ, args.seconds, 1, "image", "raw"),
@@ -365,6 +389,7 @@ def main() -> None:
             "raw_zenoh_chain_median_latency_us",
             "overhead_ratio",
             "overhead_ratio_single_hop",
+            "joint_state_overhead_ratio",
             "max_rate_hz_no_loss",
             "image_overhead_ratio",
             "image_codec_ms",

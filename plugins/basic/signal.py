@@ -1,4 +1,5 @@
-"""Signal source for tests and demos: sine, seeded noise, or rows of a CSV file at a fixed rate."""
+"""Signal source for tests and demos: sine, seeded noise, or rows of a CSV file at a fixed rate,
+as ``Array`` messages or as ``JointState`` (the values as joint positions)."""
 
 from __future__ import annotations
 
@@ -7,7 +8,7 @@ from typing import Literal
 import numpy as np
 from pydantic import Field
 
-from handflow.framework.messages import Array
+from handflow.framework.messages import Array, JointState, Message
 from handflow.framework.params import StrictModel
 from handflow.framework.plugin import Node
 
@@ -21,13 +22,21 @@ class SignalParams(StrictModel):
     seed: int = 0
     csv: str | None = Field(None, description="CSV file with a header row (kind: csv); one row per message")
     loop: bool = Field(True, description="restart the CSV at its end")
+    message: Literal["array", "joint_state"] = Field(
+        "array",
+        description="publish Array, or JointState with the values as positions (names: the CSV header or j0, j1, …)",
+    )
 
 
 class SignalSource(Node):
-    """Publishes a sine, seeded noise or CSV rows as Array messages at rate_hz."""
+    """Publishes a sine, seeded noise or CSV rows as Array (or JointState) messages at rate_hz."""
 
     Params = SignalParams
     outputs = {"out": Array}
+
+    @classmethod
+    def output_types(cls, params: SignalParams) -> dict[str, type[Message]]:
+        return {"out": JointState if params.message == "joint_state" else Array}
 
     def setup(self) -> None:
         p = self.params
@@ -55,4 +64,8 @@ class SignalSource(Node):
                 return
             data = self.rows[self.count % len(self.rows)]
         self.count += 1
-        self.ctx.publish("out", Array(data=data, names=list(self.names)))
+        if p.message == "joint_state":
+            names = self.names or [f"j{k}" for k in range(len(data))]
+            self.ctx.publish("out", JointState(names=list(names), positions=np.asarray(data, dtype=np.float64)))
+        else:
+            self.ctx.publish("out", Array(data=data, names=list(self.names)))

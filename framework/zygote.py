@@ -16,6 +16,7 @@ child's stderr pipe as ``SCM_RIGHTS``.
 
 from __future__ import annotations
 
+import atexit
 import io
 import json
 import os
@@ -64,6 +65,7 @@ def _child(sock: socket.socket, request: dict, stderr_fd: int, zygote: int) -> N
     except BaseException:
         traceback.print_exc()
     finally:
+        atexit._run_exitfuncs()  # what a fresh interpreter runs at exit (its imports registered them, or the zygote's)
         for stream in (sys.stdout, sys.stderr):
             try:
                 stream.flush()

@@ -141,6 +141,22 @@ def enabled() -> bool:
     return os.environ.get("HANDFLOW_ZYGOTE", "1") != "0"
 
 
+def _alive(pid: int) -> bool:
+    """Whether a process that is not our child runs (a zombie nobody reaps counts as gone)."""
+    try:
+        with open(f"/proc/{pid}/stat", "rb") as f:
+            return f.read().rsplit(b")", 1)[1].split()[0] != b"Z"
+    except FileNotFoundError:
+        return False
+    except OSError:  # no /proc (macOS): ask the kernel
+        pass
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    return True
+
+
 class ForkedProcess:
     """A node process forked by the zygote, with the part of :class:`subprocess.Popen`'s interface the
     launcher uses (``pid``, ``stderr``, ``poll``, ``wait``, ``send_signal``, ``kill``, ``returncode``)."""
@@ -247,11 +263,7 @@ class Zygote:
                 return self._exits[pid]
             if not self.closed:
                 return None
-        try:
-            os.kill(pid, 0)
-        except ProcessLookupError:
-            return -signal.SIGKILL  # its status went with the zygote
-        return None
+        return None if _alive(pid) else -signal.SIGKILL  # its status went with the zygote
 
     def wait_for_exit(self, timeout: float) -> None:
         with self._changed:

@@ -5,13 +5,19 @@ launcher's end of the socket."""
 
 from __future__ import annotations
 
+import json
 import signal
+import subprocess
+import sys
 import time
 from pathlib import Path
 
 import pytest
 
+from handflow.framework.graph import load_graph
+from handflow.framework.launcher import run_graph
 from handflow.framework.zygote import Zygote
+from tests.framework.test_runtime_e2e import chain_graph, read_sink
 
 SINK_GRAPH = """name: zygote_probe
 external: {{nobody/out: JointState}}
@@ -78,13 +84,44 @@ def test_the_zygote_ends_with_the_launchers_socket(zygote, tmp_path):
 
 
 def test_without_the_zygote_node_processes_are_fresh_interpreters(tmp_path, monkeypatch):
-    from handflow.framework.graph import load_graph
-    from handflow.framework.launcher import run_graph
-    from tests.framework.test_runtime_e2e import chain_graph, read_sink
-
     monkeypatch.setenv("HANDFLOW_ZYGOTE", "0")
     launcher = run_graph(load_graph(chain_graph(tmp_path)), duration_s=1.0)
     launcher.close()
     assert launcher.zygote is None
     assert read_sink(tmp_path / "sink.jsonl")
     assert all(u["exit_codes"] == [0] for u in launcher.summary().values())
+
+
+def test_a_killed_zygote_costs_a_restart_not_the_graph(tmp_path):
+    """kill -9 of the zygote: its node processes see their parent gone and stop; the launcher restarts
+    them as fresh interpreters and data flows again."""
+    graph = chain_graph(tmp_path)
+    summary = tmp_path / "summary.json"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "handflow.framework.cli", "run", str(graph), "--summary-json", str(summary)],
+        cwd=tmp_path,
+        text=True,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+    )
+    try:
+        deadline = time.monotonic() + 60
+        while not read_sink(tmp_path / "sink.jsonl") and time.monotonic() < deadline:
+            time.sleep(0.2)
+        children = Path(f"/proc/{proc.pid}/task/{proc.pid}/children").read_text().split()
+        (zygote_pid,) = [int(p) for p in children if "handflow.framework.zygote" in _title(int(p))]
+        subprocess.run(["kill", "-9", str(zygote_pid)], check=True)
+        killed_at = time.time_ns()
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline:
+            if len([r for r in read_sink(tmp_path / "sink.jsonl") if r["arrival_ns"] > killed_at + 1e9]) > 50:
+                break
+            time.sleep(0.2)
+    finally:
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 0, err[-3000:]
+    assert "starting it as a new interpreter" in err
+    after = [r for r in read_sink(tmp_path / "sink.jsonl") if r["arrival_ns"] > killed_at + 1e9]
+    assert len(after) > 50, "no data after the node processes were restarted"
+    assert all(unit["restarts"] == 1 for unit in json.loads(summary.read_text()).values()), err[-3000:]

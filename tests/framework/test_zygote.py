@@ -83,6 +83,7 @@ def test_the_zygote_ends_with_the_launchers_socket(zygote, tmp_path):
     assert not _running(proc.pid)
 
 
+@pytest.mark.slow
 def test_without_the_zygote_node_processes_are_fresh_interpreters(tmp_path, monkeypatch):
     monkeypatch.setenv("HANDFLOW_ZYGOTE", "0")
     launcher = run_graph(load_graph(chain_graph(tmp_path)), duration_s=1.0)
@@ -92,6 +93,7 @@ def test_without_the_zygote_node_processes_are_fresh_interpreters(tmp_path, monk
     assert all(u["exit_codes"] == [0] for u in launcher.summary().values())
 
 
+@pytest.mark.slow
 def test_a_killed_zygote_costs_a_restart_not_the_graph(tmp_path):
     """kill -9 of the zygote: its node processes see their parent gone and stop; the launcher restarts
     them as fresh interpreters and data flows again."""

@@ -32,15 +32,16 @@ def cpu_s(pid: int) -> float | None:
     return (int(fields[11]) + int(fields[12])) / TICK
 
 
-def rss_mb(pid: int) -> float | None:
-    """Resident set size in MB (None once the process is gone)."""
+def memory_mb(pid: int) -> tuple[float, float] | None:
+    """Resident set size and its anonymous (private heap) part in MB, or None once the process is gone.
+
+    The rest of the RSS is mapped files, mostly shared libraries: a process forked from the zygote
+    maps their pages on first use, so its file part grows while it runs new code paths."""
     try:
-        for line in Path(f"/proc/{pid}/status").read_text().splitlines():
-            if line.startswith("VmRSS:"):
-                return int(line.split()[1]) / 1024
-    except OSError:
+        fields = dict(line.split(":", 1) for line in Path(f"/proc/{pid}/status").read_text().splitlines())
+        return int(fields["VmRSS"].split()[0]) / 1024, int(fields["RssAnon"].split()[0]) / 1024
+    except (OSError, KeyError, ValueError):
         return None
-    return None
 
 
 def unit_name(pid: int) -> str:

@@ -4,7 +4,9 @@ a long time — memory, loss, latency drift and restarts (docs/reliability.md).
     python benchmarks/soak.py [--duration 3600] [--window 300] [--json]
 
 - ``rss_growth_max``: largest per-process fraction ``(last RSS − RSS after warm-up) / RSS after
-  warm-up`` (RSS sampled every ``--sample`` s; warm-up = the first window);
+  warm-up`` (RSS sampled every ``--sample`` s; warm-up = the first window); ``rss_anon_growth_max``
+  the same for the anonymous part of the RSS (the heap, where a leak shows; the rest is mapped
+  files, which a process forked from the zygote maps on first use);
 - ``lost_messages``: gaps in the sequence numbers of every recorded topic (what the recorder did
   not get, restarts included) plus the input gaps the nodes themselves counted;
 - ``p99_ms_first_window`` / ``p99_ms_last_window``: latency of ``segmenter/labels`` (receive time at
@@ -26,7 +28,7 @@ from collections import defaultdict
 from pathlib import Path
 
 import numpy as np
-from procs import descendants, rss_mb, unit_name
+from procs import descendants, memory_mb, unit_name
 
 LABELS = "segmenter/labels"
 SETTLE_S = 10.0  # latency windows start this long after the first label
@@ -41,15 +43,15 @@ def run(duration: float, window: float, sample: float, graph: str, workdir: Path
     cmd = [sys.executable, "-m", "handflow.framework.cli", "--log-level", "WARNING", "run", graph]
     cmd += ["--record", str(rec), "--summary-json", str(summary), "--duration", str(duration)]
     proc = subprocess.Popen(cmd, cwd=workdir, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-    rss: dict[str, list[tuple[float, float]]] = defaultdict(list)
+    rss: dict[str, list[tuple[float, float, float]]] = defaultdict(list)  # (t, RSS, anonymous RSS)
     t0 = time.monotonic()
     try:
         while proc.poll() is None:
             now = time.monotonic() - t0
             for pid in [proc.pid, *descendants(proc.pid)]:
-                mb = rss_mb(pid)
+                mb = memory_mb(pid)
                 if mb is not None:
-                    rss[unit_name(pid)].append((now, mb))
+                    rss[unit_name(pid)].append((now, *mb))
             time.sleep(sample)
     except KeyboardInterrupt:
         proc.send_signal(signal.SIGINT)
@@ -86,17 +88,24 @@ def analyse(rss: dict, recording: Path, summary: dict, window: float) -> dict:
 
     growth = {}
     for name, samples in rss.items():
-        t = np.array([s[0] for s in samples])
-        mb = np.array([s[1] for s in samples])
-        after = mb[t >= window]
+        t, mb, anon = np.array(samples).T
+        after, anon_after = mb[t >= window], anon[t >= window]
         if len(after) >= 2:
-            growth[name] = {"rss_mb_after_warmup": float(after[0]), "rss_mb_last": float(after[-1]), "growth": float(after[-1] / after[0] - 1)}  # fmt: skip
+            growth[name] = {
+                "rss_mb_after_warmup": float(after[0]),
+                "rss_mb_last": float(after[-1]),
+                "growth": float(after[-1] / after[0] - 1),
+                "anon_mb_after_warmup": float(anon_after[0]),
+                "anon_mb_last": float(anon_after[-1]),
+                "anon_growth": float(anon_after[-1] / anon_after[0] - 1),
+            }
     return {
         "lost_messages": int(sum(lost_recorded.values()) + sum(counted.values())),
         "lost_in_recording_by_topic": {k: v for k, v in lost_recorded.items() if v},
         "input_gaps_counted_by_nodes": {k: v for k, v in counted.items() if v},
         "restarts": int(restarts),
         "rss_growth_max": max((g["growth"] for g in growth.values()), default=None),
+        "rss_anon_growth_max": max((g["anon_growth"] for g in growth.values()), default=None),
         "rss": growth,
         "p99_ms_first_window": windows[0]["p99_ms"] if windows else None,
         "p99_ms_last_window": windows[-1]["p99_ms"] if windows else None,

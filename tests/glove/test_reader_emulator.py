@@ -8,6 +8,7 @@ import serial
 
 from handflow.plugins.glove import protocol as P
 from handflow.plugins.glove.emulator import Fault, GloveEmulator, array_source
+from handflow.plugins.glove.node import EmulatorParams, build_emulator
 from handflow.plugins.glove.reader import GloveReader, ReaderConfig
 
 RATE = 200.0
@@ -130,3 +131,17 @@ def test_unresponsive_port_is_reported_and_retried(tmp_path):
     _, counters = reader.snapshot()
     assert counters["io_errors"] >= 2 and counters["reconnects"] >= 1
     assert "nothing" in reader.last_error
+
+
+def test_a_running_emulator_keeps_a_bounded_record_log():
+    """The node's and glove-emulator's emulator stream for hours: their record log must not grow with them."""
+    with build_emulator(EmulatorParams(), log_limit=20) as emu:
+        reader = GloveReader(ReaderConfig(port=emu.path, glove_rate_hz=RATE)).start()
+        got = []
+        deadline = time.monotonic() + 10
+        while emu.counters["records"] < 100 and time.monotonic() < deadline:
+            time.sleep(0.02)
+            got += reader.drain()
+        reader.stop()
+    assert emu.counters["records"] >= 100 and got
+    assert len(emu.sent) == 20

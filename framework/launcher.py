@@ -21,12 +21,11 @@ import time
 from dataclasses import dataclass, field
 
 from . import discovery, transport, wire
-from . import zygote as forking
 from .graph import Graph, RestartPolicy
 from .messages import Header, MessageError, RuntimeEvent, Status
 from .ros2.bridge import Ros2Bridge
 from .runner import START_WAIT_S
-from .zygote import ForkedProcess, Zygote
+from .zygote import ForkedProcess, Zygote, start_unless_disabled
 
 log = logging.getLogger("handflow.launcher")
 
@@ -83,7 +82,7 @@ class Launcher:
         self.lockstep = lockstep
         self.log_level = log_level
         # before any Zenoh session: it forks the node processes (docs/architecture.md, "Process start-up")
-        self.zygote = zygote or (Zygote.start(graph.path) if forking.enabled() else None)
+        self.zygote = zygote or start_unless_disabled(graph.path)
         self.hub_endpoint = transport.hub_endpoint_for()
         self._state_dir = tempfile.TemporaryDirectory(prefix=f"handflow-{graph.name}-")
         self.user: str | None = None

@@ -136,9 +136,9 @@ def _reply(sock: socket.socket, body: dict) -> bool:
     return True
 
 
-def enabled() -> bool:
-    """Whether node processes are forked from a zygote (``HANDFLOW_ZYGOTE=0`` starts fresh interpreters)."""
-    return os.environ.get("HANDFLOW_ZYGOTE", "1") != "0"
+def start_unless_disabled(graph_source: str | os.PathLike) -> Zygote | None:
+    """A started :class:`Zygote`, or None when ``HANDFLOW_ZYGOTE=0`` asks for fresh interpreters."""
+    return Zygote.start(graph_source) if os.environ.get("HANDFLOW_ZYGOTE", "1") != "0" else None
 
 
 def _alive(pid: int) -> bool:

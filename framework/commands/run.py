@@ -6,12 +6,11 @@ import argparse
 import json
 import sys
 
-from .. import zygote as forking
 from ..foxglove_bridge import BridgeError, start_bridge
 from ..graph import FoxgloveSettings, GraphError, load_graph
 from ..launcher import run_graph
 from ..transport import EndpointInUse
-from ..zygote import Zygote
+from ..zygote import start_unless_disabled
 
 
 def register(parser: argparse.ArgumentParser) -> None:
@@ -37,7 +36,7 @@ def register(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     # imports the plugins for the node processes while the graph is checked here
-    zygote = Zygote.start(args.graph) if forking.enabled() else None
+    zygote = start_unless_disabled(args.graph)
     try:
         graph = load_graph(args.graph)
     except GraphError as exc:
@@ -65,11 +64,11 @@ def run(args: argparse.Namespace) -> int:
     try:
         launcher = run_graph(graph, args.duration, args.host, on_ready=attach, zygote=zygote)
     except (ValueError, BridgeError, EndpointInUse) as exc:
-        if zygote is not None:
-            zygote.close()
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    finally:
+    finally:  # the nodes have stopped (or never started): the zygote has nothing left to fork
+        if zygote is not None:
+            zygote.close()
         if recorder is not None:
             recorder.close()
         if bridge is not None:

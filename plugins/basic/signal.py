@@ -51,6 +51,7 @@ class SignalSource(Node):
             self.rows = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
             if not np.isfinite(self.rows).all():
                 raise ValueError(f"{path} holds NaN/inf values; clean the file")
+        self.joint_names = self.names or [f"j{k}" for k in range(p.width)]  # message: joint_state
 
     def tick(self) -> None:
         p = self.params
@@ -65,7 +66,8 @@ class SignalSource(Node):
             data = self.rows[self.count % len(self.rows)]
         self.count += 1
         if p.message == "joint_state":
-            names = self.names or [f"j{k}" for k in range(len(data))]
-            self.ctx.publish("out", JointState(names=list(names), positions=np.asarray(data, dtype=np.float64)))
+            self.ctx.publish(
+                "out", JointState(names=list(self.joint_names), positions=np.asarray(data, dtype=np.float64))
+            )
         else:
             self.ctx.publish("out", Array(data=data, names=list(self.names)))

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 import struct
 import subprocess
 import sys
@@ -34,6 +35,13 @@ WANTED = {
     "handflow/fx3d/sim/description": "std_msgs/msg/String",
     "handflow/fx3d/camera/compressed": "sensor_msgs/msg/CompressedImage",
 }
+
+
+UNKNOWN_CHANNEL = re.compile(r"Unknown channel ID: (\d+)")
+
+
+def _subscribe(ws, sub: int, channel_id: int) -> None:
+    ws.send(json.dumps({"op": "subscribe", "subscriptions": [{"id": sub, "channelId": channel_id}]}))
 
 
 def _connect(port: int, deadline: float):
@@ -85,13 +93,15 @@ def test_live_bridge_serves_the_hand_description_tf_markers_and_jpeg(tmp_path):
                         for ch in msg["channels"]:
                             if ch["topic"] in WANTED and ch["topic"] not in channels:
                                 channels[ch["topic"]] = ch
-                                sub = len(subscribed) + 1
-                                subscribed[sub] = ch["topic"]
-                                ws.send(
-                                    json.dumps(
-                                        {"op": "subscribe", "subscriptions": [{"id": sub, "channelId": ch["id"]}]}
-                                    )
-                                )
+                                subscribed[len(subscribed) + 1] = ch["topic"]
+                                _subscribe(ws, len(subscribed), ch["id"])
+                    elif msg.get("op") == "status" and (unknown := UNKNOWN_CHANNEL.search(msg.get("message", ""))):
+                        # foxglove-sdk sends an advertisement before it records the channel for the client,
+                        # so a fast subscription can be refused; a client subscribes again
+                        channel_id = int(unknown.group(1))
+                        sub = next(s for s, t in subscribed.items() if channels[t]["id"] == channel_id)
+                        time.sleep(0.1)
+                        _subscribe(ws, sub, channel_id)
                 elif frame[0] == 0x01:  # message data: opcode, subscription id, receive time, payload
                     (sub,) = struct.unpack_from("<I", frame, 1)
                     received.setdefault(subscribed[sub], bytes(frame[13:]))

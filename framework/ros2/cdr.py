@@ -117,19 +117,34 @@ class CdrWriter:
             self.value(item, v)
 
     def _strings(self, values: Any) -> None:
-        """``string[]`` elements in one loop (joint names are the most common sequence on the wire)."""
-        buf = self.buf
+        """``string[]`` elements; the bytes of a name list seen before come from :data:`_ENCODED_NAMES`."""
+        try:
+            key = tuple(values)
+            chunk = _ENCODED_NAMES.get(key)
+        except TypeError:  # an unhashable element: encoded (and refused) below
+            key = chunk = None
+        if chunk is None:
+            chunk = self._encode_strings(values)
+            if key is not None and len(chunk) <= _NAMES_CACHE_BYTES:
+                _remember(_ENCODED_NAMES, key, chunk)
+        self.buf += chunk
+
+    @staticmethod
+    def _encode_strings(values: Any) -> bytes:
+        """The elements of a ``string[]`` after its count (which leaves them 4-byte aligned)."""
+        buf = bytearray()
         for v in values:
             try:
                 raw = v.encode()
             except (AttributeError, UnicodeEncodeError) as exc:
                 raise MessageError(f"a string is not Unicode text: {exc}") from None
-            pad = -(len(buf) - 4) % 4
+            pad = -len(buf) % 4
             if pad:
                 buf += bytes(pad)
             buf += _U32.pack(len(raw) + 1)
             buf += raw
             buf += b"\x00"
+        return bytes(buf)
 
     def struct(self, ftype: str, values: dict[str, Any]) -> None:
         for t, name in self.specs[ftype]:
@@ -246,8 +261,23 @@ def _read_string(r: CdrReader) -> str:
 
 
 def _read_strings(r: CdrReader) -> list[str]:
-    """``string[]`` in one loop (joint names are the most common sequence on the wire)."""
+    """``string[]``; a name list whose bytes were read before comes from :data:`_DECODED_NAMES`."""
     n = _read_uint32(r)
+    seen = _DECODED_NAMES.get(n)
+    if seen is not None:
+        raw, names = seen
+        end = r.pos + len(raw)
+        if end <= r.size and r.data[r.pos : end] == raw:
+            r.pos = end
+            return list(names)
+    start = r.pos
+    names = _parse_strings(r, n)
+    if r.pos - start <= _NAMES_CACHE_BYTES:
+        _remember(_DECODED_NAMES, n, (bytes(r.data[start : r.pos]), tuple(names)))
+    return names
+
+
+def _parse_strings(r: CdrReader, n: int) -> list[str]:
     data, size, pos = r.data, r.size, r.pos
     if n > size - pos:
         raise MessageError(f"truncated CDR payload: {n} string element(s) announced, {size - pos} byte(s) left")
@@ -268,6 +298,21 @@ def _read_strings(r: CdrReader) -> list[str]:
         pos = end
     r.pos = pos
     return out
+
+
+# Joint names repeat in every message of a topic: the encoded bytes of a name list, and the names
+# of the bytes last read for each element count, are kept (lists up to 4 kB, a few dozen entries,
+# cleared when full).
+_NAMES_CACHE_SIZE = 64
+_NAMES_CACHE_BYTES = 4096
+_ENCODED_NAMES: dict[tuple, bytes] = {}
+_DECODED_NAMES: dict[int, tuple[bytes, tuple[str, ...]]] = {}
+
+
+def _remember(cache: dict, key: Any, value: Any) -> None:
+    if len(cache) >= _NAMES_CACHE_SIZE:
+        cache.clear()
+    cache[key] = value
 
 
 def _read_header(r: CdrReader) -> tuple[int, str]:

@@ -9,6 +9,7 @@ from hypothesis import strategies as st
 
 from handflow.framework.fuzzing import BYTE_OPS, Mutation, mutate, sample_messages
 from handflow.framework.messages import Image, JointState, Markers, Message, MessageError, Status, Text, Transforms
+from handflow.framework.ros2 import cdr
 from handflow.framework.ros2.types import decode_cdr, encode_cdr, own_msgs, ros_type, schema_text
 
 typesys = pytest.importorskip("rosbags.typesys")
@@ -90,6 +91,28 @@ def test_arrays_are_views_of_the_payload():
     back = decode_cdr(encode_cdr(js), js.TYPE)
     assert back.positions.base is not None and not back.positions.flags.owndata
     assert decode_cdr(encode_cdr(img), img.TYPE).to_array().shape == (480, 640, 3)
+
+
+names_lists = st.lists(st.text(max_size=6), max_size=4)
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(names_lists, min_size=1, max_size=8), st.data())
+def test_remembered_name_lists_read_and_write_as_the_bytes_say(lists, data):
+    """Name lists repeat per topic and are remembered (framework/ros2/cdr.py); a stream of lists
+    of equal and different lengths, some repeated, decodes to its own names and the same bytes."""
+    for names in [data.draw(st.sampled_from(lists)) for _ in range(12)]:
+        js = JointState(names=names, positions=np.arange(len(names), dtype=float))
+        payload = encode_cdr(js)
+        cdr._ENCODED_NAMES.clear()
+        assert encode_cdr(js) == payload  # the remembered bytes are the freshly encoded ones
+        back = decode_cdr(payload, js.TYPE)
+        assert back.names == names
+        back.names.append("x")  # a receiver's list is its own
+        assert decode_cdr(payload, js.TYPE).names == names
+    for cut in range(len(payload)):  # the last list is remembered: every cut of its bytes is still refused
+        with pytest.raises(MessageError):
+            decode_cdr(payload[:cut], js.TYPE)
 
 
 @pytest.mark.parametrize(

@@ -17,6 +17,7 @@ from sklearn.exceptions import NotFittedError
 from handflow.plugins.grasp.som import SOM
 from handflow.plugins.manifold import StructuredUKR
 from handflow.plugins.segmenter.baselines import PerClassHMM, SlidingDTW1NN
+from handflow.plugins.segmenter.running_scaling import RunningStandardizer
 from tests.manifold.ukr_helpers import RING_LATENT, closed_curves
 
 
@@ -66,6 +67,13 @@ CASES = {
         lambda m, d: m.scores(d["a"][0]),
         {"n_states": 0},
         {"window": 4},
+    ),
+    "RunningStandardizer": Case(
+        lambda **kw: RunningStandardizer(**kw),
+        lambda: np.random.default_rng(2).normal(size=(30, 3)),
+        lambda m, d: m.transform(d),
+        {"prior_frames": 0},
+        {"variance_floor": 0.05},
     ),
 }
 RANDOM = {"StructuredUKR", "SOM", "PerClassHMM"}

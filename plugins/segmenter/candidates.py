@@ -204,10 +204,16 @@ class CandidateSet:
     def __len__(self) -> int:
         return len(self.models)
 
+    @property
+    def scaling(self) -> ChannelScaling | None:
+        """The channel scaling of the (first) candidate (:mod:`.scaling`); None for raw channels."""
+        first = next(iter(self.models.values()))
+        return first.scaling if isinstance(first, UKRCandidate) else None
+
     def scaled(self, Y: np.ndarray) -> np.ndarray:
         """Observations in the channel scaling of the (first) candidate."""
-        first = next(iter(self.models.values()))
-        return first.scaled(Y) if isinstance(first, UKRCandidate) else np.asarray(Y, dtype=float)
+        Y = np.asarray(Y, dtype=float)
+        return Y if self.scaling is None else self.scaling.transform(Y)
 
     def project(self, Y: np.ndarray, embedded: bool = False) -> Projection:
         """Project (N, d) observations — a contiguous stretch of a stream from its start — onto every

@@ -12,7 +12,9 @@ from .candidates import ModelsMissingError, load_candidates
 from .continuous import is_continuous
 from .datasets import DatasetError, load_dataset
 from .evaluation import EXPERIMENTS, METHODS, Evaluator, Protocol
+from .running_scaling import RunningStandardizer
 from .stream_cli import run_stream_evaluation, run_train_recording_models
+from .stream_evaluation import NORMALISATIONS
 from .training import INITS, KERNELS, candidate_set, save_class_models, train_class_models
 
 
@@ -141,6 +143,15 @@ def register_evaluate(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--known", help="continuous recordings: comma-separated classes to model; frames of others must be rejected"
     )
+    parser.add_argument(
+        "--normalise",
+        choices=NORMALISATIONS,
+        default="training",
+        help="continuous recordings, every method alike: 'training' (default) z-scores every recording with the "
+        "fold's training frames; 'recording' standardises each recording causally, frame by frame, with its "
+        f"running mean/std and those training statistics as a prior of {RunningStandardizer().prior_frames} "
+        "frames — for recordings of different people or sensor placements (docs/segmentation.md)",
+    )
     parser.set_defaults(func=run_evaluate)
 
 
@@ -149,6 +160,8 @@ def run_evaluate(args) -> int:
         return run_stream_evaluation(args, _progress)
     t0 = time.perf_counter()
     try:
+        if args.normalise != "training":
+            raise DatasetError(f"--normalise {args.normalise} needs continuous recordings (docs/segmentation.md)")
         methods = tuple(m for m in (args.methods or ",".join(METHODS)).split(",") if m)
         unknown = sorted(set(methods) - set(METHODS))
         if unknown:

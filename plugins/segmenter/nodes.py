@@ -9,6 +9,7 @@ evidence changes an earlier label).  Output stamps are the observation's stamp.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Literal
 
 import numpy as np
@@ -21,10 +22,25 @@ from handflow.framework.plugin import Node
 from .candidates import CandidateSet, load_candidates
 from .online import OnlineCLMSegmenter, SegmentChange, SegmentTracker
 from .online_scores import OnlineScoreCLMSegmenter
+from .running_scaling import RunningStandardizer
+from .scaling import ChannelScaling
 from .scorers import ScorerFileError, WindowScorer, load_scorer
 from .ukr_only import UKROnlyRecognizer
 
 UNKNOWN = "unknown"
+
+
+def running_normaliser(scaling: ChannelScaling | None, frames: int) -> Callable[[np.ndarray], np.ndarray]:
+    """Observation → the observation standardised causally (:class:`.RunningStandardizer` with
+    ``frames`` prior frames at the models' channel ``scaling``), mapped back into raw units so that
+    the models' scaling gives the standardised value (docs/segmentation.md)."""
+    if scaling is None:
+        raise ValueError(
+            "running_normalisation_frames needs models that store their channel scaling; "
+            "retrain them with `handflow train-classes`"
+        )
+    stream = RunningStandardizer(prior_frames=frames).set_prior(scaling.offset_, scaling.scale_).stream()
+    return lambda y: scaling.inverse_transform(stream.update(y))
 
 
 class RecognizerParams(StrictModel):
@@ -115,6 +131,12 @@ class OnlineCLMNode(_RecognizerNode):
         )
         block_sweeps: int = Field(10, ge=1, description="sweeps of the running block run per update")
         confirm: int = Field(5, ge=1, description="updates a changed earlier label must hold before a revision")
+        running_normalisation_frames: int = Field(
+            0,
+            ge=0,
+            description="source ukr: standardise every observation causally with the stream's running mean/std, "
+            "this many pseudo-frames at the models' channel scaling as the prior (docs/segmentation.md); 0 = off",
+        )
         seed: int | None = 0
 
         @model_validator(mode="after")
@@ -123,6 +145,8 @@ class OnlineCLMNode(_RecognizerNode):
                 raise ValueError("source 'ukr' needs 'models' (a folder from `handflow train-classes`)")
             if self.source != "ukr" and not self.scorer:
                 raise ValueError(f"source '{self.source}' needs 'scorer' (a file from `handflow fit-scorer`)")
+            if self.source != "ukr" and self.running_normalisation_frames:
+                raise ValueError("running_normalisation_frames needs source 'ukr' (its prior is the models' scaling)")
             return self
 
     def setup(self) -> None:
@@ -142,10 +166,13 @@ class OnlineCLMNode(_RecognizerNode):
             confirm=p.confirm,
             random_state=p.seed,
         )
+        self.running = None
         if p.source == "ukr":
             models = self.load_models()
             reconstruction = models.reconstruction if p.reconstruction == "auto" else p.reconstruction
             self.segmenter = OnlineCLMSegmenter(models, reconstruction=reconstruction, **common)
+            if p.running_normalisation_frames:
+                self.running = running_normaliser(models.scaling, p.running_normalisation_frames)
         else:
             self.segmenter = OnlineScoreCLMSegmenter(self.load_scorer(), **common)
         self.classes = self.segmenter.classes_
@@ -160,7 +187,7 @@ class OnlineCLMNode(_RecognizerNode):
         return scorer
 
     def recognise(self, y: np.ndarray, stamp: int) -> None:
-        up = self.segmenter.update(y)
+        up = self.segmenter.update(y if self.running is None else self.running(y))
         self.ctx.publish(
             "labels",
             Label(label=self.name(up.label), index=up.index, classes=self.classes, scores=up.scores),

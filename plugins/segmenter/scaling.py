@@ -43,6 +43,10 @@ class ChannelScaling:
             )
         return (Y - self.offset_) / self.scale_
 
+    def inverse_transform(self, Z: np.ndarray) -> np.ndarray:
+        """Scaled observations back in the raw channel units."""
+        return self.offset_ + self.scale_ * np.asarray(Z, dtype=float)
+
     def to_provenance(self) -> dict:
         return {"channel_offset": self.offset_.tolist(), "channel_scale": self.scale_.tolist()}
 

@@ -32,6 +32,7 @@ def run_stream_evaluation(args, progress) -> int:
             quick=args.quick,
             random_state=args.seed,
             progress=progress,
+            normalise=args.normalise,
         )
         result = evaluator.evaluate()
     except (ValueError, ImportError) as exc:

@@ -9,10 +9,13 @@ the last ``INNER_FOLDS`` training recordings.  The method is refitted on all tra
 and labels the held-out one frame by frame.  Frames of labels outside ``known`` are never used for
 training or calibration; every figure is computed on frames pooled over the folds.
 
-Every recording is z-scored with the mean and standard deviation of the fold's training frames,
-for every method alike.  ``ukr_clm_online`` feeds the held-out recording sample by sample through
-:class:`OnlineCLMSegmenter` with the parameters selected for ``ukr_clm`` and keeps each sample's
-final published label; its ``agreement`` is the share of frames equal to the batch ``ukr_clm``.
+Every recording is scaled with the fold's training frames, for every method alike
+(``normalise``): z-scored with their mean and standard deviation (``"training"``), or each
+recording standardised causally with its own running statistics and those as the prior
+(``"recording"``, :mod:`.running_scaling`).  ``ukr_clm_online`` feeds the normalised held-out
+recording sample by sample through :class:`OnlineCLMSegmenter` with the parameters selected for
+``ukr_clm`` and keeps each sample's final published label; its ``agreement`` is the share of
+frames equal to the batch ``ukr_clm``.
 """
 
 from __future__ import annotations
@@ -26,9 +29,12 @@ import numpy as np
 from .continuous import Recording, RecordingSet, segments
 from .frame_methods import METHODS, Fitted
 from .openset import calibrate, frame_metrics, segment_f1, tradeoff_curve
+from .running_scaling import RunningStandardizer
+from .scaling import ChannelScaling
 
 INNER_FOLDS = 3  # validation recordings of the inner split (each validated by a fit on the others)
 DEFAULT_METHODS = ("ukr_clm", "ukr_clm_online", "ukr_only", "dtw_1nn", "hmm", "minirocket", "clm_minirocket")
+NORMALISATIONS = ("training", "recording")
 
 
 @dataclass
@@ -40,11 +46,15 @@ class FoldResult:
     sweeps: dict[str, list[np.ndarray]]  # per method: labels at every rejection value of its sweep
 
 
-def _zscore(train: list[Recording], recs: list[Recording]) -> list[Recording]:
-    Y = np.vstack([r.X for r in train])
-    mu, sd = Y.mean(axis=0), Y.std(axis=0)
-    sd = np.where(sd > 0, sd, 1.0)
-    return [Recording(r.name, (r.X - mu) / sd, r.y) for r in recs]
+def _zscore(train: list[Recording], recs: list[Recording], normalise: str = "training") -> list[Recording]:
+    """``recs`` z-scored with the mean and standard deviation of the frames of ``train``
+    (``"training"``) or causally with running ones, each recording on its own, those frames being
+    the prior (``"recording"``, :class:`.running_scaling.RunningStandardizer`)."""
+    if normalise == "training":
+        scaler = ChannelScaling().fit([r.X for r in train])
+    else:
+        scaler = RunningStandardizer().fit(np.vstack([r.X for r in train]))
+    return [Recording(r.name, scaler.transform(r.X), r.y) for r in recs]
 
 
 class StreamEvaluator:
@@ -58,7 +68,10 @@ class StreamEvaluator:
         quick: bool = False,
         random_state: int = 0,
         progress: Callable[[str], None] = lambda msg: None,
+        normalise: str = "training",
     ) -> None:
+        if normalise not in NORMALISATIONS:
+            raise ValueError(f"normalise must be one of {NORMALISATIONS}, got {normalise!r}")
         unknown_names = sorted(set(known or []) - set(data.class_names))
         if unknown_names:
             raise ValueError(f"--known names classes {unknown_names} that the data lacks; it has {data.class_names}")
@@ -75,6 +88,7 @@ class StreamEvaluator:
         self.quick = quick
         self.random_state = random_state
         self.progress = progress
+        self.normalise = normalise
         self._cache: dict[tuple, object] = {}
 
     # -- one fold ---------------------------------------------------------------------------
@@ -130,7 +144,7 @@ class StreamEvaluator:
 
     def run_fold(self, held: str) -> FoldResult:
         train = self.data.without(held)
-        recs = _zscore(train, self.data.recordings)
+        recs = _zscore(train, self.data.recordings, self.normalise)
         by_name = {r.name: r for r in recs}
         train = [by_name[r.name] for r in train]
         test = by_name[held]
@@ -224,7 +238,16 @@ class StreamEvaluator:
             "classes": self.data.class_names,
             "recordings": self.data.names(),
             "dataset": self.data.source,
-            "normalisation": "z-score with the fold's training frames (every method)",
+            "normalisation": self._normalisation(),
             "quick": self.quick,
             "grids": {n: METHODS[n].grid(self.quick) for n in self.methods if n in METHODS},
+        }
+
+    def _normalisation(self) -> dict:
+        if self.normalise == "training":
+            return {"mode": "training", "description": "z-score with the fold's training frames (every method)"}
+        return {
+            "mode": "recording",
+            "description": "each recording standardised causally, prior = the fold's training frames (every method)",
+            **RunningStandardizer().get_params(),
         }

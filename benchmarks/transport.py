@@ -15,12 +15,14 @@ read without decoding.  ``image_codec_ms`` is encode + decode of one frame in-pr
 ``recording_mb_per_s`` is the sustained rate of ``McapWriter`` storing such frames (zstd chunks),
 next to the bare ``mcap`` writer with the same bytes and settings.
 
-    python benchmarks/transport.py [--json] [--seconds 6] [--rates 100 1000]
+    python benchmarks/transport.py [--json] [--seconds 6] [--rates 100 1000] [--pairs 3]
 
 ``overhead_ratio`` = median latency of the handflow chain / median of the bare-Zenoh chain with
-the same number of hops; ``overhead_ratio_single_hop`` compares the two-process set-ups;
+the same number of hops at the top rate, measured as ``--pairs`` back-to-back (handflow, bare)
+pairs and reported as the median of the pairs' ratios (``chain_pairs``);
+``overhead_ratio_single_hop`` compares the two-process set-ups;
 ``image_overhead_ratio`` = median image latency handflow / bare Zenoh;
-``joint_state_overhead_ratio`` = the chain's ratio for 24-joint states.
+``joint_state_overhead_ratio`` = the same paired ratio for 24-joint states (``joint_state``).
 """
 
 from __future__ import annotations
@@ -278,6 +280,21 @@ def recording_rate(frames: int = 300, repeats: int = 3) -> dict:
     }
 
 
+def _paired(repeats: int, handflow, raw, first: tuple[dict, dict] | None = None) -> dict:
+    """``repeats`` back-to-back (handflow, bare Zenoh) runs of one set-up (after ``first``, a pair
+    already measured) and the median of their latency ratios: the machine's drift between runs
+    moves both halves of a pair alike."""
+    pairs = [first] if first else []
+    pairs += [(handflow(), raw()) for _ in range(repeats)]
+    ratios = [h["median_us"] / r["median_us"] for h, r in pairs]
+    return {
+        "pairs": [{"handflow_chain": h, "raw_chain": r, "ratio": q} for (h, r), q in zip(pairs, ratios)],
+        "handflow_chain": pairs[-1][0],
+        "raw_chain": pairs[-1][1],
+        "ratio_median": statistics.median(ratios),
+    }
+
+
 def _stats(lat_ns: list[int], seqs: list[int], expected: int | None) -> dict:
     if not lat_ns:
         return {"median_us": float("nan"), "p99_us": float("nan"), "received": 0, "lost": expected or 0}
@@ -298,6 +315,12 @@ def main() -> None:
     ap.add_argument("--json", action="store_true")
     ap.add_argument("--seconds", type=float, default=6.0)
     ap.add_argument("--rates", type=float, nargs="+", default=[100.0, 1000.0])
+    ap.add_argument(
+        "--pairs",
+        type=int,
+        default=3,
+        help="back-to-back handflow/bare-Zenoh pairs of each chain at the top rate; the ratios are their median",
+    )
     ap.add_argument(
         "--max-rates",
         type=float,
@@ -331,21 +354,28 @@ def main() -> None:
             "p99_latency_us": top["handflow_chain"]["p99_us"],
             "raw_zenoh_median_latency_us": top["raw_single_hop"]["median_us"],
             "raw_zenoh_chain_median_latency_us": top["raw_chain"]["median_us"],
-            "overhead_ratio": top["handflow_chain"]["median_us"] / top["raw_chain"]["median_us"],
             "overhead_ratio_single_hop": top["handflow_single_hop"]["median_us"] / top["raw_single_hop"]["median_us"],
             "lost_at_top_rate": top["handflow_chain"]["lost"],
         }
     )
     top_rate = max(args.rates)
-    joint_state = {
-        "handflow_chain": run_handflow(top_rate, args.seconds, 2, "joint_state"),
-        "raw_chain": run_raw(top_rate, args.seconds, 2, "joint_state", mode="raw"),
-    }
+    arrays = _paired(
+        args.pairs - 1,
+        lambda: run_handflow(top_rate, args.seconds, 2),
+        lambda: run_raw(top_rate, args.seconds, 2, mode="raw"),
+        first=(top["handflow_chain"], top["raw_chain"]),
+    )
+    joint_state = _paired(
+        args.pairs,
+        lambda: run_handflow(top_rate, args.seconds, 2, "joint_state"),
+        lambda: run_raw(top_rate, args.seconds, 2, "joint_state", mode="raw"),
+    )
     results.update(
         {
+            "chain_pairs": arrays,
+            "overhead_ratio": arrays["ratio_median"],
             "joint_state": joint_state,
-            "joint_state_overhead_ratio": joint_state["handflow_chain"]["median_us"]
-            / joint_state["raw_chain"]["median_us"],
+            "joint_state_overhead_ratio": joint_state["ratio_median"],
         }
     )
     image = {

@@ -1,7 +1,8 @@
-"""Shared pytest fixtures: running the ``handflow`` CLI as a real subprocess."""
+"""Shared pytest fixtures: running the ``handflow`` CLI as a real subprocess, or one command in-process."""
 
 from __future__ import annotations
 
+import argparse
 import subprocess
 import sys
 from pathlib import Path
@@ -24,6 +25,14 @@ def handflow(*args: str, timeout: float = 120, check: bool = False, **kw) -> sub
     if check and proc.returncode != 0:
         raise AssertionError(f"handflow {' '.join(args)} failed ({proc.returncode}):\n{proc.stdout}\n{proc.stderr}")
     return proc
+
+
+def run_command(register, argv: list[str]):
+    """Run one command in-process: ``register`` adds its arguments to a parser, ``argv`` is parsed."""
+    parser = argparse.ArgumentParser()
+    register(parser)
+    args = parser.parse_args(argv)
+    return args.func(args)
 
 
 @pytest.fixture

@@ -1,6 +1,5 @@
 """Demonstration recordings: structure, determinism, the command line, and the shipped examples."""
 
-import argparse
 from collections import Counter
 from pathlib import Path
 
@@ -14,6 +13,7 @@ from handflow.plugins.demo.cli import register_demo_record
 from handflow.plugins.demo.demonstrations import OBSERVATION_NAMES, record_balls, record_cap
 from handflow.plugins.hands.joints import GIFU, SHADOW
 from handflow.plugins.simulator.metrics import count_swaps
+from tests.conftest import run_command
 
 RECORDINGS = Path(__file__).resolve().parents[2] / "recordings"
 
@@ -96,23 +96,21 @@ def test_cap_release_uncurls_the_fingertips_before_opening_the_rest():
         CapTurningDemonstrator(release_fraction=1.0)
 
 
-def _run(argv):
-    parser = argparse.ArgumentParser()
-    register_demo_record(parser)
-    args = parser.parse_args(argv)
-    return args.func(args)
-
-
 def test_command_rejects_bad_input_with_exit_code_2(tmp_path, capsys):
-    assert _run(["cap", "--out", str(tmp_path / "x.txt")]) == 2
+    assert run_command(register_demo_record, ["cap", "--out", str(tmp_path / "x.txt")]) == 2
     assert ".mcap" in capsys.readouterr().err
-    assert _run(["cap", "--out", str(tmp_path / "x.mcap"), "--radii", "25"]) == 2
+    assert run_command(register_demo_record, ["cap", "--out", str(tmp_path / "x.mcap"), "--radii", "25"]) == 2
     assert "cm" in capsys.readouterr().err
     assert not (tmp_path / "x.mcap").exists()
 
 
 def test_command_records_with_a_progress_line(tmp_path, capsys):
-    assert _run(["cap", "--out", str(tmp_path / "c.mcap"), "--radii", "2.5", "--sequences", "1"]) == 0
+    assert (
+        run_command(
+            register_demo_record, ["cap", "--out", str(tmp_path / "c.mcap"), "--radii", "2.5", "--sequences", "1"]
+        )
+        == 0
+    )
     assert "sequence 1/1" in capsys.readouterr().err
 
 

@@ -1,6 +1,5 @@
 """Commands (calibrate, glove-emulator) and node wrappers through NodeHarness."""
 
-import argparse
 import time
 
 import numpy as np
@@ -15,20 +14,14 @@ from handflow.plugins.glove.synthetic import SyntheticGlove
 from handflow.plugins.hands.joints import GIFU, HUMAN, SHADOW
 from handflow.plugins.mapping.calibration import load_calibration
 from handflow.plugins.mapping.nodes import GifuHandMappingNode, HumanHandMappingNode, ShadowHandMappingNode
-
-
-def _cmd(register, argv):
-    parser = argparse.ArgumentParser()
-    register(parser)
-    args = parser.parse_args(argv)
-    return args.func(args)
+from tests.conftest import run_command
 
 
 def test_calibrate_from_mcap_recording_reproduces_min_max(tmp_path, capsys):
     frames = SyntheticGlove().frames(np.linspace(0, 8, 800))
     rec = save_frames(tmp_path / "session.mcap", frames)
     out = tmp_path / "calib.yaml"
-    assert _cmd(register_calibrate, ["--recording", str(rec), "-o", str(out), "--support", "1"]) == 0
+    assert run_command(register_calibrate, ["--recording", str(rec), "-o", str(out), "--support", "1"]) == 0
     cal = load_calibration(out)
     np.testing.assert_array_equal(cal.s_min, frames.min(axis=0))
     np.testing.assert_array_equal(cal.s_max, frames.max(axis=0))
@@ -37,13 +30,14 @@ def test_calibrate_from_mcap_recording_reproduces_min_max(tmp_path, capsys):
 
 def test_calibrate_bad_input_exits_2_with_message(tmp_path, capsys):
     out = tmp_path / "c.yaml"
-    assert _cmd(register_calibrate, ["--recording", str(tmp_path / "none.mcap"), "-o", str(out)]) == 2
+    assert run_command(register_calibrate, ["--recording", str(tmp_path / "none.mcap"), "-o", str(out)]) == 2
     assert "not found" in capsys.readouterr().err
     bad = tmp_path / "profile.yaml"
     bad.write_text("thumb_m13: [\n")
     np.save(tmp_path / "f.npy", np.full((10, 22), 100))
     assert (
-        _cmd(register_calibrate, ["--recording", str(tmp_path / "f.npy"), "-o", str(out), "--profile", str(bad)]) == 2
+        run_command(register_calibrate, ["--recording", str(tmp_path / "f.npy"), "-o", str(out), "--profile", str(bad)])
+        == 2
     )
     assert "profile.yaml:2: YAML syntax error" in capsys.readouterr().err
     assert not out.exists()
@@ -51,17 +45,17 @@ def test_calibrate_bad_input_exits_2_with_message(tmp_path, capsys):
 
 def test_calibrate_live_from_emulator(tmp_path, capsys):
     out = tmp_path / "live.json"
-    assert _cmd(register_calibrate, ["--port", "emulator", "-o", str(out), "--step-seconds", "0.15"]) == 0
+    assert run_command(register_calibrate, ["--port", "emulator", "-o", str(out), "--step-seconds", "0.15"]) == 0
     err = capsys.readouterr().err
     assert "Step 1/7" in err and "frames" in err
     assert load_calibration(out).n_samples > 20
 
 
 def test_emulator_command_prints_path_and_stops(capsys):
-    assert _cmd(register_emulator, ["--duration", "0.3", "--fault", "garbage@10:5"]) == 0
+    assert run_command(register_emulator, ["--duration", "0.3", "--fault", "garbage@10:5"]) == 0
     assert "ttyCyberGlove" in capsys.readouterr().out
     with pytest.raises(SystemExit):
-        _cmd(register_emulator, ["--fault", "melt@3"])
+        run_command(register_emulator, ["--fault", "melt@3"])
 
 
 def test_glove_node_publishes_frames_and_status_from_embedded_emulator():

@@ -1,6 +1,5 @@
 """Commands grasp-som / grasp-experience / evaluate grasping: files, plots and bad input (docs/grasping.md)."""
 
-import argparse
 import json
 
 import numpy as np
@@ -13,15 +12,9 @@ from handflow.plugins.grasp.generation import PREGRASP_RANGES
 from handflow.plugins.grasp.grid import QUICK_HARD_GRID, GraspGrid
 from handflow.plugins.grasp.hand_layout import hand_layout
 from handflow.plugins.grasp.som import load_som
+from tests.conftest import run_command
 
 NAMES = hand_layout("shadow").finger_joints
-
-
-def call(register, argv):
-    parser = argparse.ArgumentParser()
-    register(parser)
-    args = parser.parse_args(argv)
-    return args.func(args)
 
 
 @pytest.fixture
@@ -43,7 +36,7 @@ def grasps(tmp_path):
 def test_grasp_som_trains_resumes_and_plots(tmp_path, grasps, capsys):
     som_path, umat, nodes = tmp_path / "som.npz", tmp_path / "u.png", tmp_path / "nodes.png"
     assert (
-        call(
+        run_command(
             cli.register_train_som,
             [
                 str(grasps),
@@ -77,7 +70,7 @@ def test_grasp_som_trains_resumes_and_plots(tmp_path, grasps, capsys):
     assert ExperienceBase.load(som_path).kind == "som"
     resumed = tmp_path / "som2.npz"
     assert (
-        call(
+        run_command(
             cli.register_train_som,
             [str(grasps), "--object", "sphere", "--resume", str(som_path), "--out", str(resumed)],
         )
@@ -88,32 +81,40 @@ def test_grasp_som_trains_resumes_and_plots(tmp_path, grasps, capsys):
 
 
 def test_bad_input_exits_2_with_advice(tmp_path, grasps, capsys):
-    assert call(cli.register_train_som, [str(grasps), "--object", "cylinder", "--out", str(tmp_path / "s.npz")]) == 2
+    assert (
+        run_command(cli.register_train_som, [str(grasps), "--object", "cylinder", "--out", str(tmp_path / "s.npz")])
+        == 2
+    )
     assert "no grasps of 'cylinder'" in capsys.readouterr().err
-    assert call(cli.register_train_som, [str(grasps), "--lr", "fast", "--out", str(tmp_path / "s.npz")]) == 2
+    assert run_command(cli.register_train_som, [str(grasps), "--lr", "fast", "--out", str(tmp_path / "s.npz")]) == 2
     assert "start,end" in capsys.readouterr().err
-    assert call(cli.register_generate, ["--objects", "teapot", "--out", str(tmp_path)]) == 2
+    assert run_command(cli.register_generate, ["--objects", "teapot", "--out", str(tmp_path)]) == 2
     assert "box,thin_cylinder,small_sphere,sphere" in capsys.readouterr().err
     argv = ["--objects", "box,sphere", "--trials", "box=5", "--out", str(tmp_path)]
-    assert call(cli.register_generate, argv) == 2
+    assert run_command(cli.register_generate, argv) == 2
     assert "missing ['sphere']" in capsys.readouterr().err
-    assert call(cli.register_generate, ["--grid", "thesis", "--objects", "thin_cylinder", "--out", str(tmp_path)]) == 2
+    assert (
+        run_command(cli.register_generate, ["--grid", "thesis", "--objects", "thin_cylinder", "--out", str(tmp_path)])
+        == 2
+    )
     assert "box,cylinder,sphere (grid 'thesis')" in capsys.readouterr().err
-    assert call(cli.register_generate, ["--trials", "box=many", "--out", str(tmp_path)]) == 2
+    assert run_command(cli.register_generate, ["--trials", "box=many", "--out", str(tmp_path)]) == 2
     assert "object=count" in capsys.readouterr().err
-    assert call(cli.register_evaluate, ["--quick", "--experience", str(tmp_path / "nothing")]) == 2
+    assert run_command(cli.register_evaluate, ["--quick", "--experience", str(tmp_path / "nothing")]) == 2
     err = capsys.readouterr().err
     assert "som_box.npz" in err and "grasp-experience --grid hard " in err
-    assert call(cli.register_evaluate, ["--quick", "--seeds", "0"]) == 2
+    assert run_command(cli.register_evaluate, ["--quick", "--seeds", "0"]) == 2
     assert "--seeds must be ≥ 1" in capsys.readouterr().err
-    assert call(cli.register_evaluate, ["--quick", "--grid", "thesis"]) == 2
+    assert run_command(cli.register_evaluate, ["--quick", "--grid", "thesis"]) == 2
     assert "drop --grid thesis" in capsys.readouterr().err
 
 
 def test_generate_writes_a_dataset_and_soms(tmp_path, capsys):
     out = tmp_path / "exp"
     assert (
-        call(cli.register_generate, ["--objects", "sphere", "--trials", "sphere=6", "--out", str(out), "--seed", "3"])
+        run_command(
+            cli.register_generate, ["--objects", "sphere", "--trials", "sphere=6", "--out", str(out), "--seed", "3"]
+        )
         == 0
     )
     data = GraspDataset.load(out / "grasps.npz")
@@ -139,12 +140,12 @@ def test_evaluation_pools_seeds_and_repeats_with_jittered_gamma(capsys):
         assert pair == result["overall"]["paired"][cond] and 0.0 <= pair["p_sign"] <= 1.0
         diff = result["cylinder"][cond] - result["cylinder"]["no_experience"]
         assert diff == pytest.approx((pair["wins"] - pair["losses"]) / 4)
-    assert call(cli.register_evaluate, ["--quick", "--repeats", "0"]) == 2
+    assert run_command(cli.register_evaluate, ["--quick", "--repeats", "0"]) == 2
     assert "repeats must be ≥ 1" in capsys.readouterr().err
 
 
 def test_quick_evaluation_prints_tables_json_and_success_maps(tmp_path, capsys):
-    assert call(cli.register_evaluate, ["--quick", "--json", "--plots", str(tmp_path)]) == 0
+    assert run_command(cli.register_evaluate, ["--quick", "--json", "--plots", str(tmp_path)]) == 0
     result = json.loads(capsys.readouterr().out)
     assert result["grid"] == "hard-quick" and result["lateral_friction"] == 0.5 and "outcomes" not in result
     assert {"experience", "no_experience"} <= set(result["overall"]) and result["overall"]["n_valid"] > 0
@@ -152,7 +153,7 @@ def test_quick_evaluation_prints_tables_json_and_success_maps(tmp_path, capsys):
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted(
         [f"success_{o}.png" for o in QUICK_HARD_GRID.objects] + ["success_conditions.png"]
     )
-    assert call(cli.register_evaluate, ["--quick", "--objects", "sphere"]) == 0
+    assert run_command(cli.register_evaluate, ["--quick", "--objects", "sphere"]) == 0
     out = capsys.readouterr().out
     assert "overall" in out and "McNemar" in out and "gain over seeds" in out
 

@@ -1,4 +1,3 @@
-import argparse
 import json
 
 import numpy as np
@@ -7,14 +6,8 @@ import pytest
 from handflow.plugins.segmenter import EXPERIMENTS, METHODS, load_candidates
 from handflow.plugins.segmenter.candidates import ModelsMissingError
 from handflow.plugins.segmenter.cli import register_evaluate, register_train_classes
+from tests.conftest import run_command
 from tests.segmenter.test_datasets import write_csv_dataset
-
-
-def run(register, argv):
-    parser = argparse.ArgumentParser()
-    register(parser)
-    args = parser.parse_args(argv)
-    return args.func(args)
 
 
 @pytest.fixture(scope="module")
@@ -23,7 +16,7 @@ def csv_dataset(tmp_path_factory, synthetic):
 
 
 def test_train_classes_writes_loadable_models(tmp_path, csv_dataset, synthetic):
-    assert run(register_train_classes, [str(csv_dataset), "--out", str(tmp_path / "m"), "--steps", "30"]) == 0
+    assert run_command(register_train_classes, [str(csv_dataset), "--out", str(tmp_path / "m"), "--steps", "30"]) == 0
     index = json.loads((tmp_path / "m" / "classes.json").read_text())
     assert sorted(index["classes"]) == ["A", "B", "C", "D"]
     cands = load_candidates(tmp_path / "m")
@@ -36,13 +29,13 @@ def test_missing_models_say_how_to_train(tmp_path):
 
 
 def test_bad_dataset_exits_2(tmp_path, capsys):
-    assert run(register_evaluate, [str(tmp_path / "missing")]) == 2
+    assert run_command(register_evaluate, [str(tmp_path / "missing")]) == 2
     assert "does not exist" in capsys.readouterr().err
 
 
 @pytest.mark.slow
 def test_quick_evaluation_json_and_plots(tmp_path, csv_dataset, capsys):
-    code = run(
+    code = run_command(
         register_evaluate, [str(csv_dataset), "--quick", "--json", "--steps", "50", "--plots", str(tmp_path / "plots")]
     )
     out = capsys.readouterr()

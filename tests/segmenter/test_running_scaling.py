@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import argparse
 import json
 
 import numpy as np
@@ -21,6 +20,7 @@ from handflow.plugins.segmenter.nodes import OnlineCLMNode
 from handflow.plugins.segmenter.running_scaling import RunningStandardizer
 from handflow.plugins.segmenter.scaling import ChannelScaling
 from handflow.plugins.segmenter.stream_evaluation import StreamEvaluator, _zscore
+from tests.conftest import run_command
 
 from .test_continuous import _synthetic_recordings
 
@@ -132,13 +132,6 @@ def test_recording_normalisation_applies_the_training_prior_to_every_recording()
         StreamEvaluator(None, normalise="person")
 
 
-def _evaluate(argv):
-    parser = argparse.ArgumentParser()
-    register_evaluate(parser)
-    args = parser.parse_args(argv)
-    return args.func(args)
-
-
 def test_cli_reports_the_normalisation_in_json(tmp_path, capsys):
     arrays_ = {"class_names": np.array(["a", "b", "c"])}
     for k in range(3):
@@ -146,10 +139,10 @@ def test_cli_reports_the_normalisation_in_json(tmp_path, capsys):
         arrays_[f"X_r{k}"] = X + k  # each "person" shifted
     np.savez(tmp_path / "s.npz", **arrays_)
     argv = [str(tmp_path / "s.npz"), "--methods", "dtw_1nn", "--quick", "--json", "--normalise", "recording"]
-    assert _evaluate(argv) == 0
+    assert run_command(register_evaluate, argv) == 0
     normalisation = json.loads(capsys.readouterr().out)["parameters"]["normalisation"]
     assert normalisation["mode"] == "recording" and normalisation["prior_frames"] == 200
-    assert _evaluate([str(tmp_path), "--normalise", "recording"]) == 2  # not continuous recordings
+    assert run_command(register_evaluate, [str(tmp_path), "--normalise", "recording"]) == 2  # not continuous recordings
     assert "needs continuous recordings" in capsys.readouterr().err
 
 

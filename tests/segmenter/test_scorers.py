@@ -1,6 +1,5 @@
 """Frame scorers saved without pickle, the online CLM over their evidence, the node and fit-scorer."""
 
-import argparse
 import json
 import math
 import struct
@@ -25,6 +24,7 @@ from handflow.plugins.segmenter.scorers import (
     load_scorer,
 )
 from handflow.plugins.segmenter.stream_cli import register_fit_scorer
+from tests.conftest import run_command
 
 DEMO = Path(__file__).resolve().parents[2] / "recordings" / "segmenter_demo"
 FUZZ = settings(max_examples=80, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
@@ -203,23 +203,19 @@ def test_node_source_needs_its_file_and_the_matching_kind(dtw):
         NodeHarness(OnlineCLMNode, {"source": "minirocket", "scorer": str(dtw[1])}).setup()
 
 
-def run_fit_scorer(argv):
-    parser = argparse.ArgumentParser()
-    register_fit_scorer(parser)
-    args = parser.parse_args(argv)
-    return args.func(args)
-
-
 def test_fit_scorer_command_writes_a_loadable_scorer(tmp_path, capsys):
     out = tmp_path / "dtw.npz"
     assert (
-        run_fit_scorer([str(DEMO), "--source", "dtw", "--window", "8", "--known", "circle,wave", "--out", str(out)])
+        run_command(
+            register_fit_scorer,
+            [str(DEMO), "--source", "dtw", "--window", "8", "--known", "circle,wave", "--out", str(out)],
+        )
         == 0
     )
     assert "2 classes" in capsys.readouterr().out
     assert load_scorer(out).classes_ == ["circle", "wave"]
     assert zipfile.is_zipfile(out)
-    assert run_fit_scorer([str(DEMO), "--known", "jump", "--out", str(out)]) == 2
+    assert run_command(register_fit_scorer, [str(DEMO), "--known", "jump", "--out", str(out)]) == 2
     assert "lacks" in capsys.readouterr().err
 
 

@@ -44,6 +44,7 @@ from .graph import Graph, ResolvedNode, load_graph
 from .messages import Header, Message, MessageError, Status
 from .plugin import Node
 from .testing import check_publish
+from .wakeup import wakeup_queue
 
 log = logging.getLogger("handflow.runner")
 
@@ -174,7 +175,7 @@ class GroupRuntime:
         self.virtual_ns = 0
         self.stop_requested = False
         self.session = transport.open_node_session(graph.spec.zenoh, hub, _login(graph, user))
-        self.inbox: queue.SimpleQueue = queue.SimpleQueue()  # lock-step clock events; None wakes the loop
+        self.inbox = wakeup_queue()  # lock-step clock events; None wakes the loop
         self._lock = threading.Lock()
         self.failure: str | None = None
         self.started = threading.Event()

@@ -30,6 +30,8 @@ import threading
 import time
 import traceback
 
+from .wakeup import wakeup_queue
+
 MAX_REQUEST = 1 << 16
 REAP_S = 0.05
 SPAWN_TIMEOUT_S = 60.0  # the zygote answers a spawn request once it has imported the graph's plugins
@@ -199,7 +201,7 @@ class Zygote:
     def __init__(self, proc: subprocess.Popen, sock: socket.socket) -> None:
         self.proc = proc
         self.sock = sock
-        self._spawned: queue.SimpleQueue = queue.SimpleQueue()
+        self._spawned = wakeup_queue()
         self._exits: dict[int, int] = {}
         self._changed = threading.Condition()
         self.closed = False

@@ -37,7 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import transport, wire
+from . import forwarding, transport, wire
 from .credentials import read_credentials, usrpwd_settings
 from .drops import DropLedger
 from .graph import Graph, ResolvedNode, load_graph
@@ -88,13 +88,21 @@ class NodeContext:
             for port in self._outputs
         }
         self.published = dict.fromkeys(self._outputs, 0)
+        self._received: tuple[Message, bytes, tuple] | None = None  # being handled: message, CDR body, snapshot
+
+    def receiving(self, msg: Message | None, body: bytes | None = None) -> None:
+        """The runtime hands ``msg`` (decoded from the CDR ``body``) to the node; ``None`` when done."""
+        snap = forwarding.snapshot(msg) if msg is not None and body is not None and self._outputs else None
+        self._received = None if snap is None else (msg, body, snap)
 
     def publish(self, port: str, msg: Message, stamp_ns: int | None = None) -> None:
-        check_publish(self.node_id, self._outputs, port, msg)
+        received = self._received
+        forwarded = received is not None and msg is received[0] and forwarding.unchanged(msg, received[2])
+        check_publish(self.node_id, self._outputs, port, msg, validated=forwarded)
         seq = self._state.get("out:" + port) + 1
         self._state.set("out:" + port, seq)
         msg.header = Header(self.node_id, seq, self.now_ns() if stamp_ns is None else int(stamp_ns))
-        payload, att = wire.pack(msg)
+        payload, att = (forwarded and wire.repack(msg, received[1])) or wire.pack(msg)
         self._pubs[port].put(payload, attachment=att)
         self.published[port] += 1
 
@@ -317,11 +325,14 @@ class GroupRuntime:
         slot.note_seq(port, msg.header.seq)
         if self.lockstep:
             self.virtual_ns = max(self.virtual_ns, msg.header.stamp_ns)
+        slot.ctx.receiving(msg, None if att is None else payload)
         try:
             slot.node.on_message(port, msg)
         except MessageError as exc:  # the node cannot use this payload (or its output from it)
             slot.drops.note(port, str(exc))
             return
+        finally:
+            slot.ctx.receiving(None)
         slot.handled[port] += 1
 
     def _publish_health(self) -> None:

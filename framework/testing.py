@@ -48,13 +48,18 @@ class HarnessContext:
         return p
 
 
-def check_publish(node_id: str, outputs: dict[str, type[Message]], port: str, msg: Message) -> None:
-    """The publisher-side checks shared by the runtime and the harness."""
+def check_publish(
+    node_id: str, outputs: dict[str, type[Message]], port: str, msg: Message, validated: bool = False
+) -> None:
+    """The publisher-side checks shared by the runtime and the harness; ``validated`` skips the
+    message's own check (a received message forwarded unchanged was checked when it was decoded)."""
     expected = outputs.get(port)
     if expected is None:
         raise MessageError(f"node '{node_id}' has no output port '{port}' (it has: {', '.join(outputs) or 'none'})")
     if not isinstance(msg, expected):
         raise MessageError(f"node '{node_id}' port '{port}' carries {expected.TYPE}, not {type(msg).__name__}")
+    if validated:
+        return
     try:
         msg.check()
     except MessageError as exc:

@@ -19,7 +19,7 @@ import struct
 from dataclasses import dataclass
 
 from .messages import Message, MessageError, decode, message_types
-from .ros2.types import STAMPS, decode_cdr, encode_cdr
+from .ros2.types import STAMPS, decode_cdr, encode_cdr, restamped_cdr
 
 MAGIC = b"HF\x01"
 _FIXED = struct.Struct("<qH")
@@ -70,6 +70,15 @@ def pack(msg: Message) -> tuple[bytes, bytes]:
     """``(payload, attachment)`` of a message whose header is filled in."""
     h = msg.header
     return encode_cdr(msg), attachment(msg.TYPE, h.source, h.seq)
+
+
+def repack(msg: Message, body: bytes) -> tuple[bytes, bytes] | None:
+    """:func:`pack` of a message that is unchanged since it was decoded from the CDR ``body``: the body
+    again with the header's stamp (:mod:`handflow.framework.forwarding`); ``None`` when the type's
+    body holds more of the header than the stamp."""
+    h = msg.header
+    payload = restamped_cdr(body, msg.TYPE, h.stamp_ns)
+    return None if payload is None else (payload, attachment(msg.TYPE, h.source, h.seq))
 
 
 def parse_attachment(att: bytes) -> tuple[str, str, int]:

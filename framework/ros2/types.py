@@ -30,6 +30,7 @@ type as rosbag2 writes it (the definition followed by its dependencies).
 from __future__ import annotations
 
 import functools
+import struct
 from collections.abc import Callable
 from importlib import resources
 from typing import Any
@@ -50,7 +51,7 @@ from ..messages import (
     Transforms,
     message_types,
 )
-from .cdr import CdrReader, CdrWriter, parse_msg
+from .cdr import HEADER, CdrReader, CdrWriter, parse_msg
 from .type_hash import rihs01
 
 OWN_PACKAGE = "handflow_msgs"
@@ -397,6 +398,34 @@ def encode_cdr(msg: Message) -> bytes:
     w = CdrWriter(_specs())
     w.struct(ros_type(msg.TYPE), to_ros(msg))
     return bytes(w.buf)
+
+
+_SOURCE_IN_BODY = {Status.TYPE}  # types whose body holds the header's source node (``hardware_id``)
+_STAMP = struct.Struct("<iI")
+
+
+def restamped_cdr(body: bytes, type_name: str, stamp_ns: int) -> bytes | None:
+    """The CDR ``body`` of a ``type_name`` message (as :func:`encode_cdr` or a peer wrote it) with
+    the header stamp set to ``stamp_ns``; ``None`` for types whose body holds more of the header
+    than the stamp, or no header first (docs/ros2.md, "Forwarding")."""
+    if not _restampable(type_name):
+        return None
+    sec, nanosec = divmod(int(stamp_ns), 1_000_000_000)
+    if _STAMP.unpack_from(body, 4) == (sec, nanosec):
+        return body
+    out = bytearray(body)
+    try:
+        _STAMP.pack_into(out, 4, sec, nanosec)
+    except struct.error as exc:
+        raise MessageError(f"stamp {stamp_ns} ns does not fit a ROS 2 time: {exc}") from None
+    return bytes(out)
+
+
+@functools.cache
+def _restampable(type_name: str) -> bool:
+    return (
+        type_name not in STAMPS and type_name not in _SOURCE_IN_BODY and _specs()[ros_type(type_name)][0][0] == HEADER
+    )
 
 
 def decode_cdr(data: bytes | bytearray | memoryview, type_name: str, source: str = "", seq: int = 0) -> Message:

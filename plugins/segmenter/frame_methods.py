@@ -18,7 +18,7 @@ import numpy as np
 from .baselines import PerClassHMM, SlidingDTW1NN
 from .candidates import CandidateSet, Projection
 from .clm_segmenter import CLMSegmenter
-from .compatibility import evidence_band, score_evidence
+from .compatibility import evidence_band, novelty_weight, score_evidence
 from .openset import REJECTED, score_thresholds, threshold_labels
 from .scorers import MiniRocketScorer
 from .training import fit_recording_models
@@ -241,17 +241,68 @@ class ScoreCLMMethod:
     def prepare(self, fitted, X) -> np.ndarray:
         return self.scorer.prepare(fitted, X)
 
+    def evidence(self, fitted: Fitted, state, drop: int | None) -> np.ndarray:
+        """Per-frame evidence (N, M) of the classes left after ``drop``, rows summing to 1."""
+        evidence = score_evidence(state)[:, _columns(fitted, drop)]
+        return evidence / evidence.sum(axis=1, keepdims=True)
+
     def labels(self, fitted, state, reject, drop=None):
-        cols = _columns(fitted, drop)
         seg = CLMSegmenter(None, history=self.history, background_factor=reject, max_sweeps=300, random_state=0)
         _, _, width = seg.widths()
-        evidence = score_evidence(state)[:, cols]
-        evidence /= evidence.sum(axis=1, keepdims=True)
-        local = seg.fit_predict_bands(*seg.with_background(evidence_band(evidence, width, self.history)))
-        return _to_global(local, [fitted.classes[k] for k in cols])
+        band = evidence_band(self.evidence(fitted, state, drop), width, self.history)
+        local = seg.fit_predict_bands(*seg.with_background(band))
+        return _to_global(local, [fitted.classes[k] for k in _columns(fitted, drop)])
 
     def reject_grid(self, fitted, states) -> np.ndarray:
         return np.array([0.0, 0.05, 0.1, 0.25, 0.5, 1.0, 2.0, 4.0, 8.0])
+
+
+class NoveltyCLMMethod(ScoreCLMMethod):
+    """:class:`ScoreCLMMethod` with a novelty term from the class manifolds: a frame whose best
+    manifold's error exceeds ``1 / novelty`` times that manifold's own typical error on its
+    training frames has its classifier evidence scaled down by the ratio,
+    ``e_m = p_m · min(1, own / (novelty · error))``, before the banding of
+    :func:`.compatibility.evidence_band`.  A frame that no class manifold explains falls below
+    chance in every class layer and goes to the background, however confident the classifier
+    is; ``novelty`` is chosen on validation without refitting.  Rejection = the background factor,
+    as for :class:`ScoreCLMMethod`; with a class dropped (calibration) both its decision column and
+    its manifold go (docs/segmentation.md)."""
+
+    ukr = UKRMethod()
+    delays = ((8,), (8, 16))  # delay windows of the manifolds in the quick and the full grid
+    novelties = ((0.125, 0.25), (0.125, 0.25, 0.5))  # of the quick and the full grid
+    label_params = ("novelty",)
+
+    def __init__(self, scorer: ScoreMethod) -> None:
+        super().__init__(scorer)
+        self.name = f"{self.name}_novelty"
+
+    def grid(self, quick: bool) -> list[dict]:
+        return [
+            {**p, "delay": w, "novelty": v}
+            for p in self.scorer.grid(quick)
+            for w in self.delays[not quick]
+            for v in self.novelties[not quick]
+        ]
+
+    def fit(self, segments, params, seed) -> Fitted:
+        scorer = self.scorer.fit(segments, params, seed)
+        manifolds = self.ukr._fit_candidates(segments, seed, params["delay"])
+        return Fitted((scorer, manifolds), scorer.classes, params)
+
+    @property
+    def fit_key(self) -> str:
+        return self.name
+
+    def prepare(self, fitted, X):
+        scorer, manifolds = fitted.model
+        return self.scorer.prepare(scorer, X), manifolds.project(X)
+
+    def evidence(self, fitted: Fitted, state, drop: int | None) -> np.ndarray:
+        scores, proj = state
+        cands, proj, _ = UKRMethod._view(Fitted(fitted.model[1], fitted.classes, fitted.params), proj, drop)
+        known = novelty_weight(proj.errors, cands.own_errors, fitted.params["novelty"])
+        return super().evidence(fitted, scores, drop) * known[:, None]
 
 
 METHODS = {
@@ -264,5 +315,7 @@ METHODS = {
         MiniRocketMethod(),
         ScoreCLMMethod(MiniRocketMethod()),
         ScoreCLMMethod(DTWMethod()),
+        NoveltyCLMMethod(MiniRocketMethod()),
+        NoveltyCLMMethod(DTWMethod()),
     )
 }

@@ -58,8 +58,8 @@ class _RecognizerNode(Node):
     inputs = {"joints": JointState, "array": Array}
     outputs = {"labels": Label, "events": SegmentEvent}
 
-    def load_models(self) -> CandidateSet:
-        src = self.params.models
+    def load_models(self, src: str | list[str] | None = None) -> CandidateSet:
+        src = self.params.models if src is None else src
         paths = [self.ctx.resolve_path(p) for p in src] if isinstance(src, list) else self.ctx.resolve_path(src)
         return load_candidates(paths)
 
@@ -112,6 +112,14 @@ class OnlineCLMNode(_RecognizerNode):
             "ukr", description="what the CLM groups: UKR manifolds (models) or a fitted scorer's class scores (scorer)"
         )
         scorer: str | None = Field(None, description="source minirocket/dtw: file written by `handflow fit-scorer`")
+        novelty_models: str | list[str] | None = Field(
+            None,
+            description="source minirocket/dtw: class manifolds (`handflow train-classes RECORDINGS --delay 8`) "
+            "whose novelty weight scales the scorer's evidence, so motion they do not explain is rejected",
+        )
+        novelty: float = Field(
+            0.25, gt=0, description="novelty weight < 1 beyond 1/novelty times a manifold's own typical error"
+        )
         window: int = Field(200, ge=2, description="observations in the sliding window")
         background_factor: float = Field(1.0, ge=0, description="multiplies λ_bg (3 = strong background; 0 = none)")
         background: float | None = Field(None, description="λ_bg; null = 1 − 10/N")
@@ -145,6 +153,8 @@ class OnlineCLMNode(_RecognizerNode):
                 raise ValueError("source 'ukr' needs 'models' (a folder from `handflow train-classes`)")
             if self.source != "ukr" and not self.scorer:
                 raise ValueError(f"source '{self.source}' needs 'scorer' (a file from `handflow fit-scorer`)")
+            if self.source == "ukr" and self.novelty_models:
+                raise ValueError("novelty_models needs source minirocket or dtw (the UKR source rejects by itself)")
             if self.source != "ukr" and self.running_normalisation_frames:
                 raise ValueError("running_normalisation_frames needs source 'ukr' (its prior is the models' scaling)")
             return self
@@ -174,7 +184,15 @@ class OnlineCLMNode(_RecognizerNode):
             if p.running_normalisation_frames:
                 self.running = running_normaliser(models.scaling, p.running_normalisation_frames)
         else:
-            self.segmenter = OnlineScoreCLMSegmenter(self.load_scorer(), **common)
+            scorer = self.load_scorer()
+            novelty_models = self.load_models(p.novelty_models) if p.novelty_models else None
+            if novelty_models is not None and novelty_models.scaling is not None:
+                if novelty_models.scaling.offset_.size != scorer.n_features_in_:
+                    raise ValueError(
+                        f"novelty_models were trained on {novelty_models.scaling.offset_.size} channels, the scorer "
+                        f"on {scorer.n_features_in_}; train both on the same recordings"
+                    )
+            self.segmenter = OnlineScoreCLMSegmenter(scorer, novelty_models=novelty_models, novelty=p.novelty, **common)
         self.classes = self.segmenter.classes_
 
     def load_scorer(self) -> WindowScorer:

@@ -6,8 +6,11 @@ window of the last ``scorer.window`` observations (:class:`.scorers.WindowScorer
 become class evidence at the scorer's fitted temperature, and the new observation's pair
 compatibilities within H are ``e_im + e_jm − 2/M`` (:func:`.compatibility.evidence_band`).
 Everything else — one CLM layer per class plus the background, warm start, confirmed
-revisions, segment events — is the UKR segmenter's.  :func:`batch_labels` segments a whole
-recording with the same compatibilities, the reference of the online/batch agreement.
+revisions, segment events — is the UKR segmenter's.  With ``novelty_models`` (class manifolds
+from ``handflow train-classes``) each observation's evidence is scaled by its novelty weight
+(:func:`.compatibility.novelty_weight`), so motion no manifold explains goes to the background.
+:func:`batch_labels` segments a whole recording with the same compatibilities, the reference of
+the online/batch agreement.
 """
 
 from __future__ import annotations
@@ -16,8 +19,9 @@ from collections import deque
 
 import numpy as np
 
+from .candidates import CandidateSet
 from .clm_segmenter import CLMSegmenter
-from .compatibility import evidence_band
+from .compatibility import evidence_band, novelty_weight
 from .online import OnlineCLMSegmenter, OnlineUpdate
 from .scorers import WindowScorer
 
@@ -29,13 +33,18 @@ class OnlineScoreCLMSegmenter(OnlineCLMSegmenter):
     ``order_rating``, ``pair_error``, ``order_path``, ``min_span``) have no effect.
     """
 
-    def __init__(self, scorer: WindowScorer, **params) -> None:
+    def __init__(
+        self, scorer: WindowScorer, novelty_models: CandidateSet | None = None, novelty: float = 0.25, **params
+    ) -> None:
         self.scorer = scorer
+        self.novelty_models = novelty_models
+        self.novelty = novelty
         super().__init__(None, **params)
 
     @classmethod
     def _get_param_names(cls) -> list[str]:
-        return sorted((set(OnlineCLMSegmenter._get_param_names()) - {"candidates"}) | {"scorer"})
+        names = set(OnlineCLMSegmenter._get_param_names()) - {"candidates"}
+        return sorted(names | {"scorer", "novelty_models", "novelty"})
 
     @property
     def classes_(self) -> list[str]:
@@ -47,6 +56,8 @@ class OnlineScoreCLMSegmenter(OnlineCLMSegmenter):
     def reset(self) -> None:
         super().reset()
         self._recent: deque[np.ndarray] = deque(maxlen=int(self.scorer.window))
+        models = self.novelty_models
+        self._novelty_delay = models.delay.stream() if models is not None and models.delay.window > 1 else None
 
     def _source_rows(self, m: int) -> dict[str, np.ndarray]:
         return {"evidence": np.zeros((self.window, m))}
@@ -55,22 +66,43 @@ class OnlineScoreCLMSegmenter(OnlineCLMSegmenter):
         """Consume one observation (d,): score its causal window, then re-segment the window."""
         y = self.scorer.check_input(y)[0]
         self._recent.append(y)
-        return self.update_scores(self.scorer.scores_last(np.asarray(self._recent)))
+        return self.update_scores(self.scorer.scores_last(np.asarray(self._recent)), self._known(y))
 
-    def update_scores(self, scores: np.ndarray) -> OnlineUpdate:
-        """:meth:`update` for an observation already scored (M,)."""
-        self._append(evidence=self.scorer.evidence(scores)[0])
+    def update_scores(self, scores: np.ndarray, known: float = 1.0) -> OnlineUpdate:
+        """:meth:`update` for an observation already scored (M,), with its novelty weight."""
+        self._append(evidence=self.scorer.evidence(scores)[0] * known)
         return self._segment()
 
+    def _known(self, y: np.ndarray) -> float:
+        """The novelty weight of one observation (1 without novelty models)."""
+        models = self.novelty_models
+        if models is None:
+            return 1.0
+        if self._novelty_delay is not None:
+            proj = models.project(self._novelty_delay.push(models.scaled(y[None])[0]), embedded=True)
+        else:
+            proj = models.project(y[None])
+        return float(novelty_weight(proj.errors, models.own_errors, self.novelty)[0])
+
     def _updates(self, Y: np.ndarray):
-        for s in self.scorer.scores(Y):
-            yield self.update_scores(s)
+        for s, known in zip(self.scorer.scores(Y), known_weights(self.novelty_models, self.novelty, Y)):
+            yield self.update_scores(s, known)
 
 
-def batch_labels(scorer: WindowScorer, Y: np.ndarray, **params) -> np.ndarray:
-    """Whole-recording CLM over ``scorer``'s evidence at its fitted temperature (class indices,
-    −1 = background); ``params`` are :class:`.clm_segmenter.CLMSegmenter`'s."""
+def known_weights(models: CandidateSet | None, novelty: float, Y: np.ndarray) -> np.ndarray:
+    """Novelty weights (N,) of a whole recording (:func:`.compatibility.novelty_weight`; all 1 without models)."""
+    if models is None:
+        return np.ones(len(Y))
+    return novelty_weight(models.project(Y).errors, models.own_errors, novelty)
+
+
+def batch_labels(
+    scorer: WindowScorer, Y: np.ndarray, novelty_models: CandidateSet | None = None, novelty: float = 0.25, **params
+) -> np.ndarray:
+    """Whole-recording CLM over ``scorer``'s evidence at its fitted temperature, scaled by the
+    novelty weights of ``novelty_models`` if given (class indices, −1 = background); ``params``
+    are :class:`.clm_segmenter.CLMSegmenter`'s."""
     seg = CLMSegmenter(None, **params)
     _, span, width = seg.widths()
-    evidence = scorer.evidence(scorer.scores(Y))
+    evidence = scorer.evidence(scorer.scores(Y)) * known_weights(novelty_models, novelty, Y)[:, None]
     return seg.fit_predict_bands(*seg.with_background(evidence_band(evidence, width, span)))

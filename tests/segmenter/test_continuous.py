@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
@@ -14,7 +16,7 @@ from handflow.plugins.segmenter.continuous import (
     segments,
 )
 from handflow.plugins.segmenter.datasets import DatasetError
-from handflow.plugins.segmenter.frame_methods import METHODS, DTWMethod
+from handflow.plugins.segmenter.frame_methods import METHODS, DTWMethod, NoveltyCLMMethod
 from handflow.plugins.segmenter.openset import calibrate, frame_metrics, runs, segment_f1, tradeoff_curve
 from handflow.plugins.segmenter.stream_cli import format_stream_table
 from handflow.plugins.segmenter.stream_evaluation import StreamEvaluator
@@ -226,3 +228,27 @@ def test_clm_over_classifier_scores_groups_frames_and_rejects_with_its_backgroun
     assert np.all(method.labels(fitted, state, reject=8.0) == -1)  # a strong background takes everything
     dropped = method.labels(fitted, state, reject=0.0, drop=2)
     assert not np.any(dropped == 2)  # pseudo-unknown: class 2's layer is gone
+
+
+def test_novelty_from_the_class_manifolds_rejects_what_the_classifier_labels_confidently():
+    """Class 2 was never trained on: the classifier gives its frames to class 0 or 1, and only the
+    manifolds' null model (the novelty term) sends them to the background, keeping the known frames."""
+    X, y = _synthetic_recordings(0)
+    segments = {c: [X[y == c]] for c in (0, 1)}
+    plain, novelty = METHODS["clm_dtw"], NoveltyCLMMethod(DTWMethod())
+    assert novelty.name == "clm_dtw_novelty" and all("delay" in p for p in novelty.grid(quick=True))
+    fitted = novelty.fit(segments, {"window": 20, "delay": 8, "novelty": 0.25}, seed=0)
+    state = novelty.prepare(fitted, X)
+    unknown, known = y == 2, y != 2
+
+    labels = novelty.labels(fitted, state, reject=0.1)
+    assert np.mean(labels[unknown] == -1) > 0.9
+    assert np.mean(labels[known] == y[known]) > 0.85
+    plain_fit = plain.fit(segments, {"window": 20}, seed=0)
+    plain_labels = plain.labels(plain_fit, plain.prepare(plain_fit, X), reject=0.1)
+    assert np.mean(plain_labels[unknown] == -1) < 0.2  # the same background without the novelty term
+    tolerant = novelty.labels(replace(fitted, params={**fitted.params, "novelty": 1e-6}), state, reject=0.1)
+    assert np.array_equal(tolerant, plain_labels)  # a null model that explains nothing changes nothing
+
+    dropped = novelty.labels(fitted, state, reject=0.1, drop=1)  # pseudo-unknown: column and manifold go
+    assert not np.any(dropped == 1) and np.mean(dropped[y == 1] == -1) > 0.5

@@ -227,3 +227,52 @@ def test_no_observation_crashes_the_node_with_a_scorer_source(dtw, values):
     for v in values:
         h.send("array", Array(data=v))
     assert len(h.published["labels"]) + len(h.dropped) == len(values)
+
+
+@pytest.fixture(scope="module")
+def novelty_setup(demo, tmp_path_factory):
+    """A DTW scorer and class manifolds (delay 4) of circle and wave only: 'rest' is unknown."""
+    from handflow.plugins.segmenter.training import fit_recording_models, save_class_models
+
+    known = {c: demo[0][c] for c in ("circle", "wave")}
+    scorer = DTWScorer(window=8, thin=4).fit(known)
+    models = fit_recording_models(known, delay=4, n_steps=60, random_state=0)
+    folder = save_class_models({k: c.model for k, c in models.models.items()}, tmp_path_factory.mktemp("novelty"))
+    return scorer, scorer.save(tmp_path_factory.mktemp("scorer") / "dtw.npz"), models, folder
+
+
+def test_novelty_models_reject_unknown_motion_online_as_in_the_batch(novelty_setup, demo):
+    scorer, _, models, _ = novelty_setup
+    X, y = demo[1].X, demo[1].y
+    rest = y == 1  # class index 1 of circle / rest / wave: never trained on
+    params = dict(history=10, background_factor=0.25, random_state=0)
+    plain = batch_labels(scorer, X, **params)
+    batch = batch_labels(scorer, X, novelty_models=models, novelty=0.5, **params)
+    assert np.mean(plain[rest] == -1) < 0.5 < np.mean(batch[rest] == -1)  # the classifier alone keeps 'rest'
+    names = np.array(["circle", "rest", "wave"])
+    known = ~rest
+    assert np.mean(names[y[known]] == np.array(scorer.classes_ + ["-"])[batch[known]]) > 0.8
+    online = OnlineScoreCLMSegmenter(scorer, novelty_models=models, novelty=0.5, window=150, **params)
+    assert np.mean(online.replay(X) == batch) > 0.9
+
+
+def test_node_takes_novelty_models_with_a_scorer_source(novelty_setup, demo):
+    _, path, _, folder = novelty_setup
+    h = NodeHarness(
+        OnlineCLMNode,
+        {
+            "source": "dtw",
+            "scorer": str(path),
+            "novelty_models": str(folder),
+            "novelty": 0.5,
+            "window": 100,
+            "background_factor": 0.25,
+        },
+    ).setup()
+    X, y = demo[1].X, demo[1].y
+    for i, x in enumerate(X[:300]):
+        h.send("array", Array(data=x), stamp_ns=i * 10_000_000)
+    labels = np.array([m.label for m in h.published["labels"]])
+    assert len(labels) == 300 and np.mean(labels[y[:300] == 1] == "unknown") > 0.5
+    with pytest.raises(Exception, match="novelty_models needs source"):
+        NodeHarness(OnlineCLMNode, {"models": str(folder), "novelty_models": str(folder)})

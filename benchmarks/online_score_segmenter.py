@@ -10,7 +10,10 @@ scorer (window ``--window``) is fitted on the labelled segments of the others, s
 window of 200, 100 Hz).  Baseline in the same run: the scorer alone per sample (MiniRocket
 argmax, no CLM).  BLAS and numba are limited to one thread.
 
-    python benchmarks/online_score_segmenter.py bm.npz [--folds 2] [--background 0.5] [--clm-window 200] [--json]
+    python benchmarks/online_score_segmenter.py bm.npz [--folds 2] [--background 0.5] [--clm-window 200] [--novelty 0.25] [--json]
+
+``--novelty F`` adds the novelty term (class manifolds with a delay window of 8 fitted on the same
+segments; their projection is part of the scorer time).
 """
 
 from __future__ import annotations
@@ -32,6 +35,7 @@ import numpy as np  # noqa: E402
 from handflow.plugins.segmenter.continuous import load_recordings, segments  # noqa: E402
 from handflow.plugins.segmenter.online_scores import OnlineScoreCLMSegmenter, batch_labels  # noqa: E402
 from handflow.plugins.segmenter.scorers import MiniRocketScorer, load_scorer  # noqa: E402
+from handflow.plugins.segmenter.training import fit_recording_models  # noqa: E402
 
 WARMUP = 50  # samples skipped in the latency figures (JIT, filling the window)
 
@@ -46,8 +50,9 @@ def stream(seg: OnlineScoreCLMSegmenter, X: np.ndarray) -> dict:
         t0 = time.perf_counter()
         recent = (recent + [x])[-seg.scorer.window :]
         s = seg.scorer.scores_last(np.asarray(recent))
+        known = seg.known_weight(x)
         t1 = time.perf_counter()
-        up = seg.update_scores(s)
+        up = seg.update_scores(s, known)
         t2 = time.perf_counter()
         score_t.append(t1 - t0)
         clm_t.append(t2 - t1)
@@ -79,6 +84,12 @@ def main(argv=None) -> int:
     ap.add_argument("--background", type=float, default=0.5, help="background factor (× λ_bg)")
     ap.add_argument("--history", type=int, default=10)
     ap.add_argument("--clm-window", type=int, default=200, help="observations in the CLM's sliding window")
+    ap.add_argument(
+        "--novelty",
+        type=float,
+        default=None,
+        help="add the novelty term: class manifolds (delay 8) fitted on the same segments, this novelty factor",
+    )
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args(argv)
     data = load_recordings(args.recordings)
@@ -104,6 +115,9 @@ def main(argv=None) -> int:
         )
         with tempfile.TemporaryDirectory() as tmp:
             scorer = load_scorer(scorer.save(Path(tmp) / "scorer.npz"))
+        if args.novelty is not None:
+            by_name = {data.class_names[c]: segs[c] for c in classes}
+            params.update(novelty_models=fit_recording_models(by_name, delay=8, random_state=0), novelty=args.novelty)
         seg = OnlineScoreCLMSegmenter(scorer, window=args.clm_window, **params)
         node_path_latency(seg, rec.X[: WARMUP + 10])  # compile numba kernels outside the measurement
         run = stream(seg, rec.X)

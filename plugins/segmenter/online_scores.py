@@ -21,7 +21,7 @@ import numpy as np
 
 from .candidates import CandidateSet
 from .clm_segmenter import CLMSegmenter
-from .compatibility import evidence_band, novelty_weight
+from .compatibility import causal_mean, evidence_band, novelty_weight
 from .online import OnlineCLMSegmenter, OnlineUpdate
 from .scorers import WindowScorer
 
@@ -58,6 +58,7 @@ class OnlineScoreCLMSegmenter(OnlineCLMSegmenter):
         self._recent: deque[np.ndarray] = deque(maxlen=int(self.scorer.window))
         models = self.novelty_models
         self._novelty_delay = models.delay.stream() if models is not None and models.delay.window > 1 else None
+        self._weights: deque[float] = deque(maxlen=int(self.history))  # novelty weights of the last H observations
 
     def _source_rows(self, m: int) -> dict[str, np.ndarray]:
         return {"evidence": np.zeros((self.window, m))}
@@ -66,15 +67,15 @@ class OnlineScoreCLMSegmenter(OnlineCLMSegmenter):
         """Consume one observation (d,): score its causal window, then re-segment the window."""
         y = self.scorer.check_input(y)[0]
         self._recent.append(y)
-        return self.update_scores(self.scorer.scores_last(np.asarray(self._recent)), self._known(y))
+        return self.update_scores(self.scorer.scores_last(np.asarray(self._recent)), self.known_weight(y))
 
     def update_scores(self, scores: np.ndarray, known: float = 1.0) -> OnlineUpdate:
         """:meth:`update` for an observation already scored (M,), with its novelty weight."""
         self._append(evidence=self.scorer.evidence(scores)[0] * known)
         return self._segment()
 
-    def _known(self, y: np.ndarray) -> float:
-        """The novelty weight of one observation (1 without novelty models)."""
+    def known_weight(self, y: np.ndarray) -> float:
+        """The novelty weight of the newest observation, averaged over the last H (1 without novelty models)."""
         models = self.novelty_models
         if models is None:
             return 1.0
@@ -82,18 +83,21 @@ class OnlineScoreCLMSegmenter(OnlineCLMSegmenter):
             proj = models.project(self._novelty_delay.push(models.scaled(y[None])[0]), embedded=True)
         else:
             proj = models.project(y[None])
-        return float(novelty_weight(proj.errors, models.own_errors, self.novelty)[0])
+        self._weights.append(float(novelty_weight(proj.errors, models.own_errors, self.novelty)[0]))
+        return float(np.mean(self._weights))
 
     def _updates(self, Y: np.ndarray):
-        for s, known in zip(self.scorer.scores(Y), known_weights(self.novelty_models, self.novelty, Y)):
+        weights = known_weights(self.novelty_models, self.novelty, Y, self.history)
+        for s, known in zip(self.scorer.scores(Y), weights):
             yield self.update_scores(s, known)
 
 
-def known_weights(models: CandidateSet | None, novelty: float, Y: np.ndarray) -> np.ndarray:
-    """Novelty weights (N,) of a whole recording (:func:`.compatibility.novelty_weight`; all 1 without models)."""
+def known_weights(models: CandidateSet | None, novelty: float, Y: np.ndarray, history: int) -> np.ndarray:
+    """Novelty weights (N,) of a whole recording, each averaged with the H − 1 before it
+    (:func:`.compatibility.novelty_weight`; all 1 without models)."""
     if models is None:
         return np.ones(len(Y))
-    return novelty_weight(models.project(Y).errors, models.own_errors, novelty)
+    return causal_mean(novelty_weight(models.project(Y).errors, models.own_errors, novelty), history)
 
 
 def batch_labels(
@@ -104,5 +108,5 @@ def batch_labels(
     are :class:`.clm_segmenter.CLMSegmenter`'s."""
     seg = CLMSegmenter(None, **params)
     _, span, width = seg.widths()
-    evidence = scorer.evidence(scorer.scores(Y)) * known_weights(novelty_models, novelty, Y)[:, None]
+    evidence = scorer.evidence(scorer.scores(Y)) * known_weights(novelty_models, novelty, Y, int(seg.history))[:, None]
     return seg.fit_predict_bands(*seg.with_background(evidence_band(evidence, width, span)))

@@ -54,6 +54,8 @@ def format_stream_table(result: dict) -> str:
         lines.append(f"{name:15s} " + " ".join(cells))
         if "agreement" in r:
             lines.append(f"{'':15s} online/batch agreement {r['agreement']:.3f}")
+        if r.get("calibration_note"):
+            lines.append(f"{'':15s} note: {r['calibration_note']}")
     return "\n".join(lines)
 
 

@@ -35,6 +35,7 @@ from .scaling import ChannelScaling
 INNER_FOLDS = 3  # validation recordings of the inner split (each validated by a fit on the others)
 DEFAULT_METHODS = ("ukr_clm", "ukr_clm_online", "ukr_only", "dtw_1nn", "hmm", "minirocket", "clm_minirocket")
 NORMALISATIONS = ("training", "recording")
+REJECT_ALL_OBJECTIVE = 0.5  # mean(known accuracy 0, pseudo-unknown rejection 1)
 
 
 @dataclass
@@ -55,6 +56,29 @@ def _zscore(train: list[Recording], recs: list[Recording], normalise: str = "tra
     else:
         scaler = RunningStandardizer().fit(np.vstack([r.X for r in train]))
     return [Recording(r.name, scaler.transform(r.X), r.y) for r in recs]
+
+
+def _degenerate_calibration(
+    truth: np.ndarray, pred: np.ndarray, known: list[int], selected: list[dict], no_rejection: dict | None
+) -> str | None:
+    """What a user needs to know when the calibration chose to reject (nearly) every known frame
+    because, on validation, nothing did better than rejecting everything; ``None`` otherwise."""
+    is_known = np.isin(truth, known)
+    rejected = float(np.mean(pred[is_known] == -1)) if is_known.any() else 0.0
+    best = max(s.get("validation_objective", 1.0) for s in selected)
+    if rejected < 0.9 or best > REJECT_ALL_OBJECTIVE + 0.05:
+        return None
+    return (
+        f"{rejected:.0%} of the known frames are rejected: on the inner folds no operating point kept "
+        f"known frames and rejected left-out classes better than rejecting everything (best validation "
+        f"objective {best:.3f}; rejecting everything scores {REJECT_ALL_OBJECTIVE}). The classes are not "
+        "separable enough here for open-set rejection"
+        + (
+            f"; without rejection {no_rejection['known_accuracy']:.3f} of the known frames are right ('no_rejection')"
+            if no_rejection and no_rejection.get("known_accuracy") is not None
+            else ""
+        )
+    )
 
 
 class StreamEvaluator:
@@ -201,6 +225,9 @@ class StreamEvaluator:
                 res["no_rejection"] = frame_metrics(
                     truth, np.concatenate([f.sweeps[name][0] for f in folds]), self.known
                 )
+            res["calibration_note"] = _degenerate_calibration(
+                truth, pred, self.known, [f.selected[name] for f in folds], res.get("no_rejection")
+            )
             if name in folds[0].sweeps and res["unknown_rejection"] is not None:
                 res["tradeoff"] = self._tradeoff(folds, name, truth)
                 res["tradeoff_auc"] = res["tradeoff"]["auc"]

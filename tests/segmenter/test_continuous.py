@@ -252,3 +252,15 @@ def test_novelty_from_the_class_manifolds_rejects_what_the_classifier_labels_con
 
     dropped = novelty.labels(fitted, state, reject=0.1, drop=1)  # pseudo-unknown: column and manifold go
     assert not np.any(dropped == 1) and np.mean(dropped[y == 1] == -1) > 0.5
+
+
+def test_a_calibration_that_rejects_everything_is_explained():
+    from handflow.plugins.segmenter.stream_evaluation import _degenerate_calibration
+
+    truth = np.array([0, 0, 1, 1, 1, -1])
+    everything = np.full(6, -1)
+    closed = {"known_accuracy": 0.4}
+    note = _degenerate_calibration(truth, everything, [0, 1], [{"validation_objective": 0.5}] * 3, closed)
+    assert "100% of the known frames are rejected" in note and "without rejection 0.400" in note
+    assert _degenerate_calibration(truth, everything, [0, 1], [{"validation_objective": 0.7}], closed) is None
+    assert _degenerate_calibration(truth, truth, [0, 1], [{"validation_objective": 0.5}], closed) is None

@@ -242,6 +242,11 @@ class CandidateSet:
     def without(self, label: str) -> CandidateSet:
         return CandidateSet({k: v for k, v in self.models.items() if k != label})
 
+    @property
+    def n_channels(self) -> int:
+        """Channels of an observation, before the delay embedding."""
+        return next(iter(self.models.values())).model.n_features_in_ // int(self.delay.window)
+
 
 def _load_ukr(path: Path):
     from handflow.plugins.manifold import StructuredUKR

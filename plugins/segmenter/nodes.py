@@ -186,12 +186,11 @@ class OnlineCLMNode(_RecognizerNode):
         else:
             scorer = self.load_scorer()
             novelty_models = self.load_models(p.novelty_models) if p.novelty_models else None
-            if novelty_models is not None and novelty_models.scaling is not None:
-                if novelty_models.scaling.offset_.size != scorer.n_features_in_:
-                    raise ValueError(
-                        f"novelty_models were trained on {novelty_models.scaling.offset_.size} channels, the scorer "
-                        f"on {scorer.n_features_in_}; train both on the same recordings"
-                    )
+            if novelty_models is not None and novelty_models.n_channels != scorer.n_features_in_:
+                raise ValueError(
+                    f"novelty_models were trained on {novelty_models.n_channels} channels, the scorer "
+                    f"on {scorer.n_features_in_}; train both on the same recordings"
+                )
             self.segmenter = OnlineScoreCLMSegmenter(scorer, novelty_models=novelty_models, novelty=p.novelty, **common)
         self.classes = self.segmenter.classes_
 

@@ -276,3 +276,14 @@ def test_node_takes_novelty_models_with_a_scorer_source(novelty_setup, demo):
     assert len(labels) == 300 and np.mean(labels[y[:300] == 1] == "unknown") > 0.5
     with pytest.raises(Exception, match="novelty_models needs source"):
         NodeHarness(OnlineCLMNode, {"models": str(folder), "novelty_models": str(folder)})
+
+
+def test_novelty_models_with_another_channel_count_are_refused_at_start(novelty_setup, demo, tmp_path):
+    from handflow.plugins.segmenter.training import fit_recording_models, save_class_models
+
+    _, path, _, _ = novelty_setup
+    two = {c: [s[:, :2] for s in demo[0][c]] for c in ("circle", "wave")}
+    models = fit_recording_models(two, delay=4, n_steps=20, random_state=0)
+    folder = save_class_models({k: c.model for k, c in models.models.items()}, tmp_path)
+    with pytest.raises(ValueError, match="trained on 2 channels, the scorer on 3"):
+        NodeHarness(OnlineCLMNode, {"source": "dtw", "scorer": str(path), "novelty_models": str(folder)}).setup()

@@ -287,15 +287,6 @@ def novelty_weight(errors: np.ndarray, own_errors: np.ndarray, novelty: float) -
     return np.minimum(1.0, np.asarray(own_errors, dtype=float)[best] / (float(novelty) * error))
 
 
-def causal_mean(values: np.ndarray, window: int) -> np.ndarray:
-    """Mean of each value and the ``window − 1`` before it (fewer at the start)."""
-    v = np.asarray(values, dtype=float)
-    c = np.concatenate([[0.0], np.cumsum(v)])
-    i = np.arange(len(v))
-    lo = np.maximum(0, i - int(window) + 1)
-    return (c[i + 1] - c[lo]) / (i + 1 - lo)
-
-
 def background_band(n: int, width: int, strength: float, radius: int) -> tuple[np.ndarray, float]:
     """Background layer ``f^bg_ij = λ_bg (1 − |i − j| / K_bg)`` for ``|i − j| < K_bg`` (docs/segmentation.md).
 

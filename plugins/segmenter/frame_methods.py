@@ -18,7 +18,7 @@ import numpy as np
 from .baselines import PerClassHMM, SlidingDTW1NN
 from .candidates import CandidateSet, Projection
 from .clm_segmenter import CLMSegmenter
-from .compatibility import causal_mean, evidence_band, novelty_weight, score_evidence
+from .compatibility import evidence_band, history_compatibility, novelty_weight, score_evidence
 from .openset import REJECTED, score_thresholds, threshold_labels
 from .scorers import MiniRocketScorer
 from .training import fit_recording_models
@@ -262,9 +262,9 @@ class NoveltyCLMMethod(ScoreCLMMethod):
     manifold's error exceeds ``1 / novelty`` times that manifold's own typical error on its
     training frames has its classifier evidence scaled down by the ratio,
     ``w = min(1, own / (novelty · error))``; ``e_m = p_m · w̄``, ``w̄`` the mean of ``w`` over the
-    frame and the H − 1 before it, before the banding of :func:`.compatibility.evidence_band`.  A frame that no class manifold explains falls below
-    chance in every class layer and goes to the background, however confident the classifier
-    is; ``novelty`` is chosen on validation without refitting.  Rejection = the background factor,
+    frame and the H − 1 before it (the γ = 1 history average), before the banding of
+    :func:`.compatibility.evidence_band`.  A frame that no class manifold explains falls below
+    chance in every class layer and goes to the background, however confident the classifier is; ``novelty`` is chosen on validation without refitting.  Rejection = the background factor,
     as for :class:`ScoreCLMMethod`; with a class dropped (calibration) both its decision column and
     its manifold go (docs/segmentation.md)."""
 
@@ -302,7 +302,7 @@ class NoveltyCLMMethod(ScoreCLMMethod):
         scores, proj = state
         cands, proj, _ = UKRMethod._view(Fitted(fitted.model[1], fitted.classes, fitted.params), proj, drop)
         known = novelty_weight(proj.errors, cands.own_errors, fitted.params["novelty"])
-        return super().evidence(fitted, scores, drop) * causal_mean(known, self.history)[:, None]
+        return super().evidence(fitted, scores, drop) * history_compatibility(known, self.history, 1.0)[:, None]
 
 
 METHODS = {

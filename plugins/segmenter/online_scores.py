@@ -21,7 +21,7 @@ import numpy as np
 
 from .candidates import CandidateSet
 from .clm_segmenter import CLMSegmenter
-from .compatibility import causal_mean, evidence_band, novelty_weight
+from .compatibility import evidence_band, history_compatibility, novelty_weight
 from .online import OnlineCLMSegmenter, OnlineUpdate
 from .scorers import WindowScorer
 
@@ -97,7 +97,7 @@ def known_weights(models: CandidateSet | None, novelty: float, Y: np.ndarray, hi
     (:func:`.compatibility.novelty_weight`; all 1 without models)."""
     if models is None:
         return np.ones(len(Y))
-    return causal_mean(novelty_weight(models.project(Y).errors, models.own_errors, novelty), history)
+    return history_compatibility(novelty_weight(models.project(Y).errors, models.own_errors, novelty), history, 1.0)
 
 
 def batch_labels(

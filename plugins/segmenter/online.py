@@ -29,10 +29,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .candidates import CandidateSet
+from .candidates import CandidateSet, Projection
 from .clm import CLMRun
 from .clm_segmenter import REJECTED, CLMSegmenter
 from .compatibility import candidate_band, evidence_band, order_rating, pair_error
+from .delay import DelayStream
 
 
 @dataclass
@@ -255,10 +256,7 @@ class OnlineCLMSegmenter(CLMSegmenter):
         y = np.asarray(y, dtype=float).reshape(1, -1)
         if not np.isfinite(y).all():  # checked before it enters the delay buffer
             raise ValueError("observations hold NaN/inf; drop or repair those rows before recognition")
-        if self.candidates.delay.window > 1:  # the candidates' delay embedding, sample by sample
-            proj = self.candidates.project(self._delay.push(self.candidates.scaled(y)[0]), embedded=True)
-        else:
-            proj = self.candidates.project(y)
+        proj = project_sample(self.candidates, self._delay, y)
         return self.update_projected(proj.latent_time[0], proj.errors[0])
 
     def _append(self, **rows: np.ndarray) -> None:
@@ -444,3 +442,11 @@ class OnlineCLMSegmenter(CLMSegmenter):
 
 
 __all__ = ["OnlineCLMSegmenter", "OnlineUpdate", "SegmentChange", "SegmentTracker", "REJECTED"]
+
+
+def project_sample(candidates: CandidateSet, delay: DelayStream, y: np.ndarray) -> Projection:
+    """Projection of one observation (1, d) onto ``candidates``, through their delay embedding
+    sample by sample (``delay`` = a stream of ``candidates.delay``) when they have one."""
+    if candidates.delay.window > 1:
+        return candidates.project(delay.push(candidates.scaled(y)[0]), embedded=True)
+    return candidates.project(y)

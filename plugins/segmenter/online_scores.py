@@ -22,7 +22,7 @@ import numpy as np
 from .candidates import CandidateSet
 from .clm_segmenter import CLMSegmenter
 from .compatibility import evidence_band, history_compatibility, novelty_weight
-from .online import OnlineCLMSegmenter, OnlineUpdate
+from .online import OnlineCLMSegmenter, OnlineUpdate, project_sample
 from .scorers import WindowScorer
 
 
@@ -56,8 +56,7 @@ class OnlineScoreCLMSegmenter(OnlineCLMSegmenter):
     def reset(self) -> None:
         super().reset()
         self._recent: deque[np.ndarray] = deque(maxlen=int(self.scorer.window))
-        models = self.novelty_models
-        self._novelty_delay = models.delay.stream() if models is not None and models.delay.window > 1 else None
+        self._novelty_delay = self.novelty_models.delay.stream() if self.novelty_models is not None else None
         self._weights: deque[float] = deque(maxlen=int(self.history))  # novelty weights of the last H observations
 
     def _source_rows(self, m: int) -> dict[str, np.ndarray]:
@@ -79,10 +78,7 @@ class OnlineScoreCLMSegmenter(OnlineCLMSegmenter):
         models = self.novelty_models
         if models is None:
             return 1.0
-        if self._novelty_delay is not None:
-            proj = models.project(self._novelty_delay.push(models.scaled(y[None])[0]), embedded=True)
-        else:
-            proj = models.project(y[None])
+        proj = project_sample(models, self._novelty_delay, y[None])
         self._weights.append(float(novelty_weight(proj.errors, models.own_errors, self.novelty)[0]))
         return float(np.mean(self._weights))
 

@@ -147,9 +147,8 @@ def run_train_recording_models(args, progress) -> int:
     except ValueError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    models = {label: cand.model for label, cand in cands.models.items()}
-    out = save_class_models(models, args.out, provenance={"dataset": str(args.dataset), "steps": args.steps})
-    progress(f"wrote {len(models)} models (delay {args.delay}) to {out} in {time.perf_counter() - t0:.1f}s")
+    out = save_class_models(cands, args.out, provenance={"dataset": str(args.dataset), "steps": args.steps})
+    progress(f"wrote {len(cands)} models (delay {args.delay}) to {out} in {time.perf_counter() - t0:.1f}s")
     return 0
 
 

@@ -221,8 +221,11 @@ def candidate_set(models: dict) -> CandidateSet:
     return CandidateSet({label: UKRCandidate(m) for label, m in models.items()})
 
 
-def save_class_models(models: dict, out_dir: str | Path, provenance: dict | None = None) -> Path:
-    """Write ``<label>.npz`` per class plus ``classes.json`` (the index read by the recognisers)."""
+def save_class_models(models: dict | CandidateSet, out_dir: str | Path, provenance: dict | None = None) -> Path:
+    """Write ``<label>.npz`` per class plus ``classes.json`` (the index read by the recognisers);
+    ``models`` maps labels to fitted models, or is a :class:`CandidateSet` of them."""
+    if isinstance(models, CandidateSet):
+        models = {label: cand.model for label, cand in models.models.items()}
     out = Path(out_dir).expanduser()
     out.mkdir(parents=True, exist_ok=True)
     index = {}

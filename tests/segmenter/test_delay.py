@@ -90,7 +90,7 @@ def test_saved_delay_models_keep_their_embedding(fitted, tmp_path):
     from handflow.plugins.segmenter.training import save_class_models
 
     _, fit, X, _ = fitted
-    save_class_models({k: c.model for k, c in fit.model.models.items()}, tmp_path)
+    save_class_models(fit.model, tmp_path)
     loaded = load_candidates(tmp_path)
     assert loaded.delay == fit.model.delay
     assert loaded.evidence_temperature == pytest.approx(fit.model.evidence_temperature)
@@ -163,7 +163,7 @@ def relative_model_dir(tmp_path_factory):
 
     X, y = _synthetic_recordings(0)
     cands = fit_recording_models({c: [X[y == i]] for i, c in enumerate("abc")}, delay=4, n_steps=40, scaling="standard")
-    return save_class_models({k: c.model for k, c in cands.models.items()}, tmp_path_factory.mktemp("relative"))
+    return save_class_models(cands, tmp_path_factory.mktemp("relative"))
 
 
 @settings(max_examples=60, deadline=None)

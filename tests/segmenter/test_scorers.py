@@ -237,7 +237,7 @@ def novelty_setup(demo, tmp_path_factory):
     known = {c: demo[0][c] for c in ("circle", "wave")}
     scorer = DTWScorer(window=8, thin=4).fit(known)
     models = fit_recording_models(known, delay=4, n_steps=60, random_state=0)
-    folder = save_class_models({k: c.model for k, c in models.models.items()}, tmp_path_factory.mktemp("novelty"))
+    folder = save_class_models(models, tmp_path_factory.mktemp("novelty"))
     return scorer, scorer.save(tmp_path_factory.mktemp("scorer") / "dtw.npz"), models, folder
 
 
@@ -284,6 +284,6 @@ def test_novelty_models_with_another_channel_count_are_refused_at_start(novelty_
     _, path, _, _ = novelty_setup
     two = {c: [s[:, :2] for s in demo[0][c]] for c in ("circle", "wave")}
     models = fit_recording_models(two, delay=4, n_steps=20, random_state=0)
-    folder = save_class_models({k: c.model for k, c in models.models.items()}, tmp_path)
+    folder = save_class_models(models, tmp_path)
     with pytest.raises(ValueError, match="trained on 2 channels, the scorer on 3"):
         NodeHarness(OnlineCLMNode, {"source": "dtw", "scorer": str(path), "novelty_models": str(folder)}).setup()

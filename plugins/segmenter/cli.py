@@ -11,7 +11,7 @@ from pathlib import Path
 from .candidates import ModelsMissingError, load_candidates
 from .continuous import is_continuous
 from .datasets import DatasetError, load_dataset
-from .evaluation import EXPERIMENTS, METHODS, Evaluator, Protocol
+from .evaluation import EXPERIMENTS, METHODS, SELECTIONS, Evaluator, Protocol
 from .running_scaling import RunningStandardizer
 from .stream_cli import run_stream_evaluation, run_train_recording_models
 from .stream_evaluation import NORMALISATIONS
@@ -144,6 +144,14 @@ def register_evaluate(parser: argparse.ArgumentParser) -> None:
         "--known", help="continuous recordings: comma-separated classes to model; frames of others must be rejected"
     )
     parser.add_argument(
+        "--select",
+        choices=[s.replace("_", "-") for s in SELECTIONS],
+        help="labelled trajectories: what the validation split selects parameters by — 'open-set' (default): "
+        "the mean of the recognition and the rejection experiments' shares, so one operating point keeps "
+        "known motions and rejects reversed and left-out ones; 'recognition': the recognition experiments "
+        "only, as in the thesis (docs/segmentation.md §D)",
+    )
+    parser.add_argument(
         "--normalise",
         choices=NORMALISATIONS,
         default="training",
@@ -157,6 +165,13 @@ def register_evaluate(parser: argparse.ArgumentParser) -> None:
 
 def run_evaluate(args) -> int:
     if is_continuous(args.dataset):
+        if args.select:
+            print(
+                "error: --select applies to labelled trajectories; continuous recordings calibrate by the "
+                "open-set objective of docs/segmentation.md (drop --select)",
+                file=sys.stderr,
+            )
+            return 2
         return run_stream_evaluation(args, _progress)
     t0 = time.perf_counter()
     try:
@@ -172,9 +187,9 @@ def run_evaluate(args) -> int:
         else:
             _progress(f"training one manifold per class ({len(ds.classes)} classes)")
             candidates = candidate_set(_train(ds, args))
-        evaluator = Evaluator(
-            ds, candidates, Protocol.quick() if args.quick else Protocol(), random_state=args.seed, progress=_progress
-        )
+        protocol = Protocol.quick() if args.quick else Protocol()
+        protocol.selection = (args.select or "open-set").replace("-", "_")
+        evaluator = Evaluator(ds, candidates, protocol, random_state=args.seed, progress=_progress)
     except (DatasetError, ModelsMissingError, ValueError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

@@ -20,6 +20,7 @@ from .compatibility import (
     evidence_band,
     order_rating,
     pair_error,
+    reject_small_progress,
     score_evidence,
     thesis_background_strength,
 )
@@ -65,6 +66,11 @@ class CLMSegmenter(BaseEstimator):
         background where even the best-fitting manifold explains a frame worse than
         ``1 / background_factor`` times its own typical error on its training frames
         (:attr:`.candidates.CandidateSet.own_errors`; factor 0 = no background).
+    min_progress : a segment that moves less than this many periods forward along its
+        candidate's latent time is rejected after the CLM (0 = off, the spec;
+        :func:`.compatibility.reject_small_progress`, documented choice).  It needs the whole
+        segment, so it applies to whole sequences (:meth:`fit_predict_projected`), not to the
+        online segmenter.
     restarts : independent cold runs per sequence; the lowest-energy solution is kept
         (documented choice: the annealed Gauss–Seidel dynamics end in a local minimum of the
         CLM energy — on real letter pairs the true segmentation often has lower energy than a
@@ -100,6 +106,7 @@ class CLMSegmenter(BaseEstimator):
         spectral: str = "eigen",
         error_scale: float = 1.0,
         reconstruction: str = "absolute",
+        min_progress: float = 0.0,
         restarts: int = 1,
         random_state=None,
     ) -> None:
@@ -120,6 +127,7 @@ class CLMSegmenter(BaseEstimator):
         self.spectral = spectral
         self.error_scale = error_scale
         self.reconstruction = reconstruction
+        self.min_progress = min_progress
         self.restarts = restarts
         self.random_state = random_state
 
@@ -138,6 +146,8 @@ class CLMSegmenter(BaseEstimator):
                 raise ValueError(f"reconstruction must be one of {RECONSTRUCTIONS}, got {self.reconstruction!r}")
             if int(self.history) < 1:
                 raise ValueError(f"history H must be >= 1, got {self.history}")
+            if not float(self.min_progress) >= 0:
+                raise ValueError(f"min_progress must be >= 0 periods, got {self.min_progress}")
             self.solver_ = CompetitiveLayerModel(
                 J=self.J,
                 eta=self.eta,
@@ -222,10 +232,14 @@ class CLMSegmenter(BaseEstimator):
         return np.where((result.winners == background) | (result.winners < 0), REJECTED, result.winners)
 
     def fit_predict_projected(self, proj: Projection) -> np.ndarray:
-        """Segment an already projected sequence; returns class indices (−1 = background)."""
+        """Segment an already projected sequence; returns class indices (−1 = background), segments
+        of too little latent progress rejected (``min_progress``)."""
         if len(proj) < 1:
             raise ValueError("cannot segment an empty sequence")
-        return self.fit_predict_bands(*self.layer_compatibilities(proj))
+        labels = self.fit_predict_bands(*self.layer_compatibilities(proj))
+        if self.min_progress:
+            self.labels_ = labels = reject_small_progress(labels, proj.latent_time, float(self.min_progress))
+        return labels
 
     def fit_predict_bands(self, band: np.ndarray, diag: np.ndarray) -> np.ndarray:
         """Segment with given layer compatibilities (:meth:`with_background` adds the background):

@@ -18,6 +18,8 @@ from collections.abc import Callable
 
 import numpy as np
 
+from .openset import runs
+
 OrderRating = Callable[[np.ndarray], np.ndarray]
 PairError = Callable[[np.ndarray, int], np.ndarray]
 
@@ -165,6 +167,29 @@ def unwrapped_latent(latent_time: np.ndarray) -> np.ndarray:
 
 
 ORDER_PATHS = ("unwrapped", "direct")
+
+
+def reject_small_progress(labels: np.ndarray, latent_time: np.ndarray, min_progress: float) -> np.ndarray:
+    """Labels (N,) of candidate indices with every segment that moves less than ``min_progress``
+    periods forward along its own candidate's latent time set to −1.
+
+    A segment is a maximal run of one label; its progress is the net change of that candidate's
+    unwrapped latent path (:func:`unwrapped_latent`, latent period π) from its first to its last
+    observation, divided by π.  Documented choice (docs/segmentation.md): a motion is recognised
+    only once it has covered a share of its manifold.  A piece of another motion that happens to
+    match a short arc of a candidate — a letter written backwards matches short forward arcs of
+    other letters — covers little of it, a performed motion covers most of it (or repeats it).
+    """
+    if min_progress < 0:
+        raise ValueError(f"min_progress must be >= 0 periods, got {min_progress}")
+    out = np.array(labels, dtype=int, copy=True)
+    if min_progress == 0 or out.size == 0:
+        return out
+    path = unwrapped_latent(latent_time)
+    for label, start, stop in runs(out):
+        if label >= 0 and (path[stop - 1, label] - path[start, label]) / np.pi < min_progress:
+            out[start:stop] = -1
+    return out
 
 
 def candidate_band(

@@ -166,6 +166,11 @@ class OnlineCLMSegmenter(CLMSegmenter):
     ) -> None:
         clm_params.setdefault("spectral", "gershgorin")
         super().__init__(candidates, **clm_params)
+        if self.min_progress:
+            raise ValueError(
+                "min_progress needs whole segments; the online segmenter takes min_progress=0 "
+                "(segment the recording offline to use it, docs/segmentation.md)"
+            )
         if window < 2:
             raise ValueError(f"window must hold at least 2 observations, got {window}")
         block = window // 2 if block is None else int(block)

@@ -55,3 +55,9 @@ def test_quick_evaluation_json_and_plots(tmp_path, csv_dataset, capsys):
     assert (tmp_path / "plots" / "summary.png").stat().st_size > 0
     assert (tmp_path / "plots" / "concatenated_ukr_clm.png").exists()
     assert np.isfinite(result["runtime_s"])
+
+
+def test_select_is_refused_for_continuous_recordings(tmp_path, capsys):
+    np.savez(tmp_path / "c.npz", class_names=np.array(["a"]), X_r=np.zeros((4, 2)), y_r=np.zeros(4, int))
+    assert run_command(register_evaluate, [str(tmp_path / "c.npz"), "--select", "recognition"]) == 2
+    assert "--select applies to labelled trajectories" in capsys.readouterr().err

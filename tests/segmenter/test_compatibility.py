@@ -10,6 +10,7 @@ from handflow.plugins.segmenter.compatibility import (
     pair_error_max,
     pair_error_mean,
     reconstruction_compatibility,
+    reject_small_progress,
     thesis_background_strength,
 )
 
@@ -92,3 +93,17 @@ def test_pair_error_max_is_the_worst_observation_between():
     e = np.array([[1.0], [5.0], [2.0], [0.5]])
     out = pair_error_max(e, 3)
     assert out[0, 0].tolist() == [5.0, 5.0, 5.0] and out[0, 2, 0] == 2.0 and np.isnan(out[0, 3, 0])
+
+
+def test_segments_with_too_little_latent_progress_are_rejected():
+    # candidate 0 advances 0.05π per step, candidate 1 0.01π, candidate 2 runs backwards
+    steps = np.tile([0.05, 0.01, -0.05], (30, 1)) * np.pi
+    lt = np.mod(np.cumsum(steps, axis=0), np.pi)
+    labels = np.r_[np.zeros(10), np.ones(10), np.full(5, 2), np.full(5, -1)].astype(int)
+    out = reject_small_progress(labels, lt, 0.3)
+    # 9 steps of 0.05 = 0.45 periods kept; 0.09 periods and backward progress rejected
+    np.testing.assert_array_equal(out, np.r_[np.zeros(10), np.full(20, -1)])
+    np.testing.assert_array_equal(reject_small_progress(labels, lt, 0.0), labels)
+    assert reject_small_progress(labels, lt, 0.5)[:10].tolist() == [-1] * 10
+    with pytest.raises(ValueError, match="min_progress"):
+        reject_small_progress(labels, lt, -0.1)

@@ -60,6 +60,27 @@ def test_strong_background_rejects_a_reversed_letter(candidates, synthetic):
     assert np.mean(strong.fit_predict(a[::-1]) == -1) > 0.9  # … its reversal is rejected
 
 
+def test_min_progress_rejects_a_reversed_letter_and_keeps_the_forward_one(candidates, synthetic):
+    a = next(t.data for t in synthetic.test if t.label == "A")
+    # a weak background: the reversal is matched piece by piece by forward arcs of the candidates
+    plain = CLMSegmenter(candidates, history=10, background_factor=0.5, random_state=0)
+    strict = CLMSegmenter(candidates, history=10, background_factor=0.5, min_progress=0.3, random_state=0)
+    assert np.mean(strict.fit_predict(a) == 0) > 0.9
+    reversed_plain = np.mean(plain.fit_predict(a[::-1]) == -1)
+    reversed_strict = np.mean(strict.fit_predict(a[::-1]) == -1)
+    assert reversed_plain < 0.8 and reversed_strict > 0.9
+    np.testing.assert_array_equal(strict.labels_, strict.fit_predict(a[::-1]))
+    with pytest.raises(ValueError, match="min_progress"):
+        CLMSegmenter(candidates, min_progress=-1).fit_predict(a)
+
+
+def test_the_online_segmenter_refuses_min_progress(candidates):
+    from handflow.plugins.segmenter import OnlineCLMSegmenter
+
+    with pytest.raises(ValueError, match="min_progress needs whole segments"):
+        OnlineCLMSegmenter(candidates, min_progress=0.3)
+
+
 def test_clm_is_reproducible_with_a_seed(candidates, two_letters):
     Y, _ = two_letters
     a = CLMSegmenter(candidates, random_state=4).fit_predict(Y)

@@ -51,6 +51,7 @@ SELECTION_EXPERIMENTS = ("single", "concatenated", "middle_halves")
 REJECTION_EXPERIMENTS = ("reversed_rejection", "left_out_rejection")
 SELECTIONS = ("open_set", "recognition")
 MIN_PROGRESS = (0.0, 0.3)  # the CLM's min_progress grid (periods; docs/segmentation.md)
+MIN_SPANS = (0, 20)  # the CLM's min_span grid (observations; docs/segmentation.md)
 STRONG_BACKGROUND = 3.0  # docs/segmentation.md: a "strong" background is 3 λ_bg (λ_bg = 1 − 10/N)
 
 
@@ -72,7 +73,7 @@ class Protocol:
     @classmethod
     def quick(cls) -> Protocol:
         """The reduced protocol for CI and tests."""
-        return cls(nths=(1, 2), histories=(10,), runs=2, max_pairs=6, grid_size=2)
+        return cls(nths=(1, 2), histories=(10,), runs=2, max_pairs=6, grid_size=4)
 
 
 @dataclass
@@ -214,10 +215,11 @@ class Evaluator:
             ]
         elif method == "ukr_clm":
             g = [
-                {"background_factor": f, "error_scale": e, "min_progress": p}
+                {"background_factor": f, "error_scale": e, "min_progress": p, "min_span": s}
                 for e in (1.0, 0.1)
                 for f in (1.0, 0.5, 0.25, 0.1, 1.5, 2.0, 3.0)
                 for p in MIN_PROGRESS
+                for s in MIN_SPANS
             ]
         else:
             g = [{"threshold": th} for th in self._baseline_thresholds(method, split)]

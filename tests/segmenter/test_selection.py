@@ -27,7 +27,7 @@ def test_recognition_selection_ignores_the_rejection_experiments(synthetic, cand
 def test_min_progress_is_selected_with_the_clm_parameters(synthetic, candidates):
     ev = Evaluator(synthetic, candidates, Protocol.quick())
     grid = ev.grid("ukr_clm")
-    assert {p["min_progress"] for p in grid} == {0.0, 0.3}
+    assert {p["min_progress"] for p in grid} == {0.0, 0.3} and {p["min_span"] for p in grid} == {0, 20}
     case = next(c for c in ev.cases["validation"] if c.experiment == "reversed_rejection")
     plain = ev.predict(
         "ukr_clm", {"background_factor": 0.5, "error_scale": 1.0, "min_progress": 0.0}, "validation", case

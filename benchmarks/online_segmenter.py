@@ -145,12 +145,22 @@ def main(argv=None) -> int:
     ap.add_argument(
         "--background-factor", type=float, help="background factor (default 1; 0.25 with --reconstruction relative)"
     )
+    ap.add_argument("--min-span", type=int, default=0, help="CLM neighbourhood of at least this many observations")
+    ap.add_argument(
+        "--min-progress", type=float, default=0.0, help="reject final segments below this share of a period"
+    )
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args(argv)
     cands, Y, truth = make_stream(args)
     factor = args.background_factor
     factor = (0.25 if args.reconstruction == "relative" else 1.0) if factor is None else factor
-    clm = {"history": args.history, "reconstruction": args.reconstruction, "background_factor": factor}
+    clm = {
+        "history": args.history,
+        "reconstruction": args.reconstruction,
+        "background_factor": factor,
+        "min_span": args.min_span,
+        "min_progress": args.min_progress,
+    }
     run(cands, Y[:60], truth[:60], args.seed, **clm)  # compile numba kernels outside the measurement
     load = os.getloadavg()[0]
     online = run(cands, Y, truth, args.seed, **clm)

@@ -68,9 +68,9 @@ class CLMSegmenter(BaseEstimator):
         (:attr:`.candidates.CandidateSet.own_errors`; factor 0 = no background).
     min_progress : a segment that moves less than this many periods forward along its
         candidate's latent time is rejected after the CLM (0 = off, the spec;
-        :func:`.compatibility.reject_small_progress`, documented choice).  It needs the whole
-        segment, so it applies to whole sequences (:meth:`fit_predict_projected`), not to the
-        online segmenter.
+        :func:`.compatibility.reject_small_progress`, documented choice); applied by
+        :meth:`fit_predict_projected` to the whole sequence, by the online segmenter to each
+        block run's window.
     restarts : independent cold runs per sequence; the lowest-energy solution is kept
         (documented choice: the annealed Gauss–Seidel dynamics end in a local minimum of the
         CLM energy — on real letter pairs the true segmentation often has lower energy than a

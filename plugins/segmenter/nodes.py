@@ -129,6 +129,15 @@ class OnlineCLMNode(_RecognizerNode):
             description="how UKR errors enter the CLM (docs/segmentation.md); auto = what the models were trained for",
         )
         order_rating: Literal["sign", "cos"] = "sign"
+        min_span: int = Field(
+            0, ge=0, description="source ukr: the CLM neighbourhood covers at least this many observations (0 = H)"
+        )
+        min_progress: float = Field(
+            0.0,
+            ge=0,
+            description="source ukr: final segments covering less than this share of their manifold's period are "
+            "rejected (0 = off; 0.3 for letters, docs/segmentation.md)",
+        )
         tail: int = Field(30, ge=1, description="newest observations the fast CLM run solves per update")
         update_eta: float = Field(0.9, gt=0, le=1, description="annealing factor per sweep of the fast run")
         update_sweeps: int = Field(
@@ -155,6 +164,8 @@ class OnlineCLMNode(_RecognizerNode):
                 raise ValueError(f"source '{self.source}' needs 'scorer' (a file from `handflow fit-scorer`)")
             if self.source == "ukr" and self.novelty_models:
                 raise ValueError("novelty_models needs source minirocket or dtw (the UKR source rejects by itself)")
+            if self.source != "ukr" and self.min_progress:
+                raise ValueError("min_progress needs source 'ukr' (a scorer's evidence has no latent time)")
             if self.source != "ukr" and self.running_normalisation_frames:
                 raise ValueError("running_normalisation_frames needs source 'ukr' (its prior is the models' scaling)")
             return self
@@ -180,7 +191,9 @@ class OnlineCLMNode(_RecognizerNode):
         if p.source == "ukr":
             models = self.load_models()
             reconstruction = models.reconstruction if p.reconstruction == "auto" else p.reconstruction
-            self.segmenter = OnlineCLMSegmenter(models, reconstruction=reconstruction, **common)
+            self.segmenter = OnlineCLMSegmenter(
+                models, reconstruction=reconstruction, min_span=p.min_span, min_progress=p.min_progress, **common
+            )
             if p.running_normalisation_frames:
                 self.running = running_normaliser(models.scaling, p.running_normalisation_frames)
         else:

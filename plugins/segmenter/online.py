@@ -32,7 +32,7 @@ import numpy as np
 from .candidates import CandidateSet, Projection
 from .clm import CLMRun
 from .clm_segmenter import REJECTED, CLMSegmenter
-from .compatibility import candidate_band, evidence_band, order_rating, pair_error
+from .compatibility import candidate_band, evidence_band, order_rating, pair_error, reject_small_progress
 from .delay import DelayStream
 
 
@@ -149,6 +149,11 @@ class OnlineCLMSegmenter(CLMSegmenter):
         this many consecutive updates (1 = report every change at once).
     edge : observations this close to the window's oldest end are not revised by the fast run;
         ``None`` = H.
+
+    ``min_progress`` (:class:`CLMSegmenter`) applies to the *final* labels: each block run's labels
+    are filtered over its window (:func:`.compatibility.reject_small_progress`) before the middle
+    block takes them, so a segment is judged on the part of it the window holds; the labels on
+    arrival are not filtered (documented choice, docs/segmentation.md).
     """
 
     def __init__(
@@ -166,11 +171,6 @@ class OnlineCLMSegmenter(CLMSegmenter):
     ) -> None:
         clm_params.setdefault("spectral", "gershgorin")
         super().__init__(candidates, **clm_params)
-        if self.min_progress:
-            raise ValueError(
-                "min_progress needs whole segments; the online segmenter takes min_progress=0 "
-                "(segment the recording offline to use it, docs/segmentation.md)"
-            )
         if window < 2:
             raise ValueError(f"window must hold at least 2 observations, got {window}")
         block = window // 2 if block is None else int(block)
@@ -210,7 +210,7 @@ class OnlineCLMSegmenter(CLMSegmenter):
         self._x = np.zeros((m + 1, 0))  # activities: fast run's, block run's when final
         self._pending = np.zeros(0, dtype=int)  # consecutive updates a differing label held
         self._pending_label = np.zeros(0, dtype=int)  # the label those updates held
-        self._run: tuple[int, int, CLMRun] | None = None  # block run: its first column, end of its finalised part
+        self._run: tuple | None = None  # block run: its first column, end of its finalised part, run, latent times
         self._finalised = 0  # global index of the first observation without a final label
         self.n = 0  # observations in the window
         self.seen = 0  # observations consumed in total
@@ -223,8 +223,8 @@ class OnlineCLMSegmenter(CLMSegmenter):
     def _source_rows(self, m: int) -> dict[str, np.ndarray]:
         """Buffers of what the source gives per observation: latent times and errors per candidate,
         or (``reconstruction="relative"``) the evidence per candidate and the null model."""
-        if self.reconstruction == "relative":
-            return {"evidence": np.zeros((self.window, m + 1))}
+        if self.reconstruction == "relative":  # latent times for min_progress only
+            return {"evidence": np.zeros((self.window, m + 1)), "latent": np.zeros((self.window, m))}
         return {"latent": np.zeros((self.window, m)), "errors": np.zeros((self.window, m))}
 
     def _recent_band(self, lo: int, j: int) -> np.ndarray:
@@ -298,7 +298,7 @@ class OnlineCLMSegmenter(CLMSegmenter):
         """:meth:`update` for an observation already projected onto all candidates."""
         errors = np.asarray(errors, dtype=float) * self.error_scale
         if self.reconstruction == "relative":
-            self._append(evidence=self.relative_evidence(errors[None])[0])
+            self._append(evidence=self.relative_evidence(errors[None])[0], latent=np.asarray(latent_time, dtype=float))
         else:
             self._append(latent=np.asarray(latent_time, dtype=float), errors=errors)
         return self._segment()
@@ -349,13 +349,23 @@ class OnlineCLMSegmenter(CLMSegmenter):
             self._run = None
         stop = self.seen - (self.window - self.block) // 2  # observations with that much context after them
         if due and stop > self._finalised:
-            self._run = (self.window_start, stop, self._solver().start(band, diag, lambda_max=lam))
+            run = self._solver().start(band, diag, lambda_max=lam)
+            self._run = (self.window_start, stop, run, self._window_latent())
         return events
 
-    def _finalise(self, first: int, stop: int, run: CLMRun | np.ndarray) -> list[SegmentChange]:
+    def _window_latent(self) -> np.ndarray | None:
+        """The window's latent times (N, M), kept for ``min_progress`` (None without it)."""
+        return self._rows["latent"][: self.n].copy() if self.min_progress else None
+
+    def _finalise(
+        self, first: int, stop: int, run: CLMRun | np.ndarray, latent: np.ndarray | None = None
+    ) -> list[SegmentChange]:
         """Fix the labels of observations ``self._finalised … stop − 1`` (global) to those of a
-        block run (or given labels) over the observations from ``first`` on."""
+        block run (or given labels) over the observations from ``first`` on, whose latent times are
+        ``latent`` (for ``min_progress``)."""
         labels = self.labels_from(run.result()) if isinstance(run, CLMRun) else run
+        if latent is not None:
+            labels = reject_small_progress(labels, latent, float(self.min_progress))
         a, b = self._finalised - self.window_start, min(stop, self.seen) - self.window_start
         if b <= a:
             return []
@@ -377,7 +387,8 @@ class OnlineCLMSegmenter(CLMSegmenter):
             events = self._finalise(*self._run)
             self._run = None
         if self.n:
-            events += self._finalise(self.window_start, self.seen, self.fit_predict_bands(*self.layers()))
+            labels = self.fit_predict_bands(*self.layers())
+            events += self._finalise(self.window_start, self.seen, labels, self._window_latent())
             self._x = self.activities_.copy()
         return events
 

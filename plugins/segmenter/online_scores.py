@@ -40,6 +40,8 @@ class OnlineScoreCLMSegmenter(OnlineCLMSegmenter):
         self.novelty_models = novelty_models
         self.novelty = novelty
         super().__init__(None, **params)
+        if self.min_progress:
+            raise ValueError("min_progress needs class manifolds' latent time; a scorer's evidence has none")
 
     @classmethod
     def _get_param_names(cls) -> list[str]:

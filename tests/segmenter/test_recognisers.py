@@ -74,11 +74,30 @@ def test_min_progress_rejects_a_reversed_letter_and_keeps_the_forward_one(candid
         CLMSegmenter(candidates, min_progress=-1).fit_predict(a)
 
 
-def test_the_online_segmenter_refuses_min_progress(candidates):
+def test_online_min_progress_rejects_the_reversal_as_the_batch_does(candidates, synthetic):
     from handflow.plugins.segmenter import OnlineCLMSegmenter
 
-    with pytest.raises(ValueError, match="min_progress needs whole segments"):
-        OnlineCLMSegmenter(candidates, min_progress=0.3)
+    a = next(t.data for t in synthetic.test if t.label == "A")
+    Y = np.vstack([a, a[::-1], a])  # forward, reversed, forward: the middle letter must be rejected
+    params = dict(history=10, background_factor=0.5, min_progress=0.3, random_state=0)
+    batch = CLMSegmenter(candidates, **params).fit_predict(Y)
+    online = OnlineCLMSegmenter(candidates, window=120, **params).replay(Y)
+    n = len(a)
+    # the reversal's first and last few observations join the forward letters next to them
+    assert np.mean(online[n : 2 * n] == -1) > 0.8 and np.mean(online[:n] == 0) > 0.9
+    assert np.mean(online == batch) > 0.98
+    plain = OnlineCLMSegmenter(candidates, window=120, **dict(params, min_progress=0.0)).replay(Y)
+    assert np.mean(plain[n : 2 * n] == -1) < 0.6
+
+
+def test_the_score_segmenter_refuses_min_progress():
+    from handflow.plugins.segmenter.online_scores import OnlineScoreCLMSegmenter
+    from handflow.plugins.segmenter.scorers import DTWScorer
+
+    rng = np.random.default_rng(0)
+    scorer = DTWScorer(window=5).fit({"a": [rng.normal(size=(30, 2))], "b": [rng.normal(size=(30, 2))]})
+    with pytest.raises(ValueError, match="min_progress needs class manifolds' latent time"):
+        OnlineScoreCLMSegmenter(scorer, min_progress=0.3)
 
 
 def test_clm_is_reproducible_with_a_seed(candidates, two_letters):

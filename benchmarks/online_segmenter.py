@@ -149,6 +149,7 @@ def main(argv=None) -> int:
     ap.add_argument(
         "--min-progress", type=float, default=0.0, help="reject final segments below this share of a period"
     )
+    ap.add_argument("--block", type=int, help="observations finalised per block run (default window/2)")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args(argv)
     cands, Y, truth = make_stream(args)
@@ -163,7 +164,7 @@ def main(argv=None) -> int:
     }
     run(cands, Y[:60], truth[:60], args.seed, **clm)  # compile numba kernels outside the measurement
     load = os.getloadavg()[0]
-    online = run(cands, Y, truth, args.seed, **clm)
+    online = run(cands, Y, truth, args.seed, block=args.block, **clm)
     whole = run(cands, Y, truth, args.seed, tail=None, **clm)
     every_change = run(cands, Y, truth, args.seed, confirm=1, edge=0, **clm)
     base_med, base_p99 = per_model_projection_ms(cands, Y[:500]) if args.reconstruction == "absolute" else (None, None)
@@ -188,6 +189,7 @@ def main(argv=None) -> int:
         "samples": int(len(Y)),
         "candidates": len(cands),
         "window": 200,
+        "block": args.block,
         **clm,
         "rate_hz": RATE_HZ,
         "data": args.dataset or "synthetic letters",

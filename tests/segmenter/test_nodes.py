@@ -4,7 +4,7 @@ from handflow.framework.messages import Array, JointState
 from handflow.framework.testing import NodeHarness
 from handflow.plugins.segmenter import save_class_models
 from handflow.plugins.segmenter.candidates import ModelsMissingError
-from handflow.plugins.segmenter.nodes import OnlineCLMNode, UKROnlyNode
+from handflow.plugins.segmenter.nodes import UNKNOWN, OnlineCLMNode, UKROnlyNode
 
 
 @pytest.fixture(scope="module")
@@ -40,6 +40,24 @@ def test_online_clm_node_revisions_are_confirmed_and_move_boundaries(model_dir, 
             assert e.previous_label and e.previous_label != e.label
             # the moved boundaries follow the revision in the same batch
             assert events[k + 1].kind in ("start", "end")
+
+
+def test_online_clm_node_rejects_a_reversed_letter_with_min_progress(model_dir, synthetic):
+    a = next(t.data for t in synthetic.test if t.label == "A")
+    params = {"models": str(model_dir), "history": 10, "background_factor": 0.5, "min_progress": 0.3, "block": 50}
+    h = NodeHarness(OnlineCLMNode, params).setup()
+    assert h.node.segmenter.min_progress == 0.3
+    labels = [""] * len(a)
+    for i, y in enumerate(a[::-1]):
+        h.send("array", Array(data=y), stamp_ns=i * 10_000_000)
+        labels[i] = h.published["labels"][-1].label
+    h.node.publish_events(h.node.segmenter.finish(), stamp=0)
+    for e in h.published["events"]:
+        if e.kind == "revision":
+            labels[e.start_index : e.end_index + 1] = [e.label] * (e.end_index - e.start_index + 1)
+    assert sum(label == UNKNOWN for label in labels) > 0.9 * len(a)
+    with pytest.raises(Exception, match="min_progress needs source 'ukr'"):
+        NodeHarness(OnlineCLMNode, {"source": "dtw", "scorer": "s.npz", "min_progress": 0.3})
 
 
 def test_ukr_only_node_takes_joint_states_in_model_order(model_dir, two_letters):

@@ -6,6 +6,7 @@ import argparse
 import json
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 from .candidates import ModelsMissingError, load_candidates
@@ -187,8 +188,9 @@ def run_evaluate(args) -> int:
         else:
             _progress(f"training one manifold per class ({len(ds.classes)} classes)")
             candidates = candidate_set(_train(ds, args))
-        protocol = Protocol.quick() if args.quick else Protocol()
-        protocol.selection = (args.select or "open-set").replace("-", "_")
+        protocol = replace(
+            Protocol.quick() if args.quick else Protocol(), selection=(args.select or "open-set").replace("-", "_")
+        )
         evaluator = Evaluator(ds, candidates, protocol, random_state=args.seed, progress=_progress)
     except (DatasetError, ModelsMissingError, ValueError) as exc:
         print(f"error: {exc}", file=sys.stderr)

@@ -264,8 +264,9 @@ class NoveltyCLMMethod(ScoreCLMMethod):
     ``w = min(1, own / (novelty · error))``; ``e_m = p_m · w̄``, ``w̄`` the mean of ``w`` over the
     frame and the H − 1 before it (the γ = 1 history average), before the banding of
     :func:`.compatibility.evidence_band`.  A frame that no class manifold explains falls below
-    chance in every class layer and goes to the background, however confident the classifier is; ``novelty`` is chosen on validation without refitting.  Rejection = the background factor,
-    as for :class:`ScoreCLMMethod`; with a class dropped (calibration) both its decision column and
+    chance in every class layer and goes to the background, however confident the classifier is;
+    ``novelty`` is chosen on validation without refitting.  Rejection = the background factor, as
+    for :class:`ScoreCLMMethod`; with a class dropped (calibration) both its decision column and
     its manifold go (docs/segmentation.md)."""
 
     ukr = UKRMethod()

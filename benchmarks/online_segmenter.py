@@ -149,6 +149,11 @@ def main(argv=None) -> int:
     ap.add_argument(
         "--min-progress", type=float, default=0.0, help="reject final segments below this share of a period"
     )
+    ap.add_argument(
+        "--max-fit-ratio",
+        type=float,
+        help="reject final segments whose model fits them worse than this many times the best one",
+    )
     ap.add_argument("--block", type=int, help="observations finalised per block run (default window/2)")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args(argv)
@@ -161,6 +166,7 @@ def main(argv=None) -> int:
         "background_factor": factor,
         "min_span": args.min_span,
         "min_progress": args.min_progress,
+        "max_fit_ratio": args.max_fit_ratio,
     }
     run(cands, Y[:60], truth[:60], args.seed, **clm)  # compile numba kernels outside the measurement
     load = os.getloadavg()[0]

@@ -20,7 +20,7 @@ from .compatibility import (
     evidence_band,
     order_rating,
     pair_error,
-    reject_small_progress,
+    reject_segments,
     score_evidence,
     thesis_background_strength,
 )
@@ -71,6 +71,9 @@ class CLMSegmenter(BaseEstimator):
         :func:`.compatibility.reject_small_progress`, documented choice); applied by
         :meth:`fit_predict_projected` to the whole sequence, by the online segmenter to each
         block run's window.
+    max_fit_ratio : a segment whose candidate fits it worse (mean error) than this many times the
+        best-fitting candidate is rejected after the CLM (``None`` = off, the spec;
+        :func:`.compatibility.reject_poor_fit`, documented choice); applied with ``min_progress``.
     restarts : independent cold runs per sequence; the lowest-energy solution is kept
         (documented choice: the annealed Gauss–Seidel dynamics end in a local minimum of the
         CLM energy — on real letter pairs the true segmentation often has lower energy than a
@@ -107,6 +110,7 @@ class CLMSegmenter(BaseEstimator):
         error_scale: float = 1.0,
         reconstruction: str = "absolute",
         min_progress: float = 0.0,
+        max_fit_ratio: float | None = None,
         restarts: int = 1,
         random_state=None,
     ) -> None:
@@ -128,6 +132,7 @@ class CLMSegmenter(BaseEstimator):
         self.error_scale = error_scale
         self.reconstruction = reconstruction
         self.min_progress = min_progress
+        self.max_fit_ratio = max_fit_ratio
         self.restarts = restarts
         self.random_state = random_state
 
@@ -148,6 +153,8 @@ class CLMSegmenter(BaseEstimator):
                 raise ValueError(f"history H must be >= 1, got {self.history}")
             if not float(self.min_progress) >= 0:
                 raise ValueError(f"min_progress must be >= 0 periods, got {self.min_progress}")
+            if self.max_fit_ratio is not None and not float(self.max_fit_ratio) >= 1:
+                raise ValueError(f"max_fit_ratio must be >= 1 (or None = off), got {self.max_fit_ratio}")
             self.solver_ = CompetitiveLayerModel(
                 J=self.J,
                 eta=self.eta,
@@ -231,14 +238,23 @@ class CLMSegmenter(BaseEstimator):
         background = result.activities.shape[0] - 1
         return np.where((result.winners == background) | (result.winners < 0), REJECTED, result.winners)
 
+    @property
+    def segment_rules(self) -> bool:
+        """Whether segments are judged after the CLM (``min_progress``, ``max_fit_ratio``)."""
+        return bool(self.min_progress) or self.max_fit_ratio is not None
+
+    def reject_segments(self, labels: np.ndarray, latent_time: np.ndarray, errors: np.ndarray) -> np.ndarray:
+        """``labels`` with the segments the rules reject set to −1 (:func:`.compatibility.reject_segments`)."""
+        return reject_segments(labels, latent_time, errors, float(self.min_progress), self.max_fit_ratio)
+
     def fit_predict_projected(self, proj: Projection) -> np.ndarray:
         """Segment an already projected sequence; returns class indices (−1 = background), segments
-        of too little latent progress rejected (``min_progress``)."""
+        the rules reject (``min_progress``, ``max_fit_ratio``) set to −1."""
         if len(proj) < 1:
             raise ValueError("cannot segment an empty sequence")
         labels = self.fit_predict_bands(*self.layer_compatibilities(proj))
-        if self.min_progress:
-            self.labels_ = labels = reject_small_progress(labels, proj.latent_time, float(self.min_progress))
+        if self.segment_rules:
+            self.labels_ = labels = self.reject_segments(labels, proj.latent_time, proj.errors)
         return labels
 
     def fit_predict_bands(self, band: np.ndarray, diag: np.ndarray) -> np.ndarray:

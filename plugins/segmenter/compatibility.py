@@ -159,11 +159,41 @@ def pair_error(name: str) -> PairError:
         raise ValueError(f"pair error must be one of {sorted(PAIR_ERRORS)}, got {name!r}") from None
 
 
+SPIKE_STEP = 0.25 * np.pi  # a step this large into and out of an observation makes it a spike
+
+
+def wrapped_step(step: np.ndarray) -> np.ndarray:
+    """Latent steps wrapped into ``[−π/2, π/2)`` (latent period π)."""
+    return np.mod(step + 0.5 * np.pi, np.pi) - 0.5 * np.pi
+
+
+def bridged_latent(latent_time: np.ndarray) -> np.ndarray:
+    """Latent times (N, …) with every *spike* bridged (axis 0).
+
+    Documented choice (docs/segmentation.md): a spike is one observation whose projection jumps
+    more than a quarter period (:data:`SPIKE_STEP`) away from both neighbours while they lie less
+    than that apart; it is moved halfway between them.  A projection that lands once on another
+    branch of the manifold (near a crossing, or at the stroke's seam) would otherwise add or remove
+    a whole period of progress.  The first and the last observation are kept as they are.
+    """
+    lt = np.array(latent_time, dtype=float, copy=True)
+    if lt.shape[0] > 2:
+        before, here, after = lt[:-2], lt[1:-1], lt[2:]
+        bridge = wrapped_step(after - before)
+        spike = (
+            (np.abs(wrapped_step(here - before)) > SPIKE_STEP)
+            & (np.abs(wrapped_step(after - here)) > SPIKE_STEP)
+            & (np.abs(bridge) < SPIKE_STEP)
+        )
+        lt[1:-1] = np.where(spike, np.mod(before + 0.5 * bridge, np.pi), here)
+    return lt
+
+
 def unwrapped_latent(latent_time: np.ndarray) -> np.ndarray:
-    """Latent path with every consecutive step wrapped into ``[−π/2, π/2)`` and summed (axis 0)."""
-    lt = np.asarray(latent_time, dtype=float)
-    steps = np.mod(np.diff(lt, axis=0) + 0.5 * np.pi, np.pi) - 0.5 * np.pi
-    return np.concatenate([np.zeros((1,) + lt.shape[1:]), np.cumsum(steps, axis=0)])
+    """Latent path: the steps of :func:`bridged_latent`, each wrapped into ``[−π/2, π/2)``, summed
+    (axis 0)."""
+    steps = wrapped_step(np.diff(bridged_latent(latent_time), axis=0))
+    return np.concatenate([np.zeros((1,) + steps.shape[1:]), np.cumsum(steps, axis=0)])
 
 
 ORDER_PATHS = ("unwrapped", "direct")
@@ -190,6 +220,42 @@ def reject_small_progress(labels: np.ndarray, latent_time: np.ndarray, min_progr
         if label >= 0 and (path[stop - 1, label] - path[start, label]) / np.pi < min_progress:
             out[start:stop] = -1
     return out
+
+
+def reject_poor_fit(labels: np.ndarray, errors: np.ndarray, max_fit_ratio: float | None) -> np.ndarray:
+    """Labels (N,) of candidate indices with every segment whose candidate fits it worse than
+    ``max_fit_ratio`` times the best-fitting candidate set to −1 (``None`` = off).
+
+    A segment is a maximal run of one label; a candidate's fit is its mean error over the segment
+    (``errors`` (N, M)).  Documented choice (docs/segmentation.md): the CLM weighs fit against
+    forward order, so a motion whose own manifold runs backward through it — a letter written
+    backwards — goes to another candidate that moves forward but fits it several times worse; a
+    recognised motion's candidate is (nearly) the best fit.
+    """
+    out = np.array(labels, dtype=int, copy=True)
+    if max_fit_ratio is None or out.size == 0:
+        return out
+    if not max_fit_ratio >= 1:
+        raise ValueError(f"max_fit_ratio must be >= 1 (or None = off), got {max_fit_ratio}")
+    E = np.asarray(errors, dtype=float)
+    for label, start, stop in runs(out):
+        if label >= 0:
+            fit = E[start:stop].mean(axis=0)
+            if fit[label] > max_fit_ratio * fit.min():
+                out[start:stop] = -1
+    return out
+
+
+def reject_segments(
+    labels: np.ndarray,
+    latent_time: np.ndarray,
+    errors: np.ndarray,
+    min_progress: float = 0.0,
+    max_fit_ratio: float | None = None,
+) -> np.ndarray:
+    """The segment rules applied after the CLM: :func:`reject_poor_fit`, then
+    :func:`reject_small_progress` (a segment the first rejects takes no part in the second)."""
+    return reject_small_progress(reject_poor_fit(labels, errors, max_fit_ratio), latent_time, min_progress)
 
 
 def candidate_band(
@@ -228,7 +294,7 @@ def candidate_band(
     path = unwrapped_latent(lt) if order_path == "unwrapped" else None
     if seams is not None and path is not None and np.isfinite(seams).any():
         open_stroke = np.isfinite(seams)
-        phase = np.mod(lt - np.where(open_stroke, seams, 0.0), np.pi)  # 0 at the stroke's start
+        phase = np.mod(bridged_latent(lt) - np.where(open_stroke, seams, 0.0), np.pi)  # 0 at the stroke's start
     else:
         open_stroke = None
     loc = np.zeros((m, n, width))

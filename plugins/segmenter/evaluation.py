@@ -41,7 +41,7 @@ import numpy as np
 from .baselines import PerClassHMM, SlidingDTW1NN, decide
 from .candidates import CandidateSet, Projection
 from .clm_segmenter import CLMSegmenter
-from .compatibility import reject_small_progress
+from .compatibility import reject_segments
 from .datasets import LabelledDataset, Trajectory
 from .ukr_only import UKROnlyRecognizer
 
@@ -52,6 +52,8 @@ REJECTION_EXPERIMENTS = ("reversed_rejection", "left_out_rejection")
 SELECTIONS = ("open_set", "recognition")
 MIN_PROGRESS = (0.0, 0.3)  # the CLM's min_progress grid (periods; docs/segmentation.md)
 MIN_SPANS = (0, 20)  # the CLM's min_span grid (observations; docs/segmentation.md)
+MAX_FIT_RATIOS = (None, 2.0)  # the CLM's max_fit_ratio grid (None = off; docs/segmentation.md)
+SEGMENT_RULES = ("min_progress", "max_fit_ratio")  # judged after the CLM: its labels are shared
 STRONG_BACKGROUND = 3.0  # docs/segmentation.md: a "strong" background is 3 λ_bg (λ_bg = 1 − 10/N)
 
 
@@ -73,7 +75,7 @@ class Protocol:
     @classmethod
     def quick(cls) -> Protocol:
         """The reduced protocol for CI and tests."""
-        return cls(nths=(1, 2), histories=(10,), runs=2, max_pairs=6, grid_size=4)
+        return cls(nths=(1, 2), histories=(10,), runs=2, max_pairs=6, grid_size=8)
 
 
 @dataclass
@@ -215,11 +217,12 @@ class Evaluator:
             ]
         elif method == "ukr_clm":
             g = [
-                {"background_factor": f, "error_scale": e, "min_progress": p, "min_span": s}
+                {"background_factor": f, "error_scale": e, "min_progress": p, "min_span": s, "max_fit_ratio": r}
                 for e in (1.0, 0.1)
                 for f in (1.0, 0.5, 0.25, 0.1, 1.5, 2.0, 3.0)
                 for p in MIN_PROGRESS
                 for s in MIN_SPANS
+                for r in MAX_FIT_RATIOS
             ]
         else:
             g = [{"threshold": th} for th in self._baseline_thresholds(method, split)]
@@ -248,10 +251,12 @@ class Evaluator:
             if method == "ukr_only":
                 labels = UKROnlyRecognizer(cands, history=case.history, **params).predict_projected(proj)
             else:
-                labels = reject_small_progress(
+                labels = reject_segments(
                     self._clm_labels(split, case, seed, cands, proj, params),
                     proj.latent_time,
+                    proj.errors,
                     params.get("min_progress", 0.0),
+                    params.get("max_fit_ratio"),
                 )
             return self._to_global(labels, proj.classes)
         scores = self._baseline_scores(method, split, case)
@@ -262,9 +267,9 @@ class Evaluator:
     def _clm_labels(
         self, split: str, case: Case, seed: int, cands: CandidateSet, proj: Projection, params: dict
     ) -> np.ndarray:
-        """The CLM's labels before ``min_progress`` (which only rejects after the CLM): computed once
-        per case, seed and the other parameters."""
-        clm = {k: v for k, v in params.items() if k != "min_progress"}
+        """The CLM's labels before the segment rules (:data:`SEGMENT_RULES`, which only reject after
+        the CLM): computed once per case, seed and the other parameters."""
+        clm = {k: v for k, v in params.items() if k not in SEGMENT_RULES}
         key = (split, case.experiment, case.left_out, case.key, case.history, seed, tuple(sorted(clm.items())))
         if key not in self._labels:
             seg = CLMSegmenter(cands, history=case.history, random_state=seed, **clm)

@@ -138,6 +138,12 @@ class OnlineCLMNode(_RecognizerNode):
             description="source ukr: final segments covering less than this share of their manifold's period are "
             "rejected (0 = off; 0.3 for letters, docs/segmentation.md)",
         )
+        max_fit_ratio: float | None = Field(
+            None,
+            ge=1,
+            description="source ukr: final segments whose model fits them worse than this many times the best-fitting "
+            "model are rejected (null = off; 2 for letters, docs/segmentation.md)",
+        )
         tail: int = Field(30, ge=1, description="newest observations the fast CLM run solves per update")
         update_eta: float = Field(0.9, gt=0, le=1, description="annealing factor per sweep of the fast run")
         update_sweeps: int = Field(
@@ -166,6 +172,8 @@ class OnlineCLMNode(_RecognizerNode):
                 raise ValueError("novelty_models needs source minirocket or dtw (the UKR source rejects by itself)")
             if self.source != "ukr" and self.min_progress:
                 raise ValueError("min_progress needs source 'ukr' (a scorer's evidence has no latent time)")
+            if self.source != "ukr" and self.max_fit_ratio is not None:
+                raise ValueError("max_fit_ratio needs source 'ukr' (a scorer's evidence has no model errors)")
             if self.source != "ukr" and self.running_normalisation_frames:
                 raise ValueError("running_normalisation_frames needs source 'ukr' (its prior is the models' scaling)")
             return self
@@ -192,7 +200,12 @@ class OnlineCLMNode(_RecognizerNode):
             models = self.load_models()
             reconstruction = models.reconstruction if p.reconstruction == "auto" else p.reconstruction
             self.segmenter = OnlineCLMSegmenter(
-                models, reconstruction=reconstruction, min_span=p.min_span, min_progress=p.min_progress, **common
+                models,
+                reconstruction=reconstruction,
+                min_span=p.min_span,
+                min_progress=p.min_progress,
+                max_fit_ratio=p.max_fit_ratio,
+                **common,
             )
             if p.running_normalisation_frames:
                 self.running = running_normaliser(models.scaling, p.running_normalisation_frames)

@@ -32,7 +32,7 @@ import numpy as np
 from .candidates import CandidateSet, Projection
 from .clm import CLMRun
 from .clm_segmenter import REJECTED, CLMSegmenter
-from .compatibility import candidate_band, evidence_band, order_rating, pair_error, reject_small_progress
+from .compatibility import candidate_band, evidence_band, order_rating, pair_error
 from .delay import DelayStream
 
 
@@ -150,10 +150,11 @@ class OnlineCLMSegmenter(CLMSegmenter):
     edge : observations this close to the window's oldest end are not revised by the fast run;
         ``None`` = H.
 
-    ``min_progress`` (:class:`CLMSegmenter`) applies to the *final* labels: each block run's labels
-    are filtered over its window (:func:`.compatibility.reject_small_progress`) before the middle
-    block takes them, so a segment is judged on the part of it the window holds; the labels on
-    arrival are not filtered (documented choice, docs/segmentation.md).
+    The segment rules ``min_progress`` and ``max_fit_ratio`` (:class:`CLMSegmenter`) apply to the
+    *final* labels: each block run's labels are filtered over its window
+    (:func:`.compatibility.reject_segments`) before the middle block takes them, so a segment is
+    judged on the part of it the window holds; the labels on arrival are not filtered (documented
+    choice, docs/segmentation.md).
     """
 
     def __init__(
@@ -223,9 +224,10 @@ class OnlineCLMSegmenter(CLMSegmenter):
     def _source_rows(self, m: int) -> dict[str, np.ndarray]:
         """Buffers of what the source gives per observation: latent times and errors per candidate,
         or (``reconstruction="relative"``) the evidence per candidate and the null model."""
-        if self.reconstruction == "relative":  # latent times for min_progress only
-            return {"evidence": np.zeros((self.window, m + 1)), "latent": np.zeros((self.window, m))}
-        return {"latent": np.zeros((self.window, m)), "errors": np.zeros((self.window, m))}
+        rows = {"latent": np.zeros((self.window, m)), "errors": np.zeros((self.window, m))}
+        if self.reconstruction == "relative":  # latent times and errors for the segment rules only
+            rows["evidence"] = np.zeros((self.window, m + 1))
+        return rows
 
     def _recent_band(self, lo: int, j: int) -> np.ndarray:
         """Band (m, j − lo + 1, width) of the observations ``lo…j`` of the window."""
@@ -279,10 +281,13 @@ class OnlineCLMSegmenter(CLMSegmenter):
         j = self.n - 1
         for name, row in rows.items():
             self._rows[name][j] = row
-        lo = max(0, j - self._width)
+        # one observation more on each side: the latent path bridges a spike at j − 1 only now that j
+        # is known (compatibility.unwrapped_latent), so the pairs ending at j − 1 are made again
+        lo = max(0, j - self._width - 2)
         recent = self._recent_band(lo, j)
-        k = np.arange(1, min(j - lo, self._span) + 1)  # pair (j − k, j) sits in row j − k, column k − 1
-        self._band[:, j - k, k - 1] = recent[:, j - k - lo, k - 1]
+        for end in (j - 1, j) if j else (j,):
+            k = np.arange(1, min(end - lo, self._span) + 1)  # pair (end − k, end): row end − k, column k − 1
+            self._band[:, end - k, k - 1] = recent[:, end - k - lo, k - 1]
         self.seen += 1
 
     def layers(self) -> tuple[np.ndarray, np.ndarray]:
@@ -297,10 +302,10 @@ class OnlineCLMSegmenter(CLMSegmenter):
     def update_projected(self, latent_time: np.ndarray, errors: np.ndarray) -> OnlineUpdate:
         """:meth:`update` for an observation already projected onto all candidates."""
         errors = np.asarray(errors, dtype=float) * self.error_scale
+        rows = {"latent": np.asarray(latent_time, dtype=float), "errors": errors}
         if self.reconstruction == "relative":
-            self._append(evidence=self.relative_evidence(errors[None])[0], latent=np.asarray(latent_time, dtype=float))
-        else:
-            self._append(latent=np.asarray(latent_time, dtype=float), errors=errors)
+            rows["evidence"] = self.relative_evidence(errors[None])[0]
+        self._append(**rows)
         return self._segment()
 
     def _segment(self) -> OnlineUpdate:
@@ -350,22 +355,29 @@ class OnlineCLMSegmenter(CLMSegmenter):
         stop = self.seen - (self.window - self.block) // 2  # observations with that much context after them
         if due and stop > self._finalised:
             run = self._solver().start(band, diag, lambda_max=lam)
-            self._run = (self.window_start, stop, run, self._window_latent())
+            self._run = (self.window_start, stop, run, self._window_projection())
         return events
 
-    def _window_latent(self) -> np.ndarray | None:
-        """The window's latent times (N, M), kept for ``min_progress`` (None without it)."""
-        return self._rows["latent"][: self.n].copy() if self.min_progress else None
+    def _window_projection(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """The window's latent times and errors (N, M) each, kept for the segment rules (None
+        without them)."""
+        if not self.segment_rules:
+            return None
+        return self._rows["latent"][: self.n].copy(), self._rows["errors"][: self.n].copy()
 
     def _finalise(
-        self, first: int, stop: int, run: CLMRun | np.ndarray, latent: np.ndarray | None = None
+        self,
+        first: int,
+        stop: int,
+        run: CLMRun | np.ndarray,
+        projection: tuple[np.ndarray, np.ndarray] | None = None,
     ) -> list[SegmentChange]:
         """Fix the labels of observations ``self._finalised … stop − 1`` (global) to those of a
-        block run (or given labels) over the observations from ``first`` on, whose latent times are
-        ``latent`` (for ``min_progress``)."""
+        block run (or given labels) over the observations from ``first`` on, whose latent times and
+        errors are ``projection`` (for the segment rules)."""
         labels = self.labels_from(run.result()) if isinstance(run, CLMRun) else run
-        if latent is not None:
-            labels = reject_small_progress(labels, latent, float(self.min_progress))
+        if projection is not None:
+            labels = self.reject_segments(labels, *projection)
         a, b = self._finalised - self.window_start, min(stop, self.seen) - self.window_start
         if b <= a:
             return []
@@ -388,7 +400,7 @@ class OnlineCLMSegmenter(CLMSegmenter):
             self._run = None
         if self.n:
             labels = self.fit_predict_bands(*self.layers())
-            events += self._finalise(self.window_start, self.seen, labels, self._window_latent())
+            events += self._finalise(self.window_start, self.seen, labels, self._window_projection())
             self._x = self.activities_.copy()
         return events
 

@@ -30,7 +30,8 @@ class OnlineScoreCLMSegmenter(OnlineCLMSegmenter):
     """:class:`.online.OnlineCLMSegmenter` over the class evidence of ``scorer`` (one layer per class).
 
     Takes the online segmenter's parameters; the UKR-only ones (``error_scale``,
-    ``order_rating``, ``pair_error``, ``order_path``, ``min_span``) have no effect.
+    ``order_rating``, ``pair_error``, ``order_path``, ``min_span``) have no effect; the segment rules
+    (``min_progress``, ``max_fit_ratio``) are refused.
     """
 
     def __init__(
@@ -40,8 +41,10 @@ class OnlineScoreCLMSegmenter(OnlineCLMSegmenter):
         self.novelty_models = novelty_models
         self.novelty = novelty
         super().__init__(None, **params)
-        if self.min_progress:
-            raise ValueError("min_progress needs class manifolds' latent time; a scorer's evidence has none")
+        if self.segment_rules:
+            raise ValueError(
+                "min_progress and max_fit_ratio need class manifolds' latent time and errors; a scorer's evidence has none"
+            )
 
     @classmethod
     def _get_param_names(cls) -> list[str]:

@@ -3,6 +3,7 @@ import pytest
 
 from handflow.plugins.segmenter.compatibility import (
     background_band,
+    bridged_latent,
     candidate_band,
     history_compatibility,
     order_rating_cos,
@@ -10,8 +11,11 @@ from handflow.plugins.segmenter.compatibility import (
     pair_error_max,
     pair_error_mean,
     reconstruction_compatibility,
+    reject_poor_fit,
+    reject_segments,
     reject_small_progress,
     thesis_background_strength,
+    unwrapped_latent,
 )
 
 
@@ -107,3 +111,40 @@ def test_segments_with_too_little_latent_progress_are_rejected():
     assert reject_small_progress(labels, lt, 0.5)[:10].tolist() == [-1] * 10
     with pytest.raises(ValueError, match="min_progress"):
         reject_small_progress(labels, lt, -0.1)
+
+
+def test_a_projection_spike_is_bridged_and_adds_no_progress():
+    lt = np.mod(np.linspace(0.0, 0.6 * np.pi, 13), np.pi)[:, None]  # steady forward, 0.05π per step
+    spiked = lt.copy()
+    spiked[6] = np.mod(lt[6] + 0.5 * np.pi, np.pi)  # one observation projected onto another branch
+    np.testing.assert_allclose(bridged_latent(spiked), lt, atol=1e-12)
+    assert unwrapped_latent(spiked)[-1, 0] == pytest.approx(0.6 * np.pi)
+    band = candidate_band(spiked, np.zeros_like(lt), width=4, order_path="unwrapped")
+    assert np.all(band[0, :9] == 1.0)  # every pair, across the spike too, is rated forward
+    labels = np.zeros(13, dtype=int)
+    assert reject_small_progress(labels, spiked, 0.3).tolist() == labels.tolist()
+
+
+def test_only_a_jump_out_and_back_is_a_spike():
+    fast = np.array([[0.0], [0.1], [0.95], [1.05]])  # a fast move: 0.85 forward, then on from there
+    np.testing.assert_array_equal(bridged_latent(fast), fast)
+    ends = np.array([[1.6], [0.1], [0.2], [1.8]])  # the first and the last observation have one neighbour
+    np.testing.assert_array_equal(bridged_latent(ends), ends)
+    apart = np.array([[0.0], [1.5], [0.9]])  # the neighbours lie 0.9 apart: no spike between them
+    np.testing.assert_array_equal(bridged_latent(apart), apart)
+
+
+def test_segments_their_candidate_fits_worse_than_another_are_rejected():
+    # candidate 0 fits the first segment best; on the second, labelled 1, candidate 0 fits 3× better
+    errors = np.array([[0.1, 0.3]] * 4 + [[0.1, 0.3]] * 4 + [[0.2, 0.25]] * 3)
+    labels = np.r_[np.zeros(4), np.ones(4), np.ones(3) * 0].astype(int)
+    np.testing.assert_array_equal(reject_poor_fit(labels, errors, 2.0), np.r_[np.zeros(4), np.full(4, -1), np.zeros(3)])
+    np.testing.assert_array_equal(reject_poor_fit(labels, errors, 3.5), labels)
+    np.testing.assert_array_equal(reject_poor_fit(labels, errors, None), labels)
+    with pytest.raises(ValueError, match="max_fit_ratio"):
+        reject_poor_fit(labels, errors, 0.9)
+    # both rules: a segment the fit rule rejects is not judged by its progress
+    lt = np.tile(np.linspace(0.0, 0.5 * np.pi, 11)[:, None], (1, 2))
+    np.testing.assert_array_equal(
+        reject_segments(labels, lt, errors, 0.1, 2.0), np.r_[np.zeros(4), np.full(4, -1), np.zeros(3)]
+    )

@@ -58,6 +58,12 @@ def test_online_clm_node_rejects_a_reversed_letter_with_min_progress(model_dir, 
     assert sum(label == UNKNOWN for label in labels) > 0.9 * len(a)
     with pytest.raises(Exception, match="min_progress needs source 'ukr'"):
         NodeHarness(OnlineCLMNode, {"source": "dtw", "scorer": "s.npz", "min_progress": 0.3})
+    with pytest.raises(Exception, match="max_fit_ratio needs source 'ukr'"):
+        NodeHarness(OnlineCLMNode, {"source": "dtw", "scorer": "s.npz", "max_fit_ratio": 2.0})
+    with pytest.raises(Exception, match="max_fit_ratio"):
+        NodeHarness(OnlineCLMNode, {"models": str(model_dir), "max_fit_ratio": 0.5})
+    h = NodeHarness(OnlineCLMNode, dict(params, max_fit_ratio=2.0)).setup()
+    assert h.node.segmenter.max_fit_ratio == 2.0
 
 
 def test_ukr_only_node_takes_joint_states_in_model_order(model_dir, two_letters):

@@ -1,6 +1,7 @@
 import numpy as np
 
 from handflow.plugins.segmenter import CLMSegmenter, OnlineCLMSegmenter
+from handflow.plugins.segmenter.candidates import Projection
 
 
 def stream(seg, proj):
@@ -34,6 +35,20 @@ def test_incremental_bands_equal_batch_bands(candidates, two_letters):
     ob, od = online.layers()
     np.testing.assert_allclose(ob, band, atol=1e-12)
     np.testing.assert_allclose(od, diag)
+
+
+def test_incremental_bands_bridge_projection_spikes_as_the_batch_does(candidates, two_letters):
+    """A spike is bridged only once the next observation is known: the online bands then match the
+    whole-stream batch bands, the observation before the window included."""
+    Y, _ = two_letters
+    proj = candidates.project(Y)
+    spiked = proj.latent_time.copy()
+    spiked[5::37] = np.mod(spiked[5::37] + 0.5 * np.pi, np.pi)
+    proj = Projection(spiked, proj.errors, proj.classes)
+    online = OnlineCLMSegmenter(candidates, window=50, history=7, random_state=0)
+    stream(online, proj)
+    cand, _ = CLMSegmenter(candidates, history=7).layer_compatibilities(proj)
+    np.testing.assert_allclose(online.layers()[0][:-1], cand[:-1, online.window_start :], atol=1e-12)
 
 
 def test_fast_run_over_the_tail_labels_a_continuing_motion(candidates, synthetic):

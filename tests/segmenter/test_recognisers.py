@@ -60,44 +60,56 @@ def test_strong_background_rejects_a_reversed_letter(candidates, synthetic):
     assert np.mean(strong.fit_predict(a[::-1]) == -1) > 0.9  # … its reversal is rejected
 
 
-def test_min_progress_rejects_a_reversed_letter_and_keeps_the_forward_one(candidates, synthetic):
+SEGMENT_RULES = [{"min_progress": 0.3}, {"max_fit_ratio": 2.0}]
+
+
+@pytest.mark.parametrize("rule", SEGMENT_RULES)
+def test_a_segment_rule_rejects_a_reversed_letter_and_keeps_the_forward_one(candidates, synthetic, rule):
     a = next(t.data for t in synthetic.test if t.label == "A")
     # a weak background: the reversal is matched piece by piece by forward arcs of the candidates
     plain = CLMSegmenter(candidates, history=10, background_factor=0.5, random_state=0)
-    strict = CLMSegmenter(candidates, history=10, background_factor=0.5, min_progress=0.3, random_state=0)
+    strict = CLMSegmenter(candidates, history=10, background_factor=0.5, random_state=0, **rule)
     assert np.mean(strict.fit_predict(a) == 0) > 0.9
     reversed_plain = np.mean(plain.fit_predict(a[::-1]) == -1)
     reversed_strict = np.mean(strict.fit_predict(a[::-1]) == -1)
     assert reversed_plain < 0.8 and reversed_strict > 0.9
     np.testing.assert_array_equal(strict.labels_, strict.fit_predict(a[::-1]))
-    with pytest.raises(ValueError, match="min_progress"):
-        CLMSegmenter(candidates, min_progress=-1).fit_predict(a)
 
 
-def test_online_min_progress_rejects_the_reversal_as_the_batch_does(candidates, synthetic):
+@pytest.mark.parametrize("bad", [{"min_progress": -1}, {"max_fit_ratio": 0.5}])
+def test_segment_rules_refuse_impossible_values(candidates, synthetic, bad):
+    a = next(t.data for t in synthetic.test if t.label == "A")
+    with pytest.raises(ValueError, match=next(iter(bad))):
+        CLMSegmenter(candidates, **bad).fit_predict(a)
+
+
+@pytest.mark.parametrize("rule", SEGMENT_RULES)
+def test_an_online_segment_rule_rejects_the_reversal_as_the_batch_does(candidates, synthetic, rule):
     from handflow.plugins.segmenter import OnlineCLMSegmenter
 
     a = next(t.data for t in synthetic.test if t.label == "A")
     Y = np.vstack([a, a[::-1], a])  # forward, reversed, forward: the middle letter must be rejected
-    params = dict(history=10, background_factor=0.5, min_progress=0.3, random_state=0)
-    batch = CLMSegmenter(candidates, **params).fit_predict(Y)
-    online = OnlineCLMSegmenter(candidates, window=120, **params).replay(Y)
+    params = dict(history=10, background_factor=0.5, random_state=0)
+    batch = CLMSegmenter(candidates, **params, **rule).fit_predict(Y)
+    online = OnlineCLMSegmenter(candidates, window=120, **params, **rule).replay(Y)
     n = len(a)
     # the reversal's first and last few observations join the forward letters next to them
     assert np.mean(online[n : 2 * n] == -1) > 0.8 and np.mean(online[:n] == 0) > 0.9
     assert np.mean(online == batch) > 0.98
-    plain = OnlineCLMSegmenter(candidates, window=120, **dict(params, min_progress=0.0)).replay(Y)
+    plain = OnlineCLMSegmenter(candidates, window=120, **params).replay(Y)
     assert np.mean(plain[n : 2 * n] == -1) < 0.6
 
 
-def test_the_score_segmenter_refuses_min_progress():
+def test_the_score_segmenter_refuses_the_segment_rules():
     from handflow.plugins.segmenter.online_scores import OnlineScoreCLMSegmenter
     from handflow.plugins.segmenter.scorers import DTWScorer
 
     rng = np.random.default_rng(0)
     scorer = DTWScorer(window=5).fit({"a": [rng.normal(size=(30, 2))], "b": [rng.normal(size=(30, 2))]})
-    with pytest.raises(ValueError, match="min_progress needs class manifolds' latent time"):
+    with pytest.raises(ValueError, match="min_progress and max_fit_ratio need class manifolds' latent time"):
         OnlineScoreCLMSegmenter(scorer, min_progress=0.3)
+    with pytest.raises(ValueError, match="max_fit_ratio need"):
+        OnlineScoreCLMSegmenter(scorer, max_fit_ratio=2.0)
 
 
 def test_clm_is_reproducible_with_a_seed(candidates, two_letters):

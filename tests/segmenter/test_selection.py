@@ -24,16 +24,16 @@ def test_recognition_selection_ignores_the_rejection_experiments(synthetic, cand
         Protocol(selection="both")
 
 
-def test_min_progress_is_selected_with_the_clm_parameters(synthetic, candidates):
+@pytest.mark.parametrize("rule", [{"min_progress": 0.3}, {"max_fit_ratio": 1.0}])
+def test_segment_rules_are_selected_with_the_clm_parameters(synthetic, candidates, rule):
     ev = Evaluator(synthetic, candidates, Protocol.quick())
     grid = ev.grid("ukr_clm")
     assert {p["min_progress"] for p in grid} == {0.0, 0.3} and {p["min_span"] for p in grid} == {0, 20}
+    assert {p["max_fit_ratio"] for p in grid} == {None, 2.0}
     case = next(c for c in ev.cases["validation"] if c.experiment == "reversed_rejection")
-    plain = ev.predict(
-        "ukr_clm", {"background_factor": 0.5, "error_scale": 1.0, "min_progress": 0.0}, "validation", case
-    )
-    strict = ev.predict(
-        "ukr_clm", {"background_factor": 0.5, "error_scale": 1.0, "min_progress": 0.3}, "validation", case
-    )
-    assert (strict == -1).sum() >= (plain == -1).sum()
-    assert ((strict == plain) | (strict == -1)).all()  # min_progress only ever rejects
+    params = {"background_factor": 0.5, "error_scale": 1.0}
+    plain = ev.predict("ukr_clm", params, "validation", case)
+    strict = ev.predict("ukr_clm", dict(params, **rule), "validation", case)
+    assert len(ev._labels) == 1  # the rules judge the same CLM labels
+    assert (strict == -1).sum() > (plain == -1).sum()
+    assert ((strict == plain) | (strict == -1)).all()  # a segment rule only ever rejects

@@ -159,7 +159,8 @@ def pair_error(name: str) -> PairError:
         raise ValueError(f"pair error must be one of {sorted(PAIR_ERRORS)}, got {name!r}") from None
 
 
-SPIKE_STEP = 0.25 * np.pi  # a step this large into and out of an observation makes it a spike
+SPIKE_STEP = 0.25 * np.pi  # observations this far from both ends of their run make a spike
+SPIKE_LENGTH = 2  # the longest spike (observations) that is bridged; docs/segmentation.md
 
 
 def wrapped_step(step: np.ndarray) -> np.ndarray:
@@ -170,22 +171,29 @@ def wrapped_step(step: np.ndarray) -> np.ndarray:
 def bridged_latent(latent_time: np.ndarray) -> np.ndarray:
     """Latent times (N, …) with every *spike* bridged (axis 0).
 
-    Documented choice (docs/segmentation.md): a spike is one observation whose projection jumps
-    more than a quarter period (:data:`SPIKE_STEP`) away from both neighbours while they lie less
-    than that apart; it is moved halfway between them.  A projection that lands once on another
-    branch of the manifold (near a crossing, or at the stroke's seam) would otherwise add or remove
-    a whole period of progress.  The first and the last observation are kept as they are.
+    Documented choice (docs/segmentation.md): a spike is a run of up to :data:`SPIKE_LENGTH`
+    observations whose projections all lie more than a quarter period (:data:`SPIKE_STEP`) away
+    from the observations just before and just after the run, while those two lie less than that
+    apart; the run is moved onto the straight line between them.  A projection that lands briefly
+    on another branch of the manifold (near a crossing, or at the stroke's seam) would otherwise
+    add or remove a whole period of progress.  The first and the last observation are kept.
     """
     lt = np.array(latent_time, dtype=float, copy=True)
-    if lt.shape[0] > 2:
-        before, here, after = lt[:-2], lt[1:-1], lt[2:]
+    raw = lt.copy()
+    n = lt.shape[0]
+    for length in range(1, SPIKE_LENGTH + 1):
+        if n < length + 2:
+            break
+        before, after = raw[: n - length - 1], raw[length + 1 :]
         bridge = wrapped_step(after - before)
-        spike = (
-            (np.abs(wrapped_step(here - before)) > SPIKE_STEP)
-            & (np.abs(wrapped_step(after - here)) > SPIKE_STEP)
-            & (np.abs(bridge) < SPIKE_STEP)
-        )
-        lt[1:-1] = np.where(spike, np.mod(before + 0.5 * bridge, np.pi), here)
+        spike = np.abs(bridge) < SPIKE_STEP
+        for i in range(length):
+            here = raw[1 + i : n - length + i]
+            spike &= (np.abs(wrapped_step(here - before)) > SPIKE_STEP) & (np.abs(wrapped_step(after - here)) > SPIKE_STEP)
+        for i in range(length):
+            lt[1 + i : n - length + i] = np.where(
+                spike, np.mod(before + bridge * (i + 1) / (length + 1), np.pi), lt[1 + i : n - length + i]
+            )
     return lt
 
 

@@ -32,7 +32,7 @@ import numpy as np
 from .candidates import CandidateSet, Projection
 from .clm import CLMRun
 from .clm_segmenter import REJECTED, CLMSegmenter
-from .compatibility import candidate_band, evidence_band, order_rating, pair_error
+from .compatibility import SPIKE_LENGTH, candidate_band, evidence_band, order_rating, pair_error
 from .delay import DelayStream
 
 
@@ -281,11 +281,12 @@ class OnlineCLMSegmenter(CLMSegmenter):
         j = self.n - 1
         for name, row in rows.items():
             self._rows[name][j] = row
-        # one observation more on each side: the latent path bridges a spike at j − 1 only now that j
-        # is known (compatibility.unwrapped_latent), so the pairs ending at j − 1 are made again
-        lo = max(0, j - self._width - 2)
+        # the latent path bridges a spike (compatibility.bridged_latent) only once the observation
+        # after it is known: the pairs ending at the SPIKE_LENGTH observations before j are made again
+        reach = 0 if "evidence" in self._rows else SPIKE_LENGTH
+        lo = max(0, j - self._width - 2 * reach)
         recent = self._recent_band(lo, j)
-        for end in (j - 1, j) if j else (j,):
+        for end in range(max(j - reach, 0), j + 1):
             k = np.arange(1, min(end - lo, self._span) + 1)  # pair (end − k, end): row end − k, column k − 1
             self._band[:, end - k, k - 1] = recent[:, end - k - lo, k - 1]
         self.seen += 1

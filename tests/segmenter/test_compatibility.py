@@ -128,10 +128,20 @@ def test_a_projection_spike_is_bridged_and_adds_no_progress():
 def test_only_a_jump_out_and_back_is_a_spike():
     fast = np.array([[0.0], [0.1], [0.95], [1.05]])  # a fast move: 0.85 forward, then on from there
     np.testing.assert_array_equal(bridged_latent(fast), fast)
-    ends = np.array([[1.6], [0.1], [0.2], [1.8]])  # the first and the last observation have one neighbour
+    ends = np.array([[1.6], [0.1], [0.2], [0.3], [0.4], [1.9]])  # the first and the last have one neighbour
     np.testing.assert_array_equal(bridged_latent(ends), ends)
     apart = np.array([[0.0], [1.5], [0.9]])  # the neighbours lie 0.9 apart: no spike between them
     np.testing.assert_array_equal(bridged_latent(apart), apart)
+
+
+def test_a_two_observation_spike_is_bridged_a_longer_excursion_is_not():
+    lt = np.linspace(0.1, 0.5, 9)[:, None]
+    two = lt.copy()
+    two[3:5] = 2.0
+    np.testing.assert_allclose(bridged_latent(two), lt, atol=1e-12)
+    three = lt.copy()
+    three[3:6] = 2.0  # three observations on another branch: taken as they are
+    np.testing.assert_array_equal(bridged_latent(three), three)
 
 
 def test_segments_their_candidate_fits_worse_than_another_are_rejected():

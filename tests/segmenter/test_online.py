@@ -43,7 +43,8 @@ def test_incremental_bands_bridge_projection_spikes_as_the_batch_does(candidates
     Y, _ = two_letters
     proj = candidates.project(Y)
     spiked = proj.latent_time.copy()
-    spiked[5::37] = np.mod(spiked[5::37] + 0.5 * np.pi, np.pi)
+    spiked[5::37] = np.mod(spiked[5::37] + 0.5 * np.pi, np.pi)  # one-observation spikes …
+    spiked[20::37] = spiked[21::37] = np.mod(spiked[20::37] + 0.5 * np.pi, np.pi)  # … and two-observation ones
     proj = Projection(spiked, proj.errors, proj.classes)
     online = OnlineCLMSegmenter(candidates, window=50, history=7, random_state=0)
     stream(online, proj)

@@ -189,7 +189,9 @@ def bridged_latent(latent_time: np.ndarray) -> np.ndarray:
         spike = np.abs(bridge) < SPIKE_STEP
         for i in range(length):
             here = raw[1 + i : n - length + i]
-            spike &= (np.abs(wrapped_step(here - before)) > SPIKE_STEP) & (np.abs(wrapped_step(after - here)) > SPIKE_STEP)
+            spike &= (np.abs(wrapped_step(here - before)) > SPIKE_STEP) & (
+                np.abs(wrapped_step(after - here)) > SPIKE_STEP
+            )
         for i in range(length):
             lt[1 + i : n - length + i] = np.where(
                 spike, np.mod(before + bridge * (i + 1) / (length + 1), np.pi), lt[1 + i : n - length + i]

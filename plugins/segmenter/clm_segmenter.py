@@ -243,9 +243,15 @@ class CLMSegmenter(BaseEstimator):
         """Whether segments are judged after the CLM (``min_progress``, ``max_fit_ratio``)."""
         return bool(self.min_progress) or self.max_fit_ratio is not None
 
-    def reject_segments(self, labels: np.ndarray, latent_time: np.ndarray, errors: np.ndarray) -> np.ndarray:
+    def reject_segments(
+        self,
+        labels: np.ndarray,
+        latent_time: np.ndarray,
+        errors: np.ndarray,
+        open_ends: tuple[bool, bool] = (False, False),
+    ) -> np.ndarray:
         """``labels`` with the segments the rules reject set to −1 (:func:`.compatibility.reject_segments`)."""
-        return reject_segments(labels, latent_time, errors, float(self.min_progress), self.max_fit_ratio)
+        return reject_segments(labels, latent_time, errors, float(self.min_progress), self.max_fit_ratio, open_ends)
 
     def fit_predict_projected(self, proj: Projection) -> np.ndarray:
         """Segment an already projected sequence; returns class indices (−1 = background), segments

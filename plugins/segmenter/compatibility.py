@@ -262,10 +262,21 @@ def reject_segments(
     errors: np.ndarray,
     min_progress: float = 0.0,
     max_fit_ratio: float | None = None,
+    open_ends: tuple[bool, bool] = (False, False),
 ) -> np.ndarray:
     """The segment rules applied after the CLM: :func:`reject_poor_fit`, then
-    :func:`reject_small_progress` (a segment the first rejects takes no part in the second)."""
-    return reject_small_progress(reject_poor_fit(labels, errors, max_fit_ratio), latent_time, min_progress)
+    :func:`reject_small_progress` (a segment the first rejects takes no part in the second).
+
+    ``open_ends`` (start, end): whether the sequence is cut out of a longer stream there; a segment
+    touching an open end is left as it is, since only part of it is in view (documented choice,
+    docs/segmentation.md).
+    """
+    judged = reject_small_progress(reject_poor_fit(labels, errors, max_fit_ratio), latent_time, min_progress)
+    out = np.array(labels, dtype=int, copy=True)
+    for _, start, stop in runs(out):
+        if not ((open_ends[0] and start == 0) or (open_ends[1] and stop == out.size)):
+            out[start:stop] = judged[start:stop]
+    return out
 
 
 def candidate_band(

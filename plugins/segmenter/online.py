@@ -152,9 +152,9 @@ class OnlineCLMSegmenter(CLMSegmenter):
 
     The segment rules ``min_progress`` and ``max_fit_ratio`` (:class:`CLMSegmenter`) apply to the
     *final* labels: each block run's labels are filtered over its window
-    (:func:`.compatibility.reject_segments`) before the middle block takes them, so a segment is
-    judged on the part of it the window holds; the labels on arrival are not filtered (documented
-    choice, docs/segmentation.md).
+    (:func:`.compatibility.reject_segments`) before the middle block takes them; a segment cut by
+    the window's edge (the stream goes on beyond it) is not judged, as only part of it is in view;
+    the labels on arrival are not filtered (documented choice, docs/segmentation.md).
     """
 
     def __init__(
@@ -377,8 +377,8 @@ class OnlineCLMSegmenter(CLMSegmenter):
         block run (or given labels) over the observations from ``first`` on, whose latent times and
         errors are ``projection`` (for the segment rules)."""
         labels = self.labels_from(run.result()) if isinstance(run, CLMRun) else run
-        if projection is not None:
-            labels = self.reject_segments(labels, *projection)
+        if projection is not None:  # a segment cut by the window's edge is not judged: the batch sees it whole
+            labels = self.reject_segments(labels, *projection, open_ends=(first > 0, first + len(labels) < self.seen))
         a, b = self._finalised - self.window_start, min(stop, self.seen) - self.window_start
         if b <= a:
             return []

@@ -158,3 +158,12 @@ def test_segments_their_candidate_fits_worse_than_another_are_rejected():
     np.testing.assert_array_equal(
         reject_segments(labels, lt, errors, 0.1, 2.0), np.r_[np.zeros(4), np.full(4, -1), np.zeros(3)]
     )
+
+
+def test_segments_at_an_open_end_are_not_judged():
+    errors = np.array([[0.1, 0.3]] * 6)
+    labels = np.array([1, 1, 0, 0, 1, 1])  # both 1-segments fit 3× worse than candidate 0
+    lt = np.zeros((6, 2))
+    assert reject_segments(labels, lt, errors, 0.0, 2.0).tolist() == [-1, -1, 0, 0, -1, -1]
+    assert reject_segments(labels, lt, errors, 0.0, 2.0, open_ends=(True, False)).tolist() == [1, 1, 0, 0, -1, -1]
+    assert reject_segments(labels, lt, errors, 0.0, 2.0, open_ends=(False, True)).tolist() == [-1, -1, 0, 0, 1, 1]

@@ -223,7 +223,7 @@ class OnlineCLMSegmenter(CLMSegmenter):
 
     def _source_rows(self, m: int) -> dict[str, np.ndarray]:
         """Buffers of what the source gives per observation: latent times and errors per candidate,
-        or (``reconstruction="relative"``) the evidence per candidate and the null model."""
+        and (``reconstruction="relative"``) the evidence per candidate and the null model."""
         rows = {"latent": np.zeros((self.window, m)), "errors": np.zeros((self.window, m))}
         if self.reconstruction == "relative":  # latent times and errors for the segment rules only
             rows["evidence"] = np.zeros((self.window, m + 1))

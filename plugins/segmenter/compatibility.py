@@ -202,7 +202,12 @@ def bridged_latent(latent_time: np.ndarray) -> np.ndarray:
 def unwrapped_latent(latent_time: np.ndarray) -> np.ndarray:
     """Latent path: the steps of :func:`bridged_latent`, each wrapped into ``[−π/2, π/2)``, summed
     (axis 0)."""
-    steps = wrapped_step(np.diff(bridged_latent(latent_time), axis=0))
+    return _path(bridged_latent(latent_time))
+
+
+def _path(bridged: np.ndarray) -> np.ndarray:
+    """:func:`unwrapped_latent` of latent times already bridged."""
+    steps = wrapped_step(np.diff(bridged, axis=0))
     return np.concatenate([np.zeros((1,) + steps.shape[1:]), np.cumsum(steps, axis=0)])
 
 
@@ -272,6 +277,8 @@ def reject_segments(
     docs/segmentation.md).
     """
     judged = reject_small_progress(reject_poor_fit(labels, errors, max_fit_ratio), latent_time, min_progress)
+    if not any(open_ends):
+        return judged
     out = np.array(labels, dtype=int, copy=True)
     for _, start, stop in runs(out):
         if not ((open_ends[0] and start == 0) or (open_ends[1] and stop == out.size)):
@@ -312,10 +319,11 @@ def candidate_band(
     n, m = lt.shape
     if order_path not in ORDER_PATHS:
         raise ValueError(f"order_path must be one of {ORDER_PATHS}, got {order_path!r}")
-    path = unwrapped_latent(lt) if order_path == "unwrapped" else None
+    bridged = bridged_latent(lt) if order_path == "unwrapped" else None
+    path = None if bridged is None else _path(bridged)
     if seams is not None and path is not None and np.isfinite(seams).any():
         open_stroke = np.isfinite(seams)
-        phase = np.mod(bridged_latent(lt) - np.where(open_stroke, seams, 0.0), np.pi)  # 0 at the stroke's start
+        phase = np.mod(bridged - np.where(open_stroke, seams, 0.0), np.pi)  # 0 at the stroke's start
     else:
         open_stroke = None
     loc = np.zeros((m, n, width))

@@ -211,7 +211,7 @@ class OnlineCLMSegmenter(CLMSegmenter):
         self._x = np.zeros((m + 1, 0))  # activities: fast run's, block run's when final
         self._pending = np.zeros(0, dtype=int)  # consecutive updates a differing label held
         self._pending_label = np.zeros(0, dtype=int)  # the label those updates held
-        self._run: tuple | None = None  # block run: its first column, end of its finalised part, run, latent times
+        self._run: tuple | None = None  # block run: its first column, end of its finalised part, run, projection
         self._finalised = 0  # global index of the first observation without a final label
         self.n = 0  # observations in the window
         self.seen = 0  # observations consumed in total

@@ -15,12 +15,14 @@ revisions counted the old way (every change of an earlier label, ``confirm=1``, 
 BLAS is limited to one thread (one core); numba code is single-threaded.
 
     python benchmarks/online_segmenter.py [--seconds 20] [--dataset letters.npz] [--classes 16] [--json]
-        [--reconstruction absolute|relative] [--delay 8] [--background-factor F]
+        [--reconstruction absolute|relative] [--delay 8] [--background-factor F] [--headings 0,1]
 
 ``--reconstruction relative`` uses the class models for real recordings
 (:func:`handflow.plugins.segmenter.training.fit_recording_models`: delay embedding, relative
 evidence with a null-model background; docs/segmentation.md) instead of the thesis' models; each
-sample is then embedded sample by sample as the node does.
+sample is then embedded sample by sample as the node does.  ``--headings 0,1`` gives the thesis'
+models the heading channels of columns 0 and 1 (docs/segmentation.md); each sample is then headed
+sample by sample, and projected a second time with its heading turned round, as the node does.
 """
 
 from __future__ import annotations
@@ -45,6 +47,7 @@ from handflow.plugins.segmenter import (  # noqa: E402
     load_dataset,
     train_class_models,
 )
+from handflow.plugins.segmenter.online import project_sample  # noqa: E402
 from handflow.plugins.segmenter.training import fit_recording_models  # noqa: E402
 
 RATE_HZ = 100.0
@@ -60,7 +63,8 @@ def make_stream(args):
         by_class = {c: [t.data for t in ts] for c, ts in ds.by_class("train").items()}
         cands = fit_recording_models(by_class, delay=args.delay, random_state=args.seed, scaling="standard")
     else:
-        cands = candidate_set(train_class_models(ds, n_steps=200, random_state=args.seed))
+        headings = tuple(int(c) for c in args.headings.split(",") if c)
+        cands = candidate_set(train_class_models(ds, n_steps=200, random_state=args.seed, headings=headings))
     pool = ds.test + ds.validation
     rng = np.random.default_rng(args.seed)
     parts, truth, n = [], [], int(args.seconds * RATE_HZ)
@@ -85,17 +89,18 @@ def per_model_projection_ms(cands, Y):
 
 def run(cands, Y, truth, seed: int, confirm: int = 5, edge=None, **params):
     seg = OnlineCLMSegmenter(cands, window=200, confirm=confirm, edge=edge, random_state=seed, **params)
-    delayed = cands.delay.window > 1
-    stream = cands.delay.stream()
+    stream = cands.stream()
     lat, cpu, sweeps, revisions, proj_t, clm_t, arrival = [], [], [], 0, [], [], []
     to_truth = from_truth = 0
     final = np.empty(len(Y), dtype=int)
     for y in Y:
         c0 = time.thread_time()
         t0 = time.perf_counter()
-        p = cands.project(stream.push(cands.scaled(y[None])[0]) if delayed else y[None], embedded=delayed)
+        p = project_sample(cands, stream, y[None])
         t1 = time.perf_counter()
-        up = seg.update_projected(p.latent_time[0], p.errors[0])
+        up = seg.update_projected(
+            p.latent_time[0], p.errors[0], None if p.reversed_errors is None else p.reversed_errors[0]
+        )
         t2 = time.perf_counter()
         cpu.append(time.thread_time() - c0)
         lat.append(t2 - t0)
@@ -155,6 +160,7 @@ def main(argv=None) -> int:
         help="reject final segments whose model fits them worse than this many times the best one",
     )
     ap.add_argument("--block", type=int, help="observations finalised per block run (default window/2)")
+    ap.add_argument("--headings", default="", help="channel indices whose heading the thesis models add (e.g. 0,1)")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args(argv)
     cands, Y, truth = make_stream(args)

@@ -21,6 +21,7 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 
 from .delay import DelayEmbedding
+from .headings import Headings
 from .scaling import ChannelScaling
 
 INDEX_FILE = "classes.json"
@@ -41,30 +42,41 @@ class CandidateModel(Protocol):
 
 @dataclass
 class Projection:
-    """Projections of N observations onto M candidates: ``latent_time`` and ``errors`` (N, M)."""
+    """Projections of N observations onto M candidates: ``latent_time`` and ``errors`` (N, M);
+    ``reversed_errors`` (N, M): the errors with the observations' headings turned round
+    (:mod:`.headings`; None for candidates without heading channels)."""
 
     latent_time: np.ndarray
     errors: np.ndarray
     classes: list[str]
+    reversed_errors: np.ndarray | None = None
 
     def __len__(self) -> int:
         return self.latent_time.shape[0]
 
+    def _select(self, rows, cols, classes: list[str]) -> Projection:
+        def pick(a: np.ndarray | None) -> np.ndarray | None:
+            return None if a is None else a[rows][:, cols]
+
+        return Projection(pick(self.latent_time), pick(self.errors), classes, pick(self.reversed_errors))
+
     def take(self, index) -> Projection:
-        """Rows ``index`` (slice, index array) — projection is pointwise, so this equals projecting
-        the same sub-sampled / cut / reordered observations."""
-        return Projection(self.latent_time[index], self.errors[index], list(self.classes))
+        """Rows ``index`` (slice, index array).  For pointwise candidates this equals projecting the
+        same sub-sampled / cut / reordered observations; with heading channels or a delay
+        embedding, project those observations instead."""
+        return self._select(index, slice(None), list(self.classes))
 
     def without(self, label: str) -> Projection:
         """The same projection with candidate ``label`` left out."""
         keep = [i for i, c in enumerate(self.classes) if c != label]
-        return Projection(self.latent_time[:, keep], self.errors[:, keep], [self.classes[i] for i in keep])
+        return self._select(slice(None), keep, [self.classes[i] for i in keep])
 
     @staticmethod
     def concatenate(parts: list[Projection]) -> Projection:
-        return Projection(
-            np.vstack([p.latent_time for p in parts]), np.vstack([p.errors for p in parts]), list(parts[0].classes)
-        )
+        def stack(name: str) -> np.ndarray | None:
+            return None if getattr(parts[0], name) is None else np.vstack([getattr(p, name) for p in parts])
+
+        return Projection(stack("latent_time"), stack("errors"), list(parts[0].classes), stack("reversed_errors"))
 
 
 class UKRCandidate:
@@ -171,6 +183,12 @@ class CandidateSet:
                 f"candidates were trained on different delay embeddings {sorted(map(str, delays))}; retrain them alike"
             )
         self.delay = delays.pop()
+        headings = {Headings.from_provenance(p) for p in provenances}
+        if len(headings) > 1:
+            raise ValueError(
+                f"candidates were trained on different heading channels {sorted(map(str, headings))}; retrain them alike"
+            )
+        self.headings = headings.pop()
         self.evidence_temperature = float(provenances[0].get("evidence_temperature", 1.0))
         self.own_errors = np.array([float(p.get("own_error", 1.0)) for p in provenances])
         self.reconstruction = str(provenances[0].get("reconstruction", "absolute"))  # what the models were made for
@@ -215,37 +233,82 @@ class CandidateSet:
         Y = np.asarray(Y, dtype=float)
         return Y if self.scaling is None else self.scaling.transform(Y)
 
-    def project(self, Y: np.ndarray, embedded: bool = False) -> Projection:
+    @property
+    def stateful(self) -> bool:
+        """True when an observation's model input depends on the ones before it (a delay
+        embedding or heading channels): a stream goes through :meth:`stream`."""
+        return self.delay.window > 1 or self.headings.active
+
+    def stream(self) -> ObservationStream:
+        """Prepares a stream's observations one at a time, equal to :meth:`project` of the whole stream."""
+        return ObservationStream(self)
+
+    def project(self, Y: np.ndarray, embedded: bool = False, reversed_rows: np.ndarray | None = None) -> Projection:
         """Project (N, d) observations — a contiguous stretch of a stream from its start — onto every
-        candidate; candidates trained on a delay embedding (:mod:`.delay`) embed Y first.
-        ``embedded=True``: the rows are already scaled and embedded (the online segmenter's stream)."""
+        candidate; candidates trained on heading channels (:mod:`.headings`) or a delay embedding
+        (:mod:`.delay`) head and embed Y first.  ``embedded=True``: the rows are already prepared
+        (the online segmenter's stream, :meth:`stream`), ``reversed_rows`` with their headings
+        turned round."""
         Y = np.atleast_2d(np.asarray(Y, dtype=float))
         if not np.isfinite(Y).all():
             raise ValueError("observations hold NaN/inf; drop or repair those rows before recognition")
+        batched = self._batched_projector()
+        if self.stateful and batched is None:
+            raise ValueError(
+                "a delay embedding or heading channels need 1D periodic UKR candidates with one shared channel scaling"
+            )
+        if batched is None:
+            lt = np.empty((Y.shape[0], len(self)))
+            e = np.empty_like(lt)
+            for j, m in enumerate(self.models.values()):
+                lt[:, j], e[:, j] = m.project(Y)
+            return Projection(lt, e, self.classes)
+        if not embedded:
+            Z = self.headings.transform(Y)
+            Y = self.delay.transform(self.scaled(Z))
+            if self.headings.active:
+                reversed_rows = self.delay.transform(self.scaled(self.headings.reversed(Z)))
+        lt, e = self._batched_project(batched, Y)
+        reversed_errors = None if reversed_rows is None else self._batched_project(batched, reversed_rows)[1]
+        return Projection(lt, e, self.classes, reversed_errors)
+
+    def _batched_project(self, batched, Y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        X, F = batched.project(Y)
         lt = np.empty((Y.shape[0], len(self)))
         e = np.empty_like(lt)
-        batched = self._batched_projector()
-        if self.delay.window > 1 and batched is None:
-            raise ValueError("a delay embedding needs 1D periodic UKR candidates with one shared channel scaling")
-        if batched is not None:
-            if not embedded:
-                Y = self.delay.transform(self.scaled(Y))
-            X, F = batched.project(Y)
-            for j, m in enumerate(self.models.values()):
-                lt[:, j] = np.mod(m.direction * X[:, j], np.pi)
-                e[:, j] = m.normalised_errors(Y, F[:, j])
-            return Projection(lt, e, self.classes)
         for j, m in enumerate(self.models.values()):
-            lt[:, j], e[:, j] = m.project(Y)
-        return Projection(lt, e, self.classes)
+            lt[:, j] = np.mod(m.direction * X[:, j], np.pi)
+            e[:, j] = m.normalised_errors(Y, F[:, j])
+        return lt, e
 
     def without(self, label: str) -> CandidateSet:
         return CandidateSet({k: v for k, v in self.models.items() if k != label})
 
     @property
     def n_channels(self) -> int:
-        """Channels of an observation, before the delay embedding."""
-        return next(iter(self.models.values())).model.n_features_in_ // int(self.delay.window)
+        """Channels of an observation, before the heading channels and the delay embedding."""
+        return next(iter(self.models.values())).model.n_features_in_ // int(self.delay.window) - len(
+            self.headings.channels
+        )
+
+
+class ObservationStream:
+    """A stream's observations prepared one at a time for :meth:`CandidateSet.project` with
+    ``embedded=True``: headed (:mod:`.headings`), scaled and delay-embedded (:mod:`.delay`)."""
+
+    def __init__(self, candidates: CandidateSet) -> None:
+        self.candidates = candidates
+        self._headings = candidates.headings.stream()
+        self._delays = [candidates.delay.stream() for _ in range(1 + candidates.headings.active)]
+
+    def push(self, y: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+        """The prepared row (1, D) of the newest observation y (d,), and the row with its heading
+        turned round (None without heading channels)."""
+        c = self.candidates
+        z = self._headings.push(y)
+        variants = [z, c.headings.reversed(z)] if c.headings.active else [z]
+        rows = [d.push(c.scaled(v[None])[0])[None] for d, v in zip(self._delays, variants)]
+        return rows[0], (rows[1] if len(rows) > 1 else None)
 
 
 def _load_ukr(path: Path):

@@ -48,7 +48,28 @@ def _add_dataset_args(parser: argparse.ArgumentParser) -> None:
         default="periodic",
         help="time kernel of the class manifolds; periodic_quartic trains on every point in linear time",
     )
+    parser.add_argument(
+        "--headings",
+        default="",
+        help="comma-separated channels (names or 0-based indices, e.g. 0,1 for a pen's x,y) whose direction "
+        "of motion is appended to every observation (docs/segmentation.md, heading channels)",
+    )
     parser.add_argument("--seed", type=int, default=0)
+
+
+def heading_channels(spec: str, columns: list[str]) -> tuple[int, ...]:
+    """Column indices of a ``--headings`` value (names or 0-based indices)."""
+    out = []
+    for item in filter(None, (part.strip() for part in spec.split(","))):
+        if item in columns:
+            out.append(columns.index(item))
+        elif item.isdigit() and int(item) < len(columns):
+            out.append(int(item))
+        else:
+            raise DatasetError(
+                f"--headings: no channel {item!r}; the data's channels are {columns} (or 0–{len(columns) - 1})"
+            )
+    return tuple(out)
 
 
 def _dataset(args):
@@ -93,11 +114,18 @@ def _train(ds, args):
         random_state=args.seed,
         progress=_progress,
         kernel=args.kernel,
+        headings=heading_channels(args.headings, ds.columns),
     )
+
+
+HEADINGS_ON_RECORDINGS = "error: --headings applies to labelled trajectories, not to continuous recordings (drop it)"
 
 
 def run_train_classes(args) -> int:
     if is_continuous(args.dataset):
+        if args.headings:
+            print(HEADINGS_ON_RECORDINGS, file=sys.stderr)
+            return 2
         return run_train_recording_models(args, _progress)
     try:
         ds = _dataset(args)
@@ -114,6 +142,7 @@ def run_train_classes(args) -> int:
             "steps": args.steps,
             "beta": str(args.beta),
             "init": args.init,
+            "headings": args.headings,
         },
     )
     _progress(f"wrote {len(models)} models to {out}")
@@ -166,6 +195,9 @@ def register_evaluate(parser: argparse.ArgumentParser) -> None:
 
 def run_evaluate(args) -> int:
     if is_continuous(args.dataset):
+        if args.headings:
+            print(HEADINGS_ON_RECORDINGS, file=sys.stderr)
+            return 2
         if args.select:
             print(
                 "error: --select applies to labelled trajectories; continuous recordings calibrate by the "
@@ -197,7 +229,12 @@ def run_evaluate(args) -> int:
         return 2
     result = evaluator.evaluate(methods)
     result["parameters"].update(
-        steps=args.steps, beta=str(args.beta), init=args.init, quick=bool(args.quick), seed=args.seed
+        steps=args.steps,
+        beta=str(args.beta),
+        init=args.init,
+        quick=bool(args.quick),
+        seed=args.seed,
+        headings=args.headings,
     )
     result["runtime_s"] = round(time.perf_counter() - t0, 2)
     if args.plots:

@@ -249,9 +249,12 @@ class CLMSegmenter(BaseEstimator):
         latent_time: np.ndarray,
         errors: np.ndarray,
         open_ends: tuple[bool, bool] = (False, False),
+        reversed_errors: np.ndarray | None = None,
     ) -> np.ndarray:
         """``labels`` with the segments the rules reject set to −1 (:func:`.compatibility.reject_segments`)."""
-        return reject_segments(labels, latent_time, errors, float(self.min_progress), self.max_fit_ratio, open_ends)
+        return reject_segments(
+            labels, latent_time, errors, float(self.min_progress), self.max_fit_ratio, open_ends, reversed_errors
+        )
 
     def fit_predict_projected(self, proj: Projection) -> np.ndarray:
         """Segment an already projected sequence; returns class indices (−1 = background), segments
@@ -260,7 +263,9 @@ class CLMSegmenter(BaseEstimator):
             raise ValueError("cannot segment an empty sequence")
         labels = self.fit_predict_bands(*self.layer_compatibilities(proj))
         if self.segment_rules:
-            self.labels_ = labels = self.reject_segments(labels, proj.latent_time, proj.errors)
+            self.labels_ = labels = self.reject_segments(
+                labels, proj.latent_time, proj.errors, reversed_errors=proj.reversed_errors
+            )
         return labels
 
     def fit_predict_bands(self, band: np.ndarray, diag: np.ndarray) -> np.ndarray:

@@ -237,7 +237,12 @@ def reject_small_progress(labels: np.ndarray, latent_time: np.ndarray, min_progr
     return out
 
 
-def reject_poor_fit(labels: np.ndarray, errors: np.ndarray, max_fit_ratio: float | None) -> np.ndarray:
+def reject_poor_fit(
+    labels: np.ndarray,
+    errors: np.ndarray,
+    max_fit_ratio: float | None,
+    reversed_errors: np.ndarray | None = None,
+) -> np.ndarray:
     """Labels (N,) of candidate indices with every segment whose candidate fits it worse than
     ``max_fit_ratio`` times the best-fitting candidate set to −1 (``None`` = off).
 
@@ -245,7 +250,9 @@ def reject_poor_fit(labels: np.ndarray, errors: np.ndarray, max_fit_ratio: float
     (``errors`` (N, M)).  Documented choice (docs/segmentation.md): the CLM weighs fit against
     forward order, so a motion whose own manifold runs backward through it — a letter written
     backwards — goes to another candidate that moves forward but fits it several times worse; a
-    recognised motion's candidate is (nearly) the best fit.
+    recognised motion's candidate is (nearly) the best fit.  ``reversed_errors`` (N, M): the
+    errors of the observations with their headings turned round (:mod:`.headings`); the best fit
+    is then also sought among the candidates traversed backward.
     """
     out = np.array(labels, dtype=int, copy=True)
     if max_fit_ratio is None or out.size == 0:
@@ -253,10 +260,11 @@ def reject_poor_fit(labels: np.ndarray, errors: np.ndarray, max_fit_ratio: float
     if not max_fit_ratio >= 1:
         raise ValueError(f"max_fit_ratio must be >= 1 (or None = off), got {max_fit_ratio}")
     E = np.asarray(errors, dtype=float)
+    R = E if reversed_errors is None else np.asarray(reversed_errors, dtype=float)
     for label, start, stop in runs(out):
         if label >= 0:
             fit = E[start:stop].mean(axis=0)
-            if fit[label] > max_fit_ratio * fit.min():
+            if fit[label] > max_fit_ratio * min(fit.min(), R[start:stop].mean(axis=0).min()):
                 out[start:stop] = -1
     return out
 
@@ -268,15 +276,18 @@ def reject_segments(
     min_progress: float = 0.0,
     max_fit_ratio: float | None = None,
     open_ends: tuple[bool, bool] = (False, False),
+    reversed_errors: np.ndarray | None = None,
 ) -> np.ndarray:
-    """The segment rules applied after the CLM: :func:`reject_poor_fit`, then
-    :func:`reject_small_progress` (a segment the first rejects takes no part in the second).
+    """The segment rules applied after the CLM: :func:`reject_poor_fit` (with ``reversed_errors``),
+    then :func:`reject_small_progress` (a segment the first rejects takes no part in the second).
 
     ``open_ends`` (start, end): whether the sequence is cut out of a longer stream there; a segment
     touching an open end is left as it is, since only part of it is in view (documented choice,
     docs/segmentation.md).
     """
-    judged = reject_small_progress(reject_poor_fit(labels, errors, max_fit_ratio), latent_time, min_progress)
+    judged = reject_small_progress(
+        reject_poor_fit(labels, errors, max_fit_ratio, reversed_errors), latent_time, min_progress
+    )
     if not any(open_ends):
         return judged
     out = np.array(labels, dtype=int, copy=True)

@@ -168,7 +168,7 @@ class Evaluator:
         missing = sorted(set(self.dataset.classes) - set(self.classes))
         if missing:
             raise ValueError(f"no trained model for classes {missing}; retrain the models on this dataset")
-        self._projections: dict[tuple[str, int], Projection] = {}
+        self._projections: dict[tuple, Projection] = {}
         self._scores: dict[tuple, np.ndarray] = {}
         self._labels: dict[tuple, np.ndarray] = {}
         self.cases = {
@@ -187,14 +187,19 @@ class Evaluator:
         return PerClassHMM(random_state=self.random_state).fit(dict(self.dataset.by_class("train").items()))
 
     # -- data of a case ---------------------------------------------------------------------
-    def _projection(self, split: str, i: int) -> Projection:
-        key = (split, i)
+    def _projection(self, split: str, i: int, idx: np.ndarray) -> Projection:
+        """Projection of the observations ``idx`` of trajectory ``i``: rows of the whole trajectory's
+        for pointwise candidates, else (heading channels, delay embedding) of those observations
+        as a sequence of their own — sub-sampled, cut or reversed as a stream would bring them."""
+        data = self.dataset.split(split)[i].data
+        pointwise = not self.candidates.stateful
+        key = (split, i) if pointwise else (split, i, idx.tobytes())
         if key not in self._projections:
-            self._projections[key] = self.candidates.project(self.dataset.split(split)[i].data)
-        return self._projections[key]
+            self._projections[key] = self.candidates.project(data if pointwise else data[idx])
+        return self._projections[key].take(idx) if pointwise else self._projections[key]
 
     def projection(self, split: str, case: Case) -> Projection:
-        proj = Projection.concatenate([self._projection(split, i).take(idx) for i, idx in case.parts])
+        proj = Projection.concatenate([self._projection(split, i, idx) for i, idx in case.parts])
         return proj.without(case.left_out) if case.left_out else proj
 
     def sequence(self, split: str, case: Case) -> np.ndarray:
@@ -257,6 +262,7 @@ class Evaluator:
                     proj.errors,
                     params.get("min_progress", 0.0),
                     params.get("max_fit_ratio"),
+                    reversed_errors=proj.reversed_errors,
                 )
             return self._to_global(labels, proj.classes)
         scores = self._baseline_scores(method, split, case)

@@ -208,6 +208,11 @@ class OnlineCLMNode(_RecognizerNode):
                 **common,
             )
             if p.running_normalisation_frames:
+                if models.headings.active:
+                    raise ValueError(
+                        "running_normalisation_frames does not apply to models with heading channels "
+                        "(docs/segmentation.md); set it to 0 or retrain without --headings"
+                    )
                 self.running = running_normaliser(models.scaling, p.running_normalisation_frames)
         else:
             scorer = self.load_scorer()

@@ -29,11 +29,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .candidates import CandidateSet, Projection
+from .candidates import CandidateSet, ObservationStream, Projection
 from .clm import CLMRun
 from .clm_segmenter import REJECTED, CLMSegmenter
 from .compatibility import SPIKE_LENGTH, candidate_band, evidence_band, order_rating, pair_error
-from .delay import DelayStream
 
 
 @dataclass
@@ -216,7 +215,7 @@ class OnlineCLMSegmenter(CLMSegmenter):
         self.n = 0  # observations in the window
         self.seen = 0  # observations consumed in total
         self.segments = SegmentTracker(memory=self.window)
-        self._delay = self.candidates.delay.stream() if self.candidates is not None else None
+        self._stream = self.candidates.stream() if self.candidates is not None else None
 
     def _n_layers(self) -> int:
         return len(self.candidates)
@@ -225,6 +224,8 @@ class OnlineCLMSegmenter(CLMSegmenter):
         """Buffers of what the source gives per observation: latent times and errors per candidate,
         and (``reconstruction="relative"``) the evidence per candidate and the null model."""
         rows = {"latent": np.zeros((self.window, m)), "errors": np.zeros((self.window, m))}
+        if self.candidates is not None and self.candidates.headings.active:  # for the fit rule
+            rows["reversed_errors"] = np.zeros((self.window, m))
         if self.reconstruction == "relative":  # latent times and errors for the segment rules only
             rows["evidence"] = np.zeros((self.window, m + 1))
         return rows
@@ -263,8 +264,8 @@ class OnlineCLMSegmenter(CLMSegmenter):
         y = np.asarray(y, dtype=float).reshape(1, -1)
         if not np.isfinite(y).all():  # checked before it enters the delay buffer
             raise ValueError("observations hold NaN/inf; drop or repair those rows before recognition")
-        proj = project_sample(self.candidates, self._delay, y)
-        return self.update_projected(proj.latent_time[0], proj.errors[0])
+        proj = project_sample(self.candidates, self._stream, y)
+        return self.update_projected(proj.latent_time[0], proj.errors[0], self._first_row(proj.reversed_errors))
 
     def _append(self, **rows: np.ndarray) -> None:
         """Add one observation's source rows (:meth:`_source_rows`) and its new band entries."""
@@ -300,10 +301,21 @@ class OnlineCLMSegmenter(CLMSegmenter):
         """
         return self.with_background(self._band[:, : self.n], length=self.seen)
 
-    def update_projected(self, latent_time: np.ndarray, errors: np.ndarray) -> OnlineUpdate:
-        """:meth:`update` for an observation already projected onto all candidates."""
+    @staticmethod
+    def _first_row(reversed_errors: np.ndarray | None, t: int = 0) -> np.ndarray | None:
+        return None if reversed_errors is None else reversed_errors[t]
+
+    def update_projected(
+        self, latent_time: np.ndarray, errors: np.ndarray, reversed_errors: np.ndarray | None = None
+    ) -> OnlineUpdate:
+        """:meth:`update` for an observation already projected onto all candidates
+        (``reversed_errors``: with its headings turned round, :mod:`.headings`)."""
         errors = np.asarray(errors, dtype=float) * self.error_scale
         rows = {"latent": np.asarray(latent_time, dtype=float), "errors": errors}
+        if "reversed_errors" in self._rows:
+            if reversed_errors is None:
+                raise ValueError("candidates with heading channels need each observation's reversed_errors")
+            rows["reversed_errors"] = np.asarray(reversed_errors, dtype=float) * self.error_scale
         if self.reconstruction == "relative":
             rows["evidence"] = self.relative_evidence(errors[None])[0]
         self._append(**rows)
@@ -359,26 +371,34 @@ class OnlineCLMSegmenter(CLMSegmenter):
             self._run = (self.window_start, stop, run, self._window_projection())
         return events
 
-    def _window_projection(self) -> tuple[np.ndarray, np.ndarray] | None:
-        """The window's latent times and errors (N, M) each, kept for the segment rules (None
-        without them)."""
+    def _window_projection(self) -> tuple[np.ndarray, np.ndarray, np.ndarray | None] | None:
+        """The window's latent times, errors and reversed errors (N, M) each (None without heading
+        channels), kept for the segment rules (None without them)."""
         if not self.segment_rules:
             return None
-        return self._rows["latent"][: self.n].copy(), self._rows["errors"][: self.n].copy()
+        reversed_errors = self._rows.get("reversed_errors")
+        return (
+            self._rows["latent"][: self.n].copy(),
+            self._rows["errors"][: self.n].copy(),
+            None if reversed_errors is None else reversed_errors[: self.n].copy(),
+        )
 
     def _finalise(
         self,
         first: int,
         stop: int,
         run: CLMRun | np.ndarray,
-        projection: tuple[np.ndarray, np.ndarray] | None = None,
+        projection: tuple[np.ndarray, np.ndarray, np.ndarray | None] | None = None,
     ) -> list[SegmentChange]:
         """Fix the labels of observations ``self._finalised … stop − 1`` (global) to those of a
         block run (or given labels) over the observations from ``first`` on, whose latent times and
         errors are ``projection`` (for the segment rules)."""
         labels = self.labels_from(run.result()) if isinstance(run, CLMRun) else run
         if projection is not None:  # a segment cut by the window's edge is not judged: the batch sees it whole
-            labels = self.reject_segments(labels, *projection, open_ends=(first > 0, first + len(labels) < self.seen))
+            latent, errors, reversed_errors = projection
+            labels = self.reject_segments(
+                labels, latent, errors, (first > 0, first + len(labels) < self.seen), reversed_errors
+            )
         a, b = self._finalised - self.window_start, min(stop, self.seen) - self.window_start
         if b <= a:
             return []
@@ -429,7 +449,7 @@ class OnlineCLMSegmenter(CLMSegmenter):
         """Updates of a whole stream, the source evaluated once for all of it."""
         proj = self.candidates.project(Y)
         for t in range(len(Y)):
-            yield self.update_projected(proj.latent_time[t], proj.errors[t])
+            yield self.update_projected(proj.latent_time[t], proj.errors[t], self._first_row(proj.reversed_errors, t))
 
     def _revisions(self) -> list[SegmentChange]:
         """Confirmed revisions by the fast run (labels fixed by a block run excepted).
@@ -473,9 +493,10 @@ class OnlineCLMSegmenter(CLMSegmenter):
 __all__ = ["OnlineCLMSegmenter", "OnlineUpdate", "SegmentChange", "SegmentTracker", "REJECTED"]
 
 
-def project_sample(candidates: CandidateSet, delay: DelayStream, y: np.ndarray) -> Projection:
-    """Projection of one observation (1, d) onto ``candidates``, through their delay embedding
-    sample by sample (``delay`` = a stream of ``candidates.delay``) when they have one."""
-    if candidates.delay.window > 1:
-        return candidates.project(delay.push(candidates.scaled(y)[0]), embedded=True)
+def project_sample(candidates: CandidateSet, stream: ObservationStream, y: np.ndarray) -> Projection:
+    """Projection of one observation (1, d) onto ``candidates``, prepared sample by sample
+    (``stream`` = :meth:`CandidateSet.stream`) when they head or embed it."""
+    if candidates.stateful:
+        rows, reversed_rows = stream.push(y[0])
+        return candidates.project(rows, embedded=True, reversed_rows=reversed_rows)
     return candidates.project(y)

@@ -61,7 +61,7 @@ class OnlineScoreCLMSegmenter(OnlineCLMSegmenter):
     def reset(self) -> None:
         super().reset()
         self._recent: deque[np.ndarray] = deque(maxlen=int(self.scorer.window))
-        self._novelty_delay = self.novelty_models.delay.stream() if self.novelty_models is not None else None
+        self._novelty_stream = self.novelty_models.stream() if self.novelty_models is not None else None
         self._weights: deque[float] = deque(maxlen=int(self.history))  # novelty weights of the last H observations
 
     def _source_rows(self, m: int) -> dict[str, np.ndarray]:
@@ -83,7 +83,7 @@ class OnlineScoreCLMSegmenter(OnlineCLMSegmenter):
         models = self.novelty_models
         if models is None:
             return 1.0
-        proj = project_sample(models, self._novelty_delay, y[None])
+        proj = project_sample(models, self._novelty_stream, y[None])
         self._weights.append(float(novelty_weight(proj.errors, models.own_errors, self.novelty)[0]))
         return float(np.mean(self._weights))
 

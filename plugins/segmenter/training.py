@@ -30,6 +30,7 @@ from .compatibility import evidence_temperature
 from .cycles import phase_direction, split_cycles
 from .datasets import LabelledDataset
 from .delay import DelayEmbedding
+from .headings import Headings
 from .scaling import ChannelScaling
 
 
@@ -108,6 +109,7 @@ def fit_class_models(
     cycles: str = "none",
     max_points: int = 1500,
     kernel: str = "periodic",
+    headings: tuple[int, ...] = (),
 ) -> dict:
     """One StructuredUKR per class from label → list of (T, d) training segments.
 
@@ -117,6 +119,8 @@ def fit_class_models(
     when the class was trained on whole segments (one stroke per period), False when on cycles
     of a periodic motion.  ``kernel="periodic_quartic"`` (compact, see :data:`KERNELS`) trains
     on all pieces, ignoring ``max_points``, in time linear in the number of points.
+    ``headings``: column indices whose heading (direction of motion, :mod:`.headings`) is
+    appended to every observation before the scaling; stored in each model's provenance.
     """
     if init not in INITS:
         raise ValueError(f"init must be one of {INITS}, got {init!r}")
@@ -125,6 +129,8 @@ def fit_class_models(
     compact = kernel == "periodic_quartic"
     if scaling not in SCALINGS:
         raise ValueError(f"scaling must be one of {SCALINGS}, got {scaling!r}")
+    heading = Headings.fit(tuple(headings), [s for seqs in by_class.values() for s in seqs])
+    by_class = {label: [heading.transform(s) for s in seqs] for label, seqs in by_class.items()}
     scaler = ChannelScaling().fit([s for seqs in by_class.values() for s in seqs]) if scaling == "standard" else None
     models = {}
     for label, segments in by_class.items():
@@ -139,7 +145,10 @@ def fit_class_models(
             seqs, b, kernel=kernel, lambda_cseq=lambda_cseq, n_steps=n_steps, init=init, random_state=random_state
         )
         model.provenance_ = dict(
-            model.provenance_, **(scaler.to_provenance() if scaler else {}), open_stroke=not periodic
+            model.provenance_,
+            **(scaler.to_provenance() if scaler else {}),
+            **(heading.to_provenance() if heading.active else {}),
+            open_stroke=not periodic,
         )
         models[label] = model
     return models

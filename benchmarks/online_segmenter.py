@@ -47,7 +47,6 @@ from handflow.plugins.segmenter import (  # noqa: E402
     load_dataset,
     train_class_models,
 )
-from handflow.plugins.segmenter.online import project_sample  # noqa: E402
 from handflow.plugins.segmenter.training import fit_recording_models  # noqa: E402
 
 RATE_HZ = 100.0
@@ -96,7 +95,7 @@ def run(cands, Y, truth, seed: int, confirm: int = 5, edge=None, **params):
     for y in Y:
         c0 = time.thread_time()
         t0 = time.perf_counter()
-        p = project_sample(cands, stream, y[None])
+        p = stream.project(y)
         t1 = time.perf_counter()
         up = seg.update_projected(
             p.latent_time[0], p.errors[0], None if p.reversed_errors is None else p.reversed_errors[0]

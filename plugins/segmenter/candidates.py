@@ -301,6 +301,14 @@ class ObservationStream:
         self._headings = candidates.headings.stream()
         self._delays = [candidates.delay.stream() for _ in range(1 + candidates.headings.active)]
 
+    def project(self, y: np.ndarray) -> Projection:
+        """Projection (one row) of the stream's newest observation y (d,) onto the candidates."""
+        c = self.candidates
+        if not c.stateful:
+            return c.project(y)
+        rows, reversed_rows = self.push(np.asarray(y, dtype=float).reshape(-1))
+        return c.project(rows, embedded=True, reversed_rows=reversed_rows)
+
     def push(self, y: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
         """The prepared row (1, D) of the newest observation y (d,), and the row with its heading
         turned round (None without heading channels)."""

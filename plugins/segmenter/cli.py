@@ -216,6 +216,10 @@ def run_evaluate(args) -> int:
             raise DatasetError(f"unknown method(s) {unknown}; choose from {list(METHODS)}")
         ds = _dataset(args)
         if args.models:
+            if args.headings:
+                raise DatasetError(
+                    f"drop --headings: the models in {args.models} keep the heading channels they were trained with"
+                )
             candidates = load_candidates(args.models)
         else:
             _progress(f"training one manifold per class ({len(ds.classes)} classes)")

@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .candidates import CandidateSet, ObservationStream, Projection
+from .candidates import CandidateSet
 from .clm import CLMRun
 from .clm_segmenter import REJECTED, CLMSegmenter
 from .compatibility import SPIKE_LENGTH, candidate_band, evidence_band, order_rating, pair_error
@@ -264,7 +264,7 @@ class OnlineCLMSegmenter(CLMSegmenter):
         y = np.asarray(y, dtype=float).reshape(1, -1)
         if not np.isfinite(y).all():  # checked before it enters the delay buffer
             raise ValueError("observations hold NaN/inf; drop or repair those rows before recognition")
-        proj = project_sample(self.candidates, self._stream, y)
+        proj = self._stream.project(y)
         return self.update_projected(proj.latent_time[0], proj.errors[0], self._first_row(proj.reversed_errors))
 
     def _append(self, **rows: np.ndarray) -> None:
@@ -491,12 +491,3 @@ class OnlineCLMSegmenter(CLMSegmenter):
 
 
 __all__ = ["OnlineCLMSegmenter", "OnlineUpdate", "SegmentChange", "SegmentTracker", "REJECTED"]
-
-
-def project_sample(candidates: CandidateSet, stream: ObservationStream, y: np.ndarray) -> Projection:
-    """Projection of one observation (1, d) onto ``candidates``, prepared sample by sample
-    (``stream`` = :meth:`CandidateSet.stream`) when they head or embed it."""
-    if candidates.stateful:
-        rows, reversed_rows = stream.push(y[0])
-        return candidates.project(rows, embedded=True, reversed_rows=reversed_rows)
-    return candidates.project(y)

@@ -22,7 +22,7 @@ import numpy as np
 from .candidates import CandidateSet
 from .clm_segmenter import CLMSegmenter
 from .compatibility import evidence_band, history_compatibility, novelty_weight
-from .online import OnlineCLMSegmenter, OnlineUpdate, project_sample
+from .online import OnlineCLMSegmenter, OnlineUpdate
 from .scorers import WindowScorer
 
 
@@ -83,7 +83,7 @@ class OnlineScoreCLMSegmenter(OnlineCLMSegmenter):
         models = self.novelty_models
         if models is None:
             return 1.0
-        proj = project_sample(models, self._novelty_stream, y[None])
+        proj = self._novelty_stream.project(y)
         self._weights.append(float(novelty_weight(proj.errors, models.own_errors, self.novelty)[0]))
         return float(np.mean(self._weights))
 

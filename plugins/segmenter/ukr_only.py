@@ -94,10 +94,14 @@ class UKROnlyRecognizer(BaseEstimator):
         """Forget the stream history."""
         self._previous_time: np.ndarray | None = None
         self._locals: deque[np.ndarray] = deque(maxlen=self.history)
+        self._stream = self.candidates.stream()
 
     def update(self, y: np.ndarray) -> tuple[int, np.ndarray]:
         """Consume one observation (d,); return (label index or −1, C (M,))."""
-        proj = self.candidates.project(np.asarray(y, dtype=float).reshape(1, -1))
+        if not hasattr(self, "_stream"):
+            self._check()
+            self.reset()
+        proj = self._stream.project(y)
         return self.update_projected(proj.latent_time[0], proj.errors[0])
 
     def update_projected(self, latent_time: np.ndarray, errors: np.ndarray) -> tuple[int, np.ndarray]:

@@ -146,3 +146,12 @@ def test_the_node_heads_each_sample_and_rejects_a_reversed_letter_live(tmp_path,
     assert sum(label == UNKNOWN for label in labels[n:]) > 0.8 * n
     with pytest.raises(ValueError, match="heading channels"):
         NodeHarness(OnlineCLMNode, {"models": str(folder), "running_normalisation_frames": 10}).setup()
+
+
+def test_ukr_only_streams_headed_observations_as_the_batch_projects_them(headed, synthetic):
+    from handflow.plugins.segmenter import UKROnlyRecognizer
+
+    Y = synthetic.test[0].data
+    batch = UKROnlyRecognizer(headed, history=5).predict(Y)
+    live = UKROnlyRecognizer(headed, history=5)
+    np.testing.assert_array_equal([live.update(y)[0] for y in Y], batch)

@@ -77,7 +77,7 @@ def make_stream(args):
 def per_model_projection_ms(cands, Y):
     """Baseline: single-point projection with one ``transform`` per candidate (median, p99 in ms)."""
     t = []
-    for y in Y:
+    for y in cands.headings.transform(Y):  # headed rows (heading channels, if any)
         t0 = time.perf_counter()
         for m in cands.models.values():
             m.project(y[None])

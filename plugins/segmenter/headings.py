@@ -66,9 +66,18 @@ class Headings:
         Y = np.asarray(Y, dtype=float)
         if not self.active:
             return Y
+        self.check_width(Y.shape[-1])
         picked = Y[:, list(self.channels)]
         steps = np.diff(picked, axis=0, prepend=picked[:1])
         return np.hstack([Y, self.headings(steps)])
+
+    def check_width(self, width: int) -> None:
+        """Refuse observations that lack a heading channel."""
+        if max(self.channels) >= width:
+            raise ValueError(
+                f"observations have {width} channels, the models head channel {max(self.channels)}; "
+                "give them the channels the models were trained on"
+            )
 
     def reversed(self, Z: np.ndarray) -> np.ndarray:
         """Headed observations (T, d + c) with their headings turned round (traversed backward)."""
@@ -102,6 +111,7 @@ class HeadingStream:
         y = np.asarray(y, dtype=float).reshape(-1)
         if not self.spec.active:
             return y
+        self.spec.check_width(y.size)
         picked = y[list(self.spec.channels)]
         step = picked - (picked if self._last is None else self._last)
         self._last = picked

@@ -50,6 +50,10 @@ def test_fitted_softness_follows_the_median_step_and_bad_channels_are_refused():
         Headings.fit((2,), [seq])
     with pytest.raises(ValueError, match="distinct"):
         Headings((0, 0))
+    with pytest.raises(ValueError, match="the models head channel 1"):
+        Headings((0, 1)).transform(np.zeros((3, 1)))
+    with pytest.raises(ValueError, match="the models head channel 1"):
+        Headings((0, 1)).stream().push(np.zeros(1))
     assert Headings.from_provenance(Headings((1, 0), 0.5).to_provenance()) == Headings((1, 0), 0.5)
 
 

@@ -17,6 +17,7 @@ in reverse (:func:`.compatibility.reject_poor_fit`).
 
 from __future__ import annotations
 
+import operator
 from dataclasses import dataclass
 
 import numpy as np
@@ -95,8 +96,18 @@ class Headings:
 
     @classmethod
     def from_provenance(cls, provenance: dict | None) -> Headings:
+        """The headings a model's provenance records (none when it records none)."""
         p = provenance or {}
-        return cls(tuple(int(c) for c in p.get("heading_channels", ())), float(p.get("heading_softness", 0.0)))
+        channels, softness = p.get("heading_channels", ()), p.get("heading_softness", 0.0)
+        try:
+            if isinstance(channels, (str, bytes)) or isinstance(softness, (str, bytes, bool)):
+                raise TypeError
+            return cls(tuple(operator.index(c) for c in channels), float(softness))
+        except (TypeError, ValueError, OverflowError):
+            raise ValueError(
+                f"the model file records bad heading channels {channels!r} / softness {softness!r}; "
+                "retrain the models with `handflow train-classes`"
+            ) from None
 
 
 class HeadingStream:

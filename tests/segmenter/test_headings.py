@@ -57,6 +57,24 @@ def test_fitted_softness_follows_the_median_step_and_bad_channels_are_refused():
     assert Headings.from_provenance(Headings((1, 0), 0.5).to_provenance()) == Headings((1, 0), 0.5)
 
 
+json_values = st.recursive(
+    st.none() | st.booleans() | st.integers(-3, 5) | st.floats(allow_nan=True) | st.text(max_size=3),
+    lambda inner: st.lists(inner, max_size=3),
+    max_leaves=6,
+)
+
+
+@settings(max_examples=200, deadline=None)
+@given(channels=json_values, softness=json_values)
+def test_any_recorded_headings_load_or_are_refused_with_a_message(channels, softness):
+    try:
+        headings = Headings.from_provenance({"heading_channels": channels, "heading_softness": softness})
+    except ValueError as exc:
+        assert "retrain" in str(exc) or "heading" in str(exc)
+    else:
+        assert all(c >= 0 for c in headings.channels) and headings.softness >= 0
+
+
 @pytest.fixture(scope="module")
 def headed(synthetic):
     return candidate_set(train_class_models(synthetic, n_steps=100, random_state=0, headings=(0, 1)))

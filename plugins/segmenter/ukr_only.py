@@ -96,19 +96,21 @@ class UKROnlyRecognizer(BaseEstimator):
         self._locals: deque[np.ndarray] = deque(maxlen=self.history)
         self._stream = self.candidates.stream()
 
-    def update(self, y: np.ndarray) -> tuple[int, np.ndarray]:
-        """Consume one observation (d,); return (label index or −1, C (M,))."""
-        if not hasattr(self, "_stream"):
+    def _start(self) -> None:
+        """Check the parameters and start the stream at its first observation."""
+        if not hasattr(self, "_locals"):
             self._check()
             self.reset()
+
+    def update(self, y: np.ndarray) -> tuple[int, np.ndarray]:
+        """Consume one observation (d,); return (label index or −1, C (M,))."""
+        self._start()
         proj = self._stream.project(y)
         return self.update_projected(proj.latent_time[0], proj.errors[0])
 
     def update_projected(self, latent_time: np.ndarray, errors: np.ndarray) -> tuple[int, np.ndarray]:
         """:meth:`update` for an observation already projected onto all candidates."""
-        if not hasattr(self, "_locals"):
-            self._check()
-            self.reset()
+        self._start()
         c_rec = reconstruction_compatibility(errors)
         if self._locals.maxlen != self.history:
             self._locals = deque(self._locals, maxlen=self.history)

@@ -260,11 +260,12 @@ def reject_poor_fit(
     if not max_fit_ratio >= 1:
         raise ValueError(f"max_fit_ratio must be >= 1 (or None = off), got {max_fit_ratio}")
     E = np.asarray(errors, dtype=float)
-    R = E if reversed_errors is None else np.asarray(reversed_errors, dtype=float)
+    R = None if reversed_errors is None else np.asarray(reversed_errors, dtype=float)
     for label, start, stop in runs(out):
         if label >= 0:
             fit = E[start:stop].mean(axis=0)
-            if fit[label] > max_fit_ratio * min(fit.min(), R[start:stop].mean(axis=0).min()):
+            best = fit.min() if R is None else min(fit.min(), R[start:stop].mean(axis=0).min())
+            if fit[label] > max_fit_ratio * best:
                 out[start:stop] = -1
     return out
 

@@ -102,7 +102,7 @@ class CLMSegmenter(BaseEstimator):
         background_factor: float = 1.0,
         background_radius: int | None = None,
         J: float = 2.0,
-        eta: float = 0.98,
+        eta: float = 0.998,
         tol: float = 1e-3,
         max_sweeps: int = 1000,
         inhibition_margin: float = 1.5,

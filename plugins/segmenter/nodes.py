@@ -152,7 +152,9 @@ class OnlineCLMNode(_RecognizerNode):
         block: int | None = Field(
             None, ge=0, description="observations finalised per block run (null = window/2, 0 = none)"
         )
-        block_sweeps: int = Field(10, ge=1, description="sweeps of the running block run per update")
+        block_sweeps: int | None = Field(
+            None, ge=1, description="sweeps of the running block run per update (null = 1000 sweeps / block)"
+        )
         confirm: int = Field(5, ge=1, description="updates a changed earlier label must hold before a revision")
         running_normalisation_frames: int = Field(
             0,

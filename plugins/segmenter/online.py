@@ -134,16 +134,17 @@ class OnlineCLMSegmenter(CLMSegmenter):
     tail : observations the fast run solves (the newest ones; the older ones' activities are a
         fixed context); ``None`` = the whole window (every update solves the window cold: the
         baseline of docs/benchmarks.md).
-    update_eta : annealing factor per sweep of the fast run (the batch's η = 0.98 needs ~300
-        sweeps; the fast run is a quick look at the newest observations).
+    update_eta : annealing factor per sweep of the fast run (the batch's η = 0.998 uses up to its
+        1000-sweep cap; the fast run is a quick look at the newest observations).
     update_sweeps : sweep budget of the fast run per update (anytime: an unconverged run still
         gives labels).
     block : stride of the block runs (observations finalised per block run); ``None`` = half the
         window; 0 = no block runs (the fast run's labels, with confirmed revisions, are final).
         A block run is one run of the batch solver (the batch default ``restarts=1``).
-    block_sweeps : sweeps of the running block run per update; a run still going when its first
-        unfinalised observation is about to leave the window (or the next run is due) is finished
-        at once.
+    block_sweeps : sweeps of the running block run per update; ``None`` = the solver's
+        ``max_sweeps`` spread over the ``block`` updates until the next run is due, so a run that
+        uses its whole budget ends on time; a run still going when its first unfinalised
+        observation is about to leave the window (or the next run is due) is finished at once.
     confirm : a changed label from the fast run is reported as a revision only after it held for
         this many consecutive updates (1 = report every change at once).
     edge : observations this close to the window's oldest end are not revised by the fast run;
@@ -164,7 +165,7 @@ class OnlineCLMSegmenter(CLMSegmenter):
         update_eta: float = 0.9,
         update_sweeps: int = 60,
         block: int | None = None,
-        block_sweeps: int = 10,
+        block_sweeps: int | None = None,
         confirm: int = 5,
         edge: int | None = None,
         **clm_params,
@@ -176,6 +177,8 @@ class OnlineCLMSegmenter(CLMSegmenter):
         block = window // 2 if block is None else int(block)
         if not 0 <= block <= window:
             raise ValueError(f"block must lie in 0…window ({window}), got {block}")
+        if block_sweeps is None:
+            block_sweeps = -(-int(self.max_sweeps) // max(block, 1))  # ceil: the cap within one block
         if update_sweeps < 1 or block_sweeps < 1:
             raise ValueError(f"update_sweeps and block_sweeps must be >= 1, got {update_sweeps}, {block_sweeps}")
         if confirm < 1:
@@ -361,8 +364,9 @@ class OnlineCLMSegmenter(CLMSegmenter):
             return []
         events = []
         due = self.seen % self.block == 0
-        # the run must end before its first unfinalised observation leaves the window
-        last_chance = due or self._finalised <= self.window_start + (self.n == self.window)
+        # the run must end before its first unfinalised observation leaves the window (a full
+        # window drops its oldest observation at the next update)
+        last_chance = due or (self.n == self.window and self._finalised <= self.window_start)
         if self._run is not None and self._run[2].advance(self.max_sweeps if last_chance else self.block_sweeps):
             events = self._finalise(*self._run)
             self._run = None

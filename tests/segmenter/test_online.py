@@ -24,6 +24,24 @@ def test_final_online_labels_equal_the_whole_stream_batch(candidates, synthetic)
     assert np.mean(fast_only == batch) < np.mean(online == batch)
 
 
+def test_block_runs_spread_the_sweep_cap_over_a_block_by_default(candidates, two_letters):
+    """A block run that uses the solver's whole sweep budget must end before the next is due, so
+    that no update has to finish a run at once: by default the cap is spread over the block."""
+    assert OnlineCLMSegmenter(candidates, window=200, block=50).block_sweeps == 20
+    seg = OnlineCLMSegmenter(candidates, window=60, block=20, max_sweeps=300, eta=1.0, random_state=0)
+    assert seg.block_sweeps == 15
+    Y, _ = two_letters
+    proj = candidates.project(Y[:100])
+    sweeps = []
+    for i in range(len(proj)):
+        run = seg._run
+        before = None if run is None else run[2].sweeps
+        seg.update_projected(proj.latent_time[i], proj.errors[i])
+        if run is not None and before is not None:
+            sweeps.append(run[2].sweeps - before)
+    assert sweeps and max(sweeps) <= 15  # never finished at once: η = 1 never converges early
+
+
 def test_incremental_bands_equal_batch_bands(candidates, two_letters):
     Y, _ = two_letters
     proj = candidates.project(Y)

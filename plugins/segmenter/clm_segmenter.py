@@ -27,6 +27,8 @@ from .compatibility import (
 
 REJECTED = -1
 RECONSTRUCTIONS = ("absolute", "relative")
+ETA = 0.98  # annealing factor per sweep (docs/segmentation.md, documented choices)
+ETA_HEADED = 0.998  # ... for candidates with heading channels, whose energy has near-equal minima
 
 
 class CLMSegmenter(BaseEstimator):
@@ -78,7 +80,10 @@ class CLMSegmenter(BaseEstimator):
         (documented choice: the annealed Gauss–Seidel dynamics end in a local minimum of the
         CLM energy — on real letter pairs the true segmentation often has lower energy than a
         single run's result; keeping the best of 3 minimises the same energy better).
-    J, eta, tol, max_sweeps, inhibition_margin, spectral : passed to the CLM solver.
+    eta : annealing factor per sweep; ``None`` = 0.98, or 0.998 for candidates with heading
+        channels (documented choice, docs/segmentation.md: their energy has near-equal minima that
+        faster annealing picks at random, so the online labels could not equal the batch's).
+    J, tol, max_sweeps, inhibition_margin, spectral : passed to the CLM solver.
     random_state : seed of the stochastic solver.
 
     The constructor only stores the parameters (scikit-learn convention: ``get_params``,
@@ -102,7 +107,7 @@ class CLMSegmenter(BaseEstimator):
         background_factor: float = 1.0,
         background_radius: int | None = None,
         J: float = 2.0,
-        eta: float = 0.998,
+        eta: float | None = None,
         tol: float = 1e-3,
         max_sweeps: int = 1000,
         inhibition_margin: float = 1.5,
@@ -157,7 +162,7 @@ class CLMSegmenter(BaseEstimator):
                 raise ValueError(f"max_fit_ratio must be >= 1 (or None = off), got {self.max_fit_ratio}")
             self.solver_ = CompetitiveLayerModel(
                 J=self.J,
-                eta=self.eta,
+                eta=self.annealing_factor(),
                 tol=self.tol,
                 max_sweeps=self.max_sweeps,
                 inhibition_margin=self.inhibition_margin,
@@ -165,6 +170,12 @@ class CLMSegmenter(BaseEstimator):
                 random_state=self.random_state,
             )
         return self.solver_
+
+    def annealing_factor(self) -> float:
+        """``eta``, or its default for these candidates (see the class docstring)."""
+        if self.eta is not None:
+            return float(self.eta)
+        return ETA_HEADED if self.candidates is not None and self.candidates.headings.active else ETA
 
     @property
     def classes_(self) -> list[str]:

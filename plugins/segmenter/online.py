@@ -134,8 +134,8 @@ class OnlineCLMSegmenter(CLMSegmenter):
     tail : observations the fast run solves (the newest ones; the older ones' activities are a
         fixed context); ``None`` = the whole window (every update solves the window cold: the
         baseline of docs/benchmarks.md).
-    update_eta : annealing factor per sweep of the fast run (the batch's η = 0.998 uses up to its
-        1000-sweep cap; the fast run is a quick look at the newest observations).
+    update_eta : annealing factor per sweep of the fast run (the batch's η = 0.98 needs ~300
+        sweeps, up to the 1000-sweep cap; the fast run is a quick look at the newest observations).
     update_sweeps : sweep budget of the fast run per update (anytime: an unconverged run still
         gives labels).
     block : stride of the block runs (observations finalised per block run); ``None`` = half the

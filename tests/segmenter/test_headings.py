@@ -112,6 +112,15 @@ def test_the_fit_rule_seeks_the_best_fit_among_candidates_traversed_backward():
     assert reject_poor_fit(labels, errors, 2.0, backward).tolist() == [-1] * 4
 
 
+def test_headed_candidates_anneal_slower_by_default(headed, candidates):
+    """Documented choice: the energy of headed candidates has near-equal minima, so their CLM
+    anneals with η = 0.998 unless told otherwise; other candidates keep η = 0.98."""
+    assert CLMSegmenter(headed)._solver().eta == 0.998
+    assert OnlineCLMSegmenter(headed)._solver().eta == 0.998
+    assert CLMSegmenter(candidates)._solver().eta == 0.98
+    assert CLMSegmenter(headed, eta=0.9)._solver().eta == 0.9
+
+
 def test_headed_segmenters_reject_a_reversed_letter_in_batch_and_online_alike(headed, synthetic):
     a = next(t.data for t in synthetic.test if t.label == "A")
     Y = np.vstack([a, a[::-1], a])  # forward, reversed, forward: the middle letter must be rejected

@@ -135,7 +135,8 @@ class OnlineCLMSegmenter(CLMSegmenter):
         fixed context); ``None`` = the whole window (every update solves the window cold: the
         baseline of docs/benchmarks.md).
     update_eta : annealing factor per sweep of the fast run (the batch's η = 0.98 needs ~300
-        sweeps, up to the 1000-sweep cap; the fast run is a quick look at the newest observations).
+        sweeps, its 0.998 for headed candidates the 1000-sweep cap; the fast run is a quick look
+        at the newest observations).
     update_sweeps : sweep budget of the fast run per update (anytime: an unconverged run still
         gives labels).
     block : stride of the block runs (observations finalised per block run); ``None`` = half the

@@ -97,9 +97,7 @@ def run(cands, Y, truth, seed: int, confirm: int = 5, edge=None, **params):
         t0 = time.perf_counter()
         p = stream.project(y)
         t1 = time.perf_counter()
-        up = seg.update_projected(
-            p.latent_time[0], p.errors[0], None if p.reversed_errors is None else p.reversed_errors[0]
-        )
+        up = seg.update_projected(*p.row())
         t2 = time.perf_counter()
         cpu.append(time.thread_time() - c0)
         lat.append(t2 - t0)

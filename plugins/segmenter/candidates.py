@@ -54,6 +54,11 @@ class Projection:
     def __len__(self) -> int:
         return self.latent_time.shape[0]
 
+    def row(self, t: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+        """Observation t's latent times, errors and reversed errors (M,) each (None without heading
+        channels): the arguments of an online segmenter's ``update_projected``."""
+        return self.latent_time[t], self.errors[t], None if self.reversed_errors is None else self.reversed_errors[t]
+
     def _select(self, rows, cols, classes: list[str]) -> Projection:
         def pick(a: np.ndarray | None) -> np.ndarray | None:
             return None if a is None else a[rows][:, cols]

@@ -269,7 +269,7 @@ class OnlineCLMSegmenter(CLMSegmenter):
         if not np.isfinite(y).all():  # checked before it enters the delay buffer
             raise ValueError("observations hold NaN/inf; drop or repair those rows before recognition")
         proj = self._stream.project(y)
-        return self.update_projected(proj.latent_time[0], proj.errors[0], self._row_of(proj.reversed_errors))
+        return self.update_projected(*proj.row())
 
     def _append(self, **rows: np.ndarray) -> None:
         """Add one observation's source rows (:meth:`_source_rows`) and its new band entries."""
@@ -304,11 +304,6 @@ class OnlineCLMSegmenter(CLMSegmenter):
         whole-stream batch uses the stream's length.
         """
         return self.with_background(self._band[:, : self.n], length=self.seen)
-
-    @staticmethod
-    def _row_of(reversed_errors: np.ndarray | None, t: int = 0) -> np.ndarray | None:
-        """Row t of a projection's reversed errors (None without heading channels)."""
-        return None if reversed_errors is None else reversed_errors[t]
 
     def update_projected(
         self, latent_time: np.ndarray, errors: np.ndarray, reversed_errors: np.ndarray | None = None
@@ -455,7 +450,7 @@ class OnlineCLMSegmenter(CLMSegmenter):
         """Updates of a whole stream, the source evaluated once for all of it."""
         proj = self.candidates.project(Y)
         for t in range(len(Y)):
-            yield self.update_projected(proj.latent_time[t], proj.errors[t], self._row_of(proj.reversed_errors, t))
+            yield self.update_projected(*proj.row(t))
 
     def _revisions(self) -> list[SegmentChange]:
         """Confirmed revisions by the fast run (labels fixed by a block run excepted).

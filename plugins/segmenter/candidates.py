@@ -22,6 +22,7 @@ import numpy as np
 
 from .delay import DelayEmbedding
 from .headings import Headings
+from .intensity import IntensityRanges, log_intensity
 from .scaling import ChannelScaling
 
 INDEX_FILE = "classes.json"
@@ -196,6 +197,7 @@ class CandidateSet:
         self.headings = headings.pop()
         self.evidence_temperature = float(provenances[0].get("evidence_temperature", 1.0))
         self.own_errors = np.array([float(p.get("own_error", 1.0)) for p in provenances])
+        self.intensity = IntensityRanges.from_provenances(provenances)  # None for models without ranges
         self.reconstruction = str(provenances[0].get("reconstruction", "absolute"))  # what the models were made for
 
     def _batched_projector(self):
@@ -288,6 +290,14 @@ class CandidateSet:
 
     def without(self, label: str) -> CandidateSet:
         return CandidateSet({k: v for k, v in self.models.items() if k != label})
+
+    def intensity_weights(self, Y: np.ndarray) -> np.ndarray:
+        """Per observation and candidate (N, M), how far Y's motion intensity lies within the
+        candidate's training range (:mod:`.intensity`); all 1 for models without ranges."""
+        Y = np.atleast_2d(np.asarray(Y, dtype=float))
+        if self.intensity is None:
+            return np.ones((len(Y), len(self)))
+        return self.intensity.weights(log_intensity(Y, self.intensity.floor, self.intensity.window))
 
     @property
     def n_channels(self) -> int:

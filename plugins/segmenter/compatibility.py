@@ -407,16 +407,20 @@ def evidence_band(evidence: np.ndarray, width: int, history: int) -> np.ndarray:
     return band
 
 
-def novelty_weight(errors: np.ndarray, own_errors: np.ndarray, novelty: float) -> np.ndarray:
-    """Per frame, how far the class manifolds explain it, in (0, 1]: ``min(1, own / (novelty ·
-    error))`` of the best-fitting manifold (error (N, M), own typical errors (M,)).  1 while that
-    error stays within ``1 / novelty`` times the manifold's own typical error on its training
-    frames, then falling with the ratio (documented choice, docs/segmentation.md: scale-free, and
-    frames the manifolds explain keep the classifier's evidence unchanged)."""
+def novelty_weight(errors: np.ndarray, own_errors: np.ndarray, novelty: float, intensity: np.ndarray) -> np.ndarray:
+    """Per frame and class (N, M), how far the class models explain the frame, in (0, 1]:
+    ``min(1, own / (novelty · error))`` of the best-fitting manifold (errors (N, M), own typical
+    errors (M,)) times each class's intensity weight (``intensity`` (N, M), :mod:`.intensity`).
+    The first factor is 1 while the error stays within ``1 / novelty`` times the manifold's own
+    typical error on its training frames, then falls with the ratio (documented choice,
+    docs/segmentation.md: scale-free, and frames the manifolds explain keep the classifier's
+    evidence unchanged); the second keeps a class's evidence only where the frame moves as
+    vigorously as that class's training frames."""
     E = np.asarray(errors, dtype=float)
     best = np.argmin(E, axis=1)
     error = np.maximum(E[np.arange(len(E)), best], 1e-300)
-    return np.minimum(1.0, np.asarray(own_errors, dtype=float)[best] / (float(novelty) * error))
+    weight = np.minimum(1.0, np.asarray(own_errors, dtype=float)[best] / (float(novelty) * error))
+    return weight[:, None] * np.asarray(intensity, dtype=float)
 
 
 def background_band(n: int, width: int, strength: float, radius: int) -> tuple[np.ndarray, float]:

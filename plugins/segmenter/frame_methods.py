@@ -261,10 +261,12 @@ class NoveltyCLMMethod(ScoreCLMMethod):
     """:class:`ScoreCLMMethod` with a novelty term from the class manifolds: a frame whose best
     manifold's error exceeds ``1 / novelty`` times that manifold's own typical error on its
     training frames has its classifier evidence scaled down by the ratio,
-    ``w = min(1, own / (novelty · error))``; ``e_m = p_m · w̄``, ``w̄`` the mean of ``w`` over the
-    frame and the H − 1 before it (the γ = 1 history average), before the banding of
-    :func:`.compatibility.evidence_band`.  A frame that no class manifold explains falls below
-    chance in every class layer and goes to the background, however confident the classifier is;
+    ``w = min(1, own / (novelty · error))``; and class m's evidence where the frame's motion
+    intensity lies outside m's training range (:mod:`.intensity`, weight ``i_m``):
+    ``e_m = p_m · mean(w · i_m)``, the mean over the frame and the H − 1 before it (the γ = 1
+    history average), before the banding of :func:`.compatibility.evidence_band`.  A frame that no
+    class model explains falls below chance in every class layer and goes to the background,
+    however confident the classifier is;
     ``novelty`` is chosen on validation without refitting.  Rejection = the background factor, as
     for :class:`ScoreCLMMethod`; with a class dropped (calibration) both its decision column and
     its manifold go (docs/segmentation.md)."""
@@ -297,13 +299,14 @@ class NoveltyCLMMethod(ScoreCLMMethod):
 
     def prepare(self, fitted, X):
         scorer, manifolds = fitted.model
-        return self.scorer.prepare(scorer, X), manifolds.project(X)
+        return self.scorer.prepare(scorer, X), manifolds.project(X), manifolds.intensity_weights(X)
 
     def evidence(self, fitted: Fitted, state, drop: int | None) -> np.ndarray:
-        scores, proj = state
+        scores, proj, intensity = state
+        kept = [j for j, c in enumerate(proj.classes) if drop is None or c != str(drop)]
         cands, proj, _ = UKRMethod._view(Fitted(fitted.model[1], fitted.classes, fitted.params), proj, drop)
-        known = novelty_weight(proj.errors, cands.own_errors, fitted.params["novelty"])
-        return super().evidence(fitted, scores, drop) * history_compatibility(known, self.history, 1.0)[:, None]
+        known = novelty_weight(proj.errors, cands.own_errors, fitted.params["novelty"], intensity[:, kept])
+        return super().evidence(fitted, scores, drop) * history_compatibility(known, self.history, 1.0)
 
 
 METHODS = {

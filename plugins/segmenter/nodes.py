@@ -115,7 +115,8 @@ class OnlineCLMNode(_RecognizerNode):
         novelty_models: str | list[str] | None = Field(
             None,
             description="source minirocket/dtw: class manifolds (`handflow train-classes RECORDINGS --delay 8`) "
-            "whose novelty weight scales the scorer's evidence, so motion they do not explain is rejected",
+            "whose novelty weight scales the scorer's evidence, so motion they do not explain (in shape, or in "
+            "intensity: gentler or more vigorous than their training) is rejected",
         )
         novelty: float = Field(
             0.25, gt=0, description="novelty weight < 1 beyond 1/novelty times a manifold's own typical error"

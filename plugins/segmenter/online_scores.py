@@ -8,7 +8,8 @@ compatibilities within H are ``e_im + e_jm − 2/M`` (:func:`.compatibility.evid
 Everything else — one CLM layer per class plus the background, warm start, confirmed
 revisions, segment events — is the UKR segmenter's.  With ``novelty_models`` (class manifolds
 from ``handflow train-classes``) each observation's evidence is scaled by its novelty weight
-(:func:`.compatibility.novelty_weight`), so motion no manifold explains goes to the background.
+(:func:`.compatibility.novelty_weight`, with the models' intensity ranges, :mod:`.intensity`), so
+motion no manifold explains goes to the background.
 :func:`batch_labels` segments a whole recording with the same compatibilities, the reference of
 the online/batch agreement.
 """
@@ -61,8 +62,10 @@ class OnlineScoreCLMSegmenter(OnlineCLMSegmenter):
     def reset(self) -> None:
         super().reset()
         self._recent: deque[np.ndarray] = deque(maxlen=int(self.scorer.window))
-        self._novelty_stream = self.novelty_models.stream() if self.novelty_models is not None else None
-        self._weights: deque[float] = deque(maxlen=int(self.history))  # novelty weights of the last H observations
+        models = self.novelty_models
+        self._novelty_stream = models.stream() if models is not None else None
+        self._intensity_stream = models.intensity.stream() if models is not None and models.intensity else None
+        self._weights: deque[np.ndarray] = deque(maxlen=int(self.history))  # novelty weights of the last H observations
 
     def _source_rows(self, m: int) -> dict[str, np.ndarray]:
         return {"evidence": np.zeros((self.window, m))}
@@ -73,19 +76,23 @@ class OnlineScoreCLMSegmenter(OnlineCLMSegmenter):
         self._recent.append(y)
         return self.update_scores(self.scorer.scores_last(np.asarray(self._recent)), self.known_weight(y))
 
-    def update_scores(self, scores: np.ndarray, known: float = 1.0) -> OnlineUpdate:
-        """:meth:`update` for an observation already scored (M,), with its novelty weight."""
+    def update_scores(self, scores: np.ndarray, known: float | np.ndarray = 1.0) -> OnlineUpdate:
+        """:meth:`update` for an observation already scored (M,), with its novelty weights (M,)."""
         self._append(evidence=self.scorer.evidence(scores)[0] * known)
         return self._segment()
 
-    def known_weight(self, y: np.ndarray) -> float:
-        """The novelty weight of the newest observation, averaged over the last H (1 without novelty models)."""
+    def known_weight(self, y: np.ndarray) -> float | np.ndarray:
+        """The novelty weights (M,) of the newest observation, averaged over the last H (1 without novelty models)."""
         models = self.novelty_models
         if models is None:
             return 1.0
         proj = self._novelty_stream.project(y)
-        self._weights.append(float(novelty_weight(proj.errors, models.own_errors, self.novelty)[0]))
-        return float(np.mean(self._weights))
+        if self._intensity_stream is None:
+            intensity = np.ones((1, len(models)))
+        else:
+            intensity = models.intensity.weights(self._intensity_stream.push(y))
+        self._weights.append(novelty_weight(proj.errors, models.own_errors, self.novelty, intensity)[0])
+        return np.mean(self._weights, axis=0)
 
     def _updates(self, Y: np.ndarray):
         weights = known_weights(self.novelty_models, self.novelty, Y, self.history)
@@ -94,11 +101,12 @@ class OnlineScoreCLMSegmenter(OnlineCLMSegmenter):
 
 
 def known_weights(models: CandidateSet | None, novelty: float, Y: np.ndarray, history: int) -> np.ndarray:
-    """Novelty weights (N,) of a whole recording, each averaged with the H − 1 before it
+    """Novelty weights (N, M) of a whole recording, each averaged with the H − 1 before it
     (:func:`.compatibility.novelty_weight`; all 1 without models)."""
     if models is None:
-        return np.ones(len(Y))
-    return history_compatibility(novelty_weight(models.project(Y).errors, models.own_errors, novelty), history, 1.0)
+        return np.ones((len(Y), 1))
+    weights = novelty_weight(models.project(Y).errors, models.own_errors, novelty, models.intensity_weights(Y))
+    return history_compatibility(weights, history, 1.0)
 
 
 def batch_labels(
@@ -109,5 +117,5 @@ def batch_labels(
     are :class:`.clm_segmenter.CLMSegmenter`'s."""
     seg = CLMSegmenter(None, **params)
     _, span, width = seg.widths()
-    evidence = scorer.evidence(scorer.scores(Y)) * known_weights(novelty_models, novelty, Y, int(seg.history))[:, None]
+    evidence = scorer.evidence(scorer.scores(Y)) * known_weights(novelty_models, novelty, Y, int(seg.history))
     return seg.fit_predict_bands(*seg.with_background(evidence_band(evidence, width, span)))

@@ -31,6 +31,7 @@ from .cycles import phase_direction, split_cycles
 from .datasets import LabelledDataset
 from .delay import DelayEmbedding
 from .headings import Headings
+from .intensity import IntensityRanges
 from .scaling import ChannelScaling
 
 
@@ -187,7 +188,7 @@ def fit_recording_models(
     error of the training frames on their own class's model) — and each model stores its own
     typical error relative to it (``own_error``) and the evidence temperature of the training
     frames (``evidence_temperature``), as :class:`CLMSegmenter`'s ``reconstruction="relative"``
-    uses them.  ``scaling="standard"`` z-scores the channels with all training frames first and
+    uses them, and the range of its training frames' motion intensity (:mod:`.intensity`).  ``scaling="standard"`` z-scores the channels with all training frames first and
     stores the scaling with the models (for models used outside the evaluation).
     """
     if scaling not in SCALINGS:
@@ -215,12 +216,14 @@ def fit_recording_models(
     own = {c: errors[c][:, j] for j, c in enumerate(raw)}
     reference = float(np.median(np.concatenate(list(own.values())))) or 1.0
     tau = evidence_temperature(-np.vstack(list(errors.values())) / reference)
-    for c, model in models.items():
+    intensity = IntensityRanges.fit(raw)
+    for row, (c, model) in enumerate(models.items()):
         model.provenance_ = dict(
             model.provenance_,
             error_reference=reference,
             evidence_temperature=tau,
             own_error=float(np.median(own[c])) / reference,
+            **intensity.class_provenance(row),
         )
     return candidate_set(models)  # reads the shared settings back from the provenance
 

@@ -247,8 +247,12 @@ def test_novelty_from_the_class_manifolds_rejects_what_the_classifier_labels_con
     plain_fit = plain.fit(segments, {"window": 20}, seed=0)
     plain_labels = plain.labels(plain_fit, plain.prepare(plain_fit, X), reject=0.1)
     assert np.mean(plain_labels[unknown] == -1) < 0.2  # the same background without the novelty term
-    tolerant = novelty.labels(replace(fitted, params={**fitted.params, "novelty": 1e-6}), state, reject=0.1)
-    assert np.array_equal(tolerant, plain_labels)  # a null model that explains nothing changes nothing
+    tolerant = replace(fitted, params={**fitted.params, "novelty": 1e-6})
+    scores, proj, intensity = state
+    in_range = (scores, proj, np.ones_like(intensity))
+    assert np.array_equal(novelty.labels(tolerant, in_range, reject=0.1), plain_labels)  # nothing novel: no change
+    by_intensity = novelty.labels(tolerant, state, reject=0.1)  # class 2 moves unlike 0 and 1 (its ranges)
+    assert np.mean(by_intensity[unknown] == -1) > 0.8 and np.mean(by_intensity[known] == y[known]) > 0.85
 
     dropped = novelty.labels(fitted, state, reject=0.1, drop=1)  # pseudo-unknown: column and manifold go
     assert not np.any(dropped == 1) and np.mean(dropped[y == 1] == -1) > 0.5

@@ -168,7 +168,7 @@ class MiniRocketScorer(WindowScorer):
         self.parameters_ = tuple(np.asarray(p) for p in transform.parameters)
         F = self.features(np.concatenate(windows))
         ridge = RidgeClassifierCV(alphas=np.logspace(-3, 3, 10)).fit(F, np.concatenate(targets))
-        coef, intercept = ridge.coef_, np.atleast_1d(ridge.intercept_)
+        coef, intercept = np.atleast_2d(ridge.coef_), np.atleast_1d(ridge.intercept_)  # (F,) when binary
         if coef.shape[0] == 1:  # binary: one decision value d, scores (−d, d)
             coef, intercept = np.vstack([-coef, coef]), np.r_[-intercept, intercept]
         self.coef_, self.intercept_ = coef, intercept

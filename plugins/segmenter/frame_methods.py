@@ -72,6 +72,12 @@ class ScoreMethod(ABC):
     def reject_grid(self, fitted: Fitted, states: list[np.ndarray]) -> np.ndarray:
         return score_thresholds(np.concatenate([s.max(axis=1) for s in states]))
 
+    def without_class(self, fitted: Fitted, segments: dict[int, list[np.ndarray]], drop: int, seed: int):
+        """A model that never saw class ``drop`` (the calibration's pseudo-unknown), or None when
+        ``labels(..., drop=drop)`` already is one: per-class models (DTW references, HMMs) just
+        leave that class's model out."""
+        return None
+
 
 class DTWMethod(ScoreMethod):
     """Sliding-window subsequence DTW 1-NN (:class:`SlidingDTW1NN`); parameter: the window."""
@@ -109,8 +115,8 @@ class HMMMethod(ScoreMethod):
 
 class MiniRocketMethod(ScoreMethod):
     """MiniRocket features of the causal window ending at each frame + a ridge classifier
-    (:class:`.scorers.MiniRocketScorer`, aeon).  With a class dropped (calibration), its column is
-    removed from the decision values (the ridge is not refitted: documented approximation)."""
+    (:class:`.scorers.MiniRocketScorer`, aeon).  The calibration's pseudo-unknowns are models
+    refitted without the class (:meth:`without_class`)."""
 
     name = "minirocket"
 
@@ -123,6 +129,14 @@ class MiniRocketMethod(ScoreMethod):
 
     def prepare(self, fitted, X):
         return fitted.model.scores(X)
+
+    def without_class(self, fitted, segments, drop, seed):
+        """Refitted without ``drop``: the ridge is fitted on all classes at once, so with a class's
+        column merely dropped the other columns would still have learnt to be low on its frames —
+        a pseudo-unknown far easier to reject than a class never seen (docs/segmentation.md).
+        None with two known classes: a ridge needs two, so the column is dropped then."""
+        rest = {c: s for c, s in segments.items() if c != drop}
+        return self.fit(rest, fitted.params, seed) if len(rest) >= 2 else None
 
 
 def _thin(seqs: list[np.ndarray], k: int) -> list[np.ndarray]:
@@ -149,6 +163,10 @@ class UKRMethod:
 
     def prepare(self, fitted: Fitted, X: np.ndarray) -> Projection:
         return fitted.model.project(X)
+
+    def without_class(self, fitted, segments, drop, seed):
+        """None: one manifold per class, so leaving class ``drop``'s out is a model without it."""
+        return None
 
     @staticmethod
     def _view(fitted: Fitted, proj: Projection, drop: int | None) -> tuple[CandidateSet, Projection, list[int]]:
@@ -241,6 +259,9 @@ class ScoreCLMMethod:
     def prepare(self, fitted, X) -> np.ndarray:
         return self.scorer.prepare(fitted, X)
 
+    def without_class(self, fitted, segments, drop, seed):
+        return self.scorer.without_class(fitted, segments, drop, seed)
+
     def evidence(self, fitted: Fitted, state, drop: int | None) -> np.ndarray:
         """Per-frame evidence (N, M) of the classes left after ``drop``, rows summing to 1."""
         evidence = score_evidence(state)[:, _columns(fitted, drop)]
@@ -300,6 +321,14 @@ class NoveltyCLMMethod(ScoreCLMMethod):
     def prepare(self, fitted, X):
         scorer, manifolds = fitted.model
         return self.scorer.prepare(scorer, X), manifolds.project(X), manifolds.intensity_weights(X)
+
+    def without_class(self, fitted, segments, drop, seed):
+        """The scorer refitted without ``drop`` if it needs it; the manifolds leave its one out."""
+        scorer, manifolds = fitted.model
+        refit = self.scorer.without_class(Fitted(scorer, fitted.classes, fitted.params), segments, drop, seed)
+        if refit is None:
+            return None
+        return Fitted((refit.model, manifolds.without(str(drop))), refit.classes, fitted.params)
 
     def evidence(self, fitted: Fitted, state, drop: int | None) -> np.ndarray:
         scores, proj, intensity = state

@@ -135,7 +135,11 @@ class StreamEvaluator:
             states = [(f, self._prepare(method, f, v)) for f, v in fits]
             grid = method.reject_grid(fits[0][0], [s for _, s in states])
 
-            def pred(r, drop=None, states=states):
+            unseen = {c: self._without(method, fits, folds, params, c) for c in present}
+
+            def pred(r, drop=None, states=states, unseen=unseen):
+                if drop is not None and unseen[drop] is not None:  # a model that never saw the class
+                    return np.concatenate([method.labels(f, s, r) for f, s in unseen[drop]])
                 return np.concatenate([method.labels(f, s, r, drop=drop) for f, s in states])
 
             def known_acc(r):
@@ -159,6 +163,21 @@ class StreamEvaluator:
         if key not in self._cache:
             self._cache[key] = method.fit(self._segments(train), params, self.random_state)
         return replace(self._cache[key], params=params)
+
+    def _without(self, method, fits, folds, params: dict, drop: int) -> list | None:
+        """Per inner fold the model and validation state of ``method`` fitted without class ``drop``
+        (:meth:`~.frame_methods.ScoreMethod.without_class`), or None where dropping it is exact."""
+        unseen = []
+        for (fitted, v), (_, rest) in zip(fits, folds):
+            fit_params = {k: x for k, x in params.items() if k not in getattr(method, "label_params", ())}
+            key = (method.fit_key, "without", drop, repr(sorted(fit_params.items())), tuple(r.name for r in rest))
+            if key not in self._cache:
+                self._cache[key] = method.without_class(fitted, self._segments(rest), drop, self.random_state)
+            if self._cache[key] is None:
+                return None
+            refit = replace(self._cache[key], params=params)
+            unseen.append((refit, self._prepare(method, refit, v)))
+        return unseen
 
     def _prepare(self, method, fitted: Fitted, rec: Recording):
         key = (method.fit_key, id(fitted.model), rec.name)

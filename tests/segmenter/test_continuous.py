@@ -268,3 +268,26 @@ def test_a_calibration_that_rejects_everything_is_explained():
     assert "100% of the known frames are rejected" in note and "without rejection 0.400" in note
     assert _degenerate_calibration(truth, everything, [0, 1], [{"validation_objective": 0.7}], closed) is None
     assert _degenerate_calibration(truth, truth, [0, 1], [{"validation_objective": 0.5}], closed) is None
+
+
+def test_a_joint_classifier_is_refitted_for_the_pseudo_unknowns_of_the_calibration():
+    """The ridge of MiniRocket is fitted on all classes at once: with class 2's column merely
+    dropped, the other columns were still trained to be low on its frames. The calibration's
+    pseudo-unknown is therefore a model refitted without it, which is as sure of class 2's frames
+    as of a class it never saw; per-class models just leave the class's model out."""
+    X, y = _synthetic_recordings(0)
+    segments = {c: [X[y == c]] for c in (0, 1, 2)}
+    method = METHODS["minirocket"]
+    fitted = method.fit(segments, {"window": 16}, seed=0)
+    unseen = method.without_class(fitted, segments, 2, seed=0)
+    assert unseen.classes == [0, 1] and unseen.model.classes_ == [0, 1]
+    dropped = method.prepare(fitted, X)[y == 2][:, :2].max(axis=1)
+    refitted = method.prepare(unseen, X)
+    assert refitted.shape == (len(X), 2)  # a binary ridge still scores one column per class
+    refitted = refitted[y == 2].max(axis=1)
+    assert np.median(refitted) > np.median(dropped) + 0.2  # a class never seen gets confident scores
+    assert METHODS["clm_minirocket"].without_class(fitted, segments, 2, seed=0).classes == [0, 1]
+    assert METHODS["dtw_1nn"].without_class(fitted, segments, 2, seed=0) is None
+    two = {c: segments[c] for c in (0, 1)}  # one class left: no ridge; the column is dropped instead
+    assert method.without_class(method.fit(two, {"window": 16}, seed=0), two, 1, seed=0) is None
+    assert METHODS["ukr_clm"].without_class(fitted, segments, 2, seed=0) is None

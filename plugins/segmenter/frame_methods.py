@@ -325,10 +325,10 @@ class NoveltyCLMMethod(ScoreCLMMethod):
     def without_class(self, fitted, segments, drop, seed):
         """The scorer refitted without ``drop`` if it needs it; the manifolds leave its one out."""
         scorer, manifolds = fitted.model
-        refit = self.scorer.without_class(Fitted(scorer, fitted.classes, fitted.params), segments, drop, seed)
+        refit = self.scorer.without_class(scorer, segments, drop, seed)
         if refit is None:
             return None
-        return Fitted((refit.model, manifolds.without(str(drop))), refit.classes, fitted.params)
+        return Fitted((refit, manifolds.without(str(drop))), refit.classes, fitted.params)
 
     def evidence(self, fitted: Fitted, state, drop: int | None) -> np.ndarray:
         scores, proj, intensity = state

@@ -16,10 +16,11 @@ from handflow.plugins.segmenter.continuous import (
     segments,
 )
 from handflow.plugins.segmenter.datasets import DatasetError
-from handflow.plugins.segmenter.frame_methods import METHODS, DTWMethod, NoveltyCLMMethod
+from handflow.plugins.segmenter.frame_methods import METHODS, DTWMethod, Fitted, NoveltyCLMMethod
 from handflow.plugins.segmenter.openset import calibrate, frame_metrics, runs, segment_f1, tradeoff_curve
 from handflow.plugins.segmenter.stream_cli import format_stream_table
 from handflow.plugins.segmenter.stream_evaluation import StreamEvaluator
+from handflow.plugins.segmenter.training import fit_recording_models
 from tests.segmenter.conftest import SHARED
 
 CSV = "x,y,label\n0,1,walk\n1,2,walk\n2,3,\n3,4,run\n"
@@ -287,6 +288,13 @@ def test_a_joint_classifier_is_refitted_for_the_pseudo_unknowns_of_the_calibrati
     refitted = refitted[y == 2].max(axis=1)
     assert np.median(refitted) > np.median(dropped) + 0.2  # a class never seen gets confident scores
     assert METHODS["clm_minirocket"].without_class(fitted, segments, 2, seed=0).classes == [0, 1]
+    manifolds = fit_recording_models({str(c): s for c, s in segments.items()}, delay=4, n_steps=20)
+    novelty = METHODS["clm_minirocket_novelty"]
+    both = Fitted((fitted, manifolds), [0, 1, 2], {"window": 16, "delay": 4, "novelty": 0.25})
+    unseen = novelty.without_class(both, segments, 2, seed=0)  # the ridge refitted, class 2's manifold left out
+    assert unseen.classes == [0, 1] and unseen.model[1].classes == ["0", "1"]
+    labels = novelty.labels(unseen, novelty.prepare(unseen, X), reject=0.5)
+    assert set(np.unique(labels)) <= {-1, 0, 1}
     assert METHODS["dtw_1nn"].without_class(fitted, segments, 2, seed=0) is None
     two = {c: segments[c] for c in (0, 1)}  # one class left: no ridge; the column is dropped instead
     assert method.without_class(method.fit(two, {"window": 16}, seed=0), two, 1, seed=0) is None

@@ -289,8 +289,8 @@ class NoveltyCLMMethod(ScoreCLMMethod):
     class model explains falls below chance in every class layer and goes to the background,
     however confident the classifier is;
     ``novelty`` is chosen on validation without refitting.  Rejection = the background factor, as
-    for :class:`ScoreCLMMethod`; with a class dropped (calibration) both its decision column and
-    its manifold go (docs/segmentation.md)."""
+    for :class:`ScoreCLMMethod`; a pseudo-unknown of the calibration has the scorer refitted
+    without its class (:meth:`without_class`) and its manifold left out (docs/segmentation.md)."""
 
     ukr = UKRMethod()
     delays = ((8,), (8, 16))  # delay windows of the manifolds in the quick and the full grid

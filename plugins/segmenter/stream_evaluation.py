@@ -158,19 +158,22 @@ class StreamEvaluator:
         """``method.fit`` on ``train``, shared within a fold by the methods of one ``fit_key``
         (minirocket and clm_minirocket fit the same classifier on the same data) and by the
         parameter sets that differ only in a method's ``label_params`` (used after the fit)."""
-        fit_params = {k: v for k, v in params.items() if k not in getattr(method, "label_params", ())}
-        key = (method.fit_key, repr(sorted(fit_params.items())), tuple(r.name for r in train))
+        key = self._fit_key(method, params, train)
         if key not in self._cache:
             self._cache[key] = method.fit(self._segments(train), params, self.random_state)
         return replace(self._cache[key], params=params)
+
+    @staticmethod
+    def _fit_key(method, params: dict, train: list[Recording]) -> tuple:
+        fit_params = {k: v for k, v in params.items() if k not in getattr(method, "label_params", ())}
+        return (method.fit_key, repr(sorted(fit_params.items())), tuple(r.name for r in train))
 
     def _without(self, method, fits, folds, params: dict, drop: int) -> list | None:
         """Per inner fold the model and validation state of ``method`` fitted without class ``drop``
         (:meth:`~.frame_methods.ScoreMethod.without_class`), or None where dropping it is exact."""
         unseen = []
         for (fitted, v), (_, rest) in zip(fits, folds):
-            fit_params = {k: x for k, x in params.items() if k not in getattr(method, "label_params", ())}
-            key = (method.fit_key, "without", drop, repr(sorted(fit_params.items())), tuple(r.name for r in rest))
+            key = (*self._fit_key(method, params, rest), "without", drop)
             if key not in self._cache:
                 self._cache[key] = method.without_class(fitted, self._segments(rest), drop, self.random_state)
             if self._cache[key] is None:

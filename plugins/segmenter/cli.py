@@ -15,7 +15,7 @@ from .datasets import DatasetError, load_dataset
 from .evaluation import EXPERIMENTS, METHODS, SELECTIONS, Evaluator, Protocol
 from .running_scaling import RunningStandardizer
 from .stream_cli import run_stream_evaluation, run_train_recording_models
-from .stream_evaluation import NORMALISATIONS
+from .stream_evaluation import NORMALISATIONS, PSEUDO_UNKNOWNS
 from .training import INITS, KERNELS, candidate_set, save_class_models, train_class_models
 
 
@@ -190,6 +190,16 @@ def register_evaluate(parser: argparse.ArgumentParser) -> None:
         f"running mean/std and those training statistics as a prior of {RunningStandardizer().prior_frames} "
         "frames — for recordings of different people or sensor placements (docs/segmentation.md)",
     )
+    parser.add_argument(
+        "--pseudo-unknowns",
+        choices=PSEUDO_UNKNOWNS,
+        default="refit",
+        help="continuous recordings: how the calibration makes a known class unknown — 'refit' (default) refits "
+        "a classifier trained on all classes at once (MiniRocket's ridge) without it, so its frames are as "
+        "unknown as a class never seen; 'drop' only drops its decision column (faster, and optimistic: "
+        "rejection then comes out too weak). Per-class models (UKR, DTW, HMM) leave the class's model out "
+        "either way (docs/segmentation.md)",
+    )
     parser.set_defaults(func=run_evaluate)
 
 
@@ -208,8 +218,10 @@ def run_evaluate(args) -> int:
         return run_stream_evaluation(args, _progress)
     t0 = time.perf_counter()
     try:
-        if args.normalise != "training":
-            raise DatasetError(f"--normalise {args.normalise} needs continuous recordings (docs/segmentation.md)")
+        if args.normalise != "training" or args.pseudo_unknowns != "refit":
+            raise DatasetError(
+                "--normalise and --pseudo-unknowns apply to continuous recordings (docs/segmentation.md)"
+            )
         methods = tuple(m for m in (args.methods or ",".join(METHODS)).split(",") if m)
         unknown = sorted(set(methods) - set(METHODS))
         if unknown:

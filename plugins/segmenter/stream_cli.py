@@ -33,6 +33,7 @@ def run_stream_evaluation(args, progress) -> int:
             random_state=args.seed,
             progress=progress,
             normalise=args.normalise,
+            pseudo_unknowns=args.pseudo_unknowns,
         )
         result = evaluator.evaluate()
     except (ValueError, ImportError) as exc:

@@ -4,7 +4,9 @@ For each held-out recording: the other recordings are the training data.  Parame
 method — its hyper-parameters (:meth:`grid`) and its rejection parameter — are chosen on inner
 splits of those only, by the mean of
 ``known_accuracy`` and the rejection of pseudo-unknowns (each known class in turn removed from the
-model set, its frames then count as unknown), pooled over inner folds that each hold out one of
+model set, its frames then count as unknown; ``pseudo_unknowns="refit"`` refits a classifier
+fitted on all classes at once without the class, ``"drop"`` only drops its decision column),
+pooled over inner folds that each hold out one of
 the last ``INNER_FOLDS`` training recordings.  The method is refitted on all training recordings
 and labels the held-out one frame by frame.  Frames of labels outside ``known`` are never used for
 training or calibration; every figure is computed on frames pooled over the folds.
@@ -35,6 +37,7 @@ from .scaling import ChannelScaling
 INNER_FOLDS = 3  # validation recordings of the inner split (each validated by a fit on the others)
 DEFAULT_METHODS = ("ukr_clm", "ukr_clm_online", "ukr_only", "dtw_1nn", "hmm", "minirocket", "clm_minirocket")
 NORMALISATIONS = ("training", "recording")
+PSEUDO_UNKNOWNS = ("refit", "drop")
 REJECT_ALL_OBJECTIVE = 0.5  # mean(known accuracy 0, pseudo-unknown rejection 1)
 
 
@@ -93,9 +96,12 @@ class StreamEvaluator:
         random_state: int = 0,
         progress: Callable[[str], None] = lambda msg: None,
         normalise: str = "training",
+        pseudo_unknowns: str = "refit",
     ) -> None:
         if normalise not in NORMALISATIONS:
             raise ValueError(f"normalise must be one of {NORMALISATIONS}, got {normalise!r}")
+        if pseudo_unknowns not in PSEUDO_UNKNOWNS:
+            raise ValueError(f"pseudo_unknowns must be one of {PSEUDO_UNKNOWNS}, got {pseudo_unknowns!r}")
         unknown_names = sorted(set(known or []) - set(data.class_names))
         if unknown_names:
             raise ValueError(f"--known names classes {unknown_names} that the data lacks; it has {data.class_names}")
@@ -113,6 +119,7 @@ class StreamEvaluator:
         self.random_state = random_state
         self.progress = progress
         self.normalise = normalise
+        self.pseudo_unknowns = pseudo_unknowns
         self._cache: dict[tuple, object] = {}
 
     # -- one fold ---------------------------------------------------------------------------
@@ -170,7 +177,10 @@ class StreamEvaluator:
 
     def _without(self, method, fits, folds, params: dict, drop: int) -> list | None:
         """Per inner fold the model and validation state of ``method`` fitted without class ``drop``
-        (:meth:`~.frame_methods.ScoreMethod.without_class`), or None where dropping it is exact."""
+        (:meth:`~.frame_methods.ScoreMethod.without_class`), or None where dropping it is exact
+        or the evaluation drops classes (``pseudo_unknowns="drop"``)."""
+        if self.pseudo_unknowns == "drop":
+            return None
         unseen = []
         for (fitted, v), (_, rest) in zip(fits, folds):
             key = (*self._fit_key(method, params, rest), "without", drop)
@@ -288,6 +298,7 @@ class StreamEvaluator:
             "recordings": self.data.names(),
             "dataset": self.data.source,
             "normalisation": self._normalisation(),
+            "pseudo_unknowns": self.pseudo_unknowns,
             "quick": self.quick,
             "grids": {n: METHODS[n].grid(self.quick) for n in self.methods if n in METHODS},
         }

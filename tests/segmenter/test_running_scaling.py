@@ -139,11 +139,16 @@ def test_cli_reports_the_normalisation_in_json(tmp_path, capsys):
         arrays_[f"X_r{k}"] = X + k  # each "person" shifted
     np.savez(tmp_path / "s.npz", **arrays_)
     argv = [str(tmp_path / "s.npz"), "--methods", "dtw_1nn", "--quick", "--json", "--normalise", "recording"]
-    assert run_command(register_evaluate, argv) == 0
-    normalisation = json.loads(capsys.readouterr().out)["parameters"]["normalisation"]
+    assert run_command(register_evaluate, [*argv, "--pseudo-unknowns", "drop"]) == 0
+    parameters = json.loads(capsys.readouterr().out)["parameters"]
+    normalisation = parameters["normalisation"]
     assert normalisation["mode"] == "recording" and normalisation["prior_frames"] == 200
-    assert run_command(register_evaluate, [str(tmp_path), "--normalise", "recording"]) == 2  # not continuous recordings
-    assert "needs continuous recordings" in capsys.readouterr().err
+    assert parameters["pseudo_unknowns"] == "drop"
+    for option in (["--normalise", "recording"], ["--pseudo-unknowns", "drop"]):
+        assert run_command(register_evaluate, [str(tmp_path), *option]) == 2  # not continuous recordings
+        assert "apply to continuous recordings" in capsys.readouterr().err
+    with pytest.raises(ValueError, match="pseudo_unknowns must be one of"):
+        StreamEvaluator(None, pseudo_unknowns="guess")
 
 
 @pytest.fixture(scope="module")

@@ -26,6 +26,7 @@ WINDOW = 16  # frames of the causal window an intensity is measured over
 QUANTILE = 0.01  # a class's range spans these quantiles of its training frames' intensities
 SHARPNESS = 2.0  # weight exp(−2·excess): a channel 2× outside every range keeps a quarter
 FLOOR = 1e-3  # standard deviations below this share of the pooled one count as this much
+MAX_WINDOW = 10_000  # a model file asking for a longer window is refused (tampered or foreign)
 
 
 def log_intensity(Y: np.ndarray, floor: np.ndarray, window: int = WINDOW) -> np.ndarray:
@@ -90,10 +91,12 @@ class IntensityRanges:
             raise ValueError(f"a model's intensity range is malformed ({exc}); retrain the class models") from None
         if len(floors) > 1 or len(windows) > 1 or low.shape != high.shape or low.shape[1] != len(next(iter(floors))):
             raise ValueError("class models measured intensity differently; retrain them together")
-        return cls(low, high, np.array(floors.pop()), windows.pop())
-
-    def take(self, rows: list[int]) -> IntensityRanges:
-        return IntensityRanges(self.low[rows], self.high[rows], self.floor, self.window)
+        floor, window = np.array(floors.pop()), windows.pop()
+        if not (1 <= window <= MAX_WINDOW and np.all(floor > 0) and np.isfinite(floor).all()):
+            raise ValueError(
+                f"a model's intensity window {window} or floor {floor} is invalid; retrain the class models"
+            )
+        return cls(low, high, floor, window)
 
     def weights(self, intensity: np.ndarray) -> np.ndarray:
         """Per frame and class (N, M): ``exp(−SHARPNESS · excess)`` of log intensities (N, d); 1

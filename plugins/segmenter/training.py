@@ -188,8 +188,9 @@ def fit_recording_models(
     error of the training frames on their own class's model) — and each model stores its own
     typical error relative to it (``own_error``) and the evidence temperature of the training
     frames (``evidence_temperature``), as :class:`CLMSegmenter`'s ``reconstruction="relative"``
-    uses them, and the range of its training frames' motion intensity (:mod:`.intensity`).  ``scaling="standard"`` z-scores the channels with all training frames first and
-    stores the scaling with the models (for models used outside the evaluation).
+    uses them, and the range of its training frames' motion intensity (:mod:`.intensity`).
+    ``scaling="standard"`` z-scores the channels with all training frames first and stores the
+    scaling with the models (for models used outside the evaluation).
     """
     if scaling not in SCALINGS:
         raise ValueError(f"scaling must be one of {SCALINGS}, got {scaling!r}")

@@ -90,3 +90,23 @@ def test_the_novelty_weight_keeps_the_evidence_of_classes_whose_intensity_a_fram
     intensity = np.array([[1.0, 1.0], [0.25, 1.0], [1.0, 1.0]])  # frame 1 moves unlike class 0's training
     w = novelty_weight(errors, own_errors=np.array([1.0, 1.0]), novelty=0.25, intensity=intensity)
     assert np.allclose(w[0], 1.0) and np.allclose(w[1], [0.25, 1.0]) and np.allclose(w[2], 0.1)
+
+
+JSONISH = st.recursive(
+    st.none() | st.booleans() | st.integers() | st.floats(allow_nan=True) | st.text(max_size=4),
+    lambda inner: st.lists(inner, max_size=4),
+    max_leaves=12,
+)
+
+
+@settings(max_examples=200, deadline=None)
+@given(key=st.sampled_from(["intensity_low", "intensity_high", "intensity_floor", "intensity_window"]), value=JSONISH)
+def test_a_tampered_intensity_range_is_a_clear_error_or_a_usable_range(key, value):
+    good = IntensityRanges(np.zeros((2, 2)), np.ones((2, 2)), np.full(2, 1e-3))
+    provenances = [good.class_provenance(0), {**good.class_provenance(1), key: value}]
+    try:
+        ranges = IntensityRanges.from_provenances(provenances)
+    except ValueError as exc:
+        assert "retrain" in str(exc)
+    else:
+        assert ranges.weights(log_intensity(np.zeros((3, 2)), ranges.floor, ranges.window)).shape == (3, 2)

@@ -276,6 +276,7 @@ def test_a_joint_classifier_is_refitted_for_the_pseudo_unknowns_of_the_calibrati
     dropped, the other columns were still trained to be low on its frames. The calibration's
     pseudo-unknown is therefore a model refitted without it, which is as sure of class 2's frames
     as of a class it never saw; per-class models just leave the class's model out."""
+    pytest.importorskip("aeon")
     X, y = _synthetic_recordings(0)
     segments = {c: [X[y == c]] for c in (0, 1, 2)}
     method = METHODS["minirocket"]

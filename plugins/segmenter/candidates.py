@@ -315,6 +315,7 @@ class ObservationStream:
         self.candidates = candidates
         self._headings = candidates.headings.stream()
         self._delays = [candidates.delay.stream() for _ in range(1 + candidates.headings.active)]
+        self._intensity = candidates.intensity.stream() if candidates.intensity else None
 
     def project(self, y: np.ndarray) -> Projection:
         """Projection (one row) of the stream's newest observation y (d,) onto the candidates."""
@@ -323,6 +324,14 @@ class ObservationStream:
             return c.project(y)
         rows, reversed_rows = self.push(np.asarray(y, dtype=float).reshape(-1))
         return c.project(rows, embedded=True, reversed_rows=reversed_rows)
+
+    def intensity_weights(self, y: np.ndarray) -> np.ndarray:
+        """(1, M) intensity weights of the newest observation y (d,), equal to
+        :meth:`CandidateSet.intensity_weights` of the whole stream (all 1 for models without ranges)."""
+        c = self.candidates
+        if self._intensity is None:
+            return np.ones((1, len(c)))
+        return c.intensity.weights(self._intensity.push(y))
 
     def push(self, y: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
         """The prepared row (1, D) of the newest observation y (d,), and the row with its heading

@@ -34,15 +34,19 @@ def log_intensity(Y: np.ndarray, floor: np.ndarray, window: int = WINDOW) -> np.
     for the first ``window − 1`` frames, whose window is not complete yet."""
     Y = np.asarray(Y, dtype=float)
     windows = DelayEmbedding(int(window)).transform(Y).reshape(len(Y), int(window), Y.shape[1])
-    intensity = np.log(np.maximum(windows.std(axis=1), floor))
+    intensity = _log_std(windows, floor, axis=1)
     intensity[: int(window) - 1] = np.nan
     return intensity
+
+
+def _log_std(values: np.ndarray, floor: np.ndarray, axis: int) -> np.ndarray:
+    return np.log(np.maximum(values.std(axis=axis), floor))
 
 
 def _segment_intensity(segment: np.ndarray, floor: np.ndarray) -> np.ndarray:
     if len(segment) >= WINDOW:
         return log_intensity(segment, floor)[WINDOW - 1 :]
-    return np.log(np.maximum(segment.std(axis=0), floor))[None]
+    return _log_std(segment, floor, axis=0)[None]
 
 
 @dataclass(frozen=True)
@@ -124,4 +128,4 @@ class IntensityStream:
         self._seen += 1
         if self._seen < self.ranges.window:
             return np.full((1, y.size), np.nan)
-        return np.log(np.maximum(window.std(axis=0), self.ranges.floor))[None]
+        return _log_std(window, self.ranges.floor, axis=0)[None]

@@ -62,9 +62,7 @@ class OnlineScoreCLMSegmenter(OnlineCLMSegmenter):
     def reset(self) -> None:
         super().reset()
         self._recent: deque[np.ndarray] = deque(maxlen=int(self.scorer.window))
-        models = self.novelty_models
-        self._novelty_stream = models.stream() if models is not None else None
-        self._intensity_stream = models.intensity.stream() if models is not None and models.intensity else None
+        self._novelty_stream = self.novelty_models.stream() if self.novelty_models is not None else None
         self._weights: deque[np.ndarray] = deque(maxlen=int(self.history))  # novelty weights of the last H observations
 
     def _source_rows(self, m: int) -> dict[str, np.ndarray]:
@@ -86,12 +84,9 @@ class OnlineScoreCLMSegmenter(OnlineCLMSegmenter):
         models = self.novelty_models
         if models is None:
             return 1.0
-        proj = self._novelty_stream.project(y)
-        if self._intensity_stream is None:
-            intensity = np.ones((1, len(models)))
-        else:
-            intensity = models.intensity.weights(self._intensity_stream.push(y))
-        self._weights.append(novelty_weight(proj.errors, models.own_errors, self.novelty, intensity)[0])
+        stream = self._novelty_stream
+        intensity = stream.intensity_weights(y)
+        self._weights.append(novelty_weight(stream.project(y).errors, models.own_errors, self.novelty, intensity)[0])
         return np.mean(self._weights, axis=0)
 
     def _updates(self, Y: np.ndarray):

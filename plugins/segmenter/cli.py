@@ -15,7 +15,7 @@ from .datasets import DatasetError, load_dataset
 from .evaluation import EXPERIMENTS, METHODS, SELECTIONS, Evaluator, Protocol
 from .running_scaling import RunningStandardizer
 from .stream_cli import run_stream_evaluation, run_train_recording_models
-from .stream_evaluation import NORMALISATIONS, PSEUDO_UNKNOWNS
+from .stream_evaluation import CALIBRATIONS, NORMALISATIONS, PSEUDO_UNKNOWNS
 from .training import INITS, KERNELS, candidate_set, save_class_models, train_class_models
 
 
@@ -200,6 +200,22 @@ def register_evaluate(parser: argparse.ArgumentParser) -> None:
         "rejection then comes out too weak). Per-class models (UKR, DTW, HMM) leave the class's model out "
         "either way (docs/segmentation.md)",
     )
+    parser.add_argument(
+        "--derived",
+        default="none",
+        help="continuous recordings, every method alike: comma-separated derived features to choose among on "
+        "the inner folds, per method — 'none' (default) and/or 'velocities' (each channel's step from the "
+        "frame before, appended before the scaling); 'none,velocities' doubles every grid (docs/segmentation.md)",
+    )
+    parser.add_argument(
+        "--calibration",
+        choices=CALIBRATIONS,
+        default="strict",
+        help="continuous recordings: 'strict' (default) takes the operating point of the best validation "
+        "objective, whatever it is; 'fallback' switches rejection off for a method and fold when no operating "
+        "point beats rejecting everything on the inner folds (the result says so) — for data whose classes are "
+        "not separable enough for open-set rejection (docs/segmentation.md)",
+    )
     parser.set_defaults(func=run_evaluate)
 
 
@@ -218,9 +234,15 @@ def run_evaluate(args) -> int:
         return run_stream_evaluation(args, _progress)
     t0 = time.perf_counter()
     try:
-        if args.normalise != "training" or args.pseudo_unknowns != "refit":
+        if (args.normalise, args.pseudo_unknowns, args.derived, args.calibration) != (
+            "training",
+            "refit",
+            "none",
+            "strict",
+        ):
             raise DatasetError(
-                "--normalise and --pseudo-unknowns apply to continuous recordings (docs/segmentation.md)"
+                "--normalise, --pseudo-unknowns, --derived and --calibration apply to continuous recordings "
+                "(docs/segmentation.md)"
             )
         methods = tuple(m for m in (args.methods or ",".join(METHODS)).split(",") if m)
         unknown = sorted(set(methods) - set(METHODS))

@@ -34,6 +34,8 @@ def run_stream_evaluation(args, progress) -> int:
             progress=progress,
             normalise=args.normalise,
             pseudo_unknowns=args.pseudo_unknowns,
+            derived=tuple(d for d in args.derived.split(",") if d),
+            calibration=args.calibration,
         )
         result = evaluator.evaluate()
     except (ValueError, ImportError) as exc:

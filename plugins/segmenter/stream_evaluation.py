@@ -11,6 +11,13 @@ the last ``INNER_FOLDS`` training recordings.  The method is refitted on all tra
 and labels the held-out one frame by frame.  Frames of labels outside ``known`` are never used for
 training or calibration; every figure is computed on frames pooled over the folds.
 
+Derived features (``derived``, :mod:`.derived`) are appended to every recording before the
+scaling and chosen on the same inner splits, per method, as one more parameter.  When no operating
+point beats rejecting everything on validation by more than ``FALLBACK_MARGIN``,
+``calibration="fallback"`` switches rejection off for that method and fold and takes the
+parameters that label the most validation frames right; ``"strict"`` (the default) keeps the
+objective's choice whatever it is (docs/segmentation.md).
+
 Every recording is scaled with the fold's training frames, for every method alike
 (``normalise``): z-scored with their mean and standard deviation (``"training"``), or each
 recording standardised causally with its own running statistics and those as the prior
@@ -22,6 +29,7 @@ frames equal to the batch ``ukr_clm``.
 
 from __future__ import annotations
 
+import functools
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, replace
@@ -29,6 +37,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .continuous import Recording, RecordingSet, segments
+from .derived import DERIVED, derive
 from .frame_methods import METHODS, Fitted
 from .openset import calibrate, frame_metrics, segment_f1, tradeoff_curve
 from .running_scaling import RunningStandardizer
@@ -38,7 +47,9 @@ INNER_FOLDS = 3  # validation recordings of the inner split (each validated by a
 DEFAULT_METHODS = ("ukr_clm", "ukr_clm_online", "ukr_only", "dtw_1nn", "hmm", "minirocket", "clm_minirocket")
 NORMALISATIONS = ("training", "recording")
 PSEUDO_UNKNOWNS = ("refit", "drop")
+CALIBRATIONS = ("strict", "fallback")
 REJECT_ALL_OBJECTIVE = 0.5  # mean(known accuracy 0, pseudo-unknown rejection 1)
+FALLBACK_MARGIN = 0.05  # an operating point must beat rejecting everything by this much (documented choice)
 
 
 @dataclass
@@ -48,6 +59,18 @@ class FoldResult:
     labels: dict[str, np.ndarray]
     selected: dict[str, dict]
     sweeps: dict[str, list[np.ndarray]]  # per method: labels at every rejection value of its sweep
+    strict: dict[str, np.ndarray]  # per method that fell back: the labels at the strict choice
+
+
+@dataclass
+class Choice:
+    """One method's parameters and rejection value chosen on the inner folds."""
+
+    params: dict
+    reject: float
+    objective: float
+    fallback: bool = False  # rejection switched off: nothing beat rejecting everything
+    strict: Choice | None = None  # the objective's own choice, when it was overruled
 
 
 def _zscore(train: list[Recording], recs: list[Recording], normalise: str = "training") -> list[Recording]:
@@ -61,24 +84,19 @@ def _zscore(train: list[Recording], recs: list[Recording], normalise: str = "tra
     return [Recording(r.name, scaler.transform(r.X), r.y) for r in recs]
 
 
-def _degenerate_calibration(
-    truth: np.ndarray, pred: np.ndarray, known: list[int], selected: list[dict], no_rejection: dict | None
-) -> str | None:
-    """What a user needs to know when the calibration chose to reject (nearly) every known frame
-    because, on validation, nothing did better than rejecting everything; ``None`` otherwise."""
-    is_known = np.isin(truth, known)
-    rejected = float(np.mean(pred[is_known] == -1)) if is_known.any() else 0.0
-    best = max(s.get("validation_objective", 1.0) for s in selected)
-    if rejected < 0.9 or best > REJECT_ALL_OBJECTIVE + 0.05:
+def _fallback_note(folds: int, fell_back: int, strict: dict | None) -> str | None:
+    """What a user needs to know when the calibration switched rejection off in some folds;
+    ``None`` when it never did."""
+    if not fell_back:
         return None
     return (
-        f"{rejected:.0%} of the known frames are rejected: on the inner folds no operating point kept "
-        f"known frames and rejected left-out classes better than rejecting everything (best validation "
-        f"objective {best:.3f}; rejecting everything scores {REJECT_ALL_OBJECTIVE}). The classes are not "
-        "separable enough here for open-set rejection"
+        f"rejection is off in {fell_back} of {folds} folds: on the inner folds no operating point kept known "
+        f"frames and rejected left-out classes better than rejecting everything (objective <= "
+        f"{REJECT_ALL_OBJECTIVE + FALLBACK_MARGIN:.2f}; rejecting everything scores {REJECT_ALL_OBJECTIVE}), so the "
+        "classes are not separable enough here for open-set rejection and every frame keeps its best label"
         + (
-            f"; without rejection {no_rejection['known_accuracy']:.3f} of the known frames are right ('no_rejection')"
-            if no_rejection and no_rejection.get("known_accuracy") is not None
+            f"; the objective's own choice would label {strict['open_set_accuracy']:.3f} of the frames right ('strict')"
+            if strict and strict.get("open_set_accuracy") is not None
             else ""
         )
     )
@@ -97,11 +115,17 @@ class StreamEvaluator:
         progress: Callable[[str], None] = lambda msg: None,
         normalise: str = "training",
         pseudo_unknowns: str = "refit",
+        derived: tuple[str, ...] = ("none",),
+        calibration: str = "strict",
     ) -> None:
         if normalise not in NORMALISATIONS:
             raise ValueError(f"normalise must be one of {NORMALISATIONS}, got {normalise!r}")
         if pseudo_unknowns not in PSEUDO_UNKNOWNS:
             raise ValueError(f"pseudo_unknowns must be one of {PSEUDO_UNKNOWNS}, got {pseudo_unknowns!r}")
+        if calibration not in CALIBRATIONS:
+            raise ValueError(f"calibration must be one of {CALIBRATIONS}, got {calibration!r}")
+        if not derived or len(set(derived)) != len(derived) or not set(derived) <= set(DERIVED):
+            raise ValueError(f"derived features: name distinct choices among {DERIVED}, got {list(derived)}")
         unknown_names = sorted(set(known or []) - set(data.class_names))
         if unknown_names:
             raise ValueError(f"--known names classes {unknown_names} that the data lacks; it has {data.class_names}")
@@ -120,6 +144,8 @@ class StreamEvaluator:
         self.progress = progress
         self.normalise = normalise
         self.pseudo_unknowns = pseudo_unknowns
+        self.derived = tuple(derived)
+        self.calibration = calibration
         self._cache: dict[tuple, object] = {}
 
     # -- one fold ---------------------------------------------------------------------------
@@ -130,36 +156,47 @@ class StreamEvaluator:
             raise ValueError(f"known classes {empty} have no training segment in {[r.name for r in recs]}")
         return segs
 
-    def _select(self, name: str, train: list[Recording]) -> tuple[dict, float, float]:
-        """Hyper-parameters and rejection value of one method, chosen on inner splits of ``train``."""
+    def _select(self, name: str, views: dict[str, list[Recording]]) -> Choice:
+        """Derived features, hyper-parameters and rejection value of one method, chosen on inner
+        splits of the training recordings (``views``: derived features → those recordings)."""
         method = METHODS[name]
-        folds = [(r, [t for t in train if t is not r]) for r in train[-INNER_FOLDS:]]
-        truth = np.concatenate([np.where(np.isin(v.y, self.known), v.y, -1) for v, _ in folds])
-        present = [c for c in self.known if np.any(truth == c)]
-        best = (None, None, -np.inf)
-        for params in method.grid(self.quick):
-            fits = [(self._fit(method, rest, params), v) for v, rest in folds]
-            states = [(f, self._prepare(method, f, v)) for f, v in fits]
-            grid = method.reject_grid(fits[0][0], [s for _, s in states])
+        choices = []
+        for derived, train in views.items():
+            folds = [(r, [t for t in train if t is not r]) for r in train[-INNER_FOLDS:]]
+            truth = np.concatenate([np.where(np.isin(v.y, self.known), v.y, -1) for v, _ in folds])
+            present = [c for c in self.known if np.any(truth == c)]
+            for params in method.grid(self.quick):
+                params = {**params, "derived": derived}
+                fits = [(self._fit(method, rest, params), v) for v, rest in folds]
+                states = [(f, self._prepare(method, f, v)) for f, v in fits]
+                grid = method.reject_grid(fits[0][0], [s for _, s in states])
 
-            unseen = {c: self._without(method, fits, folds, params, c) for c in present}
+                unseen = {c: self._without(method, fits, folds, params, c) for c in present}
 
-            def pred(r, drop=None, states=states, unseen=unseen):
-                if drop is not None and unseen[drop] is not None:  # a model that never saw the class
-                    return np.concatenate([method.labels(f, s, r) for f, s in unseen[drop]])
-                return np.concatenate([method.labels(f, s, r, drop=drop) for f, s in states])
+                def pred(r, drop=None, states=states, unseen=unseen):
+                    if drop is not None and unseen[drop] is not None:  # a model that never saw the class
+                        return np.concatenate([method.labels(f, s, r) for f, s in unseen[drop]])
+                    return np.concatenate([method.labels(f, s, r, drop=drop) for f, s in states])
 
-            def known_acc(r):
-                return frame_metrics(truth, pred(r), self.known)["known_accuracy"] or 0.0
+                @functools.cache
+                def known_acc(r, truth=truth, pred=pred):
+                    return frame_metrics(truth, pred(r), self.known)["known_accuracy"] or 0.0
 
-            def pseudo_rej(r):
-                return float(np.mean([np.mean(pred(r, drop=c)[truth == c] == -1) for c in present]))
+                def pseudo_rej(r, truth=truth, present=present, pred=pred):
+                    return float(np.mean([np.mean(pred(r, drop=c)[truth == c] == -1) for c in present]))
 
-            value, score = calibrate(known_acc, pseudo_rej, grid)
-            self.progress(f"    {name} {params}: reject={value:.4g} objective={score:.3f}")
-            if score > best[2]:
-                best = (params, value, score)
-        return best
+                value, score = calibrate(known_acc, pseudo_rej, grid)
+                self.progress(f"    {name} {params}: reject={value:.4g} objective={score:.3f}")
+                choices.append((Choice(params, value, score), grid[0], known_acc))
+        best = max(choices, key=lambda c: c[0].objective)[0]  # ties: the first
+        if self.calibration == "strict" or best.objective > REJECT_ALL_OBJECTIVE + FALLBACK_MARGIN:
+            return best
+        keep_all = [(known_acc(first), Choice(c.params, first, c.objective)) for c, first, known_acc in choices]
+        accuracy, chosen = max(keep_all, key=lambda c: c[0])
+        self.progress(
+            f"    {name}: rejection off (best objective {best.objective:.3f}); {chosen.params} keeps {accuracy:.3f}"
+        )
+        return replace(chosen, fallback=True, strict=best)
 
     def _fit(self, method, train: list[Recording], params: dict) -> Fitted:
         """``method.fit`` on ``train``, shared within a fold by the methods of one ``fit_key``
@@ -198,30 +235,47 @@ class StreamEvaluator:
             self._cache[key] = method.prepare(fitted, rec.X)
         return self._cache[key]
 
+    def _views(self, held: str) -> dict[str, tuple[list[Recording], Recording]]:
+        """Per derived feature choice: the training recordings and the held-out one, with the
+        features appended and then scaled with the training frames."""
+        views = {}
+        for derived in self.derived:
+            recs = [Recording(r.name, derive(r.X, derived), r.y) for r in self.data.recordings]
+            scaled = _zscore([r for r in recs if r.name != held], recs, self.normalise)
+            views[derived] = ([r for r in scaled if r.name != held], next(r for r in scaled if r.name == held))
+        return views
+
     def run_fold(self, held: str) -> FoldResult:
-        train = self.data.without(held)
-        recs = _zscore(train, self.data.recordings, self.normalise)
-        by_name = {r.name: r for r in recs}
-        train = [by_name[r.name] for r in train]
-        test = by_name[held]
+        views = self._views(held)
         self._cache.clear()  # fits and states hold this fold's normalisation
-        labels, selected, sweeps = {}, {}, {}
+        labels, selected, sweeps, strict = {}, {}, {}, {}
         for name in self.methods:
             if name == "ukr_clm_online":
                 continue
             t0 = time.perf_counter()
-            params, reject, score = self._select(name, train)
+            choice = self._select(name, {d: train for d, (train, _) in views.items()})
             method = METHODS[name]
-            fitted = self._fit(method, train, params)
-            state = self._prepare(method, fitted, test)
-            labels[name] = method.labels(fitted, state, reject)
+            fitted, state, test = self._final(method, choice.params, views)
+            labels[name] = method.labels(fitted, state, choice.reject)
             sweeps[name] = [method.labels(fitted, state, r) for r in method.reject_grid(fitted, [state])]
-            selected[name] = {**params, "reject": float(reject), "validation_objective": score}
+            selected[name] = {**choice.params, "reject": float(choice.reject), "validation_objective": choice.objective}
+            if choice.fallback:
+                selected[name]["rejection"] = "off"
+                selected[name]["strict"] = {**choice.strict.params, "reject": float(choice.strict.reject)}
+                strict_fit, strict_state, _ = self._final(method, choice.strict.params, views)
+                strict[name] = method.labels(strict_fit, strict_state, choice.strict.reject)
             if name == "ukr_clm" and "ukr_clm_online" in self.methods:
-                labels["ukr_clm_online"] = self._online(fitted, reject, test.X)
+                labels["ukr_clm_online"] = self._online(fitted, choice.reject, test.X)
                 selected["ukr_clm_online"] = selected[name]
             self.progress(f"  {held}: {name} {selected[name]} in {time.perf_counter() - t0:.1f}s")
-        return FoldResult(held, test.y, labels, selected, sweeps)
+        return FoldResult(held, views[self.derived[0]][1].y, labels, selected, sweeps, strict)
+
+    def _final(self, method, params: dict, views) -> tuple:
+        """``method`` fitted with ``params`` on all training recordings, its state on the held-out
+        recording and that recording as the method sees it (with ``params``' derived features)."""
+        train, test = views[params["derived"]]
+        fitted = self._fit(method, train, params)
+        return fitted, self._prepare(method, fitted, test), test
 
     def _online(self, fitted: Fitted, reject: float, X: np.ndarray) -> np.ndarray:
         from .online import OnlineCLMSegmenter
@@ -257,9 +311,11 @@ class StreamEvaluator:
                 res["no_rejection"] = frame_metrics(
                     truth, np.concatenate([f.sweeps[name][0] for f in folds]), self.known
                 )
-            res["calibration_note"] = _degenerate_calibration(
-                truth, pred, self.known, [f.selected[name] for f in folds], res.get("no_rejection")
-            )
+            fell_back = [f for f in folds if name in f.strict]
+            if fell_back:  # the objective's own choice, for the folds where it was overruled
+                strict = np.concatenate([f.strict.get(name, f.labels[name]) for f in folds])
+                res["strict"] = frame_metrics(truth, strict, self.known)
+            res["calibration_note"] = _fallback_note(len(folds), len(fell_back), res.get("strict"))
             if name in folds[0].sweeps and res["unknown_rejection"] is not None:
                 res["tradeoff"] = self._tradeoff(folds, name, truth)
                 res["tradeoff_auc"] = res["tradeoff"]["auc"]
@@ -299,6 +355,14 @@ class StreamEvaluator:
             "dataset": self.data.source,
             "normalisation": self._normalisation(),
             "pseudo_unknowns": self.pseudo_unknowns,
+            "derived": list(self.derived),
+            "calibration": {
+                "mode": self.calibration,
+                "fallback_objective": REJECT_ALL_OBJECTIVE + FALLBACK_MARGIN,
+                "description": "rejection off where no operating point beats rejecting everything on validation"
+                if self.calibration == "fallback"
+                else "the operating point of the best validation objective, whatever it is",
+            },
             "quick": self.quick,
             "grids": {n: METHODS[n].grid(self.quick) for n in self.methods if n in METHODS},
         }

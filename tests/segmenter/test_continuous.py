@@ -16,6 +16,7 @@ from handflow.plugins.segmenter.continuous import (
     segments,
 )
 from handflow.plugins.segmenter.datasets import DatasetError
+from handflow.plugins.segmenter.derived import derive
 from handflow.plugins.segmenter.frame_methods import METHODS, DTWMethod, Fitted, NoveltyCLMMethod
 from handflow.plugins.segmenter.openset import calibrate, frame_metrics, runs, segment_f1, tradeoff_curve
 from handflow.plugins.segmenter.stream_cli import format_stream_table
@@ -259,16 +260,67 @@ def test_novelty_from_the_class_manifolds_rejects_what_the_classifier_labels_con
     assert not np.any(dropped == 1) and np.mean(dropped[y == 1] == -1) > 0.5
 
 
-def test_a_calibration_that_rejects_everything_is_explained():
-    from handflow.plugins.segmenter.stream_evaluation import _degenerate_calibration
+def _indistinguishable_recordings(tmp_path):
+    """Four recordings of three 'classes' drawn from one and the same noise: no operating point can
+    keep known frames and reject a left-out class better than rejecting everything."""
+    rng = np.random.default_rng(0)
+    arrays = {"class_names": np.array(["a", "b", "c"])}
+    for k in range(4):
+        y = np.repeat(rng.permutation(np.repeat([0, 1, 2], 2)), 30)
+        arrays[f"X_r{k}"], arrays[f"y_r{k}"] = rng.normal(size=(len(y), 2)), y
+    np.savez(tmp_path / "n.npz", **arrays)
+    return load_recordings(tmp_path / "n.npz")
 
-    truth = np.array([0, 0, 1, 1, 1, -1])
-    everything = np.full(6, -1)
-    closed = {"known_accuracy": 0.4}
-    note = _degenerate_calibration(truth, everything, [0, 1], [{"validation_objective": 0.5}] * 3, closed)
-    assert "100% of the known frames are rejected" in note and "without rejection 0.400" in note
-    assert _degenerate_calibration(truth, everything, [0, 1], [{"validation_objective": 0.7}], closed) is None
-    assert _degenerate_calibration(truth, truth, [0, 1], [{"validation_objective": 0.5}], closed) is None
+
+def test_rejection_is_switched_off_when_nothing_beats_rejecting_everything(tmp_path):
+    data = _indistinguishable_recordings(tmp_path)
+    ev = StreamEvaluator(data, methods=("dtw_1nn",), quick=True, calibration="fallback")
+    res = ev.evaluate()["methods"]["dtw_1nn"]
+    assert all(
+        f["selected"]["rejection"] == "off" and f["selected"]["validation_objective"] <= 0.55 for f in res["folds"]
+    )
+    assert res["known_accuracy"] == res["no_rejection"]["known_accuracy"]  # every frame keeps its best label
+    assert "rejection is off in 4 of 4 folds" in res["calibration_note"]
+    strict = StreamEvaluator(data, methods=("dtw_1nn",), quick=True).evaluate()  # the default
+    strict = strict["methods"]["dtw_1nn"]
+    assert strict["calibration_note"] is None and "strict" not in strict
+    assert res["strict"] == {k: strict[k] for k in res["strict"]}  # what the objective alone would give
+    assert strict["known_accuracy"] < res["known_accuracy"]
+
+
+def test_derived_features_are_chosen_per_method_on_validation(tmp_path):
+    arrays = {"class_names": np.array(["a", "b", "c"])}
+    for k in range(4):
+        arrays[f"X_r{k}"], arrays[f"y_r{k}"] = _synthetic_recordings(k)
+    np.savez(tmp_path / "s.npz", **arrays)
+    said = []
+    ev = StreamEvaluator(
+        load_recordings(tmp_path / "s.npz"),
+        methods=("dtw_1nn",),
+        quick=True,
+        derived=("none", "velocities"),
+        progress=said.append,
+    )
+    out = ev.evaluate()
+    assert out["parameters"]["derived"] == ["none", "velocities"]
+    objectives = [float(m.rsplit("objective=", 1)[1]) for m in said if "objective=" in m]
+    assert len(objectives) == 2 * 4  # both choices, every fold
+    for k, fold in enumerate(out["methods"]["dtw_1nn"]["folds"]):
+        pair = objectives[2 * k : 2 * k + 2]
+        assert fold["selected"]["derived"] == ("none", "velocities")[int(pair[1] > pair[0])]
+    with pytest.raises(ValueError, match="derived features"):
+        StreamEvaluator(ev.data, derived=("accelerations",))
+
+
+def test_velocities_are_causal_steps():
+    X = np.random.default_rng(1).normal(size=(20, 3))
+    V = derive(X, "velocities")
+    assert V.shape == (20, 6) and np.array_equal(V[:, :3], X) and not V[0, 3:].any()
+    assert np.allclose(V[1:, 3:], X[1:] - X[:-1])
+    assert np.array_equal(derive(X[:7], "velocities"), V[:7])  # a stream's prefix gets the same features
+    assert np.array_equal(derive(X, "none"), X)
+    with pytest.raises(ValueError, match="derived features must be one of"):
+        derive(X, "speed")
 
 
 def test_a_joint_classifier_is_refitted_for_the_pseudo_unknowns_of_the_calibration():

@@ -84,6 +84,30 @@ def _zscore(train: list[Recording], recs: list[Recording], normalise: str = "tra
     return [Recording(r.name, scaler.transform(r.X), r.y) for r in recs]
 
 
+def _degenerate_calibration(
+    truth: np.ndarray, pred: np.ndarray, known: list[int], selected: list[dict], no_rejection: dict | None
+) -> str | None:
+    """What a user needs to know when the calibration chose to reject (nearly) every known frame
+    because, on validation, nothing did better than rejecting everything; ``None`` otherwise."""
+    is_known = np.isin(truth, known)
+    rejected = float(np.mean(pred[is_known] == -1)) if is_known.any() else 0.0
+    best = max(s.get("validation_objective", 1.0) for s in selected)
+    if rejected < 0.9 or best > REJECT_ALL_OBJECTIVE + FALLBACK_MARGIN:
+        return None
+    return (
+        f"{rejected:.0%} of the known frames are rejected: on the inner folds no operating point kept "
+        f"known frames and rejected left-out classes better than rejecting everything (best validation "
+        f"objective {best:.3f}; rejecting everything scores {REJECT_ALL_OBJECTIVE}). The classes are not "
+        "separable enough here for open-set rejection"
+        + (
+            f"; without rejection {no_rejection['known_accuracy']:.3f} of the known frames are right ('no_rejection')"
+            if no_rejection and no_rejection.get("known_accuracy") is not None
+            else ""
+        )
+        + "; --calibration fallback switches rejection off in that case"
+    )
+
+
 def _fallback_note(folds: int, fell_back: int, strict: dict | None) -> str | None:
     """What a user needs to know when the calibration switched rejection off in some folds;
     ``None`` when it never did."""
@@ -315,7 +339,11 @@ class StreamEvaluator:
             if fell_back:  # the objective's own choice, for the folds where it was overruled
                 strict = np.concatenate([f.strict.get(name, f.labels[name]) for f in folds])
                 res["strict"] = frame_metrics(truth, strict, self.known)
-            res["calibration_note"] = _fallback_note(len(folds), len(fell_back), res.get("strict"))
+            res["calibration_note"] = _fallback_note(len(folds), len(fell_back), res.get("strict")) or (
+                _degenerate_calibration(
+                    truth, pred, self.known, [f.selected[name] for f in folds], res.get("no_rejection")
+                )
+            )
             if name in folds[0].sweeps and res["unknown_rejection"] is not None:
                 res["tradeoff"] = self._tradeoff(folds, name, truth)
                 res["tradeoff_auc"] = res["tradeoff"]["auc"]

@@ -283,7 +283,7 @@ def test_rejection_is_switched_off_when_nothing_beats_rejecting_everything(tmp_p
     assert "rejection is off in 4 of 4 folds" in res["calibration_note"]
     strict = StreamEvaluator(data, methods=("dtw_1nn",), quick=True).evaluate()  # the default
     strict = strict["methods"]["dtw_1nn"]
-    assert strict["calibration_note"] is None and "strict" not in strict
+    assert "strict" not in strict and "--calibration fallback switches rejection off" in strict["calibration_note"]
     assert res["strict"] == {k: strict[k] for k in res["strict"]}  # what the objective alone would give
     assert strict["known_accuracy"] < res["known_accuracy"]
 
@@ -310,6 +310,18 @@ def test_derived_features_are_chosen_per_method_on_validation(tmp_path):
         assert fold["selected"]["derived"] == ("none", "velocities")[int(pair[1] > pair[0])]
     with pytest.raises(ValueError, match="derived features"):
         StreamEvaluator(ev.data, derived=("accelerations",))
+
+
+def test_a_calibration_that_rejects_everything_is_explained():
+    from handflow.plugins.segmenter.stream_evaluation import _degenerate_calibration
+
+    truth = np.array([0, 0, 1, 1, 1, -1])
+    everything = np.full(6, -1)
+    closed = {"known_accuracy": 0.4}
+    note = _degenerate_calibration(truth, everything, [0, 1], [{"validation_objective": 0.5}] * 3, closed)
+    assert "100% of the known frames are rejected" in note and "without rejection 0.400" in note
+    assert _degenerate_calibration(truth, everything, [0, 1], [{"validation_objective": 0.7}], closed) is None
+    assert _degenerate_calibration(truth, truth, [0, 1], [{"validation_objective": 0.5}], closed) is None
 
 
 def test_velocities_are_causal_steps():

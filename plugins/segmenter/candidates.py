@@ -21,6 +21,7 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 
 from .delay import DelayEmbedding
+from .derived import Derived
 from .headings import Headings
 from .intensity import IntensityRanges, log_intensity
 from .scaling import ChannelScaling
@@ -195,6 +196,12 @@ class CandidateSet:
                 f"candidates were trained on different heading channels {sorted(map(str, headings))}; retrain them alike"
             )
         self.headings = headings.pop()
+        derived = {Derived.from_provenance(p) for p in provenances}
+        if len(derived) > 1:
+            raise ValueError(
+                f"candidates were trained on different derived features {sorted(d.kind for d in derived)}; retrain them alike"
+            )
+        self.derived = derived.pop()
         self.evidence_temperature = float(provenances[0].get("evidence_temperature", 1.0))
         self.own_errors = np.array([float(p.get("own_error", 1.0)) for p in provenances])
         self.intensity = IntensityRanges.from_provenances(provenances)  # None for models without ranges
@@ -243,8 +250,8 @@ class CandidateSet:
     @property
     def stateful(self) -> bool:
         """True when an observation's model input depends on the ones before it (a delay
-        embedding or heading channels): a stream goes through :meth:`stream`."""
-        return self.delay.window > 1 or self.headings.active
+        embedding, heading channels or velocities): a stream goes through :meth:`stream`."""
+        return self.delay.window > 1 or self.headings.active or self.derived.active
 
     def stream(self) -> ObservationStream:
         """Prepares a stream's observations one at a time, equal to :meth:`project` of the whole stream."""
@@ -252,8 +259,8 @@ class CandidateSet:
 
     def project(self, Y: np.ndarray, embedded: bool = False, reversed_rows: np.ndarray | None = None) -> Projection:
         """Project (N, d) observations — a contiguous stretch of a stream from its start — onto every
-        candidate; candidates trained on heading channels (:mod:`.headings`) or a delay embedding
-        (:mod:`.delay`) head and embed Y first.  ``embedded=True``: the rows are already prepared
+        candidate; candidates trained on velocities (:mod:`.derived`), heading channels
+        (:mod:`.headings`) or a delay embedding (:mod:`.delay`) derive, head and embed Y first.  ``embedded=True``: the rows are already prepared
         (the online segmenter's stream, :meth:`stream`), ``reversed_rows`` with their headings
         turned round."""
         Y = np.atleast_2d(np.asarray(Y, dtype=float))
@@ -262,7 +269,8 @@ class CandidateSet:
         batched = self._batched_projector()
         if self.stateful and batched is None:
             raise ValueError(
-                "a delay embedding or heading channels need 1D periodic UKR candidates with one shared channel scaling"
+                "a delay embedding, heading channels or velocities need 1D periodic UKR candidates with one shared "
+                "channel scaling"
             )
         if batched is None:
             lt = np.empty((Y.shape[0], len(self)))
@@ -271,7 +279,7 @@ class CandidateSet:
                 lt[:, j], e[:, j] = m.project(Y)
             return Projection(lt, e, self.classes)
         if not embedded:
-            Z = self.headings.transform(Y)
+            Z = self.headings.transform(self.derived.transform(Y))
             Y = self.delay.transform(self.scaled(Z))
             if self.headings.active:
                 reversed_rows = self.delay.transform(self.scaled(self.headings.reversed(Z)))
@@ -297,22 +305,26 @@ class CandidateSet:
         Y = np.atleast_2d(np.asarray(Y, dtype=float))
         if self.intensity is None:
             return np.ones((len(Y), len(self)))
-        return self.intensity.weights(log_intensity(Y, self.intensity.floor, self.intensity.window))
+        derived = self.derived.transform(Y)
+        return self.intensity.weights(log_intensity(derived, self.intensity.floor, self.intensity.window))
 
     @property
     def n_channels(self) -> int:
-        """Channels of an observation, before the heading channels and the delay embedding."""
-        return next(iter(self.models.values())).model.n_features_in_ // int(self.delay.window) - len(
-            self.headings.channels
-        )
+        """Channels of an observation, before the derived features, the heading channels and the delay
+        embedding."""
+        embedded = next(iter(self.models.values())).model.n_features_in_ // int(self.delay.window)
+        return (embedded - len(self.headings.channels)) // self.derived.factor
 
 
 class ObservationStream:
     """A stream's observations prepared one at a time for :meth:`CandidateSet.project` with
-    ``embedded=True``: headed (:mod:`.headings`), scaled and delay-embedded (:mod:`.delay`)."""
+    ``embedded=True``: derived (:mod:`.derived`), headed (:mod:`.headings`), scaled and
+    delay-embedded (:mod:`.delay`)."""
 
     def __init__(self, candidates: CandidateSet) -> None:
         self.candidates = candidates
+        self._derived = candidates.derived.stream()
+        self._derived_for_intensity = candidates.derived.stream()  # advanced by intensity_weights alone
         self._headings = candidates.headings.stream()
         self._delays = [candidates.delay.stream() for _ in range(1 + candidates.headings.active)]
         self._intensity = candidates.intensity.stream() if candidates.intensity else None
@@ -331,13 +343,13 @@ class ObservationStream:
         c = self.candidates
         if self._intensity is None:
             return np.ones((1, len(c)))
-        return c.intensity.weights(self._intensity.push(y))
+        return c.intensity.weights(self._intensity.push(self._derived_for_intensity.push(y)))
 
     def push(self, y: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
         """The prepared row (1, D) of the newest observation y (d,), and the row with its heading
         turned round (None without heading channels)."""
         c = self.candidates
-        z = self._headings.push(y)
+        z = self._headings.push(self._derived.push(y))
         variants = [z, c.headings.reversed(z)] if c.headings.active else [z]
         rows = [d.push(c.scaled(v[None])[0])[None] for d, v in zip(self._delays, variants)]
         return rows[0], (rows[1] if len(rows) > 1 else None)

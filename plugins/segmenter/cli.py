@@ -12,6 +12,7 @@ from pathlib import Path
 from .candidates import ModelsMissingError, load_candidates
 from .continuous import is_continuous
 from .datasets import DatasetError, load_dataset
+from .derived import DERIVED
 from .evaluation import EXPERIMENTS, METHODS, SELECTIONS, Evaluator, Protocol
 from .running_scaling import RunningStandardizer
 from .stream_cli import run_stream_evaluation, run_train_recording_models
@@ -101,6 +102,13 @@ def register_train_classes(parser: argparse.ArgumentParser) -> None:
         default=8,
         help="continuous recordings: frames of the delay embedding of the class models (docs/segmentation.md)",
     )
+    parser.add_argument(
+        "--derived",
+        choices=DERIVED,
+        default="none",
+        help="continuous recordings: 'velocities' appends each channel's step from the frame before; the models "
+        "derive it from raw streams themselves (choose it with `evaluate segmentation --derived none,velocities`)",
+    )
     parser.set_defaults(func=run_train_classes)
 
 
@@ -128,6 +136,8 @@ def run_train_classes(args) -> int:
             return 2
         return run_train_recording_models(args, _progress)
     try:
+        if args.derived != "none":
+            raise DatasetError("--derived applies to continuous recordings (docs/segmentation.md)")
         ds = _dataset(args)
         models = _train(ds, args)
     except (DatasetError, ValueError) as exc:

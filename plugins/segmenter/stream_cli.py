@@ -146,12 +146,15 @@ def run_train_recording_models(args, progress) -> int:
             random_state=args.seed,
             scaling="standard",
             progress=progress,
+            derived=args.derived,
         )
     except ValueError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     out = save_class_models(cands, args.out, provenance={"dataset": str(args.dataset), "steps": args.steps})
-    progress(f"wrote {len(cands)} models (delay {args.delay}) to {out} in {time.perf_counter() - t0:.1f}s")
+    progress(
+        f"wrote {len(cands)} models (delay {args.delay}, derived {args.derived}) to {out} in {time.perf_counter() - t0:.1f}s"
+    )
     return 0
 
 

@@ -30,6 +30,7 @@ from .compatibility import evidence_temperature
 from .cycles import phase_direction, split_cycles
 from .datasets import LabelledDataset
 from .delay import DelayEmbedding
+from .derived import Derived
 from .headings import Headings
 from .intensity import IntensityRanges
 from .scaling import ChannelScaling
@@ -176,6 +177,7 @@ def fit_recording_models(
     random_state: int | None = 0,
     scaling: str = "none",
     progress: Callable[[str], None] | None = None,
+    derived: str = "none",
 ) -> CandidateSet:
     """Class models for real recordings (docs/segmentation.md, "Class models for real recordings"):
     label → training segments (T, d), each holding any number of repetitions.
@@ -190,17 +192,25 @@ def fit_recording_models(
     frames (``evidence_temperature``), as :class:`CLMSegmenter`'s ``reconstruction="relative"``
     uses them, and the range of its training frames' motion intensity (:mod:`.intensity`).
     ``scaling="standard"`` z-scores the channels with all training frames first and stores the
-    scaling with the models (for models used outside the evaluation).
+    scaling with the models (for models used outside the evaluation).  ``derived="velocities"``
+    appends each channel's step to every frame first (:mod:`.derived`; the models derive them from
+    raw streams as they were trained).
     """
     if scaling not in SCALINGS:
         raise ValueError(f"scaling must be one of {SCALINGS}, got {scaling!r}")
-    raw = {c: [np.asarray(s, dtype=float) for s in segs] for c, segs in by_class.items()}
+    features = Derived(derived)
+    raw = {c: [features.complete(s) for s in segs] for c, segs in by_class.items()}
     scaler = ChannelScaling().fit([s for segs in raw.values() for s in segs]) if scaling == "standard" else None
     embedding = DelayEmbedding(int(delay))
     embedded = {c: [embedding.complete(scaler.transform(s) if scaler else s) for s in segs] for c, segs in raw.items()}
     pooled_variance = np.vstack([e for segs in embedded.values() for e in segs]).var(axis=0)
     pooled_variance = np.where(pooled_variance > 0, pooled_variance, 1.0)
-    extra = {**embedding.to_provenance(), **(scaler.to_provenance() if scaler else {}), "reconstruction": "relative"}
+    extra = {
+        **embedding.to_provenance(),
+        **features.to_provenance(),
+        **(scaler.to_provenance() if scaler else {}),
+        "reconstruction": "relative",
+    }
     models = {}
     for c, segs in embedded.items():
         direction = phase_direction(np.vstack(segs))
@@ -213,7 +223,7 @@ def fit_recording_models(
         model.provenance_ = dict(model.provenance_, **extra)
         models[c] = model
     cands = candidate_set(models)
-    errors = {c: np.vstack([cands.project(s).errors for s in segs]) for c, segs in raw.items()}  # (frames, M)
+    errors = {c: np.vstack([cands.project(s).errors for s in segs]) for c, segs in by_class.items()}  # (frames, M)
     own = {c: errors[c][:, j] for j, c in enumerate(raw)}
     reference = float(np.median(np.concatenate(list(own.values())))) or 1.0
     tau = evidence_temperature(-np.vstack(list(errors.values())) / reference)

@@ -8,6 +8,7 @@ from hypothesis import strategies as st
 
 from handflow.plugins.segmenter import CLMSegmenter, OnlineCLMSegmenter
 from handflow.plugins.segmenter.delay import DelayEmbedding
+from handflow.plugins.segmenter.derived import Derived
 from handflow.plugins.segmenter.frame_methods import METHODS
 
 from .test_continuous import _synthetic_recordings, held_out_class_evaluation
@@ -108,8 +109,9 @@ def test_online_block_runs_over_a_sliding_window_agree_with_the_batch(fitted):
 
 
 def test_train_classes_on_recordings_feeds_the_online_node_in_relative_mode(tmp_path):
-    """`handflow train-classes RECORDINGS` writes delay models with their scaling; the online node
-    picks the relative reconstruction they were made for and labels the raw stream as the batch does."""
+    """`handflow train-classes RECORDINGS` writes delay models on velocities with their scaling; the
+    online node picks the relative reconstruction they were made for, derives the velocities and
+    labels the raw stream as the batch does."""
     import subprocess
     import sys
 
@@ -125,7 +127,9 @@ def test_train_classes_on_recordings_feeds_the_online_node_in_relative_mode(tmp_
     np.savez(tmp_path / "rec.npz", **arrays)
     cmd = [sys.executable, "-m", "handflow.framework.cli", "train-classes", str(tmp_path / "rec.npz")]
     done = subprocess.run(
-        [*cmd, "--out", str(tmp_path / "m"), "--delay", "4", "--steps", "60"], capture_output=True, text=True
+        [*cmd, "--out", str(tmp_path / "m"), "--delay", "4", "--steps", "60", "--derived", "velocities"],
+        capture_output=True,
+        text=True,
     )
     assert done.returncode == 0, done.stderr
     bad = subprocess.run([*cmd, "--out", str(tmp_path / "x"), "--classes", "a,zz"], capture_output=True, text=True)
@@ -133,6 +137,7 @@ def test_train_classes_on_recordings_feeds_the_online_node_in_relative_mode(tmp_
 
     models = load_candidates(tmp_path / "m")
     assert models.delay == DelayEmbedding(4) and models.reconstruction == "relative"
+    assert models.derived == Derived("velocities") and models.n_channels == 2
     X, y = _synthetic_recordings(7)
     X = 5.0 * X + 3.0
     params = {"models": str(tmp_path / "m"), "window": 400, "history": 10, "background_factor": 0.0, "block": 0}
@@ -146,6 +151,41 @@ def test_train_classes_on_recordings_feeds_the_online_node_in_relative_mode(tmp_
     assert len(on_arrival) == len(X) and np.mean(on_arrival == y) > 0.7
     batch = CLMSegmenter(models, history=10, background_factor=0.0, reconstruction="relative", random_state=0)
     assert np.mean(batch.fit_predict(X) == y) > 0.8
+
+
+def test_models_on_velocities_derive_them_from_a_raw_stream_as_from_the_recording(tmp_path):
+    from handflow.plugins.segmenter.candidates import load_candidates
+    from handflow.plugins.segmenter.training import fit_recording_models, save_class_models
+
+    X, y = _synthetic_recordings(0)
+    segs = {str(c): [X[y == c]] for c in (0, 1, 2)}
+    models = fit_recording_models(segs, delay=4, n_steps=40, derived="velocities")
+    assert models.derived.active and models.stateful and models.n_channels == X.shape[1]
+    batch = models.project(X)
+    stream = models.stream()
+    streamed = np.vstack([stream.project(x).errors for x in X])
+    np.testing.assert_allclose(streamed, batch.errors, rtol=1e-9, atol=1e-12)
+    weights = np.vstack([stream.intensity_weights(x) for x in X])
+    np.testing.assert_allclose(weights, models.intensity_weights(X))
+    assert np.mean(np.argmin(batch.errors, axis=1) == y) > 0.8
+    save_class_models(models, tmp_path)
+    assert load_candidates(tmp_path).derived == Derived("velocities")
+    np.testing.assert_allclose(load_candidates(tmp_path).project(X).errors, batch.errors)
+
+
+@given(n=st.integers(1, 20), d=st.integers(1, 3), seed=st.integers(0, 9))
+@settings(max_examples=30, deadline=None)
+def test_streamed_velocities_equal_the_recording_derived_at_once(n, d, seed):
+    X = np.random.default_rng(seed).normal(size=(n, d))
+    stream = Derived("velocities").stream()
+    np.testing.assert_array_equal(np.array([stream.push(x) for x in X]), Derived("velocities").transform(X))
+    assert len(Derived("velocities").complete(X)) == max(n - 1, 1)
+
+
+@pytest.mark.parametrize("bad", ["accelerations", 3, None, ["velocities"]])
+def test_a_model_file_with_unknown_derived_features_is_refused(bad):
+    with pytest.raises(ValueError, match="retrain the models"):
+        Derived.from_provenance({"derived": bad})
 
 
 @pytest.mark.slow

@@ -129,8 +129,7 @@ def plot_success_maps(outcomes: list[dict], grid: GraspGrid, folder) -> list[Pat
     folder.mkdir(parents=True, exist_ok=True)
     objects = [o for o in grid.objects if any(r["object"] == o for r in outcomes)]
     conditions = [c for c in ("experience", "no_experience", "shared_som") if c in outcomes[0]]
-    cmap = plt.get_cmap("RdYlGn").copy()
-    cmap.set_bad("#bbbbbb")
+    cmap = plt.get_cmap("RdYlGn").with_extremes(bad="#bbbbbb")
     paths = []
     for obj in objects:
         fig, axes = plt.subplots(1, len(conditions), figsize=(4.2 * len(conditions), 3.6), squeeze=False)

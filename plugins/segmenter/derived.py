@@ -74,18 +74,29 @@ def derive(X: np.ndarray, kind: str) -> np.ndarray:
     return Derived(kind).transform(X)
 
 
+class FrameSteps:
+    """The step of each pushed frame from the one before (0 for the first): the causal difference
+    that velocities (:class:`DerivedStream`) and headings (:mod:`.headings`) are made of."""
+
+    def __init__(self) -> None:
+        self._last: np.ndarray | None = None
+
+    def push(self, y: np.ndarray) -> np.ndarray:
+        step = y - (y if self._last is None else self._last)
+        self._last = y
+        return step
+
+
 class DerivedStream:
     """Derives one frame at a time (see :meth:`Derived.stream`)."""
 
     def __init__(self, derived: Derived) -> None:
         self.spec = derived
-        self._last: np.ndarray | None = None
+        self._steps = FrameSteps()
 
     def push(self, y: np.ndarray) -> np.ndarray:
         """The frame (d,) with its derived features (factor·d,)."""
         y = np.asarray(y, dtype=float).reshape(-1)
         if not self.spec.active:
             return y
-        step = y - (y if self._last is None else self._last)
-        self._last = y
-        return np.concatenate([y, step])
+        return np.concatenate([y, self._steps.push(y)])

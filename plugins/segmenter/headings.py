@@ -22,6 +22,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .derived import FrameSteps
+
 SOFTNESS_OF_MEDIAN_STEP = 0.2  # σ as a fraction of the median training step (documented choice)
 
 
@@ -115,7 +117,7 @@ class HeadingStream:
 
     def __init__(self, headings: Headings) -> None:
         self.spec = headings
-        self._last: np.ndarray | None = None
+        self._steps = FrameSteps()
 
     def push(self, y: np.ndarray) -> np.ndarray:
         """The observation (d,) with its heading appended (d + c,)."""
@@ -123,7 +125,5 @@ class HeadingStream:
         if not self.spec.active:
             return y
         self.spec.check_width(y.size)
-        picked = y[list(self.spec.channels)]
-        step = picked - (picked if self._last is None else self._last)
-        self._last = picked
+        step = self._steps.push(y[list(self.spec.channels)])
         return np.concatenate([y, self.spec.headings(step[None])[0]])

@@ -260,9 +260,9 @@ class CandidateSet:
     def project(self, Y: np.ndarray, embedded: bool = False, reversed_rows: np.ndarray | None = None) -> Projection:
         """Project (N, d) observations — a contiguous stretch of a stream from its start — onto every
         candidate; candidates trained on velocities (:mod:`.derived`), heading channels
-        (:mod:`.headings`) or a delay embedding (:mod:`.delay`) derive, head and embed Y first.  ``embedded=True``: the rows are already prepared
-        (the online segmenter's stream, :meth:`stream`), ``reversed_rows`` with their headings
-        turned round."""
+        (:mod:`.headings`) or a delay embedding (:mod:`.delay`) derive, head and embed Y first.
+        ``embedded=True``: the rows are already prepared (the online segmenter's stream,
+        :meth:`stream`), ``reversed_rows`` with their headings turned round."""
         Y = np.atleast_2d(np.asarray(Y, dtype=float))
         if not np.isfinite(Y).all():
             raise ValueError("observations hold NaN/inf; drop or repair those rows before recognition")

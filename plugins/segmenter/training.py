@@ -199,10 +199,12 @@ def fit_recording_models(
     if scaling not in SCALINGS:
         raise ValueError(f"scaling must be one of {SCALINGS}, got {scaling!r}")
     features = Derived(derived)
-    raw = {c: [features.complete(s) for s in segs] for c, segs in by_class.items()}
-    scaler = ChannelScaling().fit([s for segs in raw.values() for s in segs]) if scaling == "standard" else None
+    frames = {c: [features.complete(s) for s in segs] for c, segs in by_class.items()}
+    scaler = ChannelScaling().fit([s for segs in frames.values() for s in segs]) if scaling == "standard" else None
     embedding = DelayEmbedding(int(delay))
-    embedded = {c: [embedding.complete(scaler.transform(s) if scaler else s) for s in segs] for c, segs in raw.items()}
+    embedded = {
+        c: [embedding.complete(scaler.transform(s) if scaler else s) for s in segs] for c, segs in frames.items()
+    }
     pooled_variance = np.vstack([e for segs in embedded.values() for e in segs]).var(axis=0)
     pooled_variance = np.where(pooled_variance > 0, pooled_variance, 1.0)
     extra = {
@@ -224,10 +226,10 @@ def fit_recording_models(
         models[c] = model
     cands = candidate_set(models)
     errors = {c: np.vstack([cands.project(s).errors for s in segs]) for c, segs in by_class.items()}  # (frames, M)
-    own = {c: errors[c][:, j] for j, c in enumerate(raw)}
+    own = {c: errors[c][:, j] for j, c in enumerate(frames)}
     reference = float(np.median(np.concatenate(list(own.values())))) or 1.0
     tau = evidence_temperature(-np.vstack(list(errors.values())) / reference)
-    intensity = IntensityRanges.fit(raw)
+    intensity = IntensityRanges.fit(frames)
     for row, (c, model) in enumerate(models.items()):
         model.provenance_ = dict(
             model.provenance_,

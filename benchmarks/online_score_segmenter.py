@@ -10,10 +10,11 @@ scorer (window ``--window``) is fitted on the labelled segments of the others, s
 window of 200, 100 Hz).  Baseline in the same run: the scorer alone per sample (MiniRocket
 argmax, no CLM).  BLAS and numba are limited to one thread.
 
-    python benchmarks/online_score_segmenter.py bm.npz [--folds 2] [--background 0.5] [--clm-window 200] [--novelty 0.25] [--json]
+    python benchmarks/online_score_segmenter.py bm.npz [--folds 2] [--background 0.5] [--clm-window 200] [--novelty 0.25] [--distance-z 2] [--json]
 
 ``--novelty F`` adds the novelty term (class manifolds with a delay window of 8 fitted on the same
-segments; their projection is part of the scorer time).
+segments; their projection is part of the scorer time); ``--distance-z Z`` the feature novelty
+(part of the scorer time too).
 """
 
 from __future__ import annotations
@@ -49,8 +50,11 @@ def stream(seg: OnlineScoreCLMSegmenter, X: np.ndarray) -> dict:
     for x in X:
         t0 = time.perf_counter()
         recent = (recent + [x])[-seg.scorer.window :]
-        s = seg.scorer.scores_last(np.asarray(recent))
-        known = seg.known_weight(x)
+        if seg.distance_z is None:
+            s, feature_novelty = seg.scorer.scores_last(np.asarray(recent)), None
+        else:
+            s, feature_novelty = seg.scorer.scores_and_novelty_last(np.asarray(recent))
+        known = seg.known_weight(x, feature_novelty)
         t1 = time.perf_counter()
         up = seg.update_scores(s, known)
         t2 = time.perf_counter()
@@ -90,6 +94,7 @@ def main(argv=None) -> int:
         default=None,
         help="add the novelty term: class manifolds (delay 8) fitted on the same segments, this novelty factor",
     )
+    ap.add_argument("--distance-z", type=float, default=None, help="add the feature novelty beyond this z-score")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args(argv)
     data = load_recordings(args.recordings)
@@ -107,7 +112,7 @@ def main(argv=None) -> int:
         0,
         0,
     )
-    params = dict(history=args.history, background_factor=args.background, random_state=0)
+    params = dict(history=args.history, background_factor=args.background, distance_z=args.distance_z, random_state=0)
     for rec in data.recordings[: args.folds]:
         segs = segments(data.without(rec.name), classes)
         scorer = MiniRocketScorer(window=args.window, random_state=0).fit(
@@ -164,6 +169,8 @@ def main(argv=None) -> int:
         "minirocket_window": args.window,
         "background_factor": args.background,
         "history": args.history,
+        "novelty": args.novelty,
+        "distance_z": args.distance_z,
         "goal_p99_ms": 10.0,
         "goal_agreement": 0.98,
     }

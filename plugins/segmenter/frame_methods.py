@@ -19,6 +19,7 @@ from .baselines import PerClassHMM, SlidingDTW1NN
 from .candidates import CandidateSet, Projection
 from .clm_segmenter import CLMSegmenter
 from .compatibility import evidence_band, history_compatibility, novelty_weight, score_evidence
+from .feature_novelty import distance_weight
 from .openset import REJECTED, score_thresholds, threshold_labels
 from .scorers import MiniRocketScorer
 from .training import fit_recording_models
@@ -47,6 +48,7 @@ class ScoreMethod(ABC):
     """Methods with per-frame class scores; rejection = a threshold on the winning score."""
 
     name = ""
+    has_features = False  # whether :meth:`prepare_with_novelty` gives a feature novelty
 
     @property
     def fit_key(self) -> str:
@@ -64,6 +66,10 @@ class ScoreMethod(ABC):
     @abstractmethod
     def prepare(self, fitted: Fitted, X: np.ndarray) -> np.ndarray:
         """Per-frame state of a recording (class scores), from which :meth:`labels` decides."""
+
+    def prepare_with_novelty(self, fitted: Fitted, X: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+        """:meth:`prepare` and the frames' feature novelty (:mod:`.feature_novelty`; None without features)."""
+        return self.prepare(fitted, X), None
 
     def labels(self, fitted: Fitted, state: np.ndarray, reject: float, drop: int | None = None) -> np.ndarray:
         cols = _columns(fitted, drop)
@@ -119,6 +125,7 @@ class MiniRocketMethod(ScoreMethod):
     refitted without the class (:meth:`without_class`)."""
 
     name = "minirocket"
+    has_features = True
 
     def grid(self, quick: bool) -> list[dict]:
         return [{"window": w} for w in ((32,) if quick else (16, 48))]
@@ -129,6 +136,9 @@ class MiniRocketMethod(ScoreMethod):
 
     def prepare(self, fitted, X):
         return fitted.model.scores(X)
+
+    def prepare_with_novelty(self, fitted, X):
+        return fitted.model.scores_and_novelty(X)
 
     def without_class(self, fitted, segments, drop, seed):
         """Refitted without ``drop``: the ridge is fitted on all classes at once, so with a class's
@@ -284,18 +294,21 @@ class NoveltyCLMMethod(ScoreCLMMethod):
     training frames has its classifier evidence scaled down by the ratio,
     ``w = min(1, own / (novelty · error))``; and class m's evidence where the frame's motion
     intensity lies outside m's training range (:mod:`.intensity`, weight ``i_m``):
-    ``e_m = p_m · mean(w · i_m)``, the mean over the frame and the H − 1 before it (the γ = 1
-    history average), before the banding of :func:`.compatibility.evidence_band`.  A frame that no
+    ``e_m = p_m · mean(w · i_m · f)``, the mean over the frame and the H − 1 before it (the γ = 1
+    history average), before the banding of :func:`.compatibility.evidence_band`; ``f`` is the
+    weight of the frame's feature novelty for scorers with features
+    (:func:`.feature_novelty.distance_weight` beyond the z-score ``distance_z``, 1 when it is None).  A frame that no
     class model explains falls below chance in every class layer and goes to the background,
     however confident the classifier is;
-    ``novelty`` is chosen on validation without refitting.  Rejection = the background factor, as
+    ``novelty`` and ``distance_z`` are chosen on validation without refitting.  Rejection = the background factor, as
     for :class:`ScoreCLMMethod`; a pseudo-unknown of the calibration has the scorer refitted
     without its class (:meth:`without_class`) and its manifold left out (docs/segmentation.md)."""
 
     ukr = UKRMethod()
     delays = ((8,), (8, 16))  # delay windows of the manifolds in the quick and the full grid
     novelties = ((0.125, 0.25), (0.125, 0.25, 0.5))  # of the quick and the full grid
-    label_params = ("novelty",)
+    distance_zs = (1.0, 2.0)  # feature-novelty limits of scorers with features (docs/segmentation.md)
+    label_params = ("novelty", "distance_z")
 
     def __init__(self, scorer: ScoreMethod) -> None:
         super().__init__(scorer)
@@ -303,10 +316,11 @@ class NoveltyCLMMethod(ScoreCLMMethod):
 
     def grid(self, quick: bool) -> list[dict]:
         return [
-            {**p, "delay": w, "novelty": v}
+            {**p, "delay": w, "novelty": v, "distance_z": z}
             for p in self.scorer.grid(quick)
             for w in self.delays[not quick]
             for v in self.novelties[not quick]
+            for z in (self.distance_zs if self.scorer.has_features else (None,))
         ]
 
     def fit(self, segments, params, seed) -> Fitted:
@@ -320,7 +334,8 @@ class NoveltyCLMMethod(ScoreCLMMethod):
 
     def prepare(self, fitted, X):
         scorer, manifolds = fitted.model
-        return self.scorer.prepare(scorer, X), manifolds.project(X), manifolds.intensity_weights(X)
+        scores, novelty = self.scorer.prepare_with_novelty(scorer, X)
+        return scores, novelty, manifolds.project(X), manifolds.intensity_weights(X)
 
     def without_class(self, fitted, segments, drop, seed):
         """The scorer refitted without ``drop`` if it needs it; the manifolds leave its one out."""
@@ -331,10 +346,12 @@ class NoveltyCLMMethod(ScoreCLMMethod):
         return Fitted((refit, manifolds.without(str(drop))), refit.classes, fitted.params)
 
     def evidence(self, fitted: Fitted, state, drop: int | None) -> np.ndarray:
-        scores, proj, intensity = state
+        scores, novelty, proj, intensity = state
         kept = [j for j, c in enumerate(proj.classes) if drop is None or c != str(drop)]
         cands, proj, _ = UKRMethod._view(Fitted(fitted.model[1], fitted.classes, fitted.params), proj, drop)
         known = novelty_weight(proj.errors, cands.own_errors, fitted.params["novelty"], intensity[:, kept])
+        if novelty is not None:
+            known = known * distance_weight(novelty, fitted.params["distance_z"])[:, None]
         return super().evidence(fitted, scores, drop) * history_compatibility(known, self.history, 1.0)
 
 

@@ -121,6 +121,11 @@ class OnlineCLMNode(_RecognizerNode):
         novelty: float = Field(
             0.25, gt=0, description="novelty weight < 1 beyond 1/novelty times a manifold's own typical error"
         )
+        distance_z: float | None = Field(
+            None,
+            description="source minirocket: scale the evidence down where the window's features lie beyond this "
+            "robust z-score from every training window (docs/segmentation.md, feature novelty; null = off)",
+        )
         window: int = Field(200, ge=2, description="observations in the sliding window")
         background_factor: float = Field(1.0, ge=0, description="multiplies λ_bg (3 = strong background; 0 = none)")
         background: float | None = Field(None, description="λ_bg; null = 1 − 10/N")
@@ -173,6 +178,8 @@ class OnlineCLMNode(_RecognizerNode):
                 raise ValueError(f"source '{self.source}' needs 'scorer' (a file from `handflow fit-scorer`)")
             if self.source == "ukr" and self.novelty_models:
                 raise ValueError("novelty_models needs source minirocket or dtw (the UKR source rejects by itself)")
+            if self.source != "minirocket" and self.distance_z is not None:
+                raise ValueError("distance_z needs source minirocket (the only scorer with features)")
             if self.source != "ukr" and self.min_progress:
                 raise ValueError("min_progress needs source 'ukr' (a scorer's evidence has no latent time)")
             if self.source != "ukr" and self.max_fit_ratio is not None:
@@ -225,7 +232,9 @@ class OnlineCLMNode(_RecognizerNode):
                     f"novelty_models were trained on {novelty_models.n_channels} channels, the scorer "
                     f"on {scorer.n_features_in_}; train both on the same recordings"
                 )
-            self.segmenter = OnlineScoreCLMSegmenter(scorer, novelty_models=novelty_models, novelty=p.novelty, **common)
+            self.segmenter = OnlineScoreCLMSegmenter(
+                scorer, novelty_models=novelty_models, novelty=p.novelty, distance_z=p.distance_z, **common
+            )
         self.classes = self.segmenter.classes_
 
     def load_scorer(self) -> WindowScorer:

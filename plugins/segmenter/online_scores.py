@@ -9,7 +9,8 @@ Everything else — one CLM layer per class plus the background, warm start, con
 revisions, segment events — is the UKR segmenter's.  With ``novelty_models`` (class manifolds
 from ``handflow train-classes``) each observation's evidence is scaled by its novelty weight
 (:func:`.compatibility.novelty_weight`, with the models' intensity ranges, :mod:`.intensity`), so
-motion no manifold explains goes to the background.
+motion no manifold explains goes to the background; with ``distance_z`` also by the weight of its
+feature novelty (:func:`.feature_novelty.distance_weight`, scorers with features only).
 :func:`batch_labels` segments a whole recording with the same compatibilities, the reference of
 the online/batch agreement.
 """
@@ -23,6 +24,7 @@ import numpy as np
 from .candidates import CandidateSet
 from .clm_segmenter import CLMSegmenter
 from .compatibility import evidence_band, history_compatibility, novelty_weight
+from .feature_novelty import distance_weight
 from .online import OnlineCLMSegmenter, OnlineUpdate
 from .scorers import WindowScorer
 
@@ -36,12 +38,20 @@ class OnlineScoreCLMSegmenter(OnlineCLMSegmenter):
     """
 
     def __init__(
-        self, scorer: WindowScorer, novelty_models: CandidateSet | None = None, novelty: float = 0.25, **params
+        self,
+        scorer: WindowScorer,
+        novelty_models: CandidateSet | None = None,
+        novelty: float = 0.25,
+        distance_z: float | None = None,
+        **params,
     ) -> None:
         self.scorer = scorer
         self.novelty_models = novelty_models
         self.novelty = novelty
+        self.distance_z = distance_z
         super().__init__(None, **params)
+        if distance_z is not None and not scorer.has_features:
+            raise ValueError(f"distance_z needs a scorer with features (minirocket), not {scorer.kind}")
         if self.segment_rules:
             raise ValueError(
                 "min_progress and max_fit_ratio need class manifolds' latent time and errors; a scorer's evidence has none"
@@ -50,7 +60,7 @@ class OnlineScoreCLMSegmenter(OnlineCLMSegmenter):
     @classmethod
     def _get_param_names(cls) -> list[str]:
         names = set(OnlineCLMSegmenter._get_param_names()) - {"candidates"}
-        return sorted(names | {"scorer", "novelty_models", "novelty"})
+        return sorted(names | {"scorer", "novelty_models", "novelty", "distance_z"})
 
     @property
     def classes_(self) -> list[str]:
@@ -72,45 +82,82 @@ class OnlineScoreCLMSegmenter(OnlineCLMSegmenter):
         """Consume one observation (d,): score its causal window, then re-segment the window."""
         y = self.scorer.check_input(y)[0]
         self._recent.append(y)
-        return self.update_scores(self.scorer.scores_last(np.asarray(self._recent)), self.known_weight(y))
+        if self.distance_z is None:
+            scores, novelty = self.scorer.scores_last(np.asarray(self._recent)), None
+        else:
+            scores, novelty = self.scorer.scores_and_novelty_last(np.asarray(self._recent))
+        return self.update_scores(scores, self.known_weight(y, novelty))
 
     def update_scores(self, scores: np.ndarray, known: float | np.ndarray = 1.0) -> OnlineUpdate:
         """:meth:`update` for an observation already scored (M,), with its novelty weights (M,)."""
         self._append(evidence=self.scorer.evidence(scores)[0] * known)
         return self._segment()
 
-    def known_weight(self, y: np.ndarray) -> float | np.ndarray:
-        """The novelty weights (M,) of the newest observation, averaged over the last H (1 without novelty models)."""
+    def known_weight(self, y: np.ndarray, feature_novelty: float | None = None) -> float | np.ndarray:
+        """The novelty weights (M,) of the newest observation (its feature novelty given by the
+        scorer), averaged over the last H (1 without novelty models and ``distance_z``)."""
         models = self.novelty_models
-        if models is None:
+        if models is None and self.distance_z is None:
             return 1.0
-        stream = self._novelty_stream
-        intensity = stream.intensity_weights(y)
-        self._weights.append(novelty_weight(stream.project(y).errors, models.own_errors, self.novelty, intensity)[0])
+        weight = distance_weight(
+            np.atleast_1d(feature_novelty if feature_novelty is not None else 0.0), self.distance_z
+        )
+        if models is not None:
+            stream = self._novelty_stream
+            intensity = stream.intensity_weights(y)
+            weight = weight * novelty_weight(stream.project(y).errors, models.own_errors, self.novelty, intensity)[0]
+        self._weights.append(weight)
         return np.mean(self._weights, axis=0)
 
     def _updates(self, Y: np.ndarray):
-        weights = known_weights(self.novelty_models, self.novelty, Y, self.history)
-        for s, known in zip(self.scorer.scores(Y), weights):
+        scores, feature_novelty = _scores(self.scorer, Y, self.distance_z)
+        weights = known_weights(self.novelty_models, self.novelty, Y, self.history, feature_novelty, self.distance_z)
+        for s, known in zip(scores, weights):
             yield self.update_scores(s, known)
 
 
-def known_weights(models: CandidateSet | None, novelty: float, Y: np.ndarray, history: int) -> np.ndarray:
+def _scores(scorer: WindowScorer, Y: np.ndarray, distance_z: float | None) -> tuple[np.ndarray, np.ndarray | None]:
+    """The scorer's scores of a recording, and its feature novelty when ``distance_z`` asks for it."""
+    return scorer.scores_and_novelty(Y) if distance_z is not None else (scorer.scores(Y), None)
+
+
+def known_weights(
+    models: CandidateSet | None,
+    novelty: float,
+    Y: np.ndarray,
+    history: int,
+    feature_novelty: np.ndarray | None = None,
+    distance_z: float | None = None,
+) -> np.ndarray:
     """Novelty weights (N, M) of a whole recording, each averaged with the H − 1 before it
-    (:func:`.compatibility.novelty_weight`; all 1 without models)."""
-    if models is None:
+    (:func:`.compatibility.novelty_weight` times the weight of the frames' feature novelty beyond
+    ``distance_z``; all 1 without models and ``distance_z``)."""
+    if models is None and distance_z is None:
         return np.ones((len(Y), 1))
-    weights = novelty_weight(models.project(Y).errors, models.own_errors, novelty, models.intensity_weights(Y))
+    weights = np.ones((len(Y), 1))
+    if feature_novelty is not None:
+        weights = distance_weight(feature_novelty, distance_z)[:, None]
+    if models is not None:
+        weights = weights * novelty_weight(
+            models.project(Y).errors, models.own_errors, novelty, models.intensity_weights(Y)
+        )
     return history_compatibility(weights, history, 1.0)
 
 
 def batch_labels(
-    scorer: WindowScorer, Y: np.ndarray, novelty_models: CandidateSet | None = None, novelty: float = 0.25, **params
+    scorer: WindowScorer,
+    Y: np.ndarray,
+    novelty_models: CandidateSet | None = None,
+    novelty: float = 0.25,
+    distance_z: float | None = None,
+    **params,
 ) -> np.ndarray:
     """Whole-recording CLM over ``scorer``'s evidence at its fitted temperature, scaled by the
-    novelty weights of ``novelty_models`` if given (class indices, −1 = background); ``params``
-    are :class:`.clm_segmenter.CLMSegmenter`'s."""
+    novelty weights of ``novelty_models`` and of the feature novelty beyond ``distance_z`` if given
+    (class indices, −1 = background); ``params`` are :class:`.clm_segmenter.CLMSegmenter`'s."""
     seg = CLMSegmenter(None, **params)
     _, span, width = seg.widths()
-    evidence = scorer.evidence(scorer.scores(Y)) * known_weights(novelty_models, novelty, Y, int(seg.history))
+    scores, feature_novelty = _scores(scorer, Y, distance_z)
+    known = known_weights(novelty_models, novelty, Y, int(seg.history), feature_novelty, distance_z)
+    evidence = scorer.evidence(scores) * known
     return seg.fit_predict_bands(*seg.with_background(evidence_band(evidence, width, span)))

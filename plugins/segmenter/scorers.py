@@ -27,9 +27,10 @@ from sklearn.base import BaseEstimator
 
 from .baselines import SlidingDTW1NN
 from .compatibility import evidence_temperature, score_evidence
+from .feature_novelty import FeatureNovelty
 
 FORMAT = "handflow.scorer"
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2  # 2: MiniRocket scorers keep their feature novelty
 WINDOWS_PER_SEGMENT = 12  # MiniRocket training windows per segment
 
 
@@ -51,6 +52,7 @@ class WindowScorer(BaseEstimator, ABC):
     """
 
     kind: ClassVar[str] = ""
+    has_features: ClassVar[bool] = False  # whether :meth:`scores_and_novelty` gives a feature novelty
 
     def fit(self, segments: dict) -> WindowScorer:
         """Fit on ``{class: [segment (T, D), ...]}``; returns self."""
@@ -78,6 +80,15 @@ class WindowScorer(BaseEstimator, ABC):
         """(M,) class scores of the last frame of ``recent`` (the stream's last ``window`` frames,
         fewer at its start) — the same as :meth:`scores` of the whole stream at that frame."""
         return self.scores(np.asarray(recent, dtype=float)[-int(self.window) :])[-1]
+
+    def scores_and_novelty(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+        """:meth:`scores` and the frames' feature novelty (N,) (:mod:`.feature_novelty`; None
+        for a scorer without features)."""
+        return self.scores(X), None
+
+    def scores_and_novelty_last(self, recent: np.ndarray) -> tuple[np.ndarray, float | None]:
+        """:meth:`scores_last` and the last frame's feature novelty (None without features)."""
+        return self.scores_last(recent), None
 
     def evidence(self, scores: np.ndarray) -> np.ndarray:
         """Scores → class evidence in [0, 1] at the fitted temperature."""
@@ -135,10 +146,12 @@ class MiniRocketScorer(WindowScorer):
     keeps the ridge fit affordable).  Scores are the ridge decision values, one column per class
     (two for a binary problem); the evidence temperature comes from those of the training windows.  Fitted: ``parameters_`` (the MiniRocket transform: channels per
     combination, channel indices, dilations, features per dilation, biases), ``coef_`` (M, F),
-    ``intercept_`` (M,).
+    ``intercept_`` (M,), ``novelty_`` (:class:`.feature_novelty.FeatureNovelty` of the training
+    windows' features).
     """
 
     kind = "minirocket"
+    has_features = True
     PARAMETER_NAMES = ("n_channels_per_combination", "channel_indices", "dilations", "features_per_dilation", "biases")
 
     def __init__(self, *, window: int = 32, n_kernels: int = 10_000, random_state: int | None = 0) -> None:
@@ -158,12 +171,13 @@ class MiniRocketScorer(WindowScorer):
         self.mean_ = frames.mean(axis=0)
         sd = frames.std(axis=0)
         self.std_ = np.where(sd > 0, sd, 1.0)
-        windows, targets = [], []
+        windows, targets, origins = [], [], []
         for k, segs in enumerate(segments.values()):
             for seg in segs:
                 ends = np.unique(np.linspace(0, len(seg) - 1, WINDOWS_PER_SEGMENT).astype(int))
                 windows.append(causal_windows((seg - self.mean_) / self.std_, ends, int(self.window)))
                 targets.append(np.full(len(ends), k))
+                origins.append(np.full(len(ends), len(origins)))
         transform = MiniRocket(n_kernels=self.n_kernels, random_state=self.random_state).fit(np.concatenate(windows))
         self.parameters_ = tuple(np.asarray(p) for p in transform.parameters)
         F = self.features(np.concatenate(windows))
@@ -172,6 +186,7 @@ class MiniRocketScorer(WindowScorer):
         if coef.shape[0] == 1:  # binary: one decision value d, scores (−d, d)
             coef, intercept = np.vstack([-coef, coef]), np.r_[-intercept, intercept]
         self.coef_, self.intercept_ = coef, intercept
+        self.novelty_ = FeatureNovelty.fit(F, np.concatenate(origins))
         return F @ coef.T + intercept
 
     def features(self, windows: np.ndarray) -> np.ndarray:
@@ -182,16 +197,28 @@ class MiniRocketScorer(WindowScorer):
             return kernels.uni(X[:, 0], self.parameters_, kernels.indices)
         return kernels.multi(X, self.parameters_, kernels.indices)
 
-    def scores(self, X: np.ndarray, ends: np.ndarray | None = None) -> np.ndarray:
-        """Class scores of the causal windows ending at ``ends`` (default: every frame of X)."""
+    def window_features(self, X: np.ndarray, ends: np.ndarray | None = None) -> np.ndarray:
+        """Features (n, F) of the causal windows ending at ``ends`` (default: every frame of X)."""
         Z = (self.check_input(X) - self.mean_) / self.std_
         ends = np.arange(len(Z)) if ends is None else np.asarray(ends, dtype=int)
-        F = self.features(causal_windows(Z, ends, int(self.window)))
-        return F.astype(float) @ self.coef_.T + self.intercept_
+        return self.features(causal_windows(Z, ends, int(self.window))).astype(float)
+
+    def scores(self, X: np.ndarray, ends: np.ndarray | None = None) -> np.ndarray:
+        """Class scores of the causal windows ending at ``ends`` (default: every frame of X)."""
+        return self.window_features(X, ends) @ self.coef_.T + self.intercept_
 
     def scores_last(self, recent: np.ndarray) -> np.ndarray:
         recent = np.atleast_2d(np.asarray(recent, dtype=float))[-int(self.window) :]
         return self.scores(recent, ends=[len(recent) - 1])[0]
+
+    def scores_and_novelty(self, X: np.ndarray, ends: np.ndarray | None = None):
+        F = self.window_features(X, ends)
+        return F @ self.coef_.T + self.intercept_, self.novelty_.novelty(F)
+
+    def scores_and_novelty_last(self, recent: np.ndarray):
+        recent = np.atleast_2d(np.asarray(recent, dtype=float))[-int(self.window) :]
+        scores, novelty = self.scores_and_novelty(recent, ends=[len(recent) - 1])
+        return scores[0], float(novelty[0])
 
     def _arrays(self) -> dict[str, np.ndarray]:
         return {
@@ -200,6 +227,7 @@ class MiniRocketScorer(WindowScorer):
             "coef": self.coef_,
             "intercept": self.intercept_,
             **dict(zip(self.PARAMETER_NAMES, self.parameters_)),
+            **self.novelty_.arrays("novelty_"),
         }
 
     def _restore(self, arrays: dict[str, np.ndarray]) -> None:
@@ -229,6 +257,7 @@ class MiniRocketScorer(WindowScorer):
             or (arrays["std"] <= 0).any()
         ):
             raise ValueError("MiniRocket parameters are inconsistent with each other or with the input channels")
+        self.novelty_ = FeatureNovelty.from_arrays(arrays, "novelty_", n_feat)
         self.mean_, self.std_ = arrays["mean"], arrays["std"]
         self.coef_, self.intercept_ = arrays["coef"], arrays["intercept"]
         self.parameters_ = tuple(np.ascontiguousarray(p, dtype=np.float32 if p is biases else np.int32) for p in params)

@@ -239,6 +239,8 @@ def test_novelty_from_the_class_manifolds_rejects_what_the_classifier_labels_con
     segments = {c: [X[y == c]] for c in (0, 1)}
     plain, novelty = METHODS["clm_dtw"], NoveltyCLMMethod(DTWMethod())
     assert novelty.name == "clm_dtw_novelty" and all("delay" in p for p in novelty.grid(quick=True))
+    assert {p["distance_z"] for p in novelty.grid(quick=True)} == {None}  # DTW has no features to measure
+    assert {p["distance_z"] for p in METHODS["clm_minirocket_novelty"].grid(quick=True)} == {1.0, 2.0}
     fitted = novelty.fit(segments, {"window": 20, "delay": 8, "novelty": 0.25}, seed=0)
     state = novelty.prepare(fitted, X)
     unknown, known = y == 2, y != 2
@@ -250,8 +252,9 @@ def test_novelty_from_the_class_manifolds_rejects_what_the_classifier_labels_con
     plain_labels = plain.labels(plain_fit, plain.prepare(plain_fit, X), reject=0.1)
     assert np.mean(plain_labels[unknown] == -1) < 0.2  # the same background without the novelty term
     tolerant = replace(fitted, params={**fitted.params, "novelty": 1e-6})
-    scores, proj, intensity = state
-    in_range = (scores, proj, np.ones_like(intensity))
+    scores, feature_novelty, proj, intensity = state
+    assert feature_novelty is None
+    in_range = (scores, None, proj, np.ones_like(intensity))
     assert np.array_equal(novelty.labels(tolerant, in_range, reject=0.1), plain_labels)  # nothing novel: no change
     by_intensity = novelty.labels(tolerant, state, reject=0.1)  # class 2 moves unlike 0 and 1 (its ranges)
     assert np.mean(by_intensity[unknown] == -1) > 0.8 and np.mean(by_intensity[known] == y[known]) > 0.85
@@ -355,7 +358,7 @@ def test_a_joint_classifier_is_refitted_for_the_pseudo_unknowns_of_the_calibrati
     assert METHODS["clm_minirocket"].without_class(fitted, segments, 2, seed=0).classes == [0, 1]
     manifolds = fit_recording_models({str(c): s for c, s in segments.items()}, delay=4, n_steps=20)
     novelty = METHODS["clm_minirocket_novelty"]
-    both = Fitted((fitted, manifolds), [0, 1, 2], {"window": 16, "delay": 4, "novelty": 0.25})
+    both = Fitted((fitted, manifolds), [0, 1, 2], {"window": 16, "delay": 4, "novelty": 0.25, "distance_z": 2.0})
     unseen = novelty.without_class(both, segments, 2, seed=0)  # the ridge refitted, class 2's manifold left out
     assert unseen.classes == [0, 1] and unseen.model[1].classes == ["0", "1"]
     labels = novelty.labels(unseen, novelty.prepare(unseen, X), reject=0.5)

@@ -57,6 +57,7 @@ def test_reloaded_minirocket_scores_exactly_like_the_fitted_one(minirocket, demo
     again = load_scorer(path)
     assert isinstance(again, MiniRocketScorer) and again.classes_ == ["circle", "rest", "wave"]
     np.testing.assert_array_equal(again.scores(X), scorer.scores(X))
+    np.testing.assert_array_equal(again.scores_and_novelty(X)[1], scorer.scores_and_novelty(X)[1])
     assert again.temperature_ == scorer.temperature_
     assert np.mean(scorer.scores(X).argmax(axis=1) == demo[1].y) > 0.8  # it learned the classes
 
@@ -75,6 +76,18 @@ def test_scores_of_the_last_frame_equal_the_batch_scores(minirocket, demo):
         np.testing.assert_allclose(scorer.scores_last(X[max(0, t - 15) : t + 1]), batch[t], rtol=1e-9, atol=1e-9)
 
 
+def test_feature_novelty_of_the_last_frame_equals_the_batch(minirocket, demo):
+    scorer, _ = minirocket
+    X = demo[1].X[:40]
+    scores, novelty = scorer.scores_and_novelty(X)
+    np.testing.assert_array_equal(scores, scorer.scores(X))
+    for t in (0, 15, 39):
+        last = scorer.scores_and_novelty_last(X[max(0, t - 15) : t + 1])
+        np.testing.assert_allclose(last[0], scores[t], rtol=1e-9, atol=1e-9)
+        assert last[1] == pytest.approx(novelty[t], rel=1e-9, abs=1e-9)
+    assert DTWScorer(window=8).fit(demo[0]).scores_and_novelty(X)[1] is None  # no features, no feature novelty
+
+
 def test_fixed_temperature_maps_scores_to_evidence(minirocket):
     scorer, _ = minirocket
     e = scorer.evidence(np.array([0.0, scorer.temperature_, -1.0]))
@@ -91,9 +104,10 @@ def _rewrite(path: Path, out: Path, edit) -> Path:
     return out
 
 
-def test_file_of_another_version_is_refused_with_what_to_do(dtw, tmp_path):
-    bad = _rewrite(dtw[1], tmp_path / "v2.npz", lambda m, a: m.update(version=FORMAT_VERSION + 1))
-    with pytest.raises(ScorerFileError, match=r"version 2.*reads version 1.*fit-scorer"):
+@pytest.mark.parametrize("version", [FORMAT_VERSION - 1, FORMAT_VERSION + 1])
+def test_file_of_another_version_is_refused_with_what_to_do(dtw, tmp_path, version):
+    bad = _rewrite(dtw[1], tmp_path / "other.npz", lambda m, a: m.update(version=version))
+    with pytest.raises(ScorerFileError, match=rf"version {version}.*reads version {FORMAT_VERSION}.*fit-scorer"):
         load_scorer(bad)
 
 
@@ -276,6 +290,35 @@ def test_node_takes_novelty_models_with_a_scorer_source(novelty_setup, demo):
     assert len(labels) == 300 and np.mean(labels[y[:300] == 1] == "unknown") > 0.5
     with pytest.raises(Exception, match="novelty_models needs source"):
         NodeHarness(OnlineCLMNode, {"models": str(folder), "novelty_models": str(folder)})
+
+
+@pytest.fixture(scope="module")
+def rocket_without_rest(demo):
+    """A MiniRocket scorer of circle and wave only: 'rest' is unknown."""
+    pytest.importorskip("aeon")
+    return MiniRocketScorer(window=16, n_kernels=840, random_state=0).fit({c: demo[0][c] for c in ("circle", "wave")})
+
+
+def test_feature_novelty_rejects_unknown_motion_online_as_in_the_batch(rocket_without_rest, demo):
+    scorer = rocket_without_rest
+    X, y = demo[1].X, demo[1].y
+    rest = y == 1
+    params = dict(history=10, background_factor=0.25, random_state=0)
+    plain = batch_labels(scorer, X, **params)
+    batch = batch_labels(scorer, X, distance_z=2.0, **params)
+    assert np.mean(plain[rest] == -1) < 0.5 < np.mean(batch[rest] == -1)  # the classifier alone keeps 'rest'
+    names = np.array(["circle", "rest", "wave"])
+    # most known frames kept (windows across a change of motion lie far from every training window)
+    assert np.mean(names[y[~rest]] == np.array(scorer.classes_ + ["-"])[batch[~rest]]) > 0.75
+    online = OnlineScoreCLMSegmenter(scorer, distance_z=2.0, window=150, **params)
+    assert np.mean(online.replay(X) == batch) > 0.9
+
+
+def test_distance_z_needs_a_scorer_with_features(dtw):
+    with pytest.raises(ValueError, match="distance_z needs a scorer with features"):
+        OnlineScoreCLMSegmenter(dtw[0], distance_z=2.0)
+    with pytest.raises(Exception, match="distance_z needs source minirocket"):
+        NodeHarness(OnlineCLMNode, {"source": "dtw", "scorer": str(dtw[1]), "distance_z": 2.0})
 
 
 def test_novelty_models_with_another_channel_count_are_refused_at_start(novelty_setup, demo, tmp_path):

@@ -131,10 +131,10 @@ def known_weights(
 ) -> np.ndarray:
     """Novelty weights (N, M) of a whole recording, each averaged with the H − 1 before it
     (:func:`.compatibility.novelty_weight` times the weight of the frames' feature novelty beyond
-    ``distance_z``; all 1 without models and ``distance_z``)."""
-    if models is None and distance_z is None:
-        return np.ones((len(Y), 1))
+    ``distance_z``; all 1 without models and feature novelty)."""
     weights = np.ones((len(Y), 1))
+    if models is None and feature_novelty is None:
+        return weights
     if feature_novelty is not None:
         weights = distance_weight(feature_novelty, distance_z)[:, None]
     if models is not None:

@@ -1,5 +1,5 @@
 """How far a window's classifier features lie from every training window (docs/segmentation.md,
-"Novelty term").
+"Feature novelty" under clm_minirocket_novelty).
 
 A classifier can be confident on motion it never saw; the distance of the window's features to
 the training windows' is a check that does not ask the classifier.  The features are

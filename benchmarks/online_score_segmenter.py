@@ -50,10 +50,7 @@ def stream(seg: OnlineScoreCLMSegmenter, X: np.ndarray) -> dict:
     for x in X:
         t0 = time.perf_counter()
         recent = (recent + [x])[-seg.scorer.window :]
-        if seg.distance_z is None:
-            s, feature_novelty = seg.scorer.scores_last(np.asarray(recent)), None
-        else:
-            s, feature_novelty = seg.scorer.scores_and_novelty_last(np.asarray(recent))
+        s, feature_novelty = seg.score_last(np.asarray(recent))
         known = seg.known_weight(x, feature_novelty)
         t1 = time.perf_counter()
         up = seg.update_scores(s, known)

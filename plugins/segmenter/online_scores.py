@@ -82,11 +82,15 @@ class OnlineScoreCLMSegmenter(OnlineCLMSegmenter):
         """Consume one observation (d,): score its causal window, then re-segment the window."""
         y = self.scorer.check_input(y)[0]
         self._recent.append(y)
-        if self.distance_z is None:
-            scores, novelty = self.scorer.scores_last(np.asarray(self._recent)), None
-        else:
-            scores, novelty = self.scorer.scores_and_novelty_last(np.asarray(self._recent))
+        scores, novelty = self.score_last(np.asarray(self._recent))
         return self.update_scores(scores, self.known_weight(y, novelty))
+
+    def score_last(self, recent: np.ndarray) -> tuple[np.ndarray, float | None]:
+        """The scores (M,) of the last of the ``recent`` observations, and its feature novelty
+        when ``distance_z`` asks for it (else None)."""
+        if self.distance_z is None:
+            return self.scorer.scores_last(recent), None
+        return self.scorer.scores_and_novelty_last(recent)
 
     def update_scores(self, scores: np.ndarray, known: float | np.ndarray = 1.0) -> OnlineUpdate:
         """:meth:`update` for an observation already scored (M,), with its novelty weights (M,)."""

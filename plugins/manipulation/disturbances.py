@@ -2,7 +2,7 @@
 
 A class is one scene disturbance (:mod:`handflow.plugins.simulator.scenes`: the balls scene's
 ``turns``, ``pushes``, ``holds``, ``frictions``, ``removals``, ``resizes``; the cap scene's
-``torques``) with fixed arguments, fired at a list of times.  :func:`schedule_times` draws the
+``torques`` and ``swaps``) with fixed arguments, fired at a list of times.  :func:`schedule_times` draws the
 times of one seed: the plan's nominal times each shifted by a seeded uniform offset within one
 hand cycle, so seeds hit the hand at different phases.
 
@@ -61,6 +61,12 @@ CAP_CLASSES = {
     "cap_block": DisturbanceClass("cap", "torques", (0.5, 10.0), 0, "cap blocked (10 N·m thread friction) for 0.5 s"),
     "cap_friction": DisturbanceClass(
         "cap", "torques", (2.0, 0.15), 0, "thread friction 0.15 N·m (2.5×) for one 2 s cycle"
+    ),
+    "cap_swap_small": DisturbanceClass(
+        "cap", "swaps", (0.0175,), None, "cap swapped for a 1.75 cm one (from 2.5 cm) mid-turn, for good"
+    ),
+    "cap_swap_large": DisturbanceClass(
+        "cap", "swaps", (0.0325,), None, "cap swapped for a 3.25 cm one (from 2.5 cm) mid-turn, for good"
     ),
 }
 """Cap-turning disturbance classes."""

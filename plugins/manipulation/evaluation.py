@@ -41,6 +41,8 @@ from .manifold_file import ManipulationManifold
 from .nodes import ClosedLoopNode
 from .open_loop import OpenLoopController
 
+CAP_CONTROLLERS = ("open_loop", "feedback_init", "closed_loop")
+"""Cap controllers of :func:`cap_turning`."""
 TRAINING_RADII_CM = (1.5, 2.0, 2.5, 3.0, 3.5)
 INTERMEDIATE_RADII_CM = (1.75, 2.25, 2.75, 3.25)
 
@@ -65,16 +67,22 @@ def cap_turning(
     settings: CapSettings = CapSettings(),
     seed: int = 0,
     scene_options: dict | None = None,
-    open_loop: bool = False,
+    controller: str = "feedback_init",
 ) -> dict:
     """Grasp by navigation then turn ``settings.cycles`` cycles; returns deg_per_cycle (net rotation
     over all cycles / cycles), per_cycle_deg (rotation of each cycle: the first one carries the
     grasp's settling transient, see docs/manipulation.md), found_radius (the frozen latent
     radius: cm on a constructed manifold, latent units on a learned one) and the turning phase's
     ``times`` (s) and cap ``turns`` (rotations, positive forward) per control step.
-    ``scene_options``: extra cap-scene options (e.g. ``torques``); ``open_loop``: no grasp
-    feedback — the radius is frozen at ``radius_cm`` (a constructed manifold's cm axis) after the
-    approach, i.e. the open loop of a user who knows the cap."""
+    ``scene_options``: extra cap-scene options (e.g. ``torques``, ``swaps``); ``controller``:
+    ``feedback_init`` (grasp by navigation once), ``closed_loop`` (the same with ``regrasp``:
+    the contacts are checked once per cycle and the hand closes again when one is missing;
+    ``regrasps`` counts those) or ``open_loop`` (no contact feedback — the radius is frozen at
+    ``radius_cm``, a constructed manifold's cm axis, after the approach: the open loop of a user
+    who knows the cap)."""
+    if controller not in CAP_CONTROLLERS:
+        raise ValueError(f"unknown cap controller {controller!r}; choose one of {CAP_CONTROLLERS}")
+    closed = controller == "closed_loop"
     t_dim = manifold.time_dim
     lo, hi = manifold.range(t_dim)
     delta = (hi - lo) / (settings.cycle_s * settings.control_hz)
@@ -85,6 +93,7 @@ def cap_turning(
         delta,
         settings.radius_step_fraction * (r_hi - r_lo),
         approach_steps=int(settings.approach_s * settings.control_hz),
+        regrasp=closed,
     )
     turning_steps = int(round(settings.cycles * (hi - lo) / delta))
     options = {"radius": radius_cm / 100.0, **(scene_options or {})}
@@ -92,7 +101,7 @@ def cap_turning(
         max_grasp = int((settings.approach_s + settings.max_closing_s) * settings.control_hz)
         for _ in range(max_grasp):
             x = ctl.update(touching_fingers(sim.contacts()))
-            if open_loop and ctl.state == CLOSING:
+            if controller == "open_loop" and ctl.state == CLOSING:
                 ctl.x[ctl.r_dim] = radius_cm
                 ctl.start_turning(False)
                 x = ctl.x.copy()
@@ -102,7 +111,7 @@ def cap_turning(
                 break
         angles, times = [sim.scene_state()["cap_angle"]], [sim.time]
         for _ in range(turning_steps):
-            x = ctl.update(())
+            x = ctl.update(touching_fingers(sim.contacts()) if closed else ())
             sim.set_targets(manifold.joint_names, ctl.posture(x))
             sim.step(per_control)
             angles.append(sim.scene_state()["cap_angle"])
@@ -115,6 +124,7 @@ def cap_turning(
         "per_cycle_deg": per_cycle.tolist(),
         "found_radius": float(ctl.radius),
         "grasp_complete": bool(ctl.grasp_complete),
+        "regrasps": ctl.regrasps,
         "times": np.asarray(times),
         "turns": turns - turns[0],
     }
@@ -268,8 +278,8 @@ class EvalPlan:
     loop always at the same phase, a quarter into the rake stroke; every other seed shifts each
     disturbance by a seeded offset within one hand cycle (:func:`.disturbances.schedule_times`)
     and draws its own camera noise.  ``jobs``: worker processes for the ball runs (one task per
-    seed and controller).  Cap disturbances: one at ``cap_disturbance_cycle`` + a
-    quarter cycle into the turning of a ``cap_disturbance_radius_cm`` cap."""
+    seed and controller).  Cap disturbances: one a quarter cycle into the second turning cycle
+    of a ``cap_disturbance_radius_cm`` cap turned ``cap_disturbance_cycles`` cycles."""
 
     radii_cm: tuple[float, ...] = TRAINING_RADII_CM + INTERMEDIATE_RADII_CM
     cap: CapSettings = field(default_factory=CapSettings)
@@ -282,7 +292,7 @@ class EvalPlan:
     classes: tuple[str, ...] = tuple(BALL_CLASSES)
     cap_classes: tuple[str, ...] = tuple(CAP_CLASSES)
     cap_disturbance_radius_cm: float = 2.5
-    cap_disturbance_cycles: int = 4
+    cap_disturbance_cycles: int = 8
     jobs: int = 1
 
     @classmethod
@@ -291,7 +301,7 @@ class EvalPlan:
             cap=CapSettings(cycles=2),
             balls=BallSettings(duration_s=22.0, camera=False),
             seeds=(0,),
-            cap_disturbance_cycles=3,
+            cap_disturbance_cycles=6,
         )
 
     def disturbances(self, seed: int = 0) -> tuple[float, ...]:
@@ -411,21 +421,21 @@ def ball_swap_report(manifold: ManipulationManifold, plan: EvalPlan, progress=la
 
 
 def cap_disturbance_report(manifold: ManipulationManifold, plan: EvalPlan, progress=lambda line: None) -> tuple:
-    """Cap classes on the constructed manifold: open loop at the known radius vs feedback-initialised
-    (grasp by navigation); rate = cap rotation in degrees per minute; one disturbance per run;
-    recovery as for the balls, over one turning cycle."""
+    """Cap classes on the constructed manifold, for each of :data:`CAP_CONTROLLERS` (open loop at
+    the known radius, grasp by navigation once, and with regrasps); rate = cap rotation in degrees
+    per minute; one disturbance per run; recovery as for the balls, over one turning cycle."""
     settings = CapSettings(**{**plan.cap.__dict__, "cycles": plan.cap_disturbance_cycles})
     radius = plan.cap_disturbance_radius_cm
     runs: dict = {}
     for seed in plan.seeds:
-        for name, open_loop in (("open_loop", True), ("feedback_init", False)):
-            calm = cap_turning(manifold, radius, settings, seed=seed, open_loop=open_loop)
+        for name in CAP_CONTROLLERS:
+            calm = cap_turning(manifold, radius, settings, seed=seed, controller=name)
             row = runs.setdefault(seed, {})[name] = {"calm": calm}
             start = calm["times"][0]
             times = schedule_times([start + settings.cycle_s * 1.25], seed, settings.cycle_s)
             for cls in plan.cap_classes:
                 opts = CAP_CLASSES[cls].scene_options(times)
-                row[cls] = (times, cap_turning(manifold, radius, settings, seed, opts, open_loop))
+                row[cls] = (times, cap_turning(manifold, radius, settings, seed, opts, name))
             direction = 1.0 if calm["turns"][-1] >= 0 else -1.0
             rates = {k: round(_rate(v if k == "calm" else v[1], "turns", direction), 1) for k, v in row.items()}
             progress(f"cap seed {seed} {name}: deg/min {rates}")

@@ -19,6 +19,17 @@ Documented choices (both swappable through the constructor):
   more closed than any demonstration, so the navigation goes on beyond the border and the
   postures there are extrapolated linearly (``ManipulationManifold.posture(extrapolate=True)``);
   ``overshoot=0`` stops at the border (the thesis' manifold has no postures beyond it).
+
+``regrasp=True`` makes it a closed loop on the radius (ours, docs/manipulation.md §5): the
+turning counts its control steps in which at least one required finger touches the cap (the
+grip time); each time it comes back to the contact time (once per cycle of latent travel) it
+compares the last cycle's grip time with that of the first cycle after the grasp, and when it
+fell below ``regrasp_fraction`` of it (default ½) — the fingers have lost the cap, e.g. it was
+swapped for a smaller one — the time stops and the closing goes on from the current radius until
+all required fingers touch (the grasp by navigation again), then the turning resumes.  The
+grip time, not the instantaneous contacts, is the measure because a cap can be turned by a
+stroke whose contacts come and go: a 2 cm cap under the 2.5 cm posture is touched by the middle
+finger alone and still turns ≈ 90° per cycle.
 """
 
 from __future__ import annotations
@@ -89,7 +100,9 @@ class GraspByNavigation:
     ``overshoot`` latent radius beyond the small-radius border the closing may go (fraction of
     the radius range; postures there are extrapolated, see :meth:`posture`).  If the closing
     reaches that limit without the required contacts the radius is frozen there and
-    ``grasp_complete`` stays False.
+    ``grasp_complete`` stays False.  ``regrasp``, ``regrasp_fraction``: close again when the
+    grip time per cycle drops below that fraction of the first cycle's (module docstring);
+    ``regrasps`` counts those.
     """
 
     def __init__(
@@ -102,6 +115,8 @@ class GraspByNavigation:
         contact_time: float | None = None,
         start_radius: float | None = None,
         overshoot: float = 0.25,
+        regrasp: bool = False,
+        regrasp_fraction: float = 0.5,
     ) -> None:
         self.manifold = manifold
         self.t_dim, self.r_dim = manifold.time_dim, _other_dim(manifold)
@@ -120,6 +135,11 @@ class GraspByNavigation:
         self.state = APPROACH
         self.approach_left = int(approach_steps)
         self.grasp_complete = False
+        if not 0 < regrasp_fraction < 1:
+            raise ValueError(f"regrasp_fraction must lie in (0, 1), got {regrasp_fraction}")
+        self.regrasp, self.regrasp_fraction, self.regrasps = bool(regrasp), float(regrasp_fraction), 0
+        self._span = float(np.subtract(*manifold.range(self.t_dim)[::-1]))
+        self._travel, self._grip, self._grip_reference = 0.0, 0, None
 
     @property
     def radius(self) -> float:
@@ -151,9 +171,28 @@ class GraspByNavigation:
                     r = self.r_end
                     self.start_turning(False)
                 self.x[self.r_dim] = r
+        elif self.regrasp and self._grip_lost(touching):
+            self.state = CLOSING
+            self.regrasps += 1
         else:
             self.x[self.t_dim] = self.clock.advance(self.delta)
         return self.x.copy()
+
+    def _grip_lost(self, touching) -> bool:
+        """Count the grip time; at the end of each cycle of travel, has it dropped below
+        ``regrasp_fraction`` of the first cycle's since the last grasp?"""
+        self._grip += bool(self.required & set(touching))
+        self._travel += abs(self.delta)
+        if self._travel < self._span - 1e-12:
+            return False
+        grip, self._grip, self._travel = self._grip, 0, self._travel - self._span
+        if self._grip_reference is None:
+            self._grip_reference = grip
+            return False
+        if grip >= self.regrasp_fraction * self._grip_reference:
+            return False
+        self._grip_reference = None
+        return True
 
 
 def touching_fingers(contacts, fingers=("TH", "FF", "MF"), body: str = "cap") -> set[str]:

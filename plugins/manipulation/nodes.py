@@ -120,6 +120,12 @@ class FeedbackInitParams(_ControllerParams):
         description="closing may go this fraction of the radius range "
         "past the small-radius border (extrapolated postures)",
     )
+    regrasp: bool = Field(
+        False, description="close again when the grip time per cycle halves (a closed loop on the radius)"
+    )
+    regrasp_fraction: float = Field(
+        0.5, gt=0, lt=1, description="regrasp below this fraction of the first cycle's grip time"
+    )
     stale_after_s: float = Field(0.5, gt=0, description="fail-safe: no contacts message for this long")
 
 
@@ -141,6 +147,8 @@ class FeedbackInitNode(_ManifoldController):
             approach_steps=int(round(prm.approach_s * prm.rate_hz)),
             contact_time=prm.contact_time,
             overshoot=prm.overshoot,
+            regrasp=prm.regrasp,
+            regrasp_fraction=prm.regrasp_fraction,
         )
         self.touching: set[str] = set()
         self.waiting_for_grasp = prm.init == "grasp"
@@ -160,7 +168,10 @@ class FeedbackInitNode(_ManifoldController):
     def tick(self) -> None:
         if self.check_stale() or self.waiting_for_grasp:
             return
+        regrasps = self.controller.regrasps
         x = self.controller.update(self.touching)
+        if self.controller.regrasps > regrasps:
+            self.ctx.log.info("grip lost: closing again from latent radius %.4f", self.controller.radius)
         self.publish_command(x, self.controller.posture(x))
 
 

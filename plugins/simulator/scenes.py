@@ -165,6 +165,11 @@ class CapScene(Scene):
     for ``duration_s``, then back to ``friction_torque`` of the scene: a thread that binds for a
     moment (a large torque, e.g. 10 N·m, blocks the cap: the fingers cannot turn it) or a cap
     whose friction changes mid-turn.  ``torques_done`` in the state counts them.
+
+    ``swaps`` — ``[(time_s, radius_m), …]``: bottle and cap are swapped for ones of radius
+    ``radius_m`` (0.01–0.05 m) on the same axis, the cap keeping its angle and angular velocity —
+    a cap of another size put under the hand mid-turn.  ``cap_radius`` in the state is the
+    current radius, ``swaps_done`` counts the swaps.
     """
 
     name: str = "cap"
@@ -176,12 +181,17 @@ class CapScene(Scene):
     centre_palm: tuple[float, float] = (0.0, 0.085)
     top_below_palm: float = 0.035
     torques: tuple[tuple[float, float, float], ...] = ()
+    swaps: tuple[tuple[float, float], ...] = ()
 
     def __post_init__(self) -> None:
         if not 0.01 <= self.radius <= 0.05:
             raise ValueError(f"cap radius {self.radius} m is outside 0.01–0.05 m (the scenes use 0.015–0.035)")
         self.torques = lasting_schedule("torques", self.torques, "friction_torque", 0.0, 100.0)
+        self.swaps = schedule(
+            "swaps", self.swaps, ("time_s", "radius_m"), lambda t, r: 0.01 <= r <= 0.05, "0.01 <= radius_m <= 0.05"
+        )
         self._torques = Timed(self.torques)
+        self.radius_now, self.swaps_done = self.radius, 0
 
     def cap_top(self) -> np.ndarray:
         x, z = self.centre_palm
@@ -192,18 +202,24 @@ class CapScene(Scene):
         return CameraSpec(tuple(top + [0.28, -0.22, 0.10]), tuple(top + [0.0, 0.0, 0.01]), (0.0, 0.0, 1.0))
 
     def build(self, client: int, rng: np.random.Generator) -> None:
+        self._torques = Timed(self.torques)
+        self.swaps_done, self.thread_torque = 0, self.friction_torque
+        self._build_bottle(client, self.radius)
+
+    def _build_bottle(self, client: int, radius: float) -> None:
+        """Bottle neck and cap of ``radius`` on the cap axis (the cap at angle 0, at rest)."""
         top = self.cap_top()
         neck_h = 0.06
-        neck_r = self.radius  # flush with the cap: no rim a fingertip could hook under
         neck_pos = top - [0, 0, self.height + neck_h / 2]
-        neck_col = p.createCollisionShape(p.GEOM_CYLINDER, radius=neck_r, height=neck_h, physicsClientId=client)
+        # the neck is flush with the cap: no rim a fingertip could hook under
+        neck_col = p.createCollisionShape(p.GEOM_CYLINDER, radius=radius, height=neck_h, physicsClientId=client)
         neck_vis = p.createVisualShape(
-            p.GEOM_CYLINDER, radius=neck_r, length=neck_h, rgbaColor=(0.6, 0.8, 0.9, 1), physicsClientId=client
+            p.GEOM_CYLINDER, radius=radius, length=neck_h, rgbaColor=(0.6, 0.8, 0.9, 1), physicsClientId=client
         )
-        cap_col = p.createCollisionShape(p.GEOM_MESH, vertices=_prism(self.radius, self.height), physicsClientId=client)
+        cap_col = p.createCollisionShape(p.GEOM_MESH, vertices=_prism(radius, self.height), physicsClientId=client)
         cap_vis = p.createVisualShape(
             p.GEOM_CYLINDER,
-            radius=self.radius,
+            radius=radius,
             length=self.height,
             rgbaColor=(0.1, 0.35, 0.9, 1),
             physicsClientId=client,
@@ -228,33 +244,42 @@ class CapScene(Scene):
         p.changeDynamics(
             body, 0, lateralFriction=self.lateral_friction, jointDamping=self.damping, physicsClientId=client
         )
-        p.setJointMotorControl2(
-            body, 0, p.VELOCITY_CONTROL, targetVelocity=0.0, force=self.friction_torque, physicsClientId=client
-        )
-        self.bottle = body
+        self.bottle, self.radius_now = body, radius
         self.bodies = {(body, -1): "bottle", (body, 0): "cap"}
-        self._torques = Timed(self.torques)
+        self.set_friction_torque(client, self.thread_torque)
+
+    def _swap(self, client: int, radius: float) -> None:
+        """Replace bottle and cap by ones of ``radius``; the cap keeps its angle and velocity."""
+        angle, velocity, _, _ = p.getJointState(self.bottle, 0, physicsClientId=client)
+        p.removeBody(self.bottle, physicsClientId=client)
+        self._build_bottle(client, radius)
+        p.resetJointState(self.bottle, 0, angle, velocity, physicsClientId=client)
 
     def set_friction_torque(self, client: int, torque: float) -> None:
         """Friction torque (N·m) of the cap's thread from now on."""
+        self.thread_torque = float(torque)
         p.setJointMotorControl2(
-            self.bottle, 0, p.VELOCITY_CONTROL, targetVelocity=0.0, force=float(torque), physicsClientId=client
+            self.bottle, 0, p.VELOCITY_CONTROL, targetVelocity=0.0, force=self.thread_torque, physicsClientId=client
         )
 
     def before_step(self, client: int, t: float) -> None:
-        """Start or end a due friction change (see ``torques``)."""
+        """Start or end a due friction change (see ``torques``), make a due swap (see ``swaps``)."""
         event = self._torques.poll(t)
         if event is not None:
             kind, (_, _, torque) = event
             self.set_friction_torque(client, torque if kind == "start" else self.friction_torque)
+        while self.swaps_done < len(self.swaps) and t >= self.swaps[self.swaps_done][0] - 1e-9:
+            self._swap(client, self.swaps[self.swaps_done][1])
+            self.swaps_done += 1
 
     def state(self, client: int) -> dict[str, float]:
         angle, velocity, _, _ = p.getJointState(self.bottle, 0, physicsClientId=client)
         return {
             "cap_angle": float(angle),
             "cap_velocity": float(velocity),
-            "cap_radius": self.radius,
+            "cap_radius": self.radius_now,
             "torques_done": float(self._torques.done),
+            "swaps_done": float(self.swaps_done),
         }
 
 

@@ -95,6 +95,38 @@ def test_grasp_by_navigation_stops_at_its_limit_without_contact(cap_manifold, ov
     assert ctl.state == TURNING and not ctl.grasp_complete and ctl.radius == pytest.approx(limit)
 
 
+def _turn_cycle(ctl, steps, gripped):
+    """One cycle of ``steps`` turning updates, the fingers touching in the first ``gripped``."""
+    for k in range(steps):
+        ctl.update({"TH", "FF", "MF"} if k < gripped else set())
+
+
+@pytest.mark.parametrize("regrasp", [False, True])
+def test_grasp_by_navigation_regrasps_when_the_grip_time_halves(cap_manifold, regrasp):
+    lo, hi = cap_manifold.range(0)
+    steps = 20
+    ctl = GraspByNavigation(cap_manifold, delta=(hi - lo) / steps, radius_step=0.01, approach_steps=0, regrasp=regrasp)
+    touching = _touching_model(cap_manifold, 2.5)
+    while ctl.state != TURNING:
+        ctl.update(touching(ctl.x))
+    _turn_cycle(ctl, steps, 8)  # the reference: 8 steps of grip per cycle
+    _turn_cycle(ctl, steps, 4)  # half of it: still a grip
+    assert ctl.state == TURNING and ctl.regrasps == 0
+    _turn_cycle(ctl, steps, 3)  # below half: the cap is lost
+    assert (ctl.state == CLOSING) == regrasp and ctl.regrasps == int(regrasp)
+    if regrasp:  # closing again, the time held, until a smaller cap is touched
+        t_held = ctl.x[0]
+        touching = _touching_model(cap_manifold, 1.75)
+        while ctl.state != TURNING:
+            assert ctl.update(touching(ctl.x))[0] == t_held
+        assert abs(ctl.radius - 1.75) < 0.05 and ctl.grasp_complete
+
+
+def test_regrasp_fraction_must_lie_between_zero_and_one(cap_manifold):
+    with pytest.raises(ValueError, match="regrasp_fraction"):
+        GraspByNavigation(cap_manifold, delta=0.02, radius_step=0.01, regrasp=True, regrasp_fraction=1.5)
+
+
 def test_postures_beyond_the_radius_border_continue_the_trend(cap_manifold):
     lo, hi = cap_manifold.range(1)
     t = 0.4

@@ -121,6 +121,24 @@ def test_quick_evaluation_turns_the_smallest_and_largest_cap_forward(radius_cm):
     assert len(res["per_cycle_deg"]) == EvalPlan.quick().cap.cycles
 
 
+@pytest.mark.slow
+def test_the_cap_closed_loop_regrasps_a_smaller_cap_that_stops_the_open_loop():
+    from handflow.framework.resources import shipped
+    from handflow.plugins.manipulation import ManipulationManifold
+    from handflow.plugins.manipulation.disturbances import CAP_CLASSES
+    from handflow.plugins.manipulation.evaluation import CapSettings, cap_turning
+
+    man = ManipulationManifold.load(shipped("models") / "cap_constructed.npz")
+    settings = CapSettings(cycles=8)
+    swap = CAP_CLASSES["cap_swap_small"].scene_options([7.0])  # the turning starts at ≈ 4.2 s
+    runs = {name: cap_turning(man, 2.5, settings, 0, swap, name) for name in ("open_loop", "closed_loop")}
+    assert runs["open_loop"]["regrasps"] == 0 and runs["closed_loop"]["regrasps"] == 1
+    last = {name: sum(run["per_cycle_deg"][-2:]) / 2 for name, run in runs.items()}
+    assert last["open_loop"] < 20.0 and last["closed_loop"] > 30.0  # turning again only with the regrasp
+    with pytest.raises(ValueError, match="closed_loop"):
+        cap_turning(man, 2.5, settings, controller="magic")
+
+
 @pytest.mark.parametrize("flag", ["--seeds", "--jobs"])
 def test_evaluate_command_rejects_fewer_than_one_seed_or_job(flag, capsys):
     import argparse

@@ -1,5 +1,6 @@
 """Scene disturbances where the phase matters (plugins/simulator/scenes.py): added ball friction,
-a ball taken out and put back, a pair of another size, a cap thread that binds."""
+a ball taken out and put back, a pair of another size, a cap thread that binds, a cap of another
+size."""
 
 import numpy as np
 import pybullet as p
@@ -96,8 +97,29 @@ def test_bad_ball_disturbances_are_rejected_naming_the_form(options, message):
         BallsScene(**options)
 
 
+def test_a_swapped_cap_has_the_new_radius_and_keeps_its_angle_and_thread():
+    torque = 0.1
+    with Simulation("shadow", "cap", {"radius": 0.025, "swaps": [[0.5, 0.0175]]}, seed=0) as sim:
+        for _ in range(118):
+            p.applyExternalTorque(sim.scene.bottle, 0, [0, 0, torque], p.WORLD_FRAME, physicsClientId=sim.client)
+            sim.step(1)
+        before = sim.scene_state()
+        sim.step(4)  # the swap at 0.5 s
+        after = sim.scene_state()
+        shape = p.getCollisionShapeData(sim.scene.bottle, -1, physicsClientId=sim.client)[0]
+        assert shape[3][1] == pytest.approx(0.0175)  # the neck's radius (pybullet may reuse the body id)
+        assert after["cap_radius"] == 0.0175 and after["swaps_done"] == 1 and before["cap_radius"] == 0.025
+        assert before["cap_angle"] > 0.05 and after["cap_angle"] == pytest.approx(before["cap_angle"], abs=0.02)
+        assert set(sim.scene.bodies.values()) == {"bottle", "cap"}
+        for _ in range(120):  # no push: the thread's friction stops it again
+            sim.step(1)
+        assert abs(sim.scene_state()["cap_velocity"]) < 1e-3
+
+
 def test_bad_cap_torques_are_rejected_naming_the_form():
     with pytest.raises(ValueError, match=r"\[time_s, duration_s, friction_torque\]"):
         CapScene(torques=[[1.0, 0.5]])
     with pytest.raises(ValueError, match="time_s >= 0"):
         CapScene(torques=[[-1.0, 0.5, 1.0]])
+    with pytest.raises(ValueError, match="0.01 <= radius_m <= 0.05"):
+        CapScene(swaps=[[1.0, 0.2]])

@@ -3,7 +3,9 @@
 One PNG per scene (``balls``, ``cap``): a panel per disturbance class, one line per controller
 (the first seed's run), the progress rate over the trailing hand cycle in the direction of the
 controller's calm run, the calm rate dashed,
-and a shaded band from each disturbance's start to its end (a line for instantaneous ones).
+and each disturbance marked by a line in its controller's colour (the cap controllers start
+turning at different times, so their disturbances fall at different times) with a red band
+while it lasts.
 """
 
 from __future__ import annotations
@@ -35,10 +37,10 @@ def plot_rates(runs: dict, classes: dict, key: str, folder, scene: str, cycle_s:
             sign = scale if filled(calm[key])[-1] >= 0 else -scale
             ax.plot(run["times"], sign * rate_over_time(run["times"], run[key], cycle_s), colour, lw=1.2, label=name)
             ax.plot(calm["times"], sign * rate_over_time(calm["times"], calm[key], cycle_s), colour, lw=0.6, ls="--")
-        for t in times:
-            if spec.duration_s > 0:
-                ax.axvspan(t, t + spec.duration_s, color="red", alpha=0.15)
-            ax.axvline(t, color="red", lw=0.8)
+            for t in times:
+                if spec.duration_s > 0:
+                    ax.axvspan(t, t + spec.duration_s, color="red", alpha=0.1)
+                ax.axvline(t, color=colour, lw=0.8, ls=":")
         ax.set_title(f"{cls}: {spec.doc}", fontsize=9)
         ax.set_ylabel(UNITS[key])
     axes[0, 0].legend(fontsize=8, loc="lower right")

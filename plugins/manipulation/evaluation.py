@@ -76,8 +76,7 @@ def cap_turning(
     ``times`` (s) and cap ``turns`` (rotations, positive forward) per control step.
     ``scene_options``: extra cap-scene options (e.g. ``torques``, ``swaps``); ``controller``:
     ``feedback_init`` (grasp by navigation once), ``closed_loop`` (the same with ``regrasp``:
-    the contacts are checked once per cycle and the hand closes again when one is missing;
-    ``regrasps`` counts those) or ``open_loop`` (no contact feedback — the radius is frozen at
+    the hand closes again when the grip time per cycle halves; ``regrasps`` counts those) or ``open_loop`` (no contact feedback — the radius is frozen at
     ``radius_cm``, a constructed manifold's cm axis, after the approach: the open loop of a user
     who knows the cap)."""
     if controller not in CAP_CONTROLLERS:

@@ -101,13 +101,16 @@ def _prism(radius: float, height: float, sides: int = 32) -> list[list[float]]:
 
 def schedule(name: str, value, form: tuple[str, ...], valid, rule: str) -> tuple[tuple[float, ...], ...]:
     """Parse a disturbance schedule ``[[time_s, …], …]`` (entries of the fields ``form``) sorted by
-    time; a malformed entry or one failing ``valid(*entry)`` raises ``ValueError`` naming ``rule``."""
+    time; a malformed entry, a non-finite number or an entry failing ``valid(*entry)`` raises
+    ``ValueError`` naming ``rule``."""
     try:
         items = tuple(tuple(float(v) for v in entry) for entry in value)
         if any(len(entry) != len(form) for entry in items):
             raise ValueError
     except (TypeError, ValueError):
         raise ValueError(f"{name} must be a list of [{', '.join(form)}] entries, got {value!r}") from None
+    if not np.isfinite(items).all():
+        raise ValueError(f"{name} need finite numbers, got {value!r}")
     bad = [entry for entry in items if not (entry[0] >= 0 and valid(*entry))]
     if bad:
         raise ValueError(f"{name} need time_s >= 0 and {rule}, got {bad}")

@@ -2,9 +2,13 @@
 a ball taken out and put back, a pair of another size, a cap thread that binds, a cap of another
 size."""
 
+import math
+
 import numpy as np
 import pybullet as p
 import pytest
+from hypothesis import example, given, settings
+from hypothesis import strategies as st
 
 from handflow.plugins.demo.ball_swap import BallSwapMotion
 from handflow.plugins.hands.joints import GIFU
@@ -123,3 +127,35 @@ def test_bad_cap_torques_are_rejected_naming_the_form():
         CapScene(torques=[[-1.0, 0.5, 1.0]])
     with pytest.raises(ValueError, match="0.01 <= radius_m <= 0.05"):
         CapScene(swaps=[[1.0, 0.2]])
+
+
+_ENTRY_VALUES = st.one_of(
+    st.none(), st.booleans(), st.integers(-5, 5), st.floats(allow_nan=True, allow_infinity=True), st.text(max_size=3)
+)
+_NUMBERS = st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.floats(-1.0, 12.0))
+_SCHEDULES = st.one_of(
+    _ENTRY_VALUES,
+    st.lists(st.one_of(_ENTRY_VALUES, st.lists(_ENTRY_VALUES, max_size=4)), max_size=3),
+    st.lists(st.lists(_NUMBERS, min_size=2, max_size=3), max_size=3),  # well-formed entries, odd numbers
+)
+
+
+@settings(max_examples=150, deadline=None)
+@example(option=("balls", "pushes"), value=[[1.0, math.inf]])  # an infinite kick
+@example(option=("cap", "swaps"), value=[[math.inf, 0.02]])  # a swap never due
+@given(
+    option=st.sampled_from(
+        [("cap", "swaps"), ("cap", "torques")]
+        + [("balls", o) for o in ("pushes", "turns", "holds", "frictions", "removals", "resizes")]
+    ),
+    value=_SCHEDULES,
+)
+def test_any_disturbance_schedule_from_a_config_is_accepted_or_refused_with_a_value_error(option, value):
+    scene, name = option
+    try:
+        built = (CapScene if scene == "cap" else BallsScene)(**{name: value})
+    except ValueError as exc:
+        assert name in str(exc)
+    else:  # accepted: every entry is finite and sorted by time
+        entries = getattr(built, name)
+        assert all(np.isfinite(e).all() for e in entries) and list(entries) == sorted(entries)

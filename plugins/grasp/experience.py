@@ -21,11 +21,14 @@ from pathlib import Path
 
 import numpy as np
 
+from handflow.framework.npz_files import NpzFileError, building, npz_metadata, read_npz
+
 from .pcp import best_match_index, pcp_distances
 from .som import SOM, load_som
 
 DATASET_FORMAT = "handflow.grasp_dataset"
 DATASET_VERSION = 1
+EXPERIENCE_HINT = "create it with `handflow grasp-experience` or `handflow grasp-som` (docs/grasping.md)"
 POSE_FIELDS = ("x", "y", "gap", "yaw_deg")
 """Object pose columns: offset along the fingers and across the palm (m), gap below the palm (m), yaw (deg)."""
 
@@ -73,17 +76,16 @@ class ExperienceBase:
         """From a SOM file (``grasp-som``) or a grasp dataset (``grasp-experience``), told apart by format."""
         path = Path(path)
         if not path.exists():
-            raise FileNotFoundError(
-                f"experience file {path} does not exist; create it with "
-                f"`handflow grasp-experience` or `handflow grasp-som`"
-            )
-        with np.load(path, allow_pickle=False) as f:
-            meta = json.loads(str(f["metadata"][()])) if "metadata" in f.files else {}
+            raise FileNotFoundError(f"experience file {path} does not exist; {EXPERIENCE_HINT}")
+        arrays = read_npz(path, "grasp experience", EXPERIENCE_HINT)
+        meta = npz_metadata(arrays, path, "grasp experience", EXPERIENCE_HINT)
         if meta.get("format") == DATASET_FORMAT:
             return cls.from_dataset(GraspDataset.load(path))
         som, meta = load_som(path)
-        if "names" not in meta:
-            raise ValueError(f"{path}: SOM file without joint names; save it with metadata={{'names': [...]}}")
+        if not isinstance(meta.get("names"), list) or len(meta["names"]) != som.n_features_in_:
+            raise NpzFileError(
+                f"{path}: SOM file without one joint name per dimension; save it with metadata={{'names': [...]}}"
+            )
         return cls.from_som(som, meta["names"])
 
 
@@ -163,18 +165,19 @@ class GraspDataset:
 
     @classmethod
     def load(cls, path) -> GraspDataset:
-        with np.load(path, allow_pickle=False) as f:
-            if "metadata" not in f.files:
-                raise ValueError(f"{path}: not a handflow grasp dataset (no metadata)")
-            meta = json.loads(str(f["metadata"][()]))
-            if meta.get("format") != DATASET_FORMAT or meta.get("format_version") != DATASET_VERSION:
-                raise ValueError(
-                    f"{path}: format {meta.get('format')!r} v{meta.get('format_version')!r} is not "
-                    f"{DATASET_FORMAT!r} v{DATASET_VERSION}; regenerate with `handflow grasp-experience`"
-                )
-            arrays = {k: f[k] for k in ("postures", "objects", "poses", "quality")}
-        names = meta.pop("names")
-        contacts = meta.pop("contacts")
-        for k in ("format", "format_version", "pose_fields"):
-            meta.pop(k, None)
-        return cls(names, arrays["postures"], arrays["objects"], arrays["poses"], contacts, arrays["quality"], meta)
+        """Read a dataset written by :meth:`save`; a bad file raises
+        :class:`~handflow.framework.npz_files.NpzFileError` (a ``ValueError``) naming it."""
+        what, hint = "grasp dataset", "regenerate it with `handflow grasp-experience` (docs/grasping.md)"
+        arrays = read_npz(path, what, hint)
+        meta = npz_metadata(arrays, path, what, hint)
+        if meta.get("format") != DATASET_FORMAT or meta.get("format_version") != DATASET_VERSION:
+            raise NpzFileError(
+                f"{path}: format {meta.get('format')!r} v{meta.get('format_version')!r} is not "
+                f"{DATASET_FORMAT!r} v{DATASET_VERSION}; {hint}"
+            )
+        with building(path, what, hint):
+            names = meta.pop("names")
+            contacts = meta.pop("contacts")
+            for k in ("format", "format_version", "pose_fields"):
+                meta.pop(k, None)
+            return cls(names, arrays["postures"], arrays["objects"], arrays["poses"], contacts, arrays["quality"], meta)

@@ -31,6 +31,8 @@ import numpy as np
 from sklearn.base import BaseEstimator
 from sklearn.utils.validation import check_is_fitted
 
+from handflow.framework.npz_files import NpzFileError, building, npz_metadata, read_npz
+
 from .pcp import check_mask
 
 FORMAT = "handflow.grasp_som"
@@ -324,24 +326,29 @@ def save_som(som: SOM, path, metadata: dict | None = None) -> None:
 
 
 def load_som(path) -> tuple[SOM, dict]:
-    """Read a SOM file written by :func:`save_som` → (fitted SOM, metadata dict)."""
-    with np.load(path, allow_pickle=False) as f:
-        if "metadata" not in f.files or "nodes" not in f.files:
-            raise ValueError(f"{path}: not a handflow grasp SOM file (needs 'nodes' and 'metadata')")
-        meta = json.loads(str(f["metadata"][()]))
-        if meta.get("format") != FORMAT or meta.get("format_version") != FORMAT_VERSION:
-            raise ValueError(
-                f"{path}: format {meta.get('format')!r} v{meta.get('format_version')!r} is not "
-                f"{FORMAT!r} v{FORMAT_VERSION}; retrain with `handflow grasp-som`"
-            )
-        nodes, qe = f["nodes"], f["qe_history"]
-    params = dict(meta["params"])
-    params["lr"], params["sigma"] = tuple(params["lr"]), tuple(params["sigma"])
-    som = SOM(**params)
-    r, c, d = nodes.shape
-    som.nodes_ = nodes.astype(float)
-    som.grid_ = np.stack(np.meshgrid(np.arange(r), np.arange(c), indexing="ij"), -1).reshape(-1, 2).astype(float)
-    som.n_features_in_ = d
-    som.qe_history_ = list(map(float, qe))
-    som.n_updates_ = int(meta.get("n_updates", 1))
+    """Read a SOM file written by :func:`save_som` → (fitted SOM, metadata dict); a bad file raises
+    :class:`~handflow.framework.npz_files.NpzFileError` (a ``ValueError``) naming it."""
+    what, hint = "grasp SOM", "train it again with `handflow grasp-som` (docs/grasping.md)"
+    arrays = read_npz(path, what, hint)
+    meta = npz_metadata(arrays, path, what, hint)
+    if "nodes" not in arrays or "qe_history" not in arrays:
+        raise NpzFileError(f"{path}: not a handflow grasp SOM file (needs 'nodes' and 'qe_history'); {hint}")
+    if meta.get("format") != FORMAT or meta.get("format_version") != FORMAT_VERSION:
+        raise NpzFileError(
+            f"{path}: format {meta.get('format')!r} v{meta.get('format_version')!r} is not "
+            f"{FORMAT!r} v{FORMAT_VERSION}; {hint}"
+        )
+    nodes, qe = arrays["nodes"], arrays["qe_history"]
+    with building(path, what, hint):
+        params = dict(meta["params"])
+        params["lr"], params["sigma"] = tuple(params["lr"]), tuple(params["sigma"])
+        som = SOM(**params)
+        if nodes.ndim != 3 or nodes.dtype.kind != "f" or not np.isfinite(nodes).all():
+            raise ValueError(f"nodes must be a finite (rows, cols, d) array, got shape {nodes.shape}")
+        r, c, d = nodes.shape
+        som.nodes_ = nodes.astype(float)
+        som.grid_ = np.stack(np.meshgrid(np.arange(r), np.arange(c), indexing="ij"), -1).reshape(-1, 2).astype(float)
+        som.n_features_in_ = d
+        som.qe_history_ = list(map(float, qe))
+        som.n_updates_ = int(meta.get("n_updates", 1))
     return som, meta

@@ -14,9 +14,12 @@ from importlib import metadata as _md
 
 import numpy as np
 
+from handflow.framework.npz_files import NpzFileError, building, npz_metadata, read_npz
+
 FORMAT = "handflow.structured_ukr"
 FORMAT_VERSION = 1
 _ARRAYS = ("Y", "latents", "sequence_ids", "train_variance", "history")
+RETRAIN = "train it again with `handflow train` (docs/training.md)"
 
 
 def _software_version():
@@ -79,34 +82,56 @@ def _jsonable(obj):
 def load_model(cls, path):
     """Read a model file; refuses other formats and unknown format versions.
 
-    The loaded estimator's ``init`` is its stored latents (refitting continues from them).
+    The loaded estimator's ``init`` is its stored latents (refitting continues from them).  Any
+    bad file — missing, unreadable, foreign, another version, garbled — raises
+    :class:`~handflow.framework.npz_files.NpzFileError` (a ``ValueError``) naming it.
     """
-    with np.load(path, allow_pickle=False) as f:
-        if "metadata" not in f.files:
-            raise ValueError(f"{path}: not a handflow Structured UKR model (no metadata)")
-        meta = json.loads(str(f["metadata"][()]))
-        if meta.get("format") != FORMAT:
-            raise ValueError(f"{path}: format {meta.get('format')!r} is not {FORMAT!r}")
-        if meta.get("format_version") != FORMAT_VERSION:
-            raise ValueError(
-                f"{path}: model format version {meta.get('format_version')!r} is "
-                f"not supported (this handflow reads version {FORMAT_VERSION}); "
-                f"retrain the model with this version or use a matching handflow"
-            )
-        missing = [k for k in _ARRAYS if k not in f.files]
-        if missing:
-            raise ValueError(f"{path}: model file is missing arrays {missing}")
-        arrays = {k: f[k] for k in _ARRAYS}
-    params = dict(meta["params"])
-    params["isomap_neighbors"] = tuple(params["isomap_neighbors"])
-    params["init"] = arrays["latents"]
-    model = cls(**params)
-    kernel, time_dim = model._layout()
-    model._set_state(arrays["Y"], arrays["latents"], arrays["sequence_ids"], time_dim, kernel, arrays["train_variance"])
-    model.history_ = arrays["history"]
-    model.objective_ = meta["objective"]
-    model.interrupted_ = meta["interrupted"]
-    model.init_info_ = meta.get("init_info", {})
-    model.n_evaluations_ = meta["n_evaluations"]
-    model.provenance_ = meta["provenance"]
+    what, hint = "Structured UKR model", RETRAIN
+    arrays = read_npz(path, what, hint)
+    meta = npz_metadata(arrays, path, what, hint)
+    if meta.get("format") != FORMAT:
+        raise NpzFileError(f"{path}: format {meta.get('format')!r} is not {FORMAT!r}; {hint}")
+    if meta.get("format_version") != FORMAT_VERSION:
+        raise NpzFileError(
+            f"{path}: model format version {meta.get('format_version')!r} is "
+            f"not supported (this handflow reads version {FORMAT_VERSION}); "
+            f"retrain the model with this version or use a matching handflow"
+        )
+    missing = [k for k in _ARRAYS if k not in arrays]
+    if missing:
+        raise NpzFileError(f"{path}: model file is missing arrays {missing}; {hint}")
+    with building(path, what, hint):
+        params = dict(meta["params"])
+        params["isomap_neighbors"] = tuple(params["isomap_neighbors"])
+        params["init"] = arrays["latents"]
+        model = cls(**params)
+        kernel, time_dim = model._layout()
+        _check_arrays(arrays, len(kernel.periodic))
+        model._set_state(
+            arrays["Y"], arrays["latents"], arrays["sequence_ids"], time_dim, kernel, arrays["train_variance"]
+        )
+        model.history_ = arrays["history"]
+        model.objective_ = meta["objective"]
+        model.interrupted_ = meta["interrupted"]
+        model.init_info_ = meta.get("init_info", {})
+        model.n_evaluations_ = meta["n_evaluations"]
+        model.provenance_ = meta["provenance"]
+        if not isinstance(model.provenance_, dict) or not isinstance(model.init_info_, dict):
+            raise ValueError("provenance and init_info must be JSON objects")
     return model
+
+
+def _check_arrays(arrays: dict, q: int) -> None:
+    """The stored arrays agree with each other and with the ``q`` latent dimensions of the params."""
+    Y, X = arrays["Y"], arrays["latents"]
+    n = len(Y)
+    if (
+        Y.ndim != 2
+        or X.shape != (n, q)
+        or arrays["sequence_ids"].shape != (n,)
+        or arrays["train_variance"].shape != (Y.shape[1],)
+        or Y.dtype.kind != "f"
+        or X.dtype.kind != "f"
+        or not (np.isfinite(Y).all() and np.isfinite(X).all() and (arrays["train_variance"] > 0).all())
+    ):
+        raise ValueError("arrays Y, latents, sequence_ids and train_variance disagree with each other or the params")

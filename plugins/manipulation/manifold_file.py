@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from handflow.framework.npz_files import building
 from handflow.plugins.hands.joints import HAND_MODELS
 from handflow.plugins.manifold.model import StructuredUKR
 from handflow.plugins.manifold.validation import InvalidInputError, parse_latent
@@ -157,11 +158,11 @@ class ManipulationManifold:
             model = StructuredUKR.load(path)
         except ValueError as exc:
             raise InvalidInputError(str(exc)) from None
-        meta = (model.provenance_ or {}).get("manipulation")
+        hint = "build it with `handflow train configs/train/cap_*.yaml` (docs/manipulation.md)"
+        meta = (model.provenance_ or {}).get("manipulation") if isinstance(model.provenance_, dict) else None
         if not isinstance(meta, dict):
             raise InvalidInputError(
-                f"{path} is a UKR model without manipulation metadata "
-                f"(observation names, hand); build it with "
-                f"`handflow train configs/train/cap_*.yaml`"
+                f"{path} is a UKR model without manipulation metadata (observation names, hand); {hint}"
             )
-        return cls(model, list(meta["names"]), meta["hand"], list(meta["latent_names"]), meta["kind"])
+        with building(path, "manipulation manifold", hint, InvalidInputError):
+            return cls(model, list(meta["names"]), meta["hand"], list(meta["latent_names"]), meta["kind"])

@@ -20,6 +20,8 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
+from handflow.framework.npz_files import building
+
 from .delay import DelayEmbedding
 from .derived import Derived
 from .headings import Headings
@@ -387,4 +389,9 @@ def model_files(source: str | Path | list[str | Path]) -> dict[str, Path]:
 
 def load_candidates(source: str | Path | list[str | Path], loader=_load_ukr) -> CandidateSet:
     """Load trained candidate manifolds (see :func:`model_files`) as a :class:`CandidateSet`."""
-    return CandidateSet({label: UKRCandidate(loader(path)) for label, path in model_files(source).items()})
+    candidates = {}
+    for label, path in model_files(source).items():
+        model = loader(path)
+        with building(path, "class model", TRAIN_HINT):
+            candidates[label] = UKRCandidate(model)
+    return CandidateSet(candidates)

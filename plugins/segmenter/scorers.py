@@ -25,6 +25,8 @@ from typing import ClassVar
 import numpy as np
 from sklearn.base import BaseEstimator
 
+from handflow.framework.npz_files import NpzFileError, npz_metadata, read_npz
+
 from .baselines import SlidingDTW1NN
 from .compatibility import evidence_temperature, score_evidence
 from .feature_novelty import FeatureNovelty
@@ -34,7 +36,7 @@ FORMAT_VERSION = 2  # 2: MiniRocket scorers keep their feature novelty
 WINDOWS_PER_SEGMENT = 12  # MiniRocket training windows per segment
 
 
-class ScorerFileError(ValueError):
+class ScorerFileError(NpzFileError):
     """A scorer file that cannot be used; the message says what to change."""
 
 
@@ -343,14 +345,9 @@ def load_scorer(path: str | Path) -> WindowScorer:
     """Read a scorer written by :meth:`WindowScorer.save`; :class:`ScorerFileError` on any bad file."""
     path = Path(path)
     refit = "fit a new one with `handflow fit-scorer` (docs/segmentation.md)"
-    if not path.is_file():
-        raise ScorerFileError(f"{path}: no such scorer file; {refit}")
-    try:
-        with np.load(path, allow_pickle=False) as data:
-            arrays = {k: data[k] for k in data.files}
-    except Exception as exc:  # numpy's reader raises many types on a bad file: zipfile, zlib, tokenize, …
-        raise ScorerFileError(f"{path}: not a readable scorer file ({type(exc).__name__}: {exc}); {refit}") from None
-    meta = _metadata(path, arrays.pop("metadata", None), refit)
+    arrays = read_npz(path, "scorer", refit, ScorerFileError)
+    meta = _metadata(path, arrays, refit)
+    arrays.pop("metadata")
     cls = SCORERS[meta["kind"]]
     for name, digest in meta["sha256"].items():
         if name not in arrays or _digest(arrays[name]) != digest:
@@ -370,14 +367,9 @@ def load_scorer(path: str | Path) -> WindowScorer:
     return scorer
 
 
-def _metadata(path: Path, raw, refit: str) -> dict:
-    if raw is None or raw.ndim != 0 or raw.dtype.kind != "U":
-        raise ScorerFileError(f"{path}: no scorer metadata (not written by `handflow fit-scorer`); {refit}")
-    try:
-        meta = json.loads(str(raw))
-    except ValueError:
-        raise ScorerFileError(f"{path}: scorer metadata is not valid JSON; {refit}") from None
-    if not isinstance(meta, dict) or meta.get("format") != FORMAT:
+def _metadata(path: Path, arrays: dict, refit: str) -> dict:
+    meta = npz_metadata(arrays, path, "scorer", refit, ScorerFileError)
+    if meta.get("format") != FORMAT:
         raise ScorerFileError(f"{path}: not a handflow scorer file; {refit}")
     if meta.get("version") != FORMAT_VERSION:
         raise ScorerFileError(

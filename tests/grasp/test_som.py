@@ -92,7 +92,7 @@ def test_bad_input_is_refused_with_a_clear_message(tmp_path):
     with pytest.raises(ValueError, match="no joint"):
         som.best_match(X[0], np.zeros(X.shape[1]))
     np.savez(tmp_path / "other.npz", a=np.zeros(2))
-    with pytest.raises(ValueError, match="not a handflow grasp SOM"):
+    with pytest.raises(ValueError, match="no grasp SOM metadata.*grasp-som"):
         load_som(tmp_path / "other.npz")
 
 

@@ -1,0 +1,64 @@
+"""One reader for the ``.npz`` files handflow writes — trained models, manifolds, SOMs, grasp
+datasets, scorers: a missing, truncated, corrupted or foreign file, or one whose metadata another
+version wrote, comes back as :class:`NpzFileError` naming the file and what to do
+(docs/reliability.md).
+
+:func:`read_npz` reads every array at once (no pickles); :func:`npz_metadata` parses the JSON
+metadata array the writers store; :func:`building` turns the errors of constructing an object
+from garbled contents into the same error.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+import numpy as np
+
+
+class NpzFileError(ValueError):
+    """A file that cannot be used; the message names it and says what to do."""
+
+
+def read_npz(path, what: str, hint: str, error: type[ValueError] = NpzFileError) -> dict[str, np.ndarray]:
+    """All arrays of the ``what`` file at ``path`` (e.g. "Structured UKR model"); ``hint`` says how
+    to make a good one.  Raises ``error`` for a missing or unreadable file."""
+    path = Path(path)
+    if not path.is_file():
+        raise error(f"{path}: no such {what} file; {hint}")
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            return {k: data[k] for k in data.files}
+    except Exception as exc:  # numpy's reader raises many types on a bad file: zipfile, zlib, tokenize, …
+        raise error(f"{path}: not a readable {what} file ({type(exc).__name__}: {exc}); {hint}") from None
+
+
+def npz_metadata(
+    arrays: dict[str, np.ndarray], path, what: str, hint: str, error: type[ValueError] = NpzFileError
+) -> dict:
+    """The JSON object stored in the ``metadata`` array of a file read by :func:`read_npz`."""
+    raw = arrays.get("metadata")
+    if raw is None or raw.ndim != 0 or raw.dtype.kind != "U":
+        raise error(f"{path}: no {what} metadata (not a file handflow wrote); {hint}")
+    try:
+        meta = json.loads(str(raw))
+    except ValueError:
+        raise error(f"{path}: {what} metadata is not valid JSON; {hint}") from None
+    if not isinstance(meta, dict):
+        raise error(f"{path}: {what} metadata is not a JSON object; {hint}")
+    return meta
+
+
+@contextmanager
+def building(path, what: str, hint: str, error: type[ValueError] = NpzFileError) -> Iterator[None]:
+    """Turn the errors of building an object from a file's contents (missing or mistyped metadata
+    entries, arrays of the wrong shape, the object's own validation) into ``error`` (any
+    ``ValueError`` class) naming the file; an :class:`NpzFileError` passes through."""
+    try:
+        yield
+    except NpzFileError:
+        raise
+    except (KeyError, TypeError, ValueError, AttributeError, IndexError, OverflowError) as exc:
+        raise error(f"{path}: inconsistent {what} file ({type(exc).__name__}: {exc}); {hint}") from None

@@ -1,0 +1,148 @@
+"""Every ``.npz`` file a node or command loads — UKR models and class models, manipulation
+manifolds, grasp SOMs and datasets — loads, or is refused with a ``ValueError`` that names the
+file, whatever was done to it: truncated, bytes changed, metadata or arrays garbled
+(handflow.framework.npz_files, docs/reliability.md).  Scorer files have their own tests."""
+
+from __future__ import annotations
+
+import json
+import struct
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from handflow.framework.npz_files import NpzFileError, building, npz_metadata, read_npz
+from handflow.plugins.grasp.experience import ExperienceBase, GraspDataset
+from handflow.plugins.grasp.som import load_som
+from handflow.plugins.manifold.model import StructuredUKR
+from handflow.plugins.manipulation.manifold_file import ManipulationManifold
+from handflow.plugins.segmenter.candidates import load_candidates
+
+CONFIGS = Path(__file__).resolve().parents[1] / "configs"
+
+
+def _use_ukr(model) -> None:
+    model.transform(model.Y_[:2])
+
+
+def _use_som(path) -> None:
+    som, _ = load_som(path)
+    som.best_match(som.nodes_.reshape(-1, som.n_features_in_)[:2])
+
+
+LOADERS = {
+    "ukr": (CONFIGS / "models/gestures/grasp.npz", lambda p: _use_ukr(StructuredUKR.load(p))),
+    "class_models": (CONFIGS / "models/gestures/grasp.npz", lambda p: load_candidates([p])),
+    "manipulation": (
+        CONFIGS / "models/cap_constructed.npz",
+        lambda p: ManipulationManifold.load(p).posture([0.5, 2.5]),
+    ),
+    "som": (CONFIGS / "grasp/experience_hard/som_box.npz", _use_som),
+    "dataset": (CONFIGS / "grasp/experience_hard/grasps.npz", GraspDataset.load),
+    "experience": (CONFIGS / "grasp/experience_hard/som_box.npz", ExperienceBase.load),
+}
+FUZZ = settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+JSON = st.recursive(
+    st.none() | st.booleans() | st.integers() | st.floats() | st.text(max_size=5),
+    lambda kids: st.lists(kids, max_size=3) | st.dictionaries(st.text(max_size=5), kids, max_size=3),
+    max_leaves=8,
+)
+
+
+def _loads_or_refuses(kind: str, path: Path) -> None:
+    """The loader (and a first use of what it loaded) succeeds or raises a ValueError naming ``path``."""
+    try:
+        LOADERS[kind][1](path)
+    except ValueError as exc:
+        assert str(path) in str(exc), exc
+
+
+def _arrays(kind: str) -> dict[str, np.ndarray]:
+    with np.load(LOADERS[kind][0], allow_pickle=False) as f:
+        return {k: f[k] for k in f.files}
+
+
+@pytest.mark.parametrize("kind", LOADERS)
+def test_shipped_files_load(kind):
+    LOADERS[kind][1](LOADERS[kind][0])
+
+
+@pytest.mark.parametrize("kind", LOADERS)
+@FUZZ
+@given(data=st.data())
+def test_truncated_or_byte_edited_files_load_or_are_refused(kind, tmp_path, data):
+    raw = bytearray(LOADERS[kind][0].read_bytes())
+    if data.draw(st.booleans()):
+        raw = raw[: data.draw(st.integers(0, len(raw) - 1))]
+    else:
+        for _ in range(data.draw(st.integers(1, 4))):
+            raw[data.draw(st.integers(0, len(raw) - 1))] = data.draw(st.integers(0, 255))
+    bad = tmp_path / "mutated.npz"
+    bad.write_bytes(bytes(raw))
+    _loads_or_refuses(kind, bad)
+
+
+@pytest.mark.parametrize("kind", LOADERS)
+@FUZZ
+@given(data=st.data(), value=JSON)
+def test_garbled_metadata_loads_or_is_refused(kind, tmp_path, data, value):
+    """One metadata entry (top level, or inside a nested object) replaced by arbitrary JSON."""
+    arrays = _arrays(kind)
+    meta = json.loads(str(arrays["metadata"][()]))
+    target = meta
+    while True:
+        key = data.draw(st.sampled_from(sorted(target)))
+        if isinstance(target[key], dict) and target[key] and data.draw(st.booleans()):
+            target = target[key]
+            continue
+        target[key] = value
+        break
+    arrays["metadata"] = np.array(json.dumps(meta))
+    bad = tmp_path / "garbled.npz"
+    np.savez(bad, **arrays)
+    _loads_or_refuses(kind, bad)
+
+
+@pytest.mark.parametrize("kind", LOADERS)
+@FUZZ
+@given(
+    data=st.data(),
+    replacement=st.sampled_from(
+        [np.zeros(0), np.zeros((2, 2)), np.full((3, 1, 2), np.nan), np.array(["x"]), np.arange(5), np.float64(1.0)]
+    ),
+)
+def test_replaced_or_missing_arrays_load_or_are_refused(kind, tmp_path, data, replacement):
+    arrays = _arrays(kind)
+    name = data.draw(st.sampled_from(sorted(set(arrays) - {"metadata"})))
+    if data.draw(st.booleans()):
+        del arrays[name]
+    else:
+        arrays[name] = replacement
+    bad = tmp_path / "arrays.npz"
+    np.savez(bad, **arrays)
+    _loads_or_refuses(kind, bad)
+
+
+def test_the_reader_names_the_file_and_what_to_do(tmp_path):
+    with pytest.raises(NpzFileError, match=r"none\.npz: no such model file; train it"):
+        read_npz(tmp_path / "none.npz", "model", "train it")
+    (tmp_path / "text.npz").write_text("hello")
+    with pytest.raises(NpzFileError, match=r"not a readable model file \(ValueError: .*pickled"):
+        read_npz(tmp_path / "text.npz", "model", "train it")  # numpy takes a non-zip file for a pickle
+    # an .npy header cut inside its dictionary: numpy's reader raises tokenize.TokenError
+    header = b"{'descr': '<f8', 'fortran_order': False, 'shape': (3,"
+    header += b" " * (53 - len(header)) + b"\n"
+    with zipfile.ZipFile(tmp_path / "header.npz", "w") as z:
+        z.writestr("metadata.npy", b"\x93NUMPY\x01\x00" + struct.pack("<H", len(header)) + header + bytes(24))
+    with pytest.raises(NpzFileError, match="not a readable model file"):
+        read_npz(tmp_path / "header.npz", "model", "train it")
+    np.savez(tmp_path / "list.npz", metadata=np.array("[1, 2]"))
+    with pytest.raises(NpzFileError, match="metadata is not a JSON object"):
+        npz_metadata(read_npz(tmp_path / "list.npz", "model", "train it"), "list.npz", "model", "train it")
+    with pytest.raises(NpzFileError, match=r"inconsistent model file \(KeyError: 'params'\); train it"):
+        with building("m.npz", "model", "train it"):
+            {}["params"]

@@ -127,6 +127,16 @@ def test_replaced_or_missing_arrays_load_or_are_refused(kind, tmp_path, data, re
     _loads_or_refuses(kind, bad)
 
 
+@FUZZ
+@given(content=st.one_of(JSON.map(json.dumps), st.text(max_size=20)))
+def test_a_garbled_class_index_is_refused_naming_it(tmp_path, content):
+    (tmp_path / "classes.json").write_text(content)
+    try:
+        load_candidates(tmp_path)
+    except (ValueError, FileNotFoundError) as exc:  # FileNotFoundError: it lists files that are not there
+        assert str(tmp_path) in str(exc), exc
+
+
 def test_the_reader_names_the_file_and_what_to_do(tmp_path):
     with pytest.raises(NpzFileError, match=r"none\.npz: no such model file; train it"):
         read_npz(tmp_path / "none.npz", "model", "train it")

@@ -159,7 +159,7 @@ class ManipulationManifold:
         except ValueError as exc:
             raise InvalidInputError(str(exc)) from None
         hint = "build it with `handflow train configs/train/cap_*.yaml` (docs/manipulation.md)"
-        meta = (model.provenance_ or {}).get("manipulation") if isinstance(model.provenance_, dict) else None
+        meta = model.provenance_.get("manipulation")
         if not isinstance(meta, dict):
             raise InvalidInputError(
                 f"{path} is a UKR model without manipulation metadata (observation names, hand); {hint}"

@@ -375,8 +375,9 @@ def model_files(source: str | Path | list[str | Path]) -> dict[str, Path]:
             index = folder / INDEX_FILE
             if not index.exists():
                 raise ModelsMissingError(f"{folder} holds no {INDEX_FILE}; {TRAIN_HINT}")
-            entries = json.loads(index.read_text())["classes"]
-            files = {label: folder / name for label, name in entries.items()}
+            with building(index, "class index", TRAIN_HINT):
+                entries = json.loads(index.read_text())["classes"]
+                files = {str(label): folder / name for label, name in entries.items()}
         else:
             files = {folder.stem: folder}
     else:

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
+from handflow.framework.npz_files import read_npz
 from handflow.framework.recording import read_messages
 
 from .validation import InvalidInputError, check_array
@@ -55,10 +56,9 @@ def load_csv_dir(path, time_column=None, columns=None):
 def load_npz(path):
     """Every array of the ``.npz`` (in stored order) is one sequence (n_i, d)."""
     p = _exists(path, "npz")
-    with np.load(p, allow_pickle=False) as f:
-        names = list(f.files)
-        arrays = [f[k] for k in names]
-    seqs = [check_array(a[:, None] if a.ndim == 1 else a, f"{p.name}[{k}]") for k, a in zip(names, arrays)]
+    data = read_npz(p, "training data", "fix the path in the config or rewrite the file", InvalidInputError)
+    names, arrays = list(data), list(data.values())
+    seqs = [check_array(a.reshape(-1, 1) if a.ndim < 2 else a, f"{p.name}[{k}]") for k, a in zip(names, arrays)]
     if not seqs:
         raise InvalidInputError(f"npz {p} holds no arrays")
     return seqs, names

@@ -105,8 +105,9 @@ class StructuredUKR(BaseEstimator):
             )
         if self.optimizer not in OPTIMIZERS:
             raise InvalidInputError(f"unknown optimizer {self.optimizer!r}; choose one of {', '.join(OPTIMIZERS)}")
-        if int(self.n_steps) < 0:
-            raise InvalidInputError(f"n_steps must be >= 0, got {self.n_steps}")
+        for name in ("n_steps", "projection_steps"):
+            if int(getattr(self, name)) < 0:
+                raise InvalidInputError(f"{name} must be >= 0, got {getattr(self, name)}")
         for name in ("lambda_cseq", "lambda_pvar"):
             if not float(getattr(self, name)) >= 0:
                 raise InvalidInputError(f"{name} must be >= 0, got {getattr(self, name)}")

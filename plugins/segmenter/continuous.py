@@ -20,7 +20,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .datasets import TIME_COLUMNS, DatasetError
+from handflow.framework.npz_files import building, read_npz
+
+from .datasets import NPZ_HINT, TIME_COLUMNS, DatasetError
 
 UNLABELLED = -1
 LABEL_COLUMN = "label"
@@ -80,8 +82,10 @@ def is_continuous(path: str | Path) -> bool:
             header = next(csv.reader(f), [])
         return bool(header) and header[-1].strip().lower() == LABEL_COLUMN
     if p.suffix == ".npz" and p.is_file():
-        with np.load(p, allow_pickle=False) as d:
-            keys = set(d.files)
+        try:
+            keys = set(read_npz(p, "dataset", NPZ_HINT, DatasetError))
+        except DatasetError:
+            return False  # the dataset loaders say what is wrong with it
         return "class_names" in keys and any(k.startswith("y_") and "X_" + k[2:] in keys for k in keys)
     return False
 
@@ -93,12 +97,7 @@ def load_recordings(path: str | Path) -> RecordingSet:
         raise DatasetError(f"{p} does not exist")
     if p.is_dir():
         return _load_csv_folder(p)
-    try:
-        with np.load(p, allow_pickle=False) as d:
-            arrays = {k: d[k] for k in d.files}
-    except (OSError, ValueError) as exc:
-        raise DatasetError(f"{p} is not a readable .npz without pickled objects ({exc})") from None
-    return _load_npz(arrays, str(p))
+    return _load_npz(read_npz(p, "continuous dataset", NPZ_HINT, DatasetError), str(p))
 
 
 def _load_npz(arrays: dict[str, np.ndarray], source: str) -> RecordingSet:
@@ -186,10 +185,18 @@ def _check(rs: RecordingSet) -> None:
 def basicmotions_continuous(path: str | Path, n_recordings: int = 8, seed: int = 0) -> dict[str, np.ndarray]:
     """BasicMotions as continuous recordings: all train + test cases shuffled with ``seed`` and
     concatenated into ``n_recordings`` recordings (80 cases → 8 × 10); arrays in the .npz layout."""
-    with np.load(Path(path).expanduser(), allow_pickle=False) as d:
+    path = Path(path).expanduser()
+    d = read_npz(path, "UEA dataset", "pass ../shared/data/basicmotions.npz or the same layout", DatasetError)
+    with building(
+        path, "UEA dataset", "it needs X_train, X_test, labels_train, labels_test, class_names", DatasetError
+    ):
         X = np.concatenate([d["X_train"], d["X_test"]])  # (cases, channels, time)
         y = np.concatenate([d["labels_train"], d["labels_test"]]).astype(int)
         names = [str(c) for c in d["class_names"]]
+        if X.ndim != 3 or len(y) != len(X) or not 0 <= y.min() <= y.max() < len(names):
+            raise ValueError(f"cases {X.shape}, labels {y.shape} and {len(names)} class names disagree")
+        if len(X) < n_recordings:
+            raise ValueError(f"{len(X)} cases cannot fill {n_recordings} recordings")
     order = np.random.default_rng(seed).permutation(len(X))
     out: dict[str, np.ndarray] = {"class_names": np.array(names)}
     for k, part in enumerate(np.array_split(order, n_recordings)):

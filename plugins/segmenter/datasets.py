@@ -29,8 +29,11 @@ from pathlib import Path
 
 import numpy as np
 
+from handflow.framework.npz_files import building, read_npz
+
 SPLITS = ("train", "validation", "test")
 TIME_COLUMNS = ("time", "t", "timestamp", "stamp")
+NPZ_HINT = "write it with numpy.savez in one of the layouts of docs/segmentation.md"
 
 
 class DatasetError(ValueError):
@@ -106,14 +109,15 @@ def load_dataset(path: str | Path, trim_pen_lift: bool = True) -> LabelledDatase
         )
     if p.is_dir():
         ds = _load_folder(p)
+        _check(ds)
     elif p.suffix == ".npz":
-        with np.load(p, allow_pickle=False) as z:
-            arrays = {k: z[k] for k in z.files}
-        ds = _load_uea(arrays) if "X_train" in arrays else _load_labelled_npz(arrays, trim_pen_lift)
+        arrays = read_npz(p, "dataset", NPZ_HINT, DatasetError)
+        with building(p, "dataset", NPZ_HINT, DatasetError):
+            ds = _load_uea(arrays) if "X_train" in arrays else _load_labelled_npz(arrays, trim_pen_lift)
+            _check(ds)
     else:
         raise DatasetError(f"dataset {p} is neither a folder nor an .npz file")
     ds.source = str(p)
-    _check(ds)
     return ds
 
 

@@ -1,10 +1,12 @@
 """Every ``.npz`` file a node or command loads — UKR models and class models, manipulation
-manifolds, grasp SOMs and datasets — loads, or is refused with a ``ValueError`` that names the
-file, whatever was done to it: truncated, bytes changed, metadata or arrays garbled
-(handflow.framework.npz_files, docs/reliability.md).  Scorer files have their own tests."""
+manifolds, grasp SOMs and grasp datasets, recognition datasets and training data — loads, or is
+refused with a ``ValueError`` that names the file, whatever was done to it: truncated, bytes
+changed, metadata or arrays garbled (handflow.framework.npz_files, docs/robustness.md).  Scorer
+files have their own tests."""
 
 from __future__ import annotations
 
+import io
 import json
 import struct
 import zipfile
@@ -18,9 +20,12 @@ from hypothesis import strategies as st
 from handflow.framework.npz_files import NpzFileError, building, npz_metadata, read_npz
 from handflow.plugins.grasp.experience import ExperienceBase, GraspDataset
 from handflow.plugins.grasp.som import load_som
+from handflow.plugins.manifold.data import load_npz
 from handflow.plugins.manifold.model import StructuredUKR
 from handflow.plugins.manipulation.manifold_file import ManipulationManifold
 from handflow.plugins.segmenter.candidates import load_candidates
+from handflow.plugins.segmenter.continuous import basicmotions_continuous, load_recordings
+from handflow.plugins.segmenter.datasets import load_dataset
 
 CONFIGS = Path(__file__).resolve().parents[1] / "configs"
 
@@ -34,6 +39,19 @@ def _use_som(path) -> None:
     som.best_match(som.nodes_.reshape(-1, som.n_features_in_)[:2])
 
 
+_RNG = np.random.default_rng(0)
+CONTINUOUS = {
+    "class_names": np.array(["a", "b"]),
+    **{f"X_r{k}": _RNG.normal(size=(40, 3)) for k in range(2)},
+    **{f"y_r{k}": np.repeat([0, 1], 20) for k in range(2)},
+}
+UEA = {  # 8 cases: enough for the 8 recordings of basicmotions_continuous
+    "X_train": _RNG.normal(size=(6, 2, 30)),
+    "X_test": _RNG.normal(size=(2, 2, 30)),
+    "labels_train": np.array([0, 1, 0, 1, 0, 1]),
+    "labels_test": np.array([0, 1]),
+    "class_names": np.array(["a", "b"]),
+}
 LOADERS = {
     "ukr": (CONFIGS / "models/gestures/grasp.npz", lambda p: _use_ukr(StructuredUKR.load(p))),
     "class_models": (CONFIGS / "models/gestures/grasp.npz", lambda p: load_candidates([p])),
@@ -44,7 +62,12 @@ LOADERS = {
     "som": (CONFIGS / "grasp/experience_hard/som_box.npz", _use_som),
     "dataset": (CONFIGS / "grasp/experience_hard/grasps.npz", GraspDataset.load),
     "experience": (CONFIGS / "grasp/experience_hard/som_box.npz", ExperienceBase.load),
+    "continuous_dataset": (CONTINUOUS, load_recordings),
+    "uea_dataset": (UEA, load_dataset),
+    "uea_continuous": (UEA, basicmotions_continuous),
+    "training_data": ({"seq_a": _RNG.normal(size=(20, 3)), "seq_b": _RNG.normal(size=(15, 3))}, load_npz),
 }
+WITH_METADATA = [kind for kind, (source, _) in LOADERS.items() if isinstance(source, Path)]
 FUZZ = settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 JSON = st.recursive(
     st.none() | st.booleans() | st.integers() | st.floats() | st.text(max_size=5),
@@ -54,28 +77,43 @@ JSON = st.recursive(
 
 
 def _loads_or_refuses(kind: str, path: Path) -> None:
-    """The loader (and a first use of what it loaded) succeeds or raises a ValueError naming ``path``."""
+    """The loader (and a first use of what it loaded) succeeds or raises a ValueError naming the file."""
     try:
         LOADERS[kind][1](path)
     except ValueError as exc:
-        assert str(path) in str(exc), exc
+        assert path.name in str(exc), exc
 
 
 def _arrays(kind: str) -> dict[str, np.ndarray]:
-    with np.load(LOADERS[kind][0], allow_pickle=False) as f:
+    source = LOADERS[kind][0]
+    if isinstance(source, dict):
+        return dict(source)
+    with np.load(source, allow_pickle=False) as f:
         return {k: f[k] for k in f.files}
 
 
+def _file_bytes(kind: str) -> bytes:
+    buffer = io.BytesIO()
+    np.savez(buffer, **_arrays(kind))
+    return buffer.getvalue()
+
+
+def _written(kind: str, tmp_path: Path) -> Path:
+    path = tmp_path / f"{kind}.npz"
+    path.write_bytes(_file_bytes(kind))
+    return path
+
+
 @pytest.mark.parametrize("kind", LOADERS)
-def test_shipped_files_load(kind):
-    LOADERS[kind][1](LOADERS[kind][0])
+def test_intact_files_load(kind, tmp_path):
+    LOADERS[kind][1](_written(kind, tmp_path))
 
 
 @pytest.mark.parametrize("kind", LOADERS)
 @FUZZ
 @given(data=st.data())
 def test_truncated_or_byte_edited_files_load_or_are_refused(kind, tmp_path, data):
-    raw = bytearray(LOADERS[kind][0].read_bytes())
+    raw = bytearray(_file_bytes(kind))
     if data.draw(st.booleans()):
         raw = raw[: data.draw(st.integers(0, len(raw) - 1))]
     else:
@@ -86,7 +124,7 @@ def test_truncated_or_byte_edited_files_load_or_are_refused(kind, tmp_path, data
     _loads_or_refuses(kind, bad)
 
 
-@pytest.mark.parametrize("kind", LOADERS)
+@pytest.mark.parametrize("kind", WITH_METADATA)
 @FUZZ
 @given(data=st.data(), value=JSON)
 def test_garbled_metadata_loads_or_is_refused(kind, tmp_path, data, value):

@@ -234,6 +234,7 @@ GOOD = closed_curves()
         ({"latent": CYL_LATENT * 2}, GOOD, "only one latent dimension can be the time"),
         ({"latent": CYL_LATENT + [{"kernel": "gaussian", "beta": 1}]}, GOOD, "fewer dimensions"),
         ({"optimizer": "adam"}, GOOD, "unknown optimizer"),
+        ({"latent": CYL_LATENT, "projection_steps": -1}, GOOD, "projection_steps must be >= 0"),
         ({"init": "pca"}, GOOD, "unknown init"),
         ({"init": np.zeros((3, 1))}, GOOD, "init latents must have shape"),
         ({}, [], "no sequences"),

@@ -36,9 +36,15 @@ def read_npz(path, what: str, hint: str, error: type[ValueError] = NpzFileError)
 
 
 def npz_metadata(
-    arrays: dict[str, np.ndarray], path, what: str, hint: str, error: type[ValueError] = NpzFileError
+    arrays: dict[str, np.ndarray],
+    path,
+    what: str,
+    hint: str,
+    error: type[ValueError] = NpzFileError,
+    fmt: tuple[str, int, str] | None = None,
 ) -> dict:
-    """The JSON object stored in the ``metadata`` array of a file read by :func:`read_npz`."""
+    """The JSON object stored in the ``metadata`` array of a file read by :func:`read_npz`;
+    ``fmt`` = (format name, format version, key of the version) checks both entries."""
     raw = arrays.get("metadata")
     if raw is None or raw.ndim != 0 or raw.dtype.kind != "U":
         raise error(f"{path}: no {what} metadata (not a file handflow wrote); {hint}")
@@ -48,6 +54,14 @@ def npz_metadata(
         raise error(f"{path}: {what} metadata is not valid JSON; {hint}") from None
     if not isinstance(meta, dict):
         raise error(f"{path}: {what} metadata is not a JSON object; {hint}")
+    if fmt is not None:
+        name, version, key = fmt
+        if meta.get("format") != name:
+            raise error(f"{path}: not a handflow {what} file (format {meta.get('format')!r}); {hint}")
+        if meta.get(key) != version:
+            raise error(
+                f"{path}: {what} file format version {meta.get(key)!r}, this handflow reads version {version}; {hint}"
+            )
     return meta
 
 

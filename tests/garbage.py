@@ -7,6 +7,7 @@ import time
 from collections import defaultdict
 
 import numpy as np
+from hypothesis import strategies as st
 
 from handflow.framework import wire
 from handflow.framework.fuzzing import BYTE_OPS, Mutation, malformed_payloads, mutate, random_mutations, sample_messages
@@ -23,6 +24,16 @@ HUGE_GLOVE = (
 
 def mutate_bytes(data: bytes, rng: np.random.Generator) -> bytes:
     return mutate(data, [Mutation(BYTE_OPS[m.value % 3], m.position, m.value) for m in random_mutations(rng)])
+
+
+def damaged_file(draw, raw: bytes) -> bytes:
+    """``raw`` truncated, or with 1–4 bytes changed; ``draw`` is hypothesis' ``st.data().draw``."""
+    out = bytearray(raw)
+    if draw(st.booleans()):
+        return bytes(out[: draw(st.integers(0, len(out) - 1))])
+    for _ in range(draw(st.integers(1, 4))):
+        out[draw(st.integers(0, len(out) - 1))] = draw(st.integers(0, 255))
+    return bytes(out)
 
 
 class GarbagePeer:

@@ -26,6 +26,7 @@ from handflow.plugins.manipulation.manifold_file import ManipulationManifold
 from handflow.plugins.segmenter.candidates import load_candidates
 from handflow.plugins.segmenter.continuous import basicmotions_continuous, load_recordings
 from handflow.plugins.segmenter.datasets import load_dataset
+from tests.garbage import damaged_file
 
 CONFIGS = Path(__file__).resolve().parents[1] / "configs"
 
@@ -113,14 +114,8 @@ def test_intact_files_load(kind, tmp_path):
 @FUZZ
 @given(data=st.data())
 def test_truncated_or_byte_edited_files_load_or_are_refused(kind, tmp_path, data):
-    raw = bytearray(_file_bytes(kind))
-    if data.draw(st.booleans()):
-        raw = raw[: data.draw(st.integers(0, len(raw) - 1))]
-    else:
-        for _ in range(data.draw(st.integers(1, 4))):
-            raw[data.draw(st.integers(0, len(raw) - 1))] = data.draw(st.integers(0, 255))
     bad = tmp_path / "mutated.npz"
-    bad.write_bytes(bytes(raw))
+    bad.write_bytes(damaged_file(data.draw, _file_bytes(kind)))
     _loads_or_refuses(kind, bad)
 
 
@@ -191,6 +186,13 @@ def test_the_reader_names_the_file_and_what_to_do(tmp_path):
     np.savez(tmp_path / "list.npz", metadata=np.array("[1, 2]"))
     with pytest.raises(NpzFileError, match="metadata is not a JSON object"):
         npz_metadata(read_npz(tmp_path / "list.npz", "model", "train it"), "list.npz", "model", "train it")
+    np.savez(tmp_path / "v2.npz", metadata=np.array(json.dumps({"format": "m", "format_version": 2})))
+    arrays = read_npz(tmp_path / "v2.npz", "model", "train it")
+    fmt = ("m", 1, "format_version")
+    with pytest.raises(NpzFileError, match="model file format version 2, this handflow reads version 1; train it"):
+        npz_metadata(arrays, "v2.npz", "model", "train it", fmt=fmt)
+    with pytest.raises(NpzFileError, match=r"not a handflow other file \(format 'm'\); train it"):
+        npz_metadata(arrays, "v2.npz", "other", "train it", fmt=("o", 2, "format_version"))
     with pytest.raises(NpzFileError, match=r"inconsistent model file \(KeyError: 'params'\); train it"):
         with building("m.npz", "model", "train it"):
             {}["params"]

@@ -169,12 +169,7 @@ class GraspDataset:
         :class:`~handflow.framework.npz_files.NpzFileError` (a ``ValueError``) naming it."""
         what, hint = "grasp dataset", "regenerate it with `handflow grasp-experience` (docs/grasping.md)"
         arrays = read_npz(path, what, hint)
-        meta = npz_metadata(arrays, path, what, hint)
-        if meta.get("format") != DATASET_FORMAT or meta.get("format_version") != DATASET_VERSION:
-            raise NpzFileError(
-                f"{path}: format {meta.get('format')!r} v{meta.get('format_version')!r} is not "
-                f"{DATASET_FORMAT!r} v{DATASET_VERSION}; {hint}"
-            )
+        meta = npz_metadata(arrays, path, what, hint, fmt=(DATASET_FORMAT, DATASET_VERSION, "format_version"))
         with building(path, what, hint):
             names = meta.pop("names")
             contacts = meta.pop("contacts")

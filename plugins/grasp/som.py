@@ -330,14 +330,9 @@ def load_som(path) -> tuple[SOM, dict]:
     :class:`~handflow.framework.npz_files.NpzFileError` (a ``ValueError``) naming it."""
     what, hint = "grasp SOM", "train it again with `handflow grasp-som` (docs/grasping.md)"
     arrays = read_npz(path, what, hint)
-    meta = npz_metadata(arrays, path, what, hint)
+    meta = npz_metadata(arrays, path, what, hint, fmt=(FORMAT, FORMAT_VERSION, "format_version"))
     if "nodes" not in arrays or "qe_history" not in arrays:
         raise NpzFileError(f"{path}: not a handflow grasp SOM file (needs 'nodes' and 'qe_history'); {hint}")
-    if meta.get("format") != FORMAT or meta.get("format_version") != FORMAT_VERSION:
-        raise NpzFileError(
-            f"{path}: format {meta.get('format')!r} v{meta.get('format_version')!r} is not "
-            f"{FORMAT!r} v{FORMAT_VERSION}; {hint}"
-        )
     nodes, qe = arrays["nodes"], arrays["qe_history"]
     with building(path, what, hint):
         params = dict(meta["params"])

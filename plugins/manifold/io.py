@@ -88,15 +88,7 @@ def load_model(cls, path):
     """
     what, hint = "Structured UKR model", RETRAIN
     arrays = read_npz(path, what, hint)
-    meta = npz_metadata(arrays, path, what, hint)
-    if meta.get("format") != FORMAT:
-        raise NpzFileError(f"{path}: format {meta.get('format')!r} is not {FORMAT!r}; {hint}")
-    if meta.get("format_version") != FORMAT_VERSION:
-        raise NpzFileError(
-            f"{path}: model format version {meta.get('format_version')!r} is "
-            f"not supported (this handflow reads version {FORMAT_VERSION}); "
-            f"retrain the model with this version or use a matching handflow"
-        )
+    meta = npz_metadata(arrays, path, what, hint, fmt=(FORMAT, FORMAT_VERSION, "format_version"))
     missing = [k for k in _ARRAYS if k not in arrays]
     if missing:
         raise NpzFileError(f"{path}: model file is missing arrays {missing}; {hint}")

@@ -368,14 +368,7 @@ def load_scorer(path: str | Path) -> WindowScorer:
 
 
 def _metadata(path: Path, arrays: dict, refit: str) -> dict:
-    meta = npz_metadata(arrays, path, "scorer", refit, ScorerFileError)
-    if meta.get("format") != FORMAT:
-        raise ScorerFileError(f"{path}: not a handflow scorer file; {refit}")
-    if meta.get("version") != FORMAT_VERSION:
-        raise ScorerFileError(
-            f"{path}: scorer file format version {meta.get('version')!r}, this handflow reads version "
-            f"{FORMAT_VERSION}; {refit}"
-        )
+    meta = npz_metadata(arrays, path, "scorer", refit, ScorerFileError, (FORMAT, FORMAT_VERSION, "version"))
     kinds = {"kind": str, "params": dict, "classes": list, "sha256": dict}
     if any(not isinstance(meta.get(k), t) for k, t in kinds.items()) or meta["kind"] not in SCORERS:
         raise ScorerFileError(f"{path}: scorer metadata lacks or garbles kind/params/classes/sha256; {refit}")

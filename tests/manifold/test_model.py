@@ -152,7 +152,7 @@ def test_unknown_format_version_refused(cylinder_model, tmp_path):
     meta["format_version"] = 99
     arrays["metadata"] = np.array(json.dumps(meta))
     np.savez(tmp_path / "future.npz", **arrays)
-    with pytest.raises(ValueError, match="format version 99 is not supported"):
+    with pytest.raises(ValueError, match="format version 99, this handflow reads version 1; train it again"):
         StructuredUKR.load(tmp_path / "future.npz")
 
 

@@ -25,6 +25,7 @@ from handflow.plugins.segmenter.scorers import (
 )
 from handflow.plugins.segmenter.stream_cli import register_fit_scorer
 from tests.conftest import run_command
+from tests.garbage import damaged_file
 
 DEMO = Path(__file__).resolve().parents[2] / "recordings" / "segmenter_demo"
 FUZZ = settings(max_examples=80, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
@@ -142,14 +143,8 @@ def test_missing_and_foreign_files_are_refused(tmp_path):
 def test_mutated_scorer_files_load_identically_or_fail_clearly(minirocket, dtw, demo, tmp_path, data):
     """Truncated or byte-edited files: a ScorerFileError, or (bytes nobody reads) the same scores."""
     scorer, path = data.draw(st.sampled_from([minirocket, dtw]))
-    raw = bytearray(path.read_bytes())
-    if data.draw(st.booleans()):
-        raw = raw[: data.draw(st.integers(0, len(raw) - 1))]
-    else:
-        for _ in range(data.draw(st.integers(1, 4))):
-            raw[data.draw(st.integers(0, len(raw) - 1))] = data.draw(st.integers(0, 255))
     bad = tmp_path / "mutated.npz"
-    bad.write_bytes(bytes(raw))
+    bad.write_bytes(damaged_file(data.draw, path.read_bytes()))
     try:
         again = load_scorer(bad)
     except ScorerFileError:

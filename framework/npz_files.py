@@ -1,7 +1,7 @@
-"""One reader for the ``.npz`` files handflow writes — trained models, manifolds, SOMs, grasp
-datasets, scorers: a missing, truncated, corrupted or foreign file, or one whose metadata another
-version wrote, comes back as :class:`NpzFileError` naming the file and what to do
-(docs/reliability.md).
+"""One reader for the ``.npz`` files handflow reads — trained models, manifolds, SOMs, grasp
+datasets, scorers, recognition datasets, training data: a missing, truncated, corrupted or foreign
+file, or one whose metadata another version wrote, comes back as :class:`NpzFileError` (or the
+caller's own ``ValueError`` class) naming the file and what to do (docs/robustness.md).
 
 :func:`read_npz` reads every array at once (no pickles); :func:`npz_metadata` parses the JSON
 metadata array the writers store; :func:`building` turns the errors of constructing an object

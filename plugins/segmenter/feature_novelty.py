@@ -17,6 +17,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.sparse.linalg import svds
 
 COMPONENTS = 20  # principal directions of the training windows' features kept
 NEIGHBOURS = 5  # nearest training windows a distance is averaged over
@@ -46,7 +47,7 @@ class FeatureNovelty:
         mean = F.mean(axis=0)
         scale = np.maximum(F.std(axis=0), SCALE_FLOOR)
         Z = (F - mean) / scale
-        basis = np.linalg.svd(Z, full_matrices=False)[2][: min(COMPONENTS, len(Z) - 1)]
+        basis = _leading_directions(Z, min(COMPONENTS, len(Z) - 1))
         bank = Z @ basis.T
         residual = np.linalg.norm(Z - bank @ basis, axis=1)
         d2 = _squared(bank, bank) + residual[:, None] ** 2
@@ -85,6 +86,17 @@ class FeatureNovelty:
         if (scale <= 0).any() or reference[1] <= 0 or not np.isfinite(bank).all():
             raise ValueError("feature novelty scales must be positive and its training windows finite")
         return cls(mean, scale, basis, bank, reference)
+
+
+def _leading_directions(Z: np.ndarray, q: int) -> np.ndarray:
+    """The ``q`` leading right singular vectors of ``Z`` (q, F).  Only their span matters here, so
+    a truncated SVD (ARPACK from a fixed start vector: deterministic) stands in for the full one —
+    the same subspace to rounding, about 10× faster on a few thousand windows of 10 000 features."""
+    if min(Z.shape) <= q + 1:
+        return np.linalg.svd(Z, full_matrices=False)[2][:q]
+    size = min(Z.shape)
+    _, values, vt = svds(Z, k=q, v0=np.full(size, size**-0.5), tol=0)
+    return vt[np.argsort(values)[::-1]]
 
 
 def _squared(A: np.ndarray, B: np.ndarray) -> np.ndarray:

@@ -12,7 +12,10 @@ held-out recording gets
 - ``class_distance``: the distance of the frame's MiniRocket features (standardised, PCA to 32
   dimensions fitted on the training windows) to the nearest training window *of the predicted
   class*, divided by that class's own spread (the median leave-one-out nearest-neighbour distance
-  among its training windows).
+  among its training windows);
+- ``feature_novelty``: the scorer's own feature novelty (the term of ``clm_minirocket_novelty``,
+  :mod:`handflow.plugins.segmenter.feature_novelty`), a robust z-score; its rejection and known
+  frames kept are reported at the limits ``distance_z`` 1 and 2 of the evaluation's grid.
 Reported per term: ROC AUC unknown-vs-known (1 = perfect separation, 0.5 = chance) and, at the
 threshold where 95 % of the *training* windows count as known (known distance/score quantile),
 the unknown-frame rejection and the known frames kept.
@@ -100,6 +103,12 @@ def probe(data, held: str, left_out: int, window: int) -> dict:
     unknown = test.y == left_out
     is_known = np.isin(test.y, known)
     out = {"left_out": data.class_names[left_out], "unknown_frames": int(unknown.sum())}
+    z = scorer.novelty_.novelty(scorer.window_features(test.X))
+    out["feature_novelty"] = {
+        "auc": float(roc_auc_score(unknown[unknown | is_known], z[unknown | is_known])),
+        **{f"unknown_rejection_z{lim}": float(np.mean(z[unknown] > lim)) for lim in (1, 2)},
+        **{f"known_kept_z{lim}": float(np.mean(z[is_known] <= lim)) for lim in (1, 2)},
+    }
     for name, (score, train_score) in terms.items():
         thr = np.quantile(train_score, 0.95)
         out[name] = {
@@ -141,6 +150,11 @@ def main(argv=None) -> int:
             cells = "  ".join(
                 f"{t}: AUC {r[t]['auc']:.2f} rej {r[t]['unknown_rejection']:.2f} kept {r[t]['known_kept']:.2f}"
                 for t in ("max_score", "margin", "class_distance", "combined")
+            )
+            f = r["feature_novelty"]
+            cells += (
+                f"  feature_novelty: AUC {f['auc']:.2f} rej z>1 {f['unknown_rejection_z1']:.2f} "
+                f"z>2 {f['unknown_rejection_z2']:.2f} kept z<=2 {f['known_kept_z2']:.2f}"
             )
             print(f"{r['left_out']:12s} {cells}")
     return 0

@@ -3,7 +3,8 @@ datasets, scorers, recognition datasets, training data: a missing, truncated, co
 file, or one whose metadata another version wrote, comes back as :class:`NpzFileError` (or the
 caller's own ``ValueError`` class) naming the file and what to do (docs/robustness.md).
 
-:func:`read_npz` reads every array at once (no pickles); :func:`npz_metadata` parses the JSON
+:func:`read_npz` reads the arrays at once (no pickles), :func:`npz_names` only lists them;
+:func:`npz_metadata` parses the JSON
 metadata array the writers store; :func:`building` turns the errors of constructing an object
 from garbled contents into the same error.
 """
@@ -11,7 +12,7 @@ from garbled contents into the same error.
 from __future__ import annotations
 
 import json
-from collections.abc import Iterator
+from collections.abc import Collection, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -22,17 +23,32 @@ class NpzFileError(ValueError):
     """A file that cannot be used; the message names it and says what to do."""
 
 
-def read_npz(path, what: str, hint: str, error: type[ValueError] = NpzFileError) -> dict[str, np.ndarray]:
-    """All arrays of the ``what`` file at ``path`` (e.g. "Structured UKR model"); ``hint`` says how
-    to make a good one.  Raises ``error`` for a missing or unreadable file."""
+@contextmanager
+def _opened(path, what: str, hint: str, error: type[ValueError]) -> Iterator[np.lib.npyio.NpzFile]:
     path = Path(path)
     if not path.is_file():
         raise error(f"{path}: no such {what} file; {hint}")
     try:
         with np.load(path, allow_pickle=False) as data:
-            return {k: data[k] for k in data.files}
+            yield data
     except Exception as exc:  # numpy's reader raises many types on a bad file: zipfile, zlib, tokenize, …
         raise error(f"{path}: not a readable {what} file ({type(exc).__name__}: {exc}); {hint}") from None
+
+
+def read_npz(
+    path, what: str, hint: str, error: type[ValueError] = NpzFileError, names: Collection[str] | None = None
+) -> dict[str, np.ndarray]:
+    """The arrays of the ``what`` file at ``path`` (e.g. "Structured UKR model") — all of them, or
+    those of ``names`` it has; ``hint`` says how to make a good one.  Raises ``error`` for a missing
+    or unreadable file."""
+    with _opened(path, what, hint, error) as data:
+        return {k: data[k] for k in data.files if names is None or k in names}
+
+
+def npz_names(path, what: str, hint: str, error: type[ValueError] = NpzFileError) -> list[str]:
+    """The names of the arrays in the file, without reading them; errors as :func:`read_npz`."""
+    with _opened(path, what, hint, error) as data:
+        return list(data.files)
 
 
 def npz_metadata(

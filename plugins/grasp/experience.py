@@ -77,7 +77,7 @@ class ExperienceBase:
         path = Path(path)
         if not path.exists():
             raise FileNotFoundError(f"experience file {path} does not exist; {EXPERIENCE_HINT}")
-        arrays = read_npz(path, "grasp experience", EXPERIENCE_HINT)
+        arrays = read_npz(path, "grasp experience", EXPERIENCE_HINT, names=("metadata",))
         meta = npz_metadata(arrays, path, "grasp experience", EXPERIENCE_HINT)
         if meta.get("format") == DATASET_FORMAT:
             return cls.from_dataset(GraspDataset.load(path))

@@ -75,10 +75,10 @@ def cap_turning(
     radius: cm on a constructed manifold, latent units on a learned one) and the turning phase's
     ``times`` (s) and cap ``turns`` (rotations, positive forward) per control step.
     ``scene_options``: extra cap-scene options (e.g. ``torques``, ``swaps``); ``controller``:
-    ``feedback_init`` (grasp by navigation once), ``closed_loop`` (the same with ``regrasp``:
-    the hand closes again when the grip time per cycle halves; ``regrasps`` counts those) or ``open_loop`` (no contact feedback — the radius is frozen at
-    ``radius_cm``, a constructed manifold's cm axis, after the approach: the open loop of a user
-    who knows the cap)."""
+    ``feedback_init`` (grasp by navigation once), ``closed_loop`` (the same with ``regrasp``: the
+    hand closes again when the grip time per cycle halves; ``regrasps`` counts those) or
+    ``open_loop`` (no contact feedback — the radius is frozen at ``radius_cm``, a constructed
+    manifold's cm axis, after the approach: the open loop of a user who knows the cap)."""
     if controller not in CAP_CONTROLLERS:
         raise ValueError(f"unknown cap controller {controller!r}; choose one of {CAP_CONTROLLERS}")
     closed = controller == "closed_loop"

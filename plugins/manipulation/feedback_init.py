@@ -138,7 +138,7 @@ class GraspByNavigation:
         if not 0 < regrasp_fraction < 1:
             raise ValueError(f"regrasp_fraction must lie in (0, 1), got {regrasp_fraction}")
         self.regrasp, self.regrasp_fraction, self.regrasps = bool(regrasp), float(regrasp_fraction), 0
-        self._span = float(np.subtract(*manifold.range(self.t_dim)[::-1]))
+        self._span = self.clock.hi - self.clock.lo
         self._travel, self._grip, self._grip_reference = 0.0, 0, None
 
     @property

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from handflow.framework.npz_files import building, read_npz
+from handflow.framework.npz_files import building, npz_names, read_npz
 
 from .datasets import NPZ_HINT, TIME_COLUMNS, DatasetError
 
@@ -83,7 +83,7 @@ def is_continuous(path: str | Path) -> bool:
         return bool(header) and header[-1].strip().lower() == LABEL_COLUMN
     if p.suffix == ".npz" and p.is_file():
         try:
-            keys = set(read_npz(p, "dataset", NPZ_HINT, DatasetError))
+            keys = set(npz_names(p, "dataset", NPZ_HINT, DatasetError))
         except DatasetError:
             return False  # the dataset loaders say what is wrong with it
         return "class_names" in keys and any(k.startswith("y_") and "X_" + k[2:] in keys for k in keys)

@@ -25,7 +25,7 @@ from typing import ClassVar
 import numpy as np
 from sklearn.base import BaseEstimator
 
-from handflow.framework.npz_files import NpzFileError, npz_metadata, read_npz
+from handflow.framework.npz_files import NpzFileError, building, npz_metadata, read_npz
 
 from .baselines import SlidingDTW1NN
 from .compatibility import evidence_temperature, score_evidence
@@ -354,7 +354,7 @@ def load_scorer(path: str | Path) -> WindowScorer:
             raise ScorerFileError(f"{path}: array '{name}' is missing or changed since it was saved; {refit}")
     if set(arrays) != set(meta["sha256"]):
         raise ScorerFileError(f"{path}: unexpected arrays {sorted(set(arrays) - set(meta['sha256']))}; {refit}")
-    try:
+    with building(path, f"{meta['kind']} scorer", refit, ScorerFileError):
         scorer = cls(**meta["params"])
         scorer.classes_ = list(meta["classes"])
         scorer.n_features_in_ = int(meta["n_features_in"])
@@ -362,8 +362,6 @@ def load_scorer(path: str | Path) -> WindowScorer:
         if not (scorer.classes_ and scorer.n_features_in_ >= 1 and scorer.temperature_ > 0 and int(scorer.window) >= 1):
             raise ValueError("classes, channels, temperature or window out of range")
         scorer._restore(arrays)
-    except (TypeError, ValueError, KeyError, OverflowError) as exc:
-        raise ScorerFileError(f"{path}: inconsistent {meta['kind']} scorer ({exc}); {refit}") from None
     return scorer
 
 

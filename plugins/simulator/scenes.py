@@ -194,7 +194,6 @@ class CapScene(Scene):
             "swaps", self.swaps, ("time_s", "radius_m"), lambda t, r: 0.01 <= r <= 0.05, "0.01 <= radius_m <= 0.05"
         )
         self._torques = Timed(self.torques)
-        self.radius_now, self.swaps_done = self.radius, 0
 
     def cap_top(self) -> np.ndarray:
         x, z = self.centre_palm

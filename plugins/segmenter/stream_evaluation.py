@@ -50,6 +50,7 @@ PSEUDO_UNKNOWNS = ("refit", "drop")
 CALIBRATIONS = ("strict", "fallback")
 REJECT_ALL_OBJECTIVE = 0.5  # mean(known accuracy 0, pseudo-unknown rejection 1)
 FALLBACK_MARGIN = 0.05  # an operating point must beat rejecting everything by this much (documented choice)
+MIN_TRAINED_CLASSES = 2  # known classes with training segments every training split needs
 
 
 @dataclass
@@ -60,6 +61,7 @@ class FoldResult:
     selected: dict[str, dict]
     sweeps: dict[str, list[np.ndarray]]  # per method: labels at every rejection value of its sweep
     strict: dict[str, np.ndarray]  # per method that fell back: the labels at the strict choice
+    untrained: list[str]  # known classes without a training segment in this fold
 
 
 @dataclass
@@ -174,11 +176,23 @@ class StreamEvaluator:
 
     # -- one fold ---------------------------------------------------------------------------
     def _segments(self, recs: list[Recording]) -> dict[int, list[np.ndarray]]:
-        segs = segments(recs, self.known)
-        empty = [self.data.class_names[c] for c, s in segs.items() if not s]
-        if empty:
-            raise ValueError(f"known classes {empty} have no training segment in {[r.name for r in recs]}")
+        """Training segments of the known classes that ``recs`` hold; a known class without one is
+        left out of the model (its frames elsewhere count as known and are wrong unless labelled
+        as it, which that model cannot do).  At least two classes are needed."""
+        segs = {c: s for c, s in segments(recs, self.known).items() if s}
+        if len(segs) < MIN_TRAINED_CLASSES:
+            raise ValueError(
+                f"the recordings {[r.name for r in recs]} hold training segments of "
+                f"{[self.data.class_names[c] for c in segs] or 'no'} known class(es); every training split of "
+                f"leave-one-recording-out needs at least {MIN_TRAINED_CLASSES}: add recordings that hold "
+                "more classes or name classes that more recordings hold with --known"
+            )
         return segs
+
+    def _untrained(self, recs: list[Recording]) -> list[str]:
+        """Names of the known classes without a training segment in ``recs``."""
+        have = {int(c) for r in recs for c in np.unique(r.y)}
+        return [self.data.class_names[c] for c in self.known if c not in have]
 
     def _select(self, name: str, views: dict[str, list[Recording]]) -> Choice:
         """Derived features, hyper-parameters and rejection value of one method, chosen on inner
@@ -186,29 +200,9 @@ class StreamEvaluator:
         method = METHODS[name]
         choices = []
         for derived, train in views.items():
-            folds = [(r, [t for t in train if t is not r]) for r in train[-INNER_FOLDS:]]
-            truth = np.concatenate([np.where(np.isin(v.y, self.known), v.y, -1) for v, _ in folds])
-            present = [c for c in self.known if np.any(truth == c)]
             for params in method.grid(self.quick):
                 params = {**params, "derived": derived}
-                fits = [(self._fit(method, rest, params), v) for v, rest in folds]
-                states = [(f, self._prepare(method, f, v)) for f, v in fits]
-                grid = method.reject_grid(fits[0][0], [s for _, s in states])
-
-                unseen = {c: self._without(method, fits, folds, params, c) for c in present}
-
-                def pred(r, drop=None, states=states, unseen=unseen):
-                    if drop is not None and unseen[drop] is not None:  # a model that never saw the class
-                        return np.concatenate([method.labels(f, s, r) for f, s in unseen[drop]])
-                    return np.concatenate([method.labels(f, s, r, drop=drop) for f, s in states])
-
-                @functools.cache
-                def known_acc(r, truth=truth, pred=pred):
-                    return frame_metrics(truth, pred(r), self.known)["known_accuracy"] or 0.0
-
-                def pseudo_rej(r, truth=truth, present=present, pred=pred):
-                    return float(np.mean([np.mean(pred(r, drop=c)[truth == c] == -1) for c in present]))
-
+                known_acc, pseudo_rej, grid = self.validation(method, train, params)
                 value, score = calibrate(known_acc, pseudo_rej, grid)
                 self.progress(f"    {name} {params}: reject={value:.4g} objective={score:.3f}")
                 choices.append((Choice(params, value, score), grid[0], known_acc))
@@ -221,6 +215,32 @@ class StreamEvaluator:
             f"    {name}: rejection off (best objective {best.objective:.3f}); {chosen.params} keeps {accuracy:.3f}"
         )
         return replace(chosen, fallback=True, strict=best)
+
+    def validation(self, method, train: list[Recording], params: dict) -> tuple[Callable, Callable, np.ndarray]:
+        """The calibration's view of ``method`` with ``params`` on the inner folds of ``train``
+        (recordings with ``params``' derived features, scaled): its known accuracy and its
+        pseudo-unknown rejection (mean over the known classes the folds hold) as functions of the
+        rejection value, and the method's sweep of that value."""
+        folds = [(r, [t for t in train if t is not r]) for r in train[-INNER_FOLDS:]]
+        truth = np.concatenate([np.where(np.isin(v.y, self.known), v.y, -1) for v, _ in folds])
+        present = [c for c in self.known if np.any(truth == c)]
+        fits = [(self._fit(method, rest, params), v) for v, rest in folds]
+        states = [(f, self._prepare(method, f, v)) for f, v in fits]
+        unseen = {c: self._without(method, fits, folds, params, c) for c in present}
+
+        def pred(r, drop=None):
+            if drop is not None and unseen[drop] is not None:  # a model that never saw the class
+                return np.concatenate([method.labels(f, s, r) for f, s in unseen[drop]])
+            return np.concatenate([method.labels(f, s, r, drop=drop) for f, s in states])
+
+        @functools.cache
+        def known_acc(r):
+            return frame_metrics(truth, pred(r), self.known)["known_accuracy"] or 0.0
+
+        def pseudo_rej(r):
+            return float(np.mean([np.mean(pred(r, drop=c)[truth == c] == -1) for c in present]))
+
+        return known_acc, pseudo_rej, method.reject_grid(fits[0][0], [s for _, s in states])
 
     def _fit(self, method, train: list[Recording], params: dict) -> Fitted:
         """``method.fit`` on ``train``, shared within a fold by the methods of one ``fit_key``
@@ -244,6 +264,9 @@ class StreamEvaluator:
             return None
         unseen = []
         for (fitted, v), (_, rest) in zip(fits, folds):
+            if drop not in fitted.classes:  # this inner split never held the class: the model is one
+                unseen.append((fitted, self._prepare(method, fitted, v)))
+                continue
             key = (*self._fit_key(method, params, rest), "without", drop)
             if key not in self._cache:
                 self._cache[key] = method.without_class(fitted, self._segments(rest), drop, self.random_state)
@@ -259,9 +282,11 @@ class StreamEvaluator:
             self._cache[key] = method.prepare(fitted, rec.X)
         return self._cache[key]
 
-    def _views(self, held: str) -> dict[str, tuple[list[Recording], Recording]]:
+    def fold_views(self, held: str) -> dict[str, tuple[list[Recording], Recording]]:
         """Per derived feature choice: the training recordings and the held-out one, with the
-        features appended and then scaled with the training frames."""
+        features appended and then scaled with the training frames.  Starts the fold: fitted
+        models and states of the previous one (another scaling) are dropped."""
+        self._cache.clear()
         views = {}
         for derived in self.derived:
             recs = [Recording(r.name, derive(r.X, derived), r.y) for r in self.data.recordings]
@@ -270,8 +295,12 @@ class StreamEvaluator:
         return views
 
     def run_fold(self, held: str) -> FoldResult:
-        views = self._views(held)
-        self._cache.clear()  # fits and states hold this fold's normalisation
+        views = self.fold_views(held)
+        untrained = self._untrained(self.data.without(held))
+        if untrained:
+            self.progress(
+                f"  {held}: no training segment of {untrained} in the other recordings; models leave them out"
+            )
         labels, selected, sweeps, strict = {}, {}, {}, {}
         for name in self.methods:
             if name == "ukr_clm_online":
@@ -292,7 +321,7 @@ class StreamEvaluator:
                 labels["ukr_clm_online"] = self._online(fitted, choice.reject, test.X)
                 selected["ukr_clm_online"] = selected[name]
             self.progress(f"  {held}: {name} {selected[name]} in {time.perf_counter() - t0:.1f}s")
-        return FoldResult(held, views[self.derived[0]][1].y, labels, selected, sweeps, strict)
+        return FoldResult(held, views[self.derived[0]][1].y, labels, selected, sweeps, strict, untrained)
 
     def _final(self, method, params: dict, views) -> tuple:
         """``method`` fitted with ``params`` on all training recordings, its state on the held-out
@@ -350,6 +379,7 @@ class StreamEvaluator:
             res["folds"] = [
                 {
                     "recording": f.recording,
+                    "untrained_classes": f.untrained,
                     "selected": f.selected[name],
                     **frame_metrics(f.truth, f.labels[name], self.known),
                     "segment_f1": segment_f1([(f.truth, f.labels[name])], self.known),

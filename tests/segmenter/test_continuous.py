@@ -367,3 +367,30 @@ def test_a_joint_classifier_is_refitted_for_the_pseudo_unknowns_of_the_calibrati
     two = {c: segments[c] for c in (0, 1)}  # one class left: no ridge; the column is dropped instead
     assert method.without_class(method.fit(two, {"window": 16}, seed=0), two, 1, seed=0) is None
     assert METHODS["ukr_clm"].without_class(fitted, segments, 2, seed=0) is None
+
+
+def test_a_class_recorded_in_one_recording_only_is_left_out_of_the_folds_that_lack_it(tmp_path):
+    """Class c is labelled in r0 only: the fold holding r0 out trains without c (and says so), the
+    inner splits without it use their models as they are, and the evaluation runs to the end."""
+    pytest.importorskip("aeon")
+    arrays = {"class_names": np.array(["a", "b", "c"])}
+    for k in range(4):
+        X, y = _synthetic_recordings(k)
+        arrays[f"X_r{k}"], arrays[f"y_r{k}"] = X, np.where((y == 2) & (k > 0), -1, y)
+    np.savez(tmp_path / "s.npz", **arrays)
+    said = []
+    ev = StreamEvaluator(load_recordings(tmp_path / "s.npz"), methods=("minirocket",), quick=True, progress=said.append)
+    res = ev.evaluate()["methods"]["minirocket"]
+    assert [f["untrained_classes"] for f in res["folds"]] == [["c"], [], [], []]
+    assert any("no training segment of ['c']" in s for s in said)
+    r0 = ev.folds_[0]
+    assert not np.any(r0.labels["minirocket"] == 2)  # a model without c cannot label it
+    assert res["known_accuracy"] > 0.5
+
+    arrays = {"class_names": np.array(["a", "b"])}
+    for k in range(3):
+        X, y = _synthetic_recordings(k)
+        arrays[f"X_r{k}"], arrays[f"y_r{k}"] = X, np.where(k == 0, y % 2, np.where(y == 0, 0, -1))
+    np.savez(tmp_path / "one.npz", **arrays)  # b only in r0: holding r0 out leaves one class to train
+    with pytest.raises(ValueError, match="needs at least 2: add recordings"):
+        StreamEvaluator(load_recordings(tmp_path / "one.npz"), methods=("dtw_1nn",), quick=True).evaluate()

@@ -90,7 +90,8 @@ def main(argv=None) -> int:
     print(
         f"best objective {best['objective']:.4f} at {best['params']} r={best['reject']:.4g} "
         f"(rejecting everything: 0.5; known accuracy + pseudo-unknown rejection > 1 at "
-        f"{sum(row['objective'] > 0.5 for row in rows)} of {len(rows)} points)"
+        f"{sum(row['objective'] > 0.5 for row in rows)} of {len(rows)} points)",
+        file=sys.stderr if args.json else sys.stdout,
     )
     if args.json:
         print(json.dumps({"held_out": held, "method": args.method, "rows": rows, "best": best}, indent=1))

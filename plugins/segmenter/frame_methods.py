@@ -125,13 +125,16 @@ class MiniRocketMethod(ScoreMethod):
     refitted without the class (:meth:`without_class`)."""
 
     name = "minirocket"
-    has_features = True
+
+    def __init__(self, feature_novelty: bool = False) -> None:
+        self.has_features = feature_novelty  # fit the scorer's feature novelty (only the novelty method uses it)
 
     def grid(self, quick: bool) -> list[dict]:
         return [{"window": w} for w in ((32,) if quick else (16, 48))]
 
     def fit(self, segments, params, seed) -> Fitted:
-        scorer = MiniRocketScorer(window=params["window"], random_state=seed).fit(dict(sorted(segments.items())))
+        scorer = MiniRocketScorer(window=params["window"], random_state=seed, feature_novelty=self.has_features)
+        scorer.fit(dict(sorted(segments.items())))
         return Fitted(scorer, list(scorer.classes_), params)
 
     def prepare(self, fitted, X):
@@ -365,7 +368,7 @@ METHODS = {
         MiniRocketMethod(),
         ScoreCLMMethod(MiniRocketMethod()),
         ScoreCLMMethod(DTWMethod()),
-        NoveltyCLMMethod(MiniRocketMethod()),
+        NoveltyCLMMethod(MiniRocketMethod(feature_novelty=True)),
         NoveltyCLMMethod(DTWMethod()),
     )
 }

@@ -149,17 +149,24 @@ class MiniRocketScorer(WindowScorer):
     (two for a binary problem); the evidence temperature comes from those of the training windows.  Fitted: ``parameters_`` (the MiniRocket transform: channels per
     combination, channel indices, dilations, features per dilation, biases), ``coef_`` (M, F),
     ``intercept_`` (M,), ``novelty_`` (:class:`.feature_novelty.FeatureNovelty` of the training
-    windows' features).
+    windows' features; None with ``feature_novelty=False``, which skips its fit — a third of the
+    fit's time — for users of the scores alone; such a scorer cannot be saved).
     """
 
     kind = "minirocket"
-    has_features = True
     PARAMETER_NAMES = ("n_channels_per_combination", "channel_indices", "dilations", "features_per_dilation", "biases")
 
-    def __init__(self, *, window: int = 32, n_kernels: int = 10_000, random_state: int | None = 0) -> None:
+    def __init__(
+        self, *, window: int = 32, n_kernels: int = 10_000, random_state: int | None = 0, feature_novelty: bool = True
+    ) -> None:
         self.window = window
         self.n_kernels = n_kernels
         self.random_state = random_state
+        self.feature_novelty = feature_novelty
+
+    @property
+    def has_features(self) -> bool:
+        return bool(self.feature_novelty)
 
     def _fit(self, segments: dict) -> None:
         MiniRocket, _ = _aeon()
@@ -188,7 +195,7 @@ class MiniRocketScorer(WindowScorer):
         if coef.shape[0] == 1:  # binary: one decision value d, scores (−d, d)
             coef, intercept = np.vstack([-coef, coef]), np.r_[-intercept, intercept]
         self.coef_, self.intercept_ = coef, intercept
-        self.novelty_ = FeatureNovelty.fit(F, np.concatenate(origins))
+        self.novelty_ = FeatureNovelty.fit(F, np.concatenate(origins)) if self.feature_novelty else None
         return F @ coef.T + intercept
 
     def features(self, windows: np.ndarray) -> np.ndarray:
@@ -215,7 +222,7 @@ class MiniRocketScorer(WindowScorer):
 
     def scores_and_novelty(self, X: np.ndarray, ends: np.ndarray | None = None):
         F = self.window_features(X, ends)
-        return F @ self.coef_.T + self.intercept_, self.novelty_.novelty(F)
+        return F @ self.coef_.T + self.intercept_, self._novelty().novelty(F)
 
     def scores_and_novelty_last(self, recent: np.ndarray):
         recent = np.atleast_2d(np.asarray(recent, dtype=float))[-int(self.window) :]
@@ -229,8 +236,13 @@ class MiniRocketScorer(WindowScorer):
             "coef": self.coef_,
             "intercept": self.intercept_,
             **dict(zip(self.PARAMETER_NAMES, self.parameters_)),
-            **self.novelty_.arrays("novelty_"),
+            **self._novelty().arrays("novelty_"),
         }
+
+    def _novelty(self) -> FeatureNovelty:
+        if self.novelty_ is None:
+            raise ValueError("this scorer was fitted with feature_novelty=False; fit it with feature_novelty=True")
+        return self.novelty_
 
     def _restore(self, arrays: dict[str, np.ndarray]) -> None:
         d, m = self.n_features_in_, len(self.classes_)

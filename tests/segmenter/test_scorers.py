@@ -309,9 +309,16 @@ def test_feature_novelty_rejects_unknown_motion_online_as_in_the_batch(rocket_wi
     assert np.mean(online.replay(X) == batch) > 0.9
 
 
-def test_distance_z_needs_a_scorer_with_features(dtw):
+def test_distance_z_needs_a_scorer_with_features(dtw, minirocket, demo, tmp_path):
     with pytest.raises(ValueError, match="distance_z needs a scorer with features"):
         OnlineScoreCLMSegmenter(dtw[0], distance_z=2.0)
+    plain = MiniRocketScorer(window=16, n_kernels=840, random_state=0, feature_novelty=False).fit(demo[0])
+    assert plain.novelty_ is None and not plain.has_features  # the scores alone: the novelty is not fitted
+    np.testing.assert_array_equal(plain.scores(demo[1].X), minirocket[0].scores(demo[1].X))
+    with pytest.raises(ValueError, match="distance_z needs a scorer with features"):
+        OnlineScoreCLMSegmenter(plain, distance_z=2.0)
+    with pytest.raises(ValueError, match="fit it with feature_novelty=True"):
+        plain.save(tmp_path / "plain.npz")
     with pytest.raises(Exception, match="distance_z needs source minirocket"):
         NodeHarness(OnlineCLMNode, {"source": "dtw", "scorer": str(dtw[1]), "distance_z": 2.0})
 

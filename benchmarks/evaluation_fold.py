@@ -1,0 +1,109 @@
+"""One fold of `handflow evaluate segmentation` on continuous recordings, timed per method, against
+the same fold with every MiniRocket fit also fitting its feature novelty (the behaviour before
+only `clm_minirocket_novelty` asked for it; the baseline, run in the same process).
+
+The two runs must select the same parameters and give the same labels; the script says so and
+prints each method's wall time and the ratio.  BLAS and numba are limited to one thread.
+
+    python benchmarks/evaluation_fold.py ../shared/data/gesture_phases.npz --held-out a1 \
+        --methods minirocket,clm_minirocket [--quick] [--json]
+"""
+
+from __future__ import annotations
+
+import os
+
+for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
+    os.environ.setdefault(var, "1")
+
+import argparse  # noqa: E402
+import json  # noqa: E402
+import sys  # noqa: E402
+import time  # noqa: E402
+from contextlib import contextmanager  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+from handflow.plugins.segmenter.continuous import load_recordings  # noqa: E402
+from handflow.plugins.segmenter.frame_methods import METHODS, MiniRocketMethod  # noqa: E402
+from handflow.plugins.segmenter.stream_evaluation import StreamEvaluator  # noqa: E402
+
+
+@contextmanager
+def feature_novelty_everywhere():
+    """Every MiniRocket scorer of the evaluation fits its feature novelty, as before."""
+    scorers = [m for m in METHODS.values() if isinstance(m, MiniRocketMethod)]
+    scorers += [m.scorer for m in METHODS.values() if isinstance(getattr(m, "scorer", None), MiniRocketMethod)]
+    before = [m.has_features for m in scorers]
+    for m in scorers:
+        m.has_features = True
+    try:
+        yield
+    finally:
+        for m, had in zip(scorers, before):
+            m.has_features = had
+
+
+def timed_fold(data, held: str, methods: tuple[str, ...], quick: bool) -> tuple[dict, object]:
+    """Seconds per method (from the evaluator's own progress lines) and the fold's result."""
+    marks: dict[str, float] = {}
+    start = time.perf_counter()
+
+    def progress(msg: str) -> None:
+        words = msg.split()
+        if len(words) > 1 and words[0] == f"{held}:" and words[1] in methods:
+            marks[words[1]] = time.perf_counter()
+
+    ev = StreamEvaluator(data, methods=methods, quick=quick, progress=progress)
+    fold = ev.run_fold(held)
+    seconds, last = {}, start
+    for name in methods:
+        if name in marks:
+            seconds[name], last = marks[name] - last, marks[name]
+    return seconds, fold
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("recordings", type=Path)
+    ap.add_argument("--held-out", default=None, help="recording held out (default: the first)")
+    ap.add_argument("--methods", default="minirocket,clm_minirocket")
+    ap.add_argument("--quick", action="store_true", help="the evaluation's --quick grids")
+    ap.add_argument("--json", action="store_true")
+    args = ap.parse_args(argv)
+    if not args.recordings.exists():
+        print(f"{args.recordings} not found; pass a continuous recording set (docs/segmentation.md)", file=sys.stderr)
+        return 2
+    data = load_recordings(args.recordings)
+    held = args.held_out or data.names()[0]
+    methods = tuple(args.methods.split(","))
+    now, fold = timed_fold(data, held, methods, args.quick)
+    with feature_novelty_everywhere():
+        before, fold_before = timed_fold(data, held, methods, args.quick)
+    same = all(
+        fold.selected[m] == fold_before.selected[m] and np.array_equal(fold.labels[m], fold_before.labels[m])
+        for m in fold.labels
+    )
+    result = {
+        "recordings": str(args.recordings),
+        "held_out": held,
+        "seconds": now,
+        "seconds_with_feature_novelty_everywhere": before,
+        "total_ratio": sum(before.values()) / sum(now.values()),
+        "same_selection_and_labels": same,
+    }
+    if args.json:
+        print(json.dumps(result, indent=2))
+    else:
+        for name in now:
+            print(f"{name}: {now[name]:.1f} s (feature novelty in every fit: {before[name]:.1f} s)")
+        print(
+            f"fold {sum(now.values()):.1f} s vs {sum(before.values()):.1f} s ({result['total_ratio']:.2f}×); "
+            f"same selection and labels: {same}"
+        )
+    return 0 if same else 1
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -13,7 +13,10 @@ The online node projects every new observation onto all candidate manifolds; one
 
 Documented choices: ``grid`` = max(256, 4 N_max) (spacing well below the kernel width 1/β of the
 candidates' auto bandwidths), ``n_iter`` = 4; a step is only accepted when it lowers the error,
-so the result is never worse than the grid optimum.
+so the result is never worse than the grid optimum.  The kernel-weighted sums and the grid
+distances are matrix products (BLAS), which sum in an order that depends on the batch size: a
+point projected alone and within a batch agree up to rounding, carried through the steps to
+~1e-8 relative at most in the tests.
 """
 
 from __future__ import annotations
@@ -54,6 +57,7 @@ class BatchedPeriodicProjector:
         self.grid = np.linspace(0.0, np.pi, g, endpoint=False)
         self.grid_images = self._f(np.broadcast_to(self.grid[:, None], (g, m)))[0]  # (G, M, d)
         self.grid_sq = np.einsum("gmd,gmd->gm", self.grid_images, self.grid_images)
+        self._grid_columns = np.ascontiguousarray(self.grid_images.reshape(g * m, d).T)  # (d, G·M), for BLAS
 
     def _f(self, x: np.ndarray, jacobian: bool = False):
         """f (B, M, d) and, if asked, ∂f/∂x (B, M, d) at latents x (B, M)."""
@@ -63,17 +67,26 @@ class BatchedPeriodicProjector:
         u -= np.min(np.where(self.mask[None] > 0, u, np.inf), axis=2, keepdims=True)
         k = np.exp(-u) * self.mask[None]
         S = k.sum(axis=2)  # (B, M)
-        F = np.einsum("bmn,mnd->bmd", k, self.Y) / S[:, :, None]
+        F = self._weighted(k) / S[:, :, None]
         if not jacobian:
             return F, None
         dk = -k * self.half_beta2[None, :, None] * np.sin(2.0 * delta)
-        J = (np.einsum("bmn,mnd->bmd", dk, self.Y) - F * dk.sum(axis=2)[:, :, None]) / S[:, :, None]
+        J = (self._weighted(dk) - F * dk.sum(axis=2)[:, :, None]) / S[:, :, None]
         return F, J
+
+    def _weighted(self, w: np.ndarray) -> np.ndarray:
+        """Σ_n w[b, m, n] · Y[m, n] (B, M, d), one matrix product per candidate (BLAS; a plain
+        einsum of this contraction loops in C without it, ~6× slower)."""
+        return np.matmul(w.transpose(1, 0, 2), self.Y).transpose(1, 0, 2)
+
+    def _grid_products(self, Y: np.ndarray) -> np.ndarray:
+        """Y · f(grid) (B, G, M) as one matrix product."""
+        return (Y @ self._grid_columns).reshape(len(Y), *self.grid_sq.shape)
 
     def project(self, Y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Latents (B, M) in [0, π) and reconstructions f(g(y)) (B, M, d) of every row of Y."""
         Y = np.atleast_2d(np.asarray(Y, dtype=float))
-        dist = self.grid_sq[None] - 2.0 * np.einsum("bd,gmd->bgm", Y, self.grid_images)  # (B, G, M)
+        dist = self.grid_sq[None] - 2.0 * self._grid_products(Y)  # (B, G, M)
         x = self.grid[np.argmin(dist, axis=1)]  # (B, M)
         F, J = self._f(x, jacobian=True)
         r = Y[:, None, :] - F

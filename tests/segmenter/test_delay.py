@@ -164,7 +164,7 @@ def test_models_on_velocities_derive_them_from_a_raw_stream_as_from_the_recordin
     batch = models.project(X)
     stream = models.stream()
     streamed = np.vstack([stream.project(x).errors for x in X])
-    np.testing.assert_allclose(streamed, batch.errors, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(streamed, batch.errors, rtol=1e-6, atol=1e-12)  # rounding (docs/segmentation.md)
     weights = np.vstack([stream.intensity_weights(x) for x in X])
     np.testing.assert_allclose(weights, models.intensity_weights(X))
     assert np.mean(np.argmin(batch.errors, axis=1) == y) > 0.8

@@ -349,10 +349,15 @@ class StreamEvaluator:
 
     # -- all folds --------------------------------------------------------------------------
     def evaluate(self) -> dict:
-        folds = []
+        folds, n, start = [], len(self.data.recordings), time.perf_counter()
         for k, rec in enumerate(self.data.recordings):
-            self.progress(f"fold {k + 1}/{len(self.data.recordings)}: holding out '{rec.name}'")
+            self.progress(f"fold {k + 1}/{n}: holding out '{rec.name}'")
             folds.append(self.run_fold(rec.name))
+            spent = time.perf_counter() - start
+            if k + 1 < n:  # folds differ in size; the mean so far is the estimate
+                self.progress(
+                    f"fold {k + 1}/{n} done; {spent / 60:.1f} min so far, about {spent / (k + 1) * (n - k - 1) / 60:.0f} min to go"
+                )
         truth = np.concatenate([f.truth for f in folds])
         out: dict = {"methods": {}, "parameters": self._parameters()}
         for name in self.methods:

@@ -383,6 +383,7 @@ def test_a_class_recorded_in_one_recording_only_is_left_out_of_the_folds_that_la
     res = ev.evaluate()["methods"]["minirocket"]
     assert [f["untrained_classes"] for f in res["folds"]] == [["c"], [], [], []]
     assert any("no training segment of ['c']" in s for s in said)
+    assert sum("min to go" in s for s in said) == 3  # an estimate after every fold but the last
     r0 = ev.folds_[0]
     assert not np.any(r0.labels["minirocket"] == 2)  # a model without c cannot label it
     assert res["known_accuracy"] > 0.5

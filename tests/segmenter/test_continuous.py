@@ -395,3 +395,44 @@ def test_a_class_recorded_in_one_recording_only_is_left_out_of_the_folds_that_la
     np.savez(tmp_path / "one.npz", **arrays)  # b only in r0: holding r0 out leaves one class to train
     with pytest.raises(ValueError, match="needs at least 2: add recordings"):
         StreamEvaluator(load_recordings(tmp_path / "one.npz"), methods=("dtw_1nn",), quick=True).evaluate()
+
+
+def _odd(kind: str, k: int, rng) -> tuple[np.ndarray, np.ndarray]:
+    """Recording k of an odd but valid dataset (three classes a, b, c)."""
+    X, y = _synthetic_recordings(k)
+    if kind == "constant column":
+        return np.c_[X, np.full(len(X), 7.0)], y
+    if kind == "one channel":
+        return X[:, :1], y
+    if kind == "huge values":
+        return X * 1e6 + 3e7, y
+    if kind == "segments of 2-5 frames":
+        n = rng.integers(2, 6, size=6)
+        return np.vstack([X, rng.normal(size=(n.sum(), 2))]), np.r_[y, np.repeat(np.arange(6) % 3, n)]
+    if kind == "an unlabelled recording":
+        return X, np.full(len(y), -1) if k == 3 else y
+    assert kind == "a 6-frame recording"
+    return (rng.normal(size=(6, 2)), np.array([0, 0, 1, 1, 2, 2])) if k == 3 else (X, y)
+
+
+@pytest.mark.parametrize(
+    "kind",
+    [
+        "constant column",
+        "one channel",
+        "huge values",
+        "segments of 2-5 frames",
+        "an unlabelled recording",
+        "a 6-frame recording",
+    ],
+)
+def test_odd_but_valid_recordings_are_evaluated_to_the_end(tmp_path, kind):
+    """Real recording sets come in shapes the shipped ones do not have; each must be evaluated."""
+    rng = np.random.default_rng(0)
+    arrays = {"class_names": np.array(["a", "b", "c"])}
+    for k in range(4):
+        arrays[f"X_r{k}"], arrays[f"y_r{k}"] = _odd(kind, k, rng)
+    np.savez(tmp_path / "odd.npz", **arrays)
+    out = StreamEvaluator(load_recordings(tmp_path / "odd.npz"), methods=("dtw_1nn", "hmm"), quick=True).evaluate()
+    for res in out["methods"].values():
+        assert len(res["folds"]) == 4 and 0 <= res["open_set_accuracy"] <= 1

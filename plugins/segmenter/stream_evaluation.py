@@ -191,8 +191,7 @@ class StreamEvaluator:
 
     def _untrained(self, recs: list[Recording]) -> list[str]:
         """Names of the known classes without a training segment in ``recs``."""
-        have = {int(c) for r in recs for c in np.unique(r.y)}
-        return [self.data.class_names[c] for c in self.known if c not in have]
+        return [self.data.class_names[c] for c, segs in segments(recs, self.known).items() if not segs]
 
     def _select(self, name: str, views: dict[str, list[Recording]]) -> Choice:
         """Derived features, hyper-parameters and rejection value of one method, chosen on inner

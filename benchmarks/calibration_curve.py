@@ -15,20 +15,18 @@ the folds, models and pseudo-unknowns as the evaluation.
 
 from __future__ import annotations
 
-import os
+import one_core  # noqa: F401  (one thread for BLAS and numba, set before numpy loads)
 
-for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
-    os.environ.setdefault(var, "1")
+# isort: split
+import argparse
+import json
+import sys
 
-import argparse  # noqa: E402
-import json  # noqa: E402
-import sys  # noqa: E402
+import numpy as np
 
-import numpy as np  # noqa: E402
-
-from handflow.plugins.segmenter.continuous import load_recordings  # noqa: E402
-from handflow.plugins.segmenter.frame_methods import METHODS, ScoreCLMMethod, UKRCLMMethod  # noqa: E402
-from handflow.plugins.segmenter.stream_evaluation import StreamEvaluator  # noqa: E402
+from handflow.plugins.segmenter.continuous import load_recordings
+from handflow.plugins.segmenter.frame_methods import METHODS, ScoreCLMMethod, UKRCLMMethod
+from handflow.plugins.segmenter.stream_evaluation import StreamEvaluator
 
 FINE = 2.0 ** np.arange(-5, 6.01, 0.25)  # background factors 1/32 … 64
 

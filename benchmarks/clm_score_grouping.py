@@ -10,22 +10,20 @@ MiniRocket window 16 (the one the evaluation selects on BasicMotions).  Metrics 
 
 from __future__ import annotations
 
-import os
+import one_core  # noqa: F401  (one thread for BLAS and numba, set before numpy loads)
 
-for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
-    os.environ.setdefault(var, "1")
+# isort: split
+import argparse
+import time
 
-import argparse  # noqa: E402
-import time  # noqa: E402
+import numpy as np
 
-import numpy as np  # noqa: E402
-
-from handflow.plugins.segmenter.clm_segmenter import CLMSegmenter  # noqa: E402
-from handflow.plugins.segmenter.compatibility import evidence_band, score_evidence  # noqa: E402
-from handflow.plugins.segmenter.continuous import load_recordings, segments  # noqa: E402
-from handflow.plugins.segmenter.frame_methods import MiniRocketMethod  # noqa: E402
-from handflow.plugins.segmenter.openset import frame_metrics, segment_f1  # noqa: E402
-from handflow.plugins.segmenter.stream_evaluation import _zscore  # noqa: E402
+from handflow.plugins.segmenter.clm_segmenter import CLMSegmenter
+from handflow.plugins.segmenter.compatibility import evidence_band, score_evidence
+from handflow.plugins.segmenter.continuous import load_recordings, segments
+from handflow.plugins.segmenter.frame_methods import MiniRocketMethod
+from handflow.plugins.segmenter.openset import frame_metrics, segment_f1
+from handflow.plugins.segmenter.stream_evaluation import _zscore
 
 
 def clm_labels(scores: np.ndarray, classes: np.ndarray, history: int) -> np.ndarray:

@@ -18,24 +18,22 @@ can carry that to a frame's label).  BLAS and numba are limited to one thread.
 
 from __future__ import annotations
 
-import os
+import one_core  # noqa: F401  (one thread for BLAS and numba, set before numpy loads)
 
-for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
-    os.environ.setdefault(var, "1")
+# isort: split
+import argparse
+import json
+import sys
+import time
+from contextlib import contextmanager
+from pathlib import Path
 
-import argparse  # noqa: E402
-import json  # noqa: E402
-import sys  # noqa: E402
-import time  # noqa: E402
-from contextlib import contextmanager  # noqa: E402
-from pathlib import Path  # noqa: E402
+import numpy as np
 
-import numpy as np  # noqa: E402
-
-from handflow.plugins.segmenter.continuous import load_recordings  # noqa: E402
-from handflow.plugins.segmenter.fast_projection import BatchedPeriodicProjector  # noqa: E402
-from handflow.plugins.segmenter.frame_methods import METHODS, MiniRocketMethod  # noqa: E402
-from handflow.plugins.segmenter.stream_evaluation import StreamEvaluator  # noqa: E402
+from handflow.plugins.segmenter.continuous import load_recordings
+from handflow.plugins.segmenter.fast_projection import BatchedPeriodicProjector
+from handflow.plugins.segmenter.frame_methods import METHODS, MiniRocketMethod
+from handflow.plugins.segmenter.stream_evaluation import StreamEvaluator
 
 
 @contextmanager

@@ -25,20 +25,18 @@ the unknown-frame rejection and the known frames kept.
 
 from __future__ import annotations
 
-import os
+import one_core  # noqa: F401  (one thread for BLAS and numba, set before numpy loads)
 
-for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
-    os.environ.setdefault(var, "1")
+# isort: split
+import argparse
+import json
+import sys
 
-import argparse  # noqa: E402
-import json  # noqa: E402
-import sys  # noqa: E402
+import numpy as np
+from sklearn.metrics import roc_auc_score
 
-import numpy as np  # noqa: E402
-from sklearn.metrics import roc_auc_score  # noqa: E402
-
-from handflow.plugins.segmenter.continuous import load_recordings, segments  # noqa: E402
-from handflow.plugins.segmenter.scorers import WINDOWS_PER_SEGMENT, MiniRocketScorer, causal_windows  # noqa: E402
+from handflow.plugins.segmenter.continuous import load_recordings, segments
+from handflow.plugins.segmenter.scorers import WINDOWS_PER_SEGMENT, MiniRocketScorer, causal_windows
 
 PCA_DIMS = 32
 

@@ -19,24 +19,22 @@ segments; their projection is part of the scorer time); ``--distance-z Z`` the f
 
 from __future__ import annotations
 
-import os
+import one_core  # noqa: F401  (one thread for BLAS and numba, set before numpy loads)
 
-for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
-    os.environ.setdefault(var, "1")
+# isort: split
+import argparse
+import json
+import sys
+import tempfile
+import time
+from pathlib import Path
 
-import argparse  # noqa: E402
-import json  # noqa: E402
-import sys  # noqa: E402
-import tempfile  # noqa: E402
-import time  # noqa: E402
-from pathlib import Path  # noqa: E402
+import numpy as np
 
-import numpy as np  # noqa: E402
-
-from handflow.plugins.segmenter.continuous import load_recordings, segments  # noqa: E402
-from handflow.plugins.segmenter.online_scores import OnlineScoreCLMSegmenter, batch_labels  # noqa: E402
-from handflow.plugins.segmenter.scorers import MiniRocketScorer, load_scorer  # noqa: E402
-from handflow.plugins.segmenter.training import fit_recording_models  # noqa: E402
+from handflow.plugins.segmenter.continuous import load_recordings, segments
+from handflow.plugins.segmenter.online_scores import OnlineScoreCLMSegmenter, batch_labels
+from handflow.plugins.segmenter.scorers import MiniRocketScorer, load_scorer
+from handflow.plugins.segmenter.training import fit_recording_models
 
 WARMUP = 50  # samples skipped in the latency figures (JIT, filling the window)
 

@@ -27,19 +27,18 @@ sample by sample, and projected a second time with its heading turned round, as 
 
 from __future__ import annotations
 
+import one_core  # noqa: F401  (one thread for BLAS and numba, set before numpy loads)
+
+# isort: split
+import argparse
+import json
 import os
+import sys
+import time
 
-for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ.setdefault(var, "1")
+import numpy as np
 
-import argparse  # noqa: E402
-import json  # noqa: E402
-import sys  # noqa: E402
-import time  # noqa: E402
-
-import numpy as np  # noqa: E402
-
-from handflow.plugins.segmenter import (  # noqa: E402
+from handflow.plugins.segmenter import (
     CLMSegmenter,
     LetterGenerator,
     OnlineCLMSegmenter,
@@ -47,7 +46,7 @@ from handflow.plugins.segmenter import (  # noqa: E402
     load_dataset,
     train_class_models,
 )
-from handflow.plugins.segmenter.training import fit_recording_models  # noqa: E402
+from handflow.plugins.segmenter.training import fit_recording_models
 
 RATE_HZ = 100.0
 

@@ -14,24 +14,22 @@ difference of the z-scores).  BLAS and numba are limited to one thread.
 
 from __future__ import annotations
 
-import os
+import one_core  # noqa: F401  (one thread for BLAS and numba, set before numpy loads)
 
-for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
-    os.environ.setdefault(var, "1")
+# isort: split
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+from unittest import mock
 
-import argparse  # noqa: E402
-import json  # noqa: E402
-import sys  # noqa: E402
-import time  # noqa: E402
-from pathlib import Path  # noqa: E402
-from unittest import mock  # noqa: E402
+import numpy as np
 
-import numpy as np  # noqa: E402
-
-from handflow.plugins.segmenter import feature_novelty  # noqa: E402
-from handflow.plugins.segmenter.continuous import load_recordings, segments  # noqa: E402
-from handflow.plugins.segmenter.feature_novelty import FeatureNovelty  # noqa: E402
-from handflow.plugins.segmenter.scorers import MiniRocketScorer  # noqa: E402
+from handflow.plugins.segmenter import feature_novelty
+from handflow.plugins.segmenter.continuous import load_recordings, segments
+from handflow.plugins.segmenter.feature_novelty import FeatureNovelty
+from handflow.plugins.segmenter.scorers import MiniRocketScorer
 
 
 def full_svd_directions(Z: np.ndarray, q: int) -> np.ndarray:

@@ -189,8 +189,10 @@ def _graphs_reached(session: zenoh.Session, endpoint: str, graph: str | None, ce
             )
         time.sleep(0.05)
     found: dict[str, dict] = {}
-    while not found and time.monotonic() < deadline + REACH_S:  # the hub's declarations arrive after the link
-        found = graphs_on(session, timeout_s=1.0)
+    deadline = time.monotonic() + REACH_S  # declarations arrive after the link, other peers' hubs after gossip
+    while (graph is None or graph not in found) and time.monotonic() < deadline:
+        found |= graphs_on(session, timeout_s=1.0)
+        time.sleep(0.2)
     if graph is not None and graph in found:
         return {graph: found[graph]}
     if graph is not None and found:

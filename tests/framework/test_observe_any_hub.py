@@ -182,3 +182,36 @@ def test_a_reader_that_reaches_no_graph_says_which_option_to_change(two_machines
     assert out == "" and "Traceback" not in err
     names = {"unreachable": "--connect", "wrong scheme": "--connect", "refused certificate": "--cert-name"}
     assert names[case] in err and "error: " in err, err
+
+
+def test_several_graphs_on_one_hub_are_all_monitored_and_record_asks_which(tmp_path, monkeypatch):
+    monkeypatch.setenv("HANDFLOW_RUN_DIR", str(tmp_path / "runs"))
+    endpoint = f"tcp/127.0.0.1:{free_tcp_port()}"
+    launchers = []
+    try:
+        for name, zenoh in (("left", f"listen: [{endpoint}]"), ("right", f"connect: [{endpoint}]")):
+            graph = tmp_path / f"{name}.yaml"
+            graph.write_text(f"""name: {name}
+zenoh: {{{zenoh}}}
+nodes:
+  - {{id: source, plugin: basic.signal, params: {{kind: sine, rate_hz: 50, width: 3}}}}
+""")
+            launchers.append(start("run", str(graph)))
+            deadline = time.time() + 30
+            while len(live_runs()) < len(launchers):
+                assert time.time() < deadline and launchers[-1].poll() is None, launchers[-1].communicate()
+                time.sleep(0.2)
+        time.sleep(3)
+        monitor = start("monitor", "--connect", endpoint, "--once", "--json")
+        out, err = monitor.communicate(timeout=60)
+        record = start("record", "--connect", endpoint, "--out", str(tmp_path / "x.mcap"), "--duration", "1")
+        _, record_err = record.communicate(timeout=60)
+    finally:
+        for proc in launchers:
+            proc.send_signal(2)
+            proc.communicate(timeout=30)
+    assert monitor.returncode == 0, err
+    counts = {t["topic"]: t["count"] for t in json.loads(out)["topics"]}
+    assert counts.get("handflow/left/source/out", 0) > 0 and counts.get("handflow/right/source/out", 0) > 0, counts
+    assert record.returncode == 2 and "several graphs run there (left, right)" in record_err, record_err
+    assert "Traceback" not in record_err

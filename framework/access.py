@@ -5,8 +5,12 @@ The hub of a secure graph is a Zenoh router: its own node processes reach it ove
 common name of their certificate (= the host name of ``handflow certs add-host``).  A host may
 publish only the outputs of its own nodes (and the external topics naming it in
 ``zenoh.tls.publishers``) and receives only what its nodes consume plus the runtime's health and
-progress topics; ``zenoh.tls.readers`` receive everything and publish nothing.  Everything else,
-including a valid certificate of an unknown host, is denied.
+progress topics; ``zenoh.tls.readers`` receive everything and publish nothing, and may ask which
+graphs the hub serves (:mod:`handflow.framework.hub_info`).  A graph with readers lets every host
+receive every topic of the graph, since a reader may join any hub and that hub relays the other
+machines' topics to it; Zenoh routes by declared subscriptions, so a topic still crosses a link only
+while someone on the far side subscribes to it.  Everything else, including a valid certificate of
+an unknown host, is denied.
 """
 
 from __future__ import annotations
@@ -15,6 +19,7 @@ from pathlib import Path
 
 from .certs import check_host_files
 from .graph import Graph
+from .hub_info import ANY_GRAPH, info_key
 from .transport import PREFIX, events_key, topic_key
 
 ALL_MESSAGES = [
@@ -83,10 +88,11 @@ def access_control(graph: Graph, host: str | None) -> dict[str, object]:
         publishes += [f"{PREFIX}/{g}/{t}" for t, names in tls.publishers.items() if h in names]
         publishes += [events_key(g)]
         consumes = [f"{PREFIX}/{g}/{src}" for nid in own for src in graph.nodes[nid].spec.inputs.values()]
+        receives = [f"{PREFIX}/{g}/**"] if tls.readers else consumes + runtime  # its hub relays to readers
         rules += [
             _rule(f"{h}-publish", ["put"], "ingress", publishes),
             _rule(f"{h}-declare", _DECLARE, "ingress", [f"{PREFIX}/{g}/**"]),
-            _rule(f"{h}-receive", ["put"], "egress", consumes + runtime),
+            _rule(f"{h}-receive", ["put"], "egress", receives),
             _rule(f"{h}-interest", _DECLARE, "egress", [f"{PREFIX}/{g}/**"]),
         ]
         subjects.append({"id": f"host-{h}", "cert_common_names": [h], "link_protocols": ["tls", "quic"]})
@@ -97,7 +103,11 @@ def access_control(graph: Graph, host: str | None) -> dict[str, object]:
         rules += [
             _rule("readers-declare", _DECLARE, "ingress", [f"{PREFIX}/{g}/**"]),
             _rule("readers-receive", ["put"], "egress", [f"{PREFIX}/{g}/**"]),
+            _rule("readers-ask", ["query"], "ingress", [info_key(ANY_GRAPH)]),
+            _rule("readers-answer", ["reply"], "egress", [info_key(g)]),
         ]
         subjects.append({"id": "readers", "cert_common_names": sorted(tls.readers), "link_protocols": ["tls", "quic"]})
-        policies.append({"rules": ["readers-declare", "readers-receive"], "subjects": ["readers"]})
+        policies.append(
+            {"rules": [f"readers-{r}" for r in ("declare", "receive", "ask", "answer")], "subjects": ["readers"]}
+        )
     return {"enabled": True, "default_permission": "deny", "rules": rules, "subjects": subjects, "policies": policies}

@@ -22,6 +22,8 @@ if TYPE_CHECKING:
 
 log = logging.getLogger("handflow.discovery")
 
+REACH_S = 3.0  # how long a reader waits for a link to the hub, then again for the hub's graphs
+
 
 class DiscoveryError(LookupError):
     """No (or no unique) running graph matches; the text says what to pass instead."""
@@ -104,7 +106,7 @@ def find_run(graph: str | None = None) -> RunInfo:
         )
     names = sorted({r.graph for r in runs})
     if graph is None and len(names) > 1:
-        raise DiscoveryError(f"several graphs are running ({', '.join(names)}); pass --graph NAME")
+        raise DiscoveryError(f"several graphs are running ({', '.join(names)}); name one of them (--graph NAME)")
     if len(runs) > 1:
         log.info(
             "%d launchers of graph '%s' are running; joining the newest (pid %d)", len(runs), runs[0].graph, runs[0].pid
@@ -140,17 +142,70 @@ def join(
     try:
         return open_client(endpoint, certificate, login), run
     except zenoh.ZError as exc:
-        who, checks = [], ["that the graph runs there"]
+        who, checks = [], ["--connect (that the graph runs there)"]
         if certificate is not None:
             who.append(f"certificate '{name}'")
-            checks.append(f"that its CA signed {certificate[1]}")
+            checks.append(f"--certs/--cert-name (that the hub's CA signed {certificate[1]})")
         if login is not None:
             who.append(f"user '{login['user']}'")
-            checks.append("that its credentials file holds this user with this password")
+            checks.append("--credentials/--user (that the graph's credentials file holds this user and password)")
         raise DiscoveryError(
             f"could not join {endpoint} with {' and '.join(who)} ({str(exc).split(' at /')[0]}); "
             f"check {' and '.join(checks)} (docs/security.md)"
         ) from None
+
+
+def join_graphs(
+    graph: str | None = None,
+    connect: str | None = None,
+    certs: str | None = None,
+    name: str | None = None,
+    credentials: str | None = None,
+    user: str | None = None,
+) -> tuple[zenoh.Session, RunInfo | None, dict[str, dict]]:
+    """:func:`join` as a reader, and the graphs whose hubs answer there (only ``graph`` when given).
+
+    The graph of a run-file is the one joined; ``--connect`` lists every graph on that hub
+    (:mod:`handflow.framework.hub_info`).  Reaching no hub, or no graph, is a :class:`DiscoveryError`
+    naming the option to change: never an empty view.
+    """
+    session, run = join(graph, connect, certs, name, credentials, user)
+    try:
+        return session, run, _graphs_reached(session, connect or run.hub, run.graph if run else graph, name)
+    except BaseException:
+        session.close()
+        raise
+
+
+def _graphs_reached(session: zenoh.Session, endpoint: str, graph: str | None, cert_name: str | None) -> dict:
+    from .hub_info import graphs_on
+
+    deadline = time.monotonic() + REACH_S
+    while not (session.info.routers_zid() or session.info.peers_zid()):
+        if time.monotonic() > deadline:
+            raise DiscoveryError(
+                f"nothing answered at {endpoint} within {REACH_S:.0f}s: check --connect (the address and port "
+                f"the graph listens on, and the scheme: a TLS hub needs tls/ADDR:PORT with --certs DIR --cert-name NAME)"
+            )
+        time.sleep(0.05)
+    found: dict[str, dict] = {}
+    deadline = time.monotonic() + REACH_S  # declarations arrive after the link, other peers' hubs after gossip
+    while (graph is None or graph not in found) and time.monotonic() < deadline:
+        found |= graphs_on(session, timeout_s=1.0)
+        time.sleep(0.2)
+    if graph is not None and graph in found:
+        return {graph: found[graph]}
+    if graph is not None and found:
+        raise DiscoveryError(f"{endpoint} runs no graph '{graph}' (it runs {', '.join(sorted(found))}); check --graph")
+    if not found:
+        check = (
+            f"is certificate '{cert_name}' listed in the graph's 'zenoh.tls.readers'? If not, add it there or "
+            f"pass --cert-name of a listed one (docs/security.md)"
+            if cert_name
+            else "check --connect"
+        )
+        raise DiscoveryError(f"{endpoint} answered, but no handflow graph answered through it; {check}")
+    return found
 
 
 def _certificate(endpoint: str, certs: str | None, name: str | None) -> tuple[Path, Path, Path] | None:

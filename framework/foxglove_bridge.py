@@ -36,7 +36,7 @@ class PortInUse(BridgeError):
     """The Foxglove port is taken by another program."""
 
 
-def start_bridge(session: zenoh.Session, graph: str, host: str, port: int) -> FoxgloveBridge:
+def start_bridge(session: zenoh.Session, graph: str | list[str], host: str, port: int) -> FoxgloveBridge:
     """A running bridge, or :class:`BridgeError` with what to do."""
     if foxglove is None:
         raise BridgeError("the Foxglove live view needs foxglove-sdk: pip install 'handflow[foxglove]'")
@@ -52,16 +52,20 @@ def start_bridge(session: zenoh.Session, graph: str, host: str, port: int) -> Fo
 
 
 class FoxgloveBridge:
-    """Forward ``handflow/<graph>/**`` from a Zenoh session to a Foxglove WebSocket server."""
+    """Forward ``handflow/<graph>/**`` of one graph or several (a list) from a Zenoh session to a Foxglove
+    WebSocket server."""
 
-    def __init__(self, session: zenoh.Session, graph: str = "*", host: str = "127.0.0.1", port: int = 8765) -> None:
+    def __init__(
+        self, session: zenoh.Session, graph: str | list[str] = "*", host: str = "127.0.0.1", port: int = 8765
+    ) -> None:
+        graphs = [graph] if isinstance(graph, str) else graph
         self.context = foxglove.Context()
-        self.server = foxglove.start_server(name=f"handflow {graph}", host=host, port=port, context=self.context)
+        name = f"handflow {', '.join(graphs)}"
+        self.server = foxglove.start_server(name=name, host=host, port=port, context=self.context)
         self.port = self.server.port
         self._channels: dict[tuple[str, str], foxglove.Channel] = {}  # (topic, type)
         self._lock = threading.Lock()
-        key = f"{PREFIX}/{graph}/**"
-        self._sub = session.declare_subscriber(key, self._on_sample)
+        self._subs = [session.declare_subscriber(f"{PREFIX}/{g}/**", self._on_sample) for g in graphs]
         log.info("Foxglove live view on ws://%s:%d (open it in Foxglove: 'Open connection')", host, self.port)
 
     def _on_sample(self, sample: zenoh.Sample) -> None:
@@ -91,5 +95,6 @@ class FoxgloveBridge:
             return sorted({topic for topic, _ in self._channels})
 
     def close(self) -> None:
-        self._sub.undeclare()
+        for sub in self._subs:
+            sub.undeclare()
         self.server.stop()

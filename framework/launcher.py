@@ -20,7 +20,7 @@ import threading
 import time
 from dataclasses import dataclass, field
 
-from . import discovery, transport, wire
+from . import discovery, hub_info, transport, wire
 from .graph import Graph, RestartPolicy
 from .messages import Header, MessageError, RuntimeEvent, Status
 from .ros2.bridge import Ros2Bridge
@@ -104,6 +104,7 @@ class Launcher:
         self._start_pub = self.session.declare_publisher(transport.start_key(graph.name))
         self._event_pub = self.session.declare_publisher(transport.topic_key(graph.name, "_runtime", "events"))
         self._event_seq = 0
+        self._info = hub_info.declare_info(self.session, graph.name, host, list(graph.nodes))
         self.ros2 = Ros2Bridge(self.session, graph, host) if graph.spec.ros2 is not None else None
 
     def _secure_settings(self, host: str | None) -> dict[str, object]:
@@ -251,6 +252,7 @@ class Launcher:
         self._health_sub.undeclare()
         self._start_pub.undeclare()
         self._event_pub.undeclare()
+        self._info.undeclare()
         self.session.close()
         if self.zygote is not None:
             self.zygote.close()

@@ -1,7 +1,7 @@
 """Live view of a running graph: topics, rates, latency, sequence gaps, last values, node health.
 
 docs/architecture.md ("Sequence gaps are counted and visible in the monitor").
-:class:`Monitor` subscribes to ``handflow/<graph>/**`` (or ``handflow/**``) and keeps, per topic, a
+:class:`Monitor` subscribes to ``handflow/<graph>/**`` of each graph it watches and keeps, per topic, a
 sliding window of arrival times and end-to-end latencies (arrival wall clock − header
 ``stamp_ns``), the sequence gaps (a jump from seq n to n+k counts k−1 lost messages; a seq that goes
 *back* — a replay loop or a fresh graph — restarts the count without a gap; the runner keeps
@@ -102,16 +102,15 @@ _PID = re.compile(r"pid (\d+)")
 
 
 class Monitor:
-    """Collects live statistics of one graph (or all graphs) on a Zenoh session."""
+    """Collects live statistics of one graph, several (a list of names) or all graphs (None) on a Zenoh session."""
 
-    def __init__(self, session: Any, graph: str | None = None, window_s: float = WINDOW_S) -> None:
-        self.graph = graph
+    def __init__(self, session: Any, graph: str | list[str] | None = None, window_s: float = WINDOW_S) -> None:
         self.window_s = window_s
         self.topics: dict[str, TopicStats] = {}
         self.nodes: dict[tuple[str, str], NodeHealth] = {}
         self._lock = threading.Lock()
-        key = f"{transport.PREFIX}/{graph}/**" if graph else f"{transport.PREFIX}/**"
-        self._sub = session.declare_subscriber(key, self._on_sample)
+        graphs = [graph] if isinstance(graph, str) else graph or ["*"]
+        self._subs = [session.declare_subscriber(f"{transport.PREFIX}/{g}/**", self._on_sample) for g in graphs]
 
     def _on_sample(self, sample: Any) -> None:
         now_wall, now_m = time.time_ns(), time.monotonic()
@@ -212,7 +211,8 @@ class Monitor:
         return {"topics": out_topics, "nodes": out_nodes}
 
     def close(self) -> None:
-        self._sub.undeclare()
+        for sub in self._subs:
+            sub.undeclare()
 
 
 def render(snapshot: dict[str, Any], title: str = "handflow monitor", graph: str | None = None) -> Any:

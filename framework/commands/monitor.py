@@ -7,15 +7,19 @@ import json
 import sys
 import time
 
-from ..discovery import DiscoveryError, add_auth_arguments, join
+from ..discovery import DiscoveryError, add_auth_arguments, join_graphs
 from ..foxglove_bridge import BridgeError, start_bridge
 from ..monitor import WINDOW_S, Monitor, render
 
 
 def register(parser: argparse.ArgumentParser) -> None:
     """Live table of a running graph: topics, rates, latency, sequence gaps, last values, node health."""
-    parser.add_argument("--graph", help="name of the running graph (default: the only one running)")
-    parser.add_argument("--connect", metavar="ENDPOINT", help="join this Zenoh endpoint instead of a run-file")
+    parser.add_argument(
+        "--graph", help="name of the running graph (default: the only one running; with --connect: every graph there)"
+    )
+    parser.add_argument(
+        "--connect", metavar="ENDPOINT", help="join this Zenoh endpoint (any hub of the graph) instead of a run-file"
+    )
     add_auth_arguments(parser)
     parser.add_argument("--once", action="store_true", help="listen for --listen seconds, print one snapshot, exit")
     parser.add_argument("--json", action="store_true", help="with --once: print the snapshot as JSON")
@@ -37,22 +41,25 @@ def run(args: argparse.Namespace) -> int:
         print("error: --json needs --once (the live view is a table)", file=sys.stderr)
         return 2
     try:
-        session, info = join(args.graph, args.connect, args.certs, args.cert_name, args.credentials, args.user)
+        session, _, found = join_graphs(
+            args.graph, args.connect, args.certs, args.cert_name, args.credentials, args.user
+        )
     except DiscoveryError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    graph = info.graph if info is not None else args.graph
+    graphs = sorted(found)
+    graph = graphs[0] if len(graphs) == 1 else None
     bridge = None
     if args.foxglove is not None:
         try:
-            bridge = start_bridge(session, graph or "*", "127.0.0.1", args.foxglove)
+            bridge = start_bridge(session, graphs, "127.0.0.1", args.foxglove)
         except BridgeError as exc:
             session.close()
             print(f"error: {exc}", file=sys.stderr)
             return 2
         print(f"Foxglove live view on ws://127.0.0.1:{bridge.port}", file=sys.stderr)
-    monitor = Monitor(session, graph, window_s=max(args.window, args.listen) if args.once else args.window)
-    title = f"handflow monitor — graph '{graph}'" if graph else "handflow monitor — all graphs"
+    monitor = Monitor(session, graphs, window_s=max(args.window, args.listen) if args.once else args.window)
+    title = f"handflow monitor — graph '{graph}'" if graph else f"handflow monitor — graphs {', '.join(graphs)}"
     try:
         if args.once:
             time.sleep(args.listen)

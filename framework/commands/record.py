@@ -1,4 +1,4 @@
-"""``handflow record GRAPH --out FILE.mcap [--topics GLOB ...] [--duration S] [--connect EP]``."""
+"""``handflow record [GRAPH] --out FILE.mcap [--topics GLOB ...] [--duration S] [--connect EP]``."""
 
 from __future__ import annotations
 
@@ -8,14 +8,16 @@ import sys
 import threading
 from pathlib import Path
 
-from ..discovery import DiscoveryError, add_auth_arguments, join
+from ..discovery import DiscoveryError, add_auth_arguments, join_graphs
 from ..graph import GraphError, load_graph
 from ..recording import GraphRecorder, McapWriter, RecordingError
 
 
 def register(parser: argparse.ArgumentParser) -> None:
     """Record a running graph's topics to MCAP from outside (until Ctrl-C or --duration)."""
-    parser.add_argument("graph", help="name of a running graph, or its YAML file")
+    parser.add_argument(
+        "graph", nargs="?", help="name of a running graph, or its YAML file (default: the only graph reachable)"
+    )
     parser.add_argument("--out", required=True, metavar="FILE.mcap", help="recording to write")
     parser.add_argument(
         "--topics",
@@ -34,7 +36,7 @@ def register(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     graph = None
     name = args.graph
-    if args.graph.endswith((".yaml", ".yml")) or Path(args.graph).is_file():
+    if name and (name.endswith((".yaml", ".yml")) or Path(name).is_file()):
         try:
             graph = load_graph(args.graph)
         except GraphError as exc:
@@ -42,10 +44,15 @@ def run(args: argparse.Namespace) -> int:
             return 2
         name = graph.name
     try:
-        session, info = join(name, args.connect, args.certs, args.cert_name, args.credentials, args.user)
+        session, info, found = join_graphs(name, args.connect, args.certs, args.cert_name, args.credentials, args.user)
     except DiscoveryError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
+    if len(found) > 1:
+        session.close()
+        print(f"error: several graphs run there ({', '.join(sorted(found))}); name the one to record", file=sys.stderr)
+        return 2
+    name = next(iter(found))
     if graph is None and info is not None and Path(info.graph_file).is_file():
         try:
             graph = load_graph(info.graph_file)

@@ -1,4 +1,4 @@
-"""Every shell command in the user docs runs (every command in the docs is exercised).
+"""Every shell command in the user docs runs, and the outcomes the pages state hold.
 
 The commands are the lines of the fenced ```bash blocks and the ``$ `` lines of the ```console
 blocks of README.md and docs/*.md.  docs/recording.md and docs/monitoring.md are run by
@@ -10,7 +10,9 @@ it for the test (it stays invisible in rendered Markdown):
   variant, e.g. ``--duration``); several may precede one block;
 - ``<!-- doc-test: drop "TEXT" REASON -->``: leave out the commands containing TEXT;
 - ``<!-- doc-test: needs "MODULE" -->``: the block (and the graphs it names) is checked only where
-  MODULE imports (an optional extra, e.g. ``mne_lsl`` of ``handflow[lsl]``).
+  MODULE imports (an optional extra, e.g. ``mne_lsl`` of ``handflow[lsl]``);
+- ``<!-- doc-test: expect "TEXT" "CHECK ARG..." -->``: the outcome the page states for the
+  commands containing TEXT, asserted after they ran: a check of :data:`EXPECTATIONS`.
 
 Commands run in order, per document, with ``bash`` in a scratch copy of ``configs/``, ``docs/``
 and ``recordings/`` (so nothing in the repository changes); ``handflow`` and ``python`` are this
@@ -20,6 +22,7 @@ interpreter.  ``CMD &`` starts a background job (waited for until its graph's ru
 
 from __future__ import annotations
 
+import collections
 import importlib.util
 import json
 import os
@@ -38,6 +41,7 @@ import yaml
 
 from handflow.framework.discovery import live_runs
 from handflow.framework.graph import load_graph
+from handflow.framework.recording import iter_recording
 
 REPO = Path(__file__).resolve().parents[2]
 TESTED_ELSEWHERE = {"recording.md", "monitoring.md"}  # tests/framework/test_recording_docs.py
@@ -45,7 +49,7 @@ AWAITING_MARKERS = {"grasping.md": "its commands run ~10 min as written; needs d
 """Documents whose owners have not yet added the markers that bound their commands (reported to the lead)."""
 MULTI_PROCESS = ("handflow run", "handflow replay", "handflow calibrate --port", "&")
 FENCE = re.compile(r"^```(\w*)\s*$")
-MARKER = re.compile(r"^<!--\s*doc-test:\s*(skip|sub|drop|needs)\b(.*?)-->\s*$")
+MARKER = re.compile(r"^<!--\s*doc-test:\s*(skip|sub|drop|needs|expect)\b(.*?)-->\s*$")
 QUOTED = re.compile(r'"((?:[^"\\]|\\.)*)"')
 
 
@@ -80,6 +84,27 @@ class Block:
             elif kind == "drop":
                 commands = [c for c in commands if quoted[0] not in c]
         return commands
+
+    def expectations(self, command: str) -> list[list[str]]:
+        """The ``expect`` checks (name and arguments) of one of the block's commands."""
+        quoted = [QUOTED.findall(arg) for kind, arg in self.markers if kind == "expect"]
+        return [q[1].split() for q in quoted if q[0] in command]
+
+
+def _topics_seen(ws: Path, stdout: str, *topics: str) -> None:
+    """``monitor --once --json`` printed every topic with a count > 0."""
+    counts = {t["topic"]: t["count"] for t in json.loads(stdout)["topics"]}
+    assert all(counts.get(t, 0) > 0 for t in topics), f"expected {topics}, seen {counts}"
+
+
+def _recorded(ws: Path, stdout: str, file: str, *topics: str) -> None:
+    """The recording FILE (relative to the workspace) holds messages of every topic."""
+    counts = collections.Counter(rm.topic for rm in iter_recording(ws / file))
+    assert all(counts[t] > 0 for t in topics), f"expected {topics} in {file}, recorded {dict(counts)}"
+
+
+EXPECTATIONS = {"topics": _topics_seen, "recorded": _recorded}
+"""Checks named by ``expect`` markers: called with the workspace, the command's stdout and the arguments."""
 
 
 def doc_blocks(path: Path) -> list[Block]:
@@ -133,7 +158,16 @@ def test_markers_and_blocks_are_well_formed():
         for block in doc_blocks(path):
             block.runnable()  # a stale 'sub' fails here
             for kind, arg in block.markers:
-                assert kind == "skip" or len(QUOTED.findall(arg)) >= (2 if kind == "sub" else 1), (path, arg)
+                assert kind == "skip" or len(QUOTED.findall(arg)) >= (2 if kind in ("sub", "expect") else 1), (
+                    path,
+                    arg,
+                )
+                if kind == "expect":
+                    text, check = QUOTED.findall(arg)[:2]
+                    assert any(text in c for c in block.commands), (
+                        f"{path.name}:{block.line}: expect '{text}' matches nothing"
+                    )
+                    assert check.split()[0] in EXPECTATIONS, f"{path.name}:{block.line}: unknown check '{check}'"
 
 
 def test_graph_files_named_in_doc_commands_validate():
@@ -225,6 +259,8 @@ def test_documented_commands_run(doc, workspace):
                         ["bash", "-c", cmd], cwd=workspace, capture_output=True, text=True, timeout=150
                     )
                     assert proc.returncode == 0, f"{where}\n{proc.stdout[-2000:]}\n{proc.stderr[-4000:]}"
+                    for name, *args in block.expectations(cmd):
+                        EXPECTATIONS[name](workspace, proc.stdout, *args)
     finally:
         for job in jobs:
             if job.poll() is None:

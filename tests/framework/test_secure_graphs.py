@@ -97,9 +97,15 @@ def test_access_control_follows_the_graph(ca, tmp_path):
         f"handflow/{name}/scale/**",
         f"handflow/{name}/sink/**",
     ]
-    assert f"handflow/{name}/source/out" in rules["b-receive"]["key_exprs"]  # what b's nodes consume
+    assert rules["b-receive"]["key_exprs"] == [f"handflow/{name}/**"]  # b's hub relays to the readers joined to it
     assert "readers-publish" not in rules and rules["readers-receive"]["key_exprs"] == [f"handflow/{name}/**"]
+    assert rules["readers-ask"]["key_exprs"] == ["handflow/*/_runtime/info"]  # which graphs the hub serves
     assert acl["default_permission"] == "deny"
+    no_readers = access_control(load_graph(_graph(tmp_path, z.replace(", readers: [laptop]", ""))), "a")
+    rules = {r["id"]: r for r in no_readers["rules"]}
+    assert f"handflow/{name}/source/out" in rules["b-receive"]["key_exprs"]  # only what b's nodes consume
+    assert f"handflow/{name}/**" not in rules["b-receive"]["key_exprs"]
+    assert not any(r.startswith("readers") for r in rules)
 
 
 def _session(endpoint: str, ca_dir: Path | None, name: str | None, root: Path | None = None) -> zenoh.Session:
@@ -243,8 +249,9 @@ nodes:
         if a.poll() is None:
             a.kill()
     assert a.returncode == 0, err_a
-    assert records["viewer"].returncode == 0 and records["mallory"].returncode == 0, outputs
+    assert records["viewer"].returncode == 0, outputs
     assert records["foreign"].returncode == 2 and "could not join" in outputs["foreign"][1]  # refused by TLS
+    assert records["mallory"].returncode == 2 and "zenoh.tls.readers" in outputs["mallory"][1]  # refused by the ACL
     viewer = _recorded(tmp_path / "viewer.mcap")
     assert viewer.count(f"handflow/{name}/source/out") > 50, outputs["viewer"]  # 3 s at 50 Hz, read over TLS
     assert _recorded(tmp_path / "mallory.mcap") == [] and _recorded(tmp_path / "foreign.mcap") == []

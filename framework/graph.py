@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import re
 from collections.abc import Collection
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any, Literal
 
@@ -133,6 +133,16 @@ class Ros2Settings(StrictModel):
         return self.node_name or graph_name.replace("-", "_")
 
 
+class StatusSpec(StrictModel):
+    """A status line in the terminal of `handflow run`: one field of one topic (docs/pipelines.md)."""
+
+    topic: str = Field(description="node/port shown, e.g. segmenter/labels")
+    field: str = Field(description="the message field shown (a str, int, float or bool), e.g. label")
+    min_interval_s: float = Field(
+        1.0, ge=0, description="a line when the value changed, at most one per this many seconds"
+    )
+
+
 class GraphSpec(StrictModel):
     name: str
     description: str = ""
@@ -142,6 +152,7 @@ class GraphSpec(StrictModel):
     record: RecordSpec | None = None
     foxglove: FoxgloveSettings | None = None
     ros2: Ros2Settings | None = None
+    status: StatusSpec | None = None
 
     @field_validator("name")
     @classmethod
@@ -258,6 +269,8 @@ def read_graph_text(text: str, path: Path, only: Collection[str] | None = None) 
         problems += _usrpwd_problems(spec.zenoh.usrpwd, path, lines)
     if spec.ros2 is not None:
         problems += _ros2_problems(graph, spec.ros2, lines)
+    if spec.status is not None:
+        problems += _status_problems(graph, spec.status, lines)
 
     for i, ns in enumerate(spec.nodes):
         rn = graph.nodes.get(ns.id)
@@ -350,6 +363,30 @@ def _ros2_problems(graph: Graph, ros2: Ros2Settings, lines: dict) -> list[Proble
         except ValueError as exc:
             problems.append(Problem(line, f"ros2.publish '{source}': {exc}"))
     return problems
+
+
+def _status_problems(graph: Graph, status: StatusSpec, lines: dict) -> list[Problem]:
+    """The status topic must be an output of the graph, its field a scalar field of that type."""
+    node_id = status.topic.partition("/")[0]
+    if node_id in {n.id for n in graph.spec.nodes} and node_id not in graph.nodes:
+        return []  # not loaded here (another process's node, or failed its own checks)
+    mtype = graph.source_type(status.topic)
+    if mtype is None:
+        return [
+            Problem(
+                line_of(lines, ("status", "topic")),
+                f"status.topic '{status.topic}' is not an output of this graph; use node/port",
+            )
+        ]
+    scalars = [f.name for f in fields(mtype) if f.type in ("str", "int", "float", "bool")]
+    if status.field not in scalars:
+        return [
+            Problem(
+                line_of(lines, ("status", "field")),
+                f"status.field '{status.field}': {mtype.TYPE} has no such scalar field; choose one of {', '.join(scalars) or 'none'}",
+            )
+        ]
+    return []
 
 
 def _input_problems(graph: Graph, rn: ResolvedNode, port: str, source: str, line: int) -> list[Problem]:

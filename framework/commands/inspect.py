@@ -17,22 +17,31 @@ def register(parser: argparse.ArgumentParser) -> None:
     parser.set_defaults(func=run)
 
 
+def _rate(count: int, first_ns: int, last_ns: int) -> float:
+    return (count - 1) / ((last_ns - first_ns) / 1e9) if count > 1 and last_ns > first_ns else 0.0
+
+
 def summarize(path: str) -> dict[str, Any]:
-    """The ``--json`` object: totals, per-topic type/count/rate, recovered flag, metadata, attachments."""
+    """The ``--json`` object: totals, per-topic type/count/rate, recovered flag, metadata, attachments.
+
+    A topic's rate is over its publish times (the stamps), so a node that published a backlog in a
+    burst after a slow start shows its steady rate; over receive times only where the stamps do not
+    advance (docs/recording.md, "Inspecting").
+    """
     report = ReadReport(path)
-    stats: dict[str, list[int]] = {}  # topic → [count, first log ns, last log ns]
+    stats: dict[str, list[int]] = {}  # topic → [count, first log, last log, first publish, last publish] (ns)
     for rm in iter_recording(path, report=report):
         s = stats.get(rm.topic)
         if s is None:
-            stats[rm.topic] = [1, rm.log_time_ns, rm.log_time_ns]
+            stats[rm.topic] = [1, rm.log_time_ns, rm.log_time_ns, rm.publish_time_ns, rm.publish_time_ns]
         else:
             s[0] += 1
-            s[1] = min(s[1], rm.log_time_ns)
-            s[2] = max(s[2], rm.log_time_ns)
+            s[1], s[2] = min(s[1], rm.log_time_ns), max(s[2], rm.log_time_ns)
+            s[3], s[4] = min(s[3], rm.publish_time_ns), max(s[4], rm.publish_time_ns)
     topics = []
     for topic in sorted(stats):
-        count, first, last = stats[topic]
-        rate = (count - 1) / ((last - first) / 1e9) if count > 1 and last > first else 0.0
+        count, first, last, first_pub, last_pub = stats[topic]
+        rate = _rate(count, first_pub, last_pub) or _rate(count, first, last)
         topics.append(
             {
                 "topic": topic,

@@ -9,6 +9,7 @@ import sys
 from ..foxglove_bridge import BridgeError, start_bridge
 from ..graph import FoxgloveSettings, GraphError, load_graph
 from ..launcher import run_graph
+from ..status import StatusLine
 from ..transport import EndpointInUse
 from ..zygote import start_unless_disabled
 
@@ -47,12 +48,15 @@ def run(args: argparse.Namespace) -> int:
         return 2
     record_path = args.record or (graph.spec.record.path if graph.spec.record else None)
     recorder = bridge = None
+    status = StatusLine(graph.name, graph.spec.status) if graph.spec.status else None
     fox = graph.spec.foxglove
     if args.foxglove is not None:
         fox = FoxgloveSettings(host=fox.host if fox else "127.0.0.1", port=args.foxglove)
 
     def attach(launcher):
         nonlocal recorder, bridge
+        if status is not None:
+            status.attach(launcher.session)
         if fox is not None:
             bridge = start_bridge(launcher.session, graph.name, fox.host, fox.port)
         if record_path:
@@ -69,6 +73,8 @@ def run(args: argparse.Namespace) -> int:
     finally:  # the nodes have stopped (or never started): the zygote has nothing left to fork
         if zygote is not None:
             zygote.close()
+        if status is not None:
+            status.close()
         if recorder is not None:
             recorder.close()
         if bridge is not None:

@@ -208,6 +208,7 @@ class OnlineCLMNode(_RecognizerNode):
         self.running = None
         if p.source == "ukr":
             models = self.load_models()
+            channels = models.n_channels
             reconstruction = models.reconstruction if p.reconstruction == "auto" else p.reconstruction
             self.segmenter = OnlineCLMSegmenter(
                 models,
@@ -226,6 +227,7 @@ class OnlineCLMNode(_RecognizerNode):
                 self.running = running_normaliser(models.scaling, p.running_normalisation_frames)
         else:
             scorer = self.load_scorer()
+            channels = scorer.n_features_in_
             novelty_models = self.load_models(p.novelty_models) if p.novelty_models else None
             if novelty_models is not None and novelty_models.n_channels != scorer.n_features_in_:
                 raise ValueError(
@@ -236,6 +238,16 @@ class OnlineCLMNode(_RecognizerNode):
                 scorer, novelty_models=novelty_models, novelty=p.novelty, distance_z=p.distance_z, **common
             )
         self.classes = self.segmenter.classes_
+        self.warm_up(channels)
+
+    def warm_up(self, channels: int) -> None:
+        """Build and compile what the first update needs (batched projector, numba solvers) here in
+        setup: on the first observation it would stall every node of the process for 1–2 s
+        (docs/flagship.md).  The stream and the solver's generator start afresh afterwards, so the
+        labels are those without the warm-up."""
+        self.segmenter.update(np.zeros(channels))
+        self.segmenter.set_params(random_state=self.params.seed)
+        self.segmenter.reset()
 
     def load_scorer(self) -> WindowScorer:
         scorer = load_scorer(self.ctx.resolve_path(self.params.scorer))

@@ -9,8 +9,9 @@ then publishes ``joints`` (collision-corrected JointState), ``contacts`` (Contac
 pybullet's link poses, every tick), ``markers`` (the scene's shapes, every tick) and ``description``
 (the viewer-safe URDF, at start and every ``description_period_s``), frames under ``frame_prefix``;
 ``view_hz: 0`` turns the three off.
-Fail-safe: when no targets arrived for ``hold_safe_after_s`` the node
-holds the last command, logs it once and reports ``holding = 1`` until targets resume.
+Fail-safe: when no targets arrived for ``hold_safe_after_s`` since the last one the node
+holds the last command, logs it once and reports ``holding = 1`` until targets resume (before
+the first target it waits silently: start-up, not a fault).
 """
 
 from __future__ import annotations
@@ -113,10 +114,10 @@ class PybulletSimulatorNode(Node):
 
     def _check_hold(self, now: int) -> None:
         hold = self.params.hold_safe_after_s
-        if hold <= 0 or self.holding:
+        since = self.last_target_ns
+        if hold <= 0 or self.holding or since is None:  # before the first target: start-up, nothing to hold
             return
-        since = self.last_target_ns if self.last_target_ns is not None else self.t0_ns
-        if since is not None and now - since > hold * 1e9:
+        if now - since > hold * 1e9:
             self.holding = True
             self.ctx.log.warning("no targets for %.2f s: holding the last command", (now - since) / 1e9)
 

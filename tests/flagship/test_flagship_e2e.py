@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import json
+import re
 
 import numpy as np
 import pytest
 import yaml
 
+from handflow.framework.commands.inspect import summarize
 from handflow.framework.recording import read_messages
 from handflow.plugins.demo.gestures import GestureScript
 from tests.conftest import REPO, handflow
@@ -41,11 +43,29 @@ EXPECTED = [
 def flagship(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("flagship")
     rec = tmp / "demo.mcap"
-    handflow("run", "configs/demo.yaml", "--duration", "16", "--record", str(rec), timeout=120, check=True)
+    proc = handflow("run", "configs/demo.yaml", "--duration", "16", "--record", str(rec), timeout=120, check=True)
+    (tmp / "stderr.txt").write_text(proc.stderr)
     by_topic: dict[str, list] = {}
     for topic, msg, log_ns in read_messages(rec):
         by_topic.setdefault(topic.split("/", 2)[2], []).append((msg, log_ns))
     return tmp, rec, by_topic
+
+
+def test_a_normal_run_logs_no_warning_and_shows_the_recognised_gesture(flagship):
+    """docs/flagship.md, "What you see": the status line names the gestures of the script's first
+    16 s (grasp, then wave from 8 s), and nothing of a normal start is a WARNING."""
+    log = (flagship[0] / "stderr.txt").read_text()
+    assert not [line for line in log.splitlines() if "WARNING" in line or "Traceback" in line], log
+    shown = re.findall(r"\[handflow\.status\] segmenter/labels: (\w+)", log)
+    assert {"grasp", "wave"} <= set(shown), log
+    assert shown.index("grasp") < len(shown) - 1 - shown[::-1].index("wave")  # in the script's order
+
+
+def test_inspect_rates_the_labels_as_their_joint_stream(flagship):
+    """One label per joint message: `handflow inspect` gives both the glove's 50 Hz (docs/recording.md)."""
+    rates = {t["topic"].split("/", 2)[2]: t["rate_hz"] for t in summarize(str(flagship[1]))["topics"]}
+    assert rates["segmenter/labels"] == pytest.approx(rates["shadow/joints"], rel=0.01)
+    assert rates["shadow/joints"] == pytest.approx(50.0, rel=0.02)
 
 
 def test_flagship_records_every_stream(flagship):

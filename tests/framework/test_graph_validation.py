@@ -63,6 +63,16 @@ BAD = {
         8,
         "expects handflow.Array",
     ),
+    "status_topic": (
+        "name: x\nnodes:\n  - id: s\n    plugin: basic.signal\nstatus:\n  topic: s/nope\n  field: label\n",
+        6,
+        "status.topic 's/nope' is not an output",
+    ),
+    "status_field": (
+        "name: x\nnodes:\n  - id: s\n    plugin: basic.signal\nstatus:\n  topic: s/out\n  field: data\n",
+        7,
+        "handflow.Array has no such scalar field",
+    ),
     "missing_field": ("name: x\nnodes:\n  - plugin: basic.sink\n", 3, "id: required field"),
 }
 

@@ -1,3 +1,4 @@
+import numpy as np
 import pytest
 
 from handflow.framework.messages import Array, JointState
@@ -25,6 +26,19 @@ def test_online_clm_node_labels_a_stream(model_dir, two_letters):
     kinds = {e.kind for e in h.published["events"]}
     assert {"start", "end"} <= kinds
     assert any(e.kind == "start" and e.label == "B" for e in h.published["events"])
+
+
+def test_online_clm_node_labels_as_a_fresh_segmenter_after_its_warm_up(model_dir, two_letters):
+    """The warm-up in setup (one update, then reset) leaves no trace: window and generator start afresh."""
+    Y, _ = two_letters
+    h = NodeHarness(OnlineCLMNode, {"models": str(model_dir), "window": 100, "history": 10, "seed": 3}).setup()
+    fresh = type(h.node.segmenter)(**h.node.segmenter.get_params())
+    for i, y in enumerate(Y):
+        h.send("array", Array(data=y), stamp_ns=i)
+        up = fresh.update(y)
+        label = h.published["labels"][-1]
+        assert (label.index, label.label) == (up.index, h.node.name(up.label))
+        np.testing.assert_array_equal(label.scores, up.scores)
 
 
 def test_online_clm_node_revisions_are_confirmed_and_move_boundaries(model_dir, two_letters):

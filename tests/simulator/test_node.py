@@ -1,5 +1,6 @@
 """The simulator.pybullet node driven by the in-process harness (lock-step virtual time)."""
 
+import logging
 import re
 
 import pytest
@@ -62,6 +63,13 @@ def test_holds_the_last_command_when_targets_stop_and_resumes(harness):
     harness.send("targets", JointState(names=["FFJ3"], positions=[0.2]))
     harness.tick(1)
     assert holding() == 0.0
+
+
+def test_waits_for_the_first_target_without_holding_or_warning(harness, caplog):
+    harness.tick(30)  # 0.5 s before any target: start-up, not a stopped stream
+    scene = harness.published["scene"][-1]
+    assert scene.data[scene.names.index("holding")] == 0.0
+    assert not [r for r in caplog.records if r.levelno >= logging.WARNING]
 
 
 def test_a_stalled_clock_is_not_caught_up_beyond_the_limit(harness):

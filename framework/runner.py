@@ -60,10 +60,12 @@ class SeqState:
 
     def __init__(self, path: Path | None, keys: list[str]) -> None:
         self.index = {k: i for i, k in enumerate(keys[:_STATE_SLOTS])}
+        self.resumed = False  # the node ran earlier in this run (a restart): its file existed
         if path is None:
             self.values = np.zeros(_STATE_SLOTS, dtype=np.int64)
         else:
             mode = "r+" if path.exists() and path.stat().st_size == _STATE_SLOTS * 8 else "w+"
+            self.resumed = mode == "r+"
             self.values = np.memmap(path, dtype=np.int64, mode=mode, shape=(_STATE_SLOTS,))
 
     def get(self, key: str) -> int:
@@ -83,6 +85,7 @@ class NodeContext:
         self._rt = runtime
         self._outputs = rn.cls.output_types(rn.params)
         self._state = state
+        self.restarted = state.resumed
         self._pubs = {
             port: runtime.session.declare_publisher(transport.topic_key(self.graph_name, self.node_id, port))
             for port in self._outputs

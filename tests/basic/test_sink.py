@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 
 from handflow.framework.messages import Label
+from handflow.framework.runner import SeqState
 from handflow.framework.testing import NodeHarness
 from handflow.plugins.basic.sink import Sink
 
@@ -33,8 +34,6 @@ def test_a_second_run_replaces_the_file_and_a_restart_continues_it(tmp_path):
 
 
 def test_the_runtime_tells_a_restarted_node_by_its_state_file(tmp_path):
-    from handflow.framework.runner import SeqState
-
     first = SeqState(tmp_path / "sink.seq", ["in:in"])
     first.set("in:in", 5)
     again = SeqState(tmp_path / "sink.seq", ["in:in"])  # the launcher restarts the node: same state dir

@@ -38,6 +38,11 @@ def start_key(graph: str) -> str:
     return f"{PREFIX}/{graph}/_start"
 
 
+def report_key(graph: str) -> str:
+    """The launcher asks the nodes for a heartbeat now, which also wakes their main loop (at shutdown)."""
+    return f"{PREFIX}/{graph}/_report"
+
+
 def events_key(graph: str) -> str:
     """Where the runtime publishes :class:`handflow.framework.messages.RuntimeEvent` messages."""
     return f"{PREFIX}/{graph}/_runtime/events"

@@ -1,9 +1,9 @@
 """Compare two recordings message by message (``handflow compare``, docs/recording.md "Comparing").
 
 Topics are matched by ``node/port`` (a replay into another graph records the same node's output
-under another graph name), messages by their stamp (the MCAP ``publish_time``, which the recorder
-sets to the header's ``stamp_ns``; the k-th message of a stamp pairs with the k-th of the same stamp
-in the other file).  Two messages are equal when every decoded field and the header's stamp and seq
+under another graph name), messages by their header's ``stamp_ns`` (which the recorder also writes
+as the MCAP ``publish_time``; files written by other tools may set that differently), the k-th
+message of a stamp with the k-th of the same stamp in the other file.  Two messages are equal when every decoded field and the header's stamp and seq
 are equal (the header's source is the topic's node, which CDR does not store), whatever the encoding.
 Truncated files are compared as far as they were recovered (:class:`ReadReport` says so).
 """
@@ -43,22 +43,23 @@ def _topic(key: str) -> str:
     return f"{parts[1]}/{parts[2]}" if parts else key
 
 
-def _digest(rm: RecordedMessage) -> bytes:
-    """A fingerprint of the decoded message (encoding-independent); of the raw bytes if it does not decode."""
+def _stamped_digest(rm: RecordedMessage) -> tuple[int, bytes]:
+    """The header stamp and a fingerprint of the decoded message (encoding-independent); the ``publish_time``
+    and a fingerprint of the raw bytes if it does not decode."""
     try:
         d = rm.decode().to_dict()
-        del d["header"]["source"]  # the topic's node (CDR does not store it), matched with the topic
-        text = json.dumps(d, sort_keys=True).encode()
     except MessageError:
-        text = b"undecodable:" + rm.data
-    return hashlib.blake2b(text, digest_size=16).digest()
+        return rm.publish_time_ns, hashlib.blake2b(b"undecodable:" + rm.data, digest_size=16).digest()
+    del d["header"]["source"]  # the topic's node (CDR does not store it), matched with the topic
+    return d["header"]["stamp_ns"], hashlib.blake2b(json.dumps(d, sort_keys=True).encode(), digest_size=16).digest()
 
 
 def _index(path: str | Path, topics: Iterable[str] | None, report: ReadReport) -> dict[str, dict[int, list[bytes]]]:
     """topic → stamp → fingerprints in file order."""
     out: dict[str, dict[int, list[bytes]]] = defaultdict(lambda: defaultdict(list))
     for rm in iter_recording(path, topics, report=report):
-        out[_topic(rm.topic)][rm.publish_time_ns].append(_digest(rm))
+        stamp, digest = _stamped_digest(rm)
+        out[_topic(rm.topic)][stamp].append(digest)
     return out
 
 

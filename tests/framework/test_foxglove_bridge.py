@@ -34,7 +34,8 @@ def advertised_topics(port: int, graph: str, timeout: float = 20.0) -> set[str]:
     topics: set[str] = set()
     with ws:
         while (
-            time.time() < deadline and not {f"/handflow/{graph}/source/out", f"/handflow/{graph}/sink/_health"} <= topics
+            time.time() < deadline
+            and not {f"/handflow/{graph}/source/out", f"/handflow/{graph}/sink/_health"} <= topics
         ):
             try:
                 frame = ws.recv(timeout=1)

@@ -1,7 +1,7 @@
 """Live view in Foxglove: every handflow topic on a Foxglove WebSocket server (foxglove-sdk).
 
 Each topic becomes a ``cdr`` channel with the ``ros2msg`` schema of its ROS 2 type, under the same
-name as in recordings (the Zenoh key ``handflow/<graph>/<node>/<port>``), so one layout works live
+name as in recordings (the ROS 2 name ``/handflow/<graph>/<node>/<port>`` of the Zenoh key), so one layout works live
 and on a recording (docs/foxglove.md).  The CDR payloads are forwarded as received; Foxglove decodes
 them itself (``sensor_msgs/Image`` in the Image panel, ``position[3]`` of a joint state in a Plot).
 Runtime-internal topics (``_progress``, ``_clock``) are skipped; heartbeats (``_health``) and runtime
@@ -23,7 +23,7 @@ except ImportError:
 from . import wire
 from .messages import MessageError
 from .ros2.types import ros_type, schema_text
-from .transport import PREFIX
+from .transport import PREFIX, ros_name
 
 log = logging.getLogger("handflow.foxglove")
 
@@ -85,7 +85,7 @@ class FoxgloveBridge:
                 schema = foxglove.Schema(
                     name=ros_type(msg.TYPE), encoding="ros2msg", data=schema_text(msg.TYPE).encode()
                 )
-                channel = foxglove.Channel(key, schema=schema, message_encoding="cdr", context=self.context)
+                channel = foxglove.Channel(ros_name(key), schema=schema, message_encoding="cdr", context=self.context)
                 self._channels[(key, msg.TYPE)] = channel
         channel.log(payload, log_time=msg.header.stamp_ns or None)
 

@@ -5,7 +5,8 @@ restarts crashed units according to their restart policy (default ``on-failure``
 exponential backoff; more than ``max_restarts`` failures within ``window_s`` is a crash loop,
 reported with the unit's last log lines, after which it stays down), publishes every restart and
 crash loop as a :class:`RuntimeEvent`, and on Ctrl-C, SIGTERM or the end of ``--duration`` stops
-every unit in order (their teardown runs).
+the units upstream first, each once the units it feeds have drained (their teardown runs; see
+:meth:`Launcher.stop`).
 """
 
 from __future__ import annotations
@@ -24,12 +25,13 @@ from . import discovery, hub_info, transport, wire
 from .graph import Graph, RestartPolicy
 from .messages import Header, MessageError, RuntimeEvent, Status
 from .ros2.bridge import Ros2Bridge
-from .runner import START_WAIT_S
+from .runner import START_WAIT_S, STOPPED
 from .zygote import ForkedProcess, Zygote, start_unless_disabled
 
 log = logging.getLogger("handflow.launcher")
 
 STOP_GRACE_S = 8.0
+DRAIN_S = 5.0  # at shutdown, how long nodes may take to handle what the nodes upstream published last
 LOG_TAIL = 20  # lines of a unit's log kept for a crash report
 
 
@@ -102,6 +104,7 @@ class Launcher:
             transport.topic_key(graph.name, "*", "_health"), self._on_health
         )
         self._start_pub = self.session.declare_publisher(transport.start_key(graph.name))
+        self._report_pub = self.session.declare_publisher(transport.report_key(graph.name))
         self._event_pub = self.session.declare_publisher(transport.topic_key(graph.name, "_runtime", "events"))
         self._event_seq = 0
         self._info = hub_info.declare_info(self.session, graph.name, host, list(graph.nodes))
@@ -225,15 +228,42 @@ class Launcher:
         return any(u.proc is not None or u.restart_at is not None for u in self.units)
 
     def stop(self) -> None:
-        """Orderly shutdown: SIGTERM every unit (teardown runs), SIGKILL stragglers after a grace period."""
+        """Orderly shutdown, upstream first: SIGTERM the units no running unit feeds (teardown runs), wait
+        until the units they feed have seen the last message they published (heartbeat ``seq.*``
+        counters, at most ``DRAIN_S``), then stop those; SIGKILL stragglers after ``STOP_GRACE_S``.
+        So every message published before the stop is handled downstream and recorded (a cycle of
+        units stops together; docs/recording.md, "Recording")."""
         self.stopping = True
-        running = [u for u in self.units if u.proc is not None]
-        for u in running:
+        remaining = [u for u in self.units if u.proc is not None]
+        stopped: set[str] = set()
+        while remaining:
+            fed = {u.name for u in remaining for v in remaining if v is not u and self._feeds(v, u)}
+            wave = [u for u in remaining if u.name not in fed] or remaining
+            remaining = [u for u in remaining if u not in wave]
+            self._terminate(wave)
+            stopped.update(nid for u in wave for nid in u.node_ids)
+            self._drain(wave, stopped, remaining)
+
+    def _feeds(self, upstream: Unit, downstream: Unit) -> bool:
+        sources = {src.partition("/")[0] for nid in downstream.node_ids for src in self._inputs(nid).values()}
+        return not sources.isdisjoint(upstream.node_ids)
+
+    def _inputs(self, nid: str) -> dict[str, str]:
+        return self.graph.nodes[nid].spec.inputs
+
+    def _terminate(self, units: list[Unit]) -> None:
+        for u in units:
+            for nid in u.node_ids:  # a last heartbeat of an earlier process must not count as this one's
+                if nid in self.health and self.health[nid].state == STOPPED:
+                    del self.health[nid]
             u.proc.send_signal(signal.SIGTERM)
         deadline = time.monotonic() + STOP_GRACE_S
-        for u in running:
+        for u in units:
+            while u.proc.poll() is None and time.monotonic() < deadline:
+                self._report_pub.put(b"report")  # wakes the node's main loop: it sees the SIGTERM at once
+                time.sleep(0.02)
             try:
-                u.proc.wait(timeout=max(0.1, deadline - time.monotonic()))
+                u.proc.wait(timeout=0.1)
             except subprocess.TimeoutExpired:
                 log.error(
                     "%s did not stop within %.0fs; its threads' stacks follow, then it is killed", u.name, STOP_GRACE_S
@@ -245,12 +275,47 @@ class Launcher:
             u.exit_codes.append(u.proc.returncode)
             u.proc = None
 
+    def _drain(self, wave: list[Unit], stopped: set[str], running: list[Unit]) -> None:
+        """Wait for the last heartbeats of ``wave`` (sent after all their messages) and until every running
+        node has seen the last message each stopped node published to it."""
+
+        def counter(nid: str, key: str) -> float:
+            status = self.health.get(nid)
+            return status.counters.get(key, 0) if status else 0
+
+        def pending() -> list[str]:
+            out = [
+                f"{nid} (last heartbeat)"
+                for u in wave
+                if u.exit_codes[-1] == 0
+                for nid in u.node_ids
+                if self.health.get(nid) is None or self.health[nid].state != STOPPED
+            ]
+            for u in running:
+                if u.proc is None or u.proc.poll() is not None:
+                    continue
+                for nid in u.node_ids:
+                    for port, source in self._inputs(nid).items():
+                        src, _, out_port = source.partition("/")
+                        sent = counter(src, f"seq.out.{out_port}") if src in stopped else 0
+                        if counter(nid, f"seq.in.{port}") < sent:
+                            out.append(f"{source} → {nid}.{port}")
+            return out
+
+        deadline = time.monotonic() + DRAIN_S
+        while (behind := pending()) and time.monotonic() < deadline:
+            self._report_pub.put(b"report")  # fresh counters now, not at the next heartbeat
+            time.sleep(0.02)
+        if behind:
+            log.warning("stopping: not drained within %.0fs: %s", DRAIN_S, ", ".join(behind))
+
     def close(self) -> None:
         discovery.remove_run_file(self.run_file)
         if self.ros2 is not None:
             self.ros2.close()
         self._health_sub.undeclare()
         self._start_pub.undeclare()
+        self._report_pub.undeclare()
         self._event_pub.undeclare()
         self._info.undeclare()
         self.session.close()

@@ -40,6 +40,9 @@ class Context(Protocol):
     node_id: str
     graph_name: str
     log: logging.Logger
+    restarted: bool
+    """True when the node was restarted after a failure within the same run: an output file opened in
+    ``setup`` continues (append) instead of starting afresh (docs/reliability.md)."""
 
     def publish(self, port: str, msg: Message, stamp_ns: int | None = None) -> None:
         """Validate ``msg`` and publish it on output ``port``; header filled in (stamp defaults to now)."""

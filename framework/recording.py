@@ -8,9 +8,11 @@ rosbag2-compatible MCAP (profile ``ros2``, one ``ros2msg`` schema per ROS 2 type
 from :mod:`handflow.framework.ros2.types`, channel metadata ``handflow.type`` and
 ``offered_qos_profiles``) that ``rosbags``, ``ros2 bag`` and Foxglove read natively; ``log_time`` =
 receive time, ``publish_time`` = header ``stamp_ns``, ``sequence`` = header seq (the source node is
-the topic's node).  ``encoding="json"`` writes the earlier handflow JSON dialect:
+the topic's node).  Channel names are ROS 2 names: the Zenoh key with a leading ``/``
+(``/handflow/<graph>/<node>/<port>``, :func:`transport.ros_name`); the reader accepts both, so
+recordings made before the slash read and replay unchanged, and yields Zenoh keys.  ``encoding="json"`` writes the earlier handflow JSON dialect:
 
-- one channel per topic (topic = Zenoh key ``handflow/<graph>/<node>/<port>``), message encoding
+- one channel per topic (named ``/handflow/<graph>/<node>/<port>`` as above), message encoding
   ``json``, schema encoding ``jsonschema``, schema name = message ``TYPE`` with
   :func:`handflow.framework.messages.json_schema`; each message's data is :func:`handflow.framework.messages.encode`;
   ``log_time`` = receive time, ``publish_time`` = header ``stamp_ns``, ``sequence`` = header seq;
@@ -128,14 +130,14 @@ def _glob_regex(glob: str) -> re.Pattern:
 
 
 class TopicFilter:
-    """Globs over ``node/port`` (or over the full key when a glob starts with ``handflow/``).
+    """Globs over ``node/port`` (or over the full key when a glob starts with ``handflow/`` or ``/handflow/``).
 
     Runtime-internal ports (``_health``, ``_progress``) match only a glob whose port part itself
     starts with ``_`` (e.g. ``*/_health``), so the default ``["**"]`` records data topics only.
     """
 
     def __init__(self, globs: Iterable[str] | None = None) -> None:
-        self.globs = list(globs) if globs else ["**"]
+        self.globs = [transport.key_of_ros_name(g) for g in globs] if globs else ["**"]
         self._rx = [(g, _glob_regex(g)) for g in self.globs]
 
     def __call__(self, key: str) -> bool:
@@ -220,6 +222,7 @@ class McapWriter:
     def _channel_id(self, topic: str, type_name: str) -> int:
         cid = self._channels.get((topic, type_name))
         if cid is None:
+            name = transport.ros_name(topic)
             cls = message_types().get(type_name)
             if cls is None:
                 raise RecordingError(
@@ -227,10 +230,10 @@ class McapWriter:
                 )
             if self.encoding == "cdr":
                 meta = {TYPE_KEY: type_name, "offered_qos_profiles": DEFAULT_QOS}
-                cid = self._writer.register_channel(topic, "cdr", self._ros_schema_id(type_name), meta)
+                cid = self._writer.register_channel(name, "cdr", self._ros_schema_id(type_name), meta)
             else:
                 sid = self._schema_id(type_name, json_schema(cls))
-                cid = self._writer.register_channel(topic, MESSAGE_ENCODING, sid, {TYPE_KEY: type_name})
+                cid = self._writer.register_channel(name, MESSAGE_ENCODING, sid, {TYPE_KEY: type_name})
             self._channels[(topic, type_name)] = cid
         return cid
 
@@ -239,7 +242,7 @@ class McapWriter:
         cid = self._channels.get((view, ""))
         if cid is None:
             sid = self._schema_id("foxglove.RawImage", FOXGLOVE_RAW_IMAGE_SCHEMA)
-            cid = self._writer.register_channel(view, MESSAGE_ENCODING, sid, {VIEW_KEY: topic})
+            cid = self._writer.register_channel(transport.ros_name(view), MESSAGE_ENCODING, sid, {VIEW_KEY: topic})
             self._channels[(view, "")] = cid
         return cid
 
@@ -267,6 +270,7 @@ class McapWriter:
         sequence: int = 0,
     ) -> None:
         """Store message bytes already in this writer's ``encoding`` (type named by the sender)."""
+        topic = transport.key_of_ros_name(topic)
         with self._lock:
             if self._closed:
                 raise RecordingError(self.failure or f"recording {self.path} is closed; open a new McapWriter")
@@ -526,7 +530,8 @@ class GraphRecorder:
 # ----------------------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class RecordedMessage:
-    """One stored message: its topic, handflow type, the stored bytes (``encoding`` cdr or json) and both times."""
+    """One stored message: its topic (the Zenoh key), handflow type, the stored bytes (``encoding`` cdr or json)
+    and both times."""
 
     topic: str
     type_name: str
@@ -561,7 +566,7 @@ class ReadReport:
     error: str = ""
     metadata: dict[str, dict[str, str]] = field(default_factory=dict)
     attachments: dict[str, Attachment] = field(default_factory=dict)
-    channels: dict[str, dict[str, str]] = field(default_factory=dict)  # topic → {"type", "schema", view info}
+    channels: dict[str, dict[str, str]] = field(default_factory=dict)  # Zenoh key → {"type", "schema", view info}
 
     @property
     def recovered(self) -> bool:
@@ -599,7 +604,8 @@ def iter_recording(
     except OSError as exc:
         raise RecordingError(f"cannot read recording {path}: {exc.strerror}") from exc
     schemas: dict[int, Schema] = {}
-    channels: dict[int, tuple[Channel, bool, bool, str]] = {}  # id → (channel, is data, selected, handflow type)
+    # id → (channel, is data, selected, handflow type, Zenoh key)
+    channels: dict[int, tuple[Channel, bool, bool, str, str]] = {}
     with f:
         records = StreamReader(f, validate_crcs=True).records
         while True:
@@ -622,7 +628,7 @@ def iter_recording(
                 report.messages += 1
                 channel = ch[0]
                 yield RecordedMessage(
-                    channel.topic,
+                    ch[4],
                     ch[3],
                     rec.data,
                     rec.log_time,
@@ -636,12 +642,13 @@ def iter_recording(
                 if rec.id in channels:
                     continue
                 is_view = VIEW_KEY in rec.metadata
+                key = transport.key_of_ros_name(rec.topic)  # old recordings have no leading '/'
                 schema = schemas.get(rec.schema_id)
                 type_name = rec.metadata.get(TYPE_KEY) or _type_of_schema(schema)
                 is_data = not is_view and type_name in message_types() and rec.message_encoding in ENCODINGS
-                selected = (is_data or (is_view and include_views)) and (keep is None or keep(rec.topic))
-                channels[rec.id] = (rec, is_data, selected, type_name)
-                report.channels[rec.topic] = {
+                selected = (is_data or (is_view and include_views)) and (keep is None or keep(key))
+                channels[rec.id] = (rec, is_data, selected, type_name, key)
+                report.channels[key] = {
                     "type": type_name,
                     "schema": schema.name if schema else "",
                     **({"view_of": rec.metadata[VIEW_KEY]} if is_view else {}),

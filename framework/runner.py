@@ -51,6 +51,7 @@ log = logging.getLogger("handflow.runner")
 HEARTBEAT_S = 0.5
 ORPHAN_POLL_S = 0.2
 ORPHAN_GRACE_S = 1.5
+STOPPED = "stopped"  # the state of a node's last heartbeat, sent after everything it published
 START_WAIT_S = 60.0  # without a start signal (no launcher), tick anyway after this long
 _STATE_SLOTS = 128
 
@@ -60,10 +61,12 @@ class SeqState:
 
     def __init__(self, path: Path | None, keys: list[str]) -> None:
         self.index = {k: i for i, k in enumerate(keys[:_STATE_SLOTS])}
+        self.resumed = False  # the node ran earlier in this run (a restart): its file existed
         if path is None:
             self.values = np.zeros(_STATE_SLOTS, dtype=np.int64)
         else:
             mode = "r+" if path.exists() and path.stat().st_size == _STATE_SLOTS * 8 else "w+"
+            self.resumed = mode == "r+"
             self.values = np.memmap(path, dtype=np.int64, mode=mode, shape=(_STATE_SLOTS,))
 
     def get(self, key: str) -> int:
@@ -83,6 +86,7 @@ class NodeContext:
         self._rt = runtime
         self._outputs = rn.cls.output_types(rn.params)
         self._state = state
+        self.restarted = state.resumed
         self._pubs = {
             port: runtime.session.declare_publisher(transport.topic_key(self.graph_name, self.node_id, port))
             for port in self._outputs
@@ -148,13 +152,16 @@ class _NodeSlot:
             self.gaps[port] += seq - last - 1
         self.state.set("in:" + port, seq)
 
-    def health(self) -> Status:
+    def health(self, state: str = "ok") -> Status:
+        """Counters; ``seq.out.<port>``/``seq.in.<port>`` (last sequence published/seen) let the launcher
+        drain the graph at shutdown, also across restarts (:meth:`Launcher.stop`)."""
         counters: dict[str, float] = {"ticks": self.ticks}
         counters.update({f"handled.{p}": n for p, n in self.handled.items()})
         counters.update({f"gaps.{p}": n for p, n in self.gaps.items()})
         counters.update({f"dropped.{p}": n for p, n in self.drops.counts().items()})
         counters.update({f"published.{p}": n for p, n in self.ctx.published.items()})
-        return Status(state="ok", counters=counters, text=f"pid {os.getpid()}")
+        counters.update({f"seq.{k.replace(':', '.')}": self.state.get(k) for k in self.state.index})
+        return Status(state=state, counters=counters, text=f"pid {os.getpid()}")
 
 
 def _login(graph: Graph, user: str | None) -> dict[str, str] | None:
@@ -187,6 +194,7 @@ class GroupRuntime:
         self._lock = threading.Lock()
         self.failure: str | None = None
         self.started = threading.Event()
+        self._report_now = False  # the launcher asked for a heartbeat (transport.report_key)
         self.slots = [_NodeSlot(self, graph.nodes[nid], state_dir) for nid in node_ids]
         self._subs = []
         self._health_pubs = {
@@ -226,6 +234,11 @@ class GroupRuntime:
             )
         else:
             self._subs.append(self.session.declare_subscriber(transport.start_key(g), lambda _: self.started.set()))
+        self._subs.append(self.session.declare_subscriber(transport.report_key(g), self._on_report_request))
+
+    def _on_report_request(self, _sample) -> None:
+        self._report_now = True
+        self.inbox.put(None)  # wakes the main loop
 
     def _await_start(self) -> None:
         """Report ready (heartbeats) until the launcher's start signal: no source ticks before every node listens."""
@@ -271,7 +284,8 @@ class GroupRuntime:
             now_m = time.monotonic()
             if duration_s is not None and now_m - start >= duration_s:
                 break
-            if now_m >= next_health:
+            if now_m >= next_health or self._report_now:
+                self._report_now = False
                 self._publish_health()
                 next_health = now_m + HEARTBEAT_S
             timeout = HEARTBEAT_S
@@ -335,9 +349,9 @@ class GroupRuntime:
             slot.ctx.receiving(None)
         slot.handled[port] += 1
 
-    def _publish_health(self) -> None:
+    def _publish_health(self, state: str = "ok") -> None:
         for slot in self.slots:
-            status = slot.health()
+            status = slot.health(state)
             status.header = Header(slot.id, 0, time.time_ns())
             payload, att = wire.pack(status)
             self._health_pubs[slot.id].put(payload, attachment=att)
@@ -357,9 +371,10 @@ class GroupRuntime:
         self.stop_requested = True
         for sub in self._subs:
             sub.undeclare()
-        self._publish_health()  # last counters for the launcher's summary
         with self._lock:
             self._teardown_all()
+        # the last counters, after teardown's last outputs: the launcher's summary and its drain (STOPPED)
+        self._publish_health(STOPPED)
         self.session.close()
 
     def _teardown_all(self) -> None:

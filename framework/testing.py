@@ -25,6 +25,7 @@ class HarnessContext:
         self.log = logging.getLogger(f"handflow.node.{node_id}")
         self.base_dir = base_dir
         self.clock_ns = 0
+        self.restarted = False
         self.published: dict[str, list[Message]] = defaultdict(list)
         self._outputs = outputs
         self._seq: dict[str, int] = defaultdict(int)

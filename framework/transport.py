@@ -38,9 +38,24 @@ def start_key(graph: str) -> str:
     return f"{PREFIX}/{graph}/_start"
 
 
+def report_key(graph: str) -> str:
+    """The launcher asks the nodes for a heartbeat now, which also wakes their main loop (at shutdown)."""
+    return f"{PREFIX}/{graph}/_report"
+
+
 def events_key(graph: str) -> str:
     """Where the runtime publishes :class:`handflow.framework.messages.RuntimeEvent` messages."""
     return f"{PREFIX}/{graph}/_runtime/events"
+
+
+def ros_name(key: str) -> str:
+    """The ROS 2 topic name of a Zenoh key: a leading ``/`` (recordings and the live view, docs/recording.md)."""
+    return key if key.startswith("/") else "/" + key
+
+
+def key_of_ros_name(name: str) -> str:
+    """The Zenoh key of a recorded topic name, with or without the leading ``/`` (Zenoh keys cannot start with one)."""
+    return name[1:] if name.startswith("/") else name
 
 
 def split_key(key: str) -> tuple[str, str, str] | None:

@@ -14,7 +14,11 @@ from handflow.framework.plugin import Node
 
 class SinkParams(StrictModel):
     log_every: int = Field(0, ge=0, description="log every n-th message (0: only a summary at teardown)")
-    jsonl: str | None = Field(None, description="append one JSON line per message (arrival ns, latency ns, message)")
+    jsonl: str | None = Field(
+        None,
+        description="write one JSON line per message (arrival ns, latency ns, message); every run replaces the "
+        "file, a node restarted within the run continues it",
+    )
 
 
 class Sink(Node):
@@ -25,7 +29,9 @@ class Sink(Node):
 
     def setup(self) -> None:
         self.count = 0
-        self.file = open(self.ctx.output_path(self.params.jsonl), "a", buffering=1) if self.params.jsonl else None
+        # a new run never appends to an old run's lines (docs/recording.md, "Replaying")
+        mode = "a" if self.ctx.restarted else "w"
+        self.file = open(self.ctx.output_path(self.params.jsonl), mode, buffering=1) if self.params.jsonl else None
 
     def on_message(self, port: str, msg: Message) -> None:
         self.count += 1

@@ -189,6 +189,7 @@ def test_foxglove_layout_topics_are_published_by_the_flagship():
     text = json.dumps(layout["configById"])
     topics = set(re.findall(r"demo/(\w+)/(\w+)", text))
     assert topics
+    assert not re.search(r"(?<!/)handflow/demo/", text), "layout topics are ROS 2 names: /handflow/demo/..."
     for node, port in topics:
         assert port in graph.nodes[node].cls.outputs, f"{node}/{port}"
     assert set(re.findall(r'"([A-Za-z0-9]+![a-z]+)"', json.dumps(layout["layout"]))) == set(layout["configById"])

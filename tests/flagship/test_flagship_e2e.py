@@ -122,9 +122,10 @@ def test_a_ros_2_reader_finds_the_3d_view_in_the_recording(flagship):
     _, rec, _ = flagship
     last: dict[str, object] = {}
     with AnyReader([rec], default_typestore=get_typestore(Stores.ROS2_JAZZY)) as reader:
-        types = {c.topic.split("/", 2)[2]: c.msgtype for c in reader.connections}
+        assert all(c.topic.startswith("/handflow/demo/") for c in reader.connections)  # ROS 2 names
+        types = {c.topic.split("/", 3)[3]: c.msgtype for c in reader.connections}
         for conn, _, raw in reader.messages():
-            last[conn.topic.split("/", 2)[2]] = (reader.deserialize(raw, conn.msgtype), raw, conn.msgtype)
+            last[conn.topic.split("/", 3)[3]] = (reader.deserialize(raw, conn.msgtype), raw, conn.msgtype)
     assert types["sim/tf"] == types["human_tf/tf"] == "tf2_msgs/msg/TFMessage"
     assert types["sim/markers"] == types["gesture/markers"] == "visualization_msgs/msg/MarkerArray"
     assert types["sim/description"] == "std_msgs/msg/String"

@@ -34,7 +34,8 @@ def advertised_topics(port: int, graph: str, timeout: float = 20.0) -> set[str]:
     topics: set[str] = set()
     with ws:
         while (
-            time.time() < deadline and not {f"handflow/{graph}/source/out", f"handflow/{graph}/sink/_health"} <= topics
+            time.time() < deadline
+            and not {f"/handflow/{graph}/source/out", f"/handflow/{graph}/sink/_health"} <= topics
         ):
             try:
                 frame = ws.recv(timeout=1)
@@ -75,7 +76,7 @@ def test_run_with_foxglove_streams_topics(tmp_path):
     finally:
         proc.terminate()
         _, err = proc.communicate(timeout=30)
-    assert {"handflow/fx/source/out", "handflow/fx/sink/_health"} <= topics, err
+    assert {"/handflow/fx/source/out", "/handflow/fx/sink/_health"} <= topics, err
     assert proc.returncode == 0
 
 
@@ -132,7 +133,7 @@ def test_monitor_foxglove_joins_a_running_graph(tmp_path):
         run.terminate()
         mon.wait(timeout=30)
         run.wait(timeout=30)
-    assert {"handflow/fxm/source/out", "handflow/fxm/sink/_health"} <= topics
+    assert {"/handflow/fxm/source/out", "/handflow/fxm/sink/_health"} <= topics
 
 
 def test_without_the_foxglove_extra_the_live_view_says_what_to_install(monkeypatch):

@@ -71,11 +71,11 @@ def test_round_trip_keeps_values_times_and_json_schemas(tmp_path):
         schemas = {s.id: s for s in summary.schemas.values()}
         assert {c.message_encoding for c in channels.values()} == {"json"}
         assert {s.encoding for s in schemas.values()} == {"jsonschema"}
-        assert schemas[channels[TOPIC].schema_id].name == "handflow.Array"
-        view = channels["handflow/g/cam/image" + FOXGLOVE_IMAGE_SUFFIX]
+        assert schemas[channels["/" + TOPIC].schema_id].name == "handflow.Array"
+        view = channels["/handflow/g/cam/image" + FOXGLOVE_IMAGE_SUFFIX]
         assert schemas[view.schema_id].name == "foxglove.RawImage"
         times = {(m.channel_id, m.log_time): m for _, _, m in reader.iter_messages()}
-    label = times[(channels["handflow/g/seg/label"].id, 300)]
+    label = times[(channels["/handflow/g/seg/label"].id, 300)]
     assert label.publish_time == 42
     pic = json.loads(times[(view.id, 200)].data)
     assert pic["timestamp"] == {"sec": 2, "nsec": 500_000_123}
@@ -111,7 +111,7 @@ def test_default_recording_is_rosbag2_cdr_read_by_rosbags_and_mcap_ros2(tmp_path
     store = typesys.get_typestore(typesys.Stores.ROS2_JAZZY)
     with rosbags.AnyReader([path], default_typestore=store) as r:
         seen = [(c.topic, r.deserialize(raw, c.msgtype)) for c, _, raw in r.messages()]
-    assert [t for t, _ in seen] == [TOPIC] * 5 + ["handflow/g/cam/image"]
+    assert [t for t, _ in seen] == ["/" + TOPIC] * 5 + ["/handflow/g/cam/image"]  # ROS 2 names
     assert list(seen[3][1].data) == list(_array(3).data) and seen[5][1].data.tobytes() == img.data
     decoded = [(m.channel.topic, m.ros_msg) for m in mcap_ros2.read_ros2_messages(str(path))]
     assert decoded[5][1].header.stamp.sec == 2 and decoded[5][1].header.stamp.nanosec == 500_000_123
@@ -133,6 +133,7 @@ def test_topic_filter_globs_and_internal_ports():
     assert not everything("handflow/x/_clock")
     assert TopicFilter(["*/_health"])("handflow/x/a/_health")
     assert TopicFilter(["handflow/x/**"])("handflow/x/a/b") and not TopicFilter(["handflow/y/**"])("handflow/x/a/b")
+    assert TopicFilter(["/handflow/x/a/*"])("handflow/x/a/b")  # a ROS 2 name as in the file
 
 
 def test_peek_header_matches_full_decode():

@@ -1,9 +1,12 @@
-"""The console examples of docs/recording.md and docs/monitoring.md, run as written."""
+"""The console examples of docs/recording.md and docs/monitoring.md, run as written, in a scratch copy of
+``configs/``, ``docs/`` and ``recordings/`` (outputs land there), and the outcomes the pages state."""
 
 from __future__ import annotations
 
+import json
 import re
 import shlex
+import shutil
 import signal
 import subprocess
 import sys
@@ -31,7 +34,11 @@ def _argv(cmd: str) -> list[str]:
 @pytest.mark.parametrize("doc", ["recording.md", "monitoring.md"])
 def test_documented_commands_run(doc, tmp_path, monkeypatch):
     monkeypatch.setenv("HANDFLOW_RUN_DIR", str(tmp_path / "runs"))
-    monkeypatch.chdir(REPO)
+    monkeypatch.setenv("PYTHONPATH", str(REPO))
+    ws = tmp_path / "ws"
+    for name in ("configs", "docs", "recordings"):
+        shutil.copytree(REPO / name, ws / name, ignore=shutil.ignore_patterns("__pycache__"))
+    monkeypatch.chdir(ws)
     jobs: list[subprocess.Popen] = []
     commands = console_commands(doc)
     assert commands
@@ -43,18 +50,27 @@ def test_documented_commands_run(doc, tmp_path, monkeypatch):
                 assert job.wait(timeout=60) == 0, cmd
             elif cmd.endswith("&"):
                 argv = _argv(cmd[:-1])
-                name = yaml.safe_load((REPO / argv[-1]).read_text())["name"]
+                name = yaml.safe_load((ws / argv[-1]).read_text())["name"]
                 jobs.append(subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
                 wait_until(lambda name=name: any(r.graph == name for r in live_runs()), what=f"'{cmd}' to start")
             else:
-                # outputs (recordings) go to the test's folder, not the repository
-                argv = [a if not a.endswith(".mcap") else str(tmp_path / a) for a in _argv(cmd)]
-                proc = subprocess.run(argv, capture_output=True, text=True, timeout=90)
+                proc = subprocess.run(_argv(cmd), capture_output=True, text=True, timeout=150)
                 assert proc.returncode == 0, f"{cmd}\n{proc.stdout}\n{proc.stderr}"
                 if "--json" in cmd and "monitor" in cmd:
                     assert '"alive": true' in proc.stdout, proc.stdout
+                if cmd.startswith("handflow compare"):
+                    _assert_replayed_labels_equal(cmd, ws)
     finally:
         for job in jobs:
             if job.poll() is None:
                 job.kill()
                 job.wait()
+
+
+def _assert_replayed_labels_equal(cmd: str, ws) -> None:
+    """recording.md: the lock-step replay recomputes every label of the live run, and its sink file holds
+    that one replay's labels (a replay replaces it, never appends)."""
+    out = json.loads(subprocess.run([*_argv(cmd), "--json"], capture_output=True, text=True, timeout=150).stdout)
+    labels = next(t for t in out["topics"] if t["topic"] == "segmenter/labels")
+    assert out["equal"] and labels["equal"] > 100, out
+    assert len((ws / "out" / "replayed_labels.jsonl").read_text().splitlines()) == labels["equal"]

@@ -102,6 +102,31 @@ def test_outputs_land_relative_to_the_current_directory_not_the_graph(tmp_path):
     assert not (graphs / "out").exists()
 
 
+def test_the_live_recording_keeps_every_message_published_before_the_stop(tmp_path):
+    """A 500 Hz source into two transforms and a sink, stopped mid-stream: the launcher stops upstream first
+    and drains, so every stage recorded exactly what the source published (its last heartbeat says how many)."""
+    name = unique("recdrain")
+    graph = chain(tmp_path / "g.yaml", name, rate=500)
+    text = graph.read_text().replace(
+        "inputs: {in: scale/out}", "inputs: {in: scale2/out}\n    params: {jsonl: sink.jsonl}"
+    )
+    text += "  - id: scale2\n    plugin: basic.transform\n    inputs: {in: scale/out}\n"
+    graph.write_text(text + "record:\n  topics: ['**', 'source/_health']\n")
+    out = tmp_path / "run.mcap"
+    res = handflow("run", str(graph), "--duration", "1.5", "--record", str(out), cwd=tmp_path)
+    assert res.returncode == 0, res.stderr
+    recorded: dict[str, list] = {}
+    for topic, msg, _ in read_messages(out, ["**", "source/_health"]):
+        recorded.setdefault(topic.split("/", 2)[2], []).append(msg)
+    last_health = recorded["source/_health"][-1]
+    assert last_health.state == "stopped"
+    published = int(last_health.counters["seq.out.out"])
+    assert published > 300
+    assert [m.header.seq for m in recorded["source/out"]] == list(range(1, published + 1))
+    assert len(recorded["scale/out"]) == len(recorded["scale2/out"]) == published
+    assert len((tmp_path / "sink.jsonl").read_text().splitlines()) == published
+
+
 def test_a_shipped_graph_runs_by_name_from_anywhere(tmp_path):
     res = handflow("validate", "basic_chain", cwd=tmp_path)
     assert res.returncode == 0, res.stderr

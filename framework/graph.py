@@ -17,6 +17,7 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, Field, ValidationError, field_validator
 
+from .inputs import node_input_problems
 from .messages import Message, message_types
 from .params import StrictModel
 from .plugin import Node
@@ -200,11 +201,15 @@ def _message_type(name: str) -> type[Message] | None:
 # ----------------------------------------------------------------------------------------------
 # Loading and validation
 # ----------------------------------------------------------------------------------------------
-def read_graph_text(text: str, path: Path, only: Collection[str] | None = None) -> tuple[Graph | None, list[Problem]]:
+def read_graph_text(
+    text: str, path: Path, only: Collection[str] | None = None, preflight: bool = False, host: str | None = None
+) -> tuple[Graph | None, list[Problem]]:
     """Parse and validate graph YAML; returns the graph (None if unusable) and all problems.
 
     With ``only``, plugin classes are loaded and checked for those node ids alone (a node process
-    of an already validated graph imports just its own plugins; docs/architecture.md).
+    of an already validated graph imports just its own plugins; docs/architecture.md).  With
+    ``preflight``, the inputs of the nodes ``handflow run --host HOST`` would start (files, folders,
+    devices, extras; :mod:`.inputs`) are checked too (docs/pipelines.md, "Inputs").
     """
     parsed = parse(text)
     if isinstance(parsed, Problem):
@@ -243,6 +248,10 @@ def read_graph_text(text: str, path: Path, only: Collection[str] | None = None) 
             problems += pydantic_problems(exc, lines, ("nodes", i, "params"), f"node '{ns.id}' param ")
             continue
         graph.nodes[ns.id] = ResolvedNode(ns, cls, params)
+        if preflight and ns.host == host:
+            for loc, message in node_input_problems(cls, params, path.parent):
+                at = ("nodes", i, "params", *loc) if loc else ("nodes", i, "plugin")
+                problems.append(Problem(line_of(lines, at), f"node '{ns.id}' ({ns.plugin}): {message}"))
 
     for topic, tname in spec.external.items():
         if _message_type(tname) is None:
@@ -419,7 +428,9 @@ def shipped_graphs() -> list[str]:
     return sorted(p.stem for p in shipped().glob("*.yaml"))
 
 
-def validate_file(path: str | Path, only: Collection[str] | None = None) -> tuple[Graph | None, list[Problem]]:
+def validate_file(
+    path: str | Path, only: Collection[str] | None = None, preflight: bool = False, host: str | None = None
+) -> tuple[Graph | None, list[Problem]]:
     path = graph_path(path)
     if not path.exists() and path.parent == graph_path("x").parent:
         return None, [Problem(1, f"no shipped graph '{path.stem}'; shipped graphs: {', '.join(shipped_graphs())}")]
@@ -427,12 +438,15 @@ def validate_file(path: str | Path, only: Collection[str] | None = None) -> tupl
         text = path.read_text()
     except OSError as exc:
         return None, [Problem(1, f"cannot read graph file: {exc.strerror}")]
-    return read_graph_text(text, path.resolve(), only)
+    return read_graph_text(text, path.resolve(), only, preflight, host)
 
 
-def load_graph(path: str | Path, only: Collection[str] | None = None) -> Graph:
-    """A validated :class:`Graph` (plugins of the ``only`` node ids, or all), or :class:`GraphError`."""
-    graph, problems = validate_file(path, only)
+def load_graph(
+    path: str | Path, only: Collection[str] | None = None, preflight: bool = False, host: str | None = None
+) -> Graph:
+    """A validated :class:`Graph` (plugins of the ``only`` node ids, or all; inputs checked with
+    ``preflight``, see :func:`read_graph_text`), or :class:`GraphError`."""
+    graph, problems = validate_file(path, only, preflight, host)
     if problems or graph is None:
         raise GraphError(graph_path(path), problems)
     return graph

@@ -38,7 +38,7 @@ def run(args: argparse.Namespace) -> int:
     # imports the plugins for the node processes while the graph is checked here
     zygote = start_unless_disabled(args.graph)
     try:
-        graph = load_graph(args.graph)
+        graph = load_graph(args.graph, preflight=True, host=args.host)
     except GraphError as exc:
         if zygote is not None:
             zygote.close()

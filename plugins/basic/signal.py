@@ -51,7 +51,10 @@ class SignalSource(Node):
                 raise ValueError("kind 'csv' needs the param 'csv' (path to a CSV file with a header row)")
             path = self.ctx.resolve_path(p.csv)
             self.names = path.read_text().splitlines()[0].split(",")
-            self.rows = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+            try:
+                self.rows = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+            except ValueError as exc:
+                raise ValueError(f"{path}: not numeric CSV rows under a header row ({exc}); fix the file") from None
             if not np.isfinite(self.rows).all():
                 raise ValueError(f"{path} holds NaN/inf values; clean the file")
         self.joint_names = self.names or [f"j{k}" for k in range(p.width)]  # message: joint_state

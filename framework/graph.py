@@ -161,6 +161,7 @@ class ResolvedNode:
     spec: NodeSpec
     cls: type[Node]
     params: BaseModel
+    line: int = 1  # of the node's entry in the graph file, for reports at run time
 
 
 @dataclass
@@ -247,7 +248,7 @@ def read_graph_text(
         except ValidationError as exc:
             problems += pydantic_problems(exc, lines, ("nodes", i, "params"), f"node '{ns.id}' param ")
             continue
-        graph.nodes[ns.id] = ResolvedNode(ns, cls, params)
+        graph.nodes[ns.id] = ResolvedNode(ns, cls, params, seen[ns.id])
         if preflight and ns.host == host:
             for loc, message in node_input_problems(cls, params, path.parent):
                 at = ("nodes", i, "params", *loc) if loc else ("nodes", i, "plugin")

@@ -214,7 +214,8 @@ class Launcher:
                 if u.running_at_end
                 else "not running at the end"
             )
-            lines.append(f"{', '.join(u.node_ids)} ({state}): failed {_why(u.failure)}")
+            where = f"{self.graph.path}:{self.graph.nodes[u.node_ids[0]].line}"
+            lines.append(f"{where}: {', '.join(u.node_ids)} ({state}): failed {_why(u.failure)}")
         return lines, down
 
     def _failure(self, unit: Unit, code: int) -> dict:

@@ -143,8 +143,7 @@ def test_a_node_that_keeps_failing_is_a_crash_loop_with_its_log_and_exit_code_3(
     graph.write_text(
         graph.read_text().replace(
             "params: {kind: sine, rate_hz: 100, width: 4}",
-            "params: {kind: csv, csv: wide.csv, rate_hz: 100}\n"
-            "    restart: {max_restarts: 2, backoff_s: 0.1}",
+            "params: {kind: csv, csv: wide.csv, rate_hz: 100}\n    restart: {max_restarts: 2, backoff_s: 0.1}",
         )
     )
     proc = start("run", str(graph), "--duration", "4")

@@ -165,3 +165,31 @@ def test_a_node_that_restarted_and_runs_at_the_end_exits_0_noted_in_the_summary(
     assert f"{graph}:6: src (restarted 1x, running at the end): failed during setup" in stderr
     assert "all nodes ready" in stderr
     assert stderr.index("src failed during setup") < stderr.index("all nodes ready")
+
+
+def test_the_declarations_of_docs_pipelines_md_are_checked_for_a_user_plugin(tmp_path):
+    doc = (REPO / "docs" / "pipelines.md").read_text()
+    code = re.search(r"### Inputs.*?```python\n(.*?)```", doc, re.S).group(1)
+    ns: dict = {}
+    src = "from handflow.framework.params import StrictModel\nfrom handflow.framework.plugin import Node\n" + code
+    exec(compile(src, "docs/pipelines.md", "exec", dont_inherit=True), ns)  # without this module's __future__
+    from handflow.framework.inputs import node_input_problems
+
+    params = ns["Params"](table="t.csv", models="m", weights="w.npz", port="/dev/handflow-no-such-sensor")
+    assert [loc for loc, _ in node_input_problems(ns["MyNode"], params, tmp_path)] == [
+        ("table",),
+        ("models",),
+        ("weights",),
+        ("port",),
+    ]
+    (tmp_path / "t.csv").write_text("a\n1\n")
+    (tmp_path / "m").mkdir()
+    np.savez(tmp_path / "w.npz", metadata=np.array(json.dumps({"format": "my.weights", "version": 2})))
+    params = ns["Params"](table="t.csv", models="m", weights="w.npz")
+    assert node_input_problems(ns["MyNode"], params, tmp_path) == [
+        (
+            ("weights",),
+            f"{tmp_path / 'w.npz'}: weights file format version 2, this handflow reads version 1; "
+            "make one with `mytool fit`",
+        )
+    ]

@@ -48,7 +48,7 @@ class Unit:
     exit_codes: list[int] = field(default_factory=list)
     failures: list[float] = field(default_factory=list)  # monotonic times of recent failures
     gave_up: str | None = None  # why supervision stopped restarting it (a crash loop)
-    failure: dict | None = None  # the last failure: phase ("setup", "running", "exited") and reason
+    failure: dict | None = None  # the last failure: phase ("setup" or "running") and reason
     running_at_end: bool = False
     log_tail: collections.deque = field(default_factory=lambda: collections.deque(maxlen=LOG_TAIL))
 
@@ -133,17 +133,16 @@ class Launcher:
             return
         self.health[status.header.source] = status
 
+    def _ready(self, unit: Unit) -> bool:
+        """The unit runs and each of its nodes has reported since its start (set up, inputs subscribed)."""
+        return unit.proc is not None and all(nid in self.health for nid in unit.node_ids)
+
     def all_ready(self) -> bool:
-        """Every unit runs and each of its nodes has reported since its start (set up, inputs subscribed)."""
-        return all(u.proc is not None and all(nid in self.health for nid in u.node_ids) for u in self.units)
+        return all(self._ready(u) for u in self.units)
 
     def settled(self) -> bool:
         """Every unit is ready or down for good (crash loop, restart policy 'never', exited)."""
-        return all(
-            (u.proc is not None and all(nid in self.health for nid in u.node_ids))
-            or (u.proc is None and u.restart_at is None)
-            for u in self.units
-        )
+        return all(self._ready(u) or (u.proc is None and u.restart_at is None) for u in self.units)
 
     def signal_start(self) -> None:
         """Let the nodes tick; repeated while running so that a restarted unit starts too."""

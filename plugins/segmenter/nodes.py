@@ -20,6 +20,8 @@ from handflow.framework.messages import Array, JointState, Label, Message, Messa
 from handflow.framework.npz_files import format_check
 from handflow.framework.params import StrictModel
 from handflow.framework.plugin import Node
+from handflow.plugins.manifold.io import FORMAT as UKR
+from handflow.plugins.manifold.io import FORMAT_VERSION as UKR_VERSION
 
 from .candidates import CandidateSet, load_candidates
 from .online import OnlineCLMSegmenter, SegmentChange, SegmentTracker
@@ -30,10 +32,14 @@ from .scorers import FORMAT, FORMAT_VERSION, ScorerFileError, WindowScorer, load
 from .ukr_only import UKROnlyRecognizer
 
 UNKNOWN = "unknown"
+UKR_FORMAT = (UKR, UKR_VERSION, "format_version")
 _TRAIN = "train them with `handflow train-classes` (docs/segmentation.md)"
 _FIT = "fit one with `handflow fit-scorer` (docs/segmentation.md)"
-Models = Annotated[str, InputPath("any", "class models", _TRAIN)]
-"""A folder written by `handflow train-classes`, or one model file."""
+Models = Annotated[
+    str,
+    InputPath("any", "class models", _TRAIN, check=format_check("class model", _TRAIN, UKR_FORMAT)),
+]
+"""A folder written by `handflow train-classes`, or one model file (its format and version checked)."""
 Scorer = Annotated[
     str,
     InputPath(what="scorer file", hint=_FIT, check=format_check("scorer", _FIT, (FORMAT, FORMAT_VERSION, "version"))),

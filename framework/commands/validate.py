@@ -13,6 +13,7 @@ def register(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("graph", help="YAML graph file")
     parser.add_argument(
         "--host",
+        metavar="NAME",
         help="check the files, devices and extras of the nodes whose 'host' is NAME (default: the nodes without one)",
     )
     parser.set_defaults(func=run)

@@ -103,6 +103,11 @@ def test_validate_lists_every_failure_at_once(tmp_path):
     assert f"{len(lines)} problem(s)" in proc.stderr
 
 
+def test_run_help_lists_the_exit_codes():
+    text = " ".join(handflow("run", "--help", check=True).stdout.split())
+    assert "3 a node in a crash loop, 4 a node failed and was not running at the end" in text
+
+
 def _bad_csv_graph(tmp_path: Path, restart: str = "") -> Path:
     """A CSV source whose file exists (preflight passes) but holds no numbers: it fails during setup."""
     (tmp_path / "rows.csv").write_text("a,b\nx,y\n")

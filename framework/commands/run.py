@@ -29,7 +29,9 @@ def register(parser: argparse.ArgumentParser) -> None:
         metavar="PORT",
         help="live view: stream every topic to Foxglove on ws://127.0.0.1:PORT (default 8765)",
     )
-    parser.add_argument("--summary-json", metavar="FILE", help="write per-process restarts, exit codes and failures as JSON")
+    parser.add_argument(
+        "--summary-json", metavar="FILE", help="write per-process restarts, exit codes and failures as JSON"
+    )
     parser.epilog = (
         "exit codes: 0 ok (a node that failed, restarted and runs at the end is noted in the summary), "
         "1 empty or failed recording, 2 bad graph, missing input (file, device, extra) or bad arguments, "

@@ -17,6 +17,7 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, Field, ValidationError, field_validator
 
+from .inputs import node_input_problems
 from .messages import Message, message_types
 from .params import StrictModel
 from .plugin import Node
@@ -78,7 +79,9 @@ class RestartPolicy(StrictModel):
     policy: Literal["never", "on-failure"] = "on-failure"
     max_restarts: int = Field(5, ge=0, description="more failures than this within window_s is a crash loop")
     backoff_s: float = Field(0.5, ge=0, description="first restart delay, doubled per recent failure")
-    max_backoff_s: float = Field(10.0, ge=0, description="cap of the restart delay")
+    max_backoff_s: float = Field(
+        2.0, ge=0, description="cap of the restart delay (5 restarts then take 7.5 s: a crash loop shows within 10 s)"
+    )
     window_s: float = Field(60.0, gt=0, description="failures older than this are forgotten")
 
 
@@ -171,6 +174,7 @@ class ResolvedNode:
     spec: NodeSpec
     cls: type[Node]
     params: BaseModel
+    line: int = 1  # of the node's entry in the graph file, for reports at run time
 
 
 @dataclass
@@ -211,11 +215,15 @@ def _message_type(name: str) -> type[Message] | None:
 # ----------------------------------------------------------------------------------------------
 # Loading and validation
 # ----------------------------------------------------------------------------------------------
-def read_graph_text(text: str, path: Path, only: Collection[str] | None = None) -> tuple[Graph | None, list[Problem]]:
+def read_graph_text(
+    text: str, path: Path, only: Collection[str] | None = None, preflight: bool = False, host: str | None = None
+) -> tuple[Graph | None, list[Problem]]:
     """Parse and validate graph YAML; returns the graph (None if unusable) and all problems.
 
     With ``only``, plugin classes are loaded and checked for those node ids alone (a node process
-    of an already validated graph imports just its own plugins; docs/architecture.md).
+    of an already validated graph imports just its own plugins; docs/architecture.md).  With
+    ``preflight``, the inputs of the nodes ``handflow run --host HOST`` would start (files, folders,
+    devices, extras; :mod:`.inputs`) are checked too (docs/pipelines.md, "Inputs").
     """
     parsed = parse(text)
     if isinstance(parsed, Problem):
@@ -253,7 +261,11 @@ def read_graph_text(text: str, path: Path, only: Collection[str] | None = None) 
         except ValidationError as exc:
             problems += pydantic_problems(exc, lines, ("nodes", i, "params"), f"node '{ns.id}' param ")
             continue
-        graph.nodes[ns.id] = ResolvedNode(ns, cls, params)
+        graph.nodes[ns.id] = ResolvedNode(ns, cls, params, seen[ns.id])
+        if preflight and ns.host == host:
+            for loc, message in node_input_problems(cls, params, path.parent):
+                at = ("nodes", i, "params", *loc) if loc else ("nodes", i, "plugin")
+                problems.append(Problem(line_of(lines, at), f"node '{ns.id}' ({ns.plugin}): {message}"))
 
     for topic, tname in spec.external.items():
         if _message_type(tname) is None:
@@ -456,7 +468,9 @@ def shipped_graphs() -> list[str]:
     return sorted(p.stem for p in shipped().glob("*.yaml"))
 
 
-def validate_file(path: str | Path, only: Collection[str] | None = None) -> tuple[Graph | None, list[Problem]]:
+def validate_file(
+    path: str | Path, only: Collection[str] | None = None, preflight: bool = False, host: str | None = None
+) -> tuple[Graph | None, list[Problem]]:
     path = graph_path(path)
     if not path.exists() and path.parent == graph_path("x").parent:
         return None, [Problem(1, f"no shipped graph '{path.stem}'; shipped graphs: {', '.join(shipped_graphs())}")]
@@ -464,12 +478,15 @@ def validate_file(path: str | Path, only: Collection[str] | None = None) -> tupl
         text = path.read_text()
     except OSError as exc:
         return None, [Problem(1, f"cannot read graph file: {exc.strerror}")]
-    return read_graph_text(text, path.resolve(), only)
+    return read_graph_text(text, path.resolve(), only, preflight, host)
 
 
-def load_graph(path: str | Path, only: Collection[str] | None = None) -> Graph:
-    """A validated :class:`Graph` (plugins of the ``only`` node ids, or all), or :class:`GraphError`."""
-    graph, problems = validate_file(path, only)
+def load_graph(
+    path: str | Path, only: Collection[str] | None = None, preflight: bool = False, host: str | None = None
+) -> Graph:
+    """A validated :class:`Graph` (plugins of the ``only`` node ids, or all; inputs checked with
+    ``preflight``, see :func:`read_graph_text`), or :class:`GraphError`."""
+    graph, problems = validate_file(path, only, preflight, host)
     if problems or graph is None:
         raise GraphError(graph_path(path), problems)
     return graph

@@ -2,16 +2,18 @@
 
 The launcher opens the hub Zenoh session, starts a :mod:`handflow.framework.runner` process per unit,
 restarts crashed units according to their restart policy (default ``on-failure``: capped
-exponential backoff; more than ``max_restarts`` failures within ``window_s`` is a crash loop,
-reported with the unit's last log lines, after which it stays down), publishes every restart and
-crash loop as a :class:`RuntimeEvent`, and on Ctrl-C, SIGTERM or the end of ``--duration`` stops
-the units upstream first, each once the units it feeds have drained (their teardown runs; see
-:meth:`Launcher.stop`).
+exponential backoff; more than ``max_restarts`` failures within ``window_s``, or a failure during
+setup with the same error as the one before, is a crash loop, reported with the unit's last log
+lines, after which it stays down), publishes every restart and crash loop as a
+:class:`RuntimeEvent`, and on Ctrl-C, SIGTERM or the end of ``--duration`` stops the units
+upstream first, each once the units it feeds have drained (their teardown runs; see
+:meth:`Launcher.stop`), and reports which nodes failed and why (docs/reliability.md).
 """
 
 from __future__ import annotations
 
 import collections
+import json
 import logging
 import signal
 import subprocess
@@ -25,7 +27,7 @@ from . import discovery, hub_info, transport, wire
 from .graph import Graph, RestartPolicy
 from .messages import Header, MessageError, RuntimeEvent, Status
 from .ros2.bridge import Ros2Bridge
-from .runner import START_WAIT_S, STOPPED
+from .runner import START_WAIT_S, STOPPED, failure_file
 from .zygote import ForkedProcess, Zygote, start_unless_disabled
 
 log = logging.getLogger("handflow.launcher")
@@ -48,6 +50,8 @@ class Unit:
     exit_codes: list[int] = field(default_factory=list)
     failures: list[float] = field(default_factory=list)  # monotonic times of recent failures
     gave_up: str | None = None  # why supervision stopped restarting it (a crash loop)
+    failure: dict | None = None  # the last failure: phase ("setup" or "running") and reason
+    running_at_end: bool = False
     log_tail: collections.deque = field(default_factory=lambda: collections.deque(maxlen=LOG_TAIL))
 
 
@@ -133,9 +137,16 @@ class Launcher:
             return
         self.health[status.header.source] = status
 
+    def _ready(self, unit: Unit) -> bool:
+        """The unit runs and each of its nodes has reported since its start (set up, inputs subscribed)."""
+        return unit.proc is not None and all(nid in self.health for nid in unit.node_ids)
+
     def all_ready(self) -> bool:
-        """Every node this launcher runs has reported (it has set up and subscribed its inputs)."""
-        return all(nid in self.health for u in self.units for nid in u.node_ids)
+        return all(self._ready(u) for u in self.units)
+
+    def settled(self) -> bool:
+        """Every unit is ready or down for good (crash loop, restart policy 'never', exited)."""
+        return all(self._ready(u) or (u.proc is None and u.restart_at is None) for u in self.units)
 
     def signal_start(self) -> None:
         """Let the nodes tick; repeated while running so that a restarted unit starts too."""
@@ -159,6 +170,8 @@ class Launcher:
             args.append("--lockstep")
         if self.user is not None:  # the node reads its password from the graph's credentials file
             args += ["--user", self.user]
+        for nid in unit.node_ids:  # ready again only once the new process reports
+            self.health.pop(nid, None)
         unit.proc = self.zygote.spawn(args) if self.zygote is not None else None
         if unit.proc is None:
             if self.zygote is not None:
@@ -190,6 +203,35 @@ class Launcher:
     def crash_loops(self) -> list[str]:
         return [u.gave_up for u in self.units if u.gave_up]
 
+    def failure_report(self) -> tuple[list[str], bool]:
+        """One line per unit that failed (why, whether it ran at the end) and whether one was down at the end."""
+        lines, down = [], False
+        for u in self.units:
+            if u.failure is None:
+                continue
+            down |= not u.running_at_end
+            state = (
+                "crash loop, not restarted"
+                if u.gave_up
+                else f"restarted {u.restarts}x, running at the end"
+                if u.running_at_end
+                else "not running at the end"
+            )
+            where = f"{self.graph.path}:{self.graph.nodes[u.node_ids[0]].line}"
+            lines.append(f"{where}: {', '.join(u.node_ids)} ({state}): failed {_why(u.failure)}")
+        return lines, down
+
+    def _failure(self, unit: Unit, code: int) -> dict:
+        """Why the unit's process failed: what it reported (:func:`.runner.failure_file`), else its exit status."""
+        path = failure_file(self._state_dir.name, unit.node_ids)
+        why = f"killed by signal {-code}" if code < 0 else f"exit code {code}"
+        try:
+            failure = json.loads(path.read_text())
+            path.unlink()
+        except (OSError, ValueError):
+            return {"phase": "running", "reason": why}
+        return failure if isinstance(failure, dict) else {"phase": "running", "reason": why}
+
     def poll(self) -> None:
         """Reap exited units and restart them per policy."""
         now = time.monotonic()
@@ -201,23 +243,29 @@ class Launcher:
                     log.info("%s exited normally", unit.name)
                     continue
                 why = f"killed by signal {-code}" if code < 0 else f"exit code {code}"
+                previous, unit.failure = unit.failure, self._failure(unit, code)
                 unit.failures = [t for t in unit.failures if now - t <= unit.policy.window_s] + [now]
+                same_setup_error = unit.failure["phase"] == "setup" and previous == unit.failure
                 if unit.policy.policy == "never":
                     log.error(
-                        "%s failed (%s); restart policy 'never': the rest of the graph keeps running", unit.name, why
+                        "%s failed %s; restart policy 'never': the rest of the graph keeps running",
+                        unit.name,
+                        _why(unit.failure),
                     )
-                elif len(unit.failures) > unit.policy.max_restarts:
+                elif same_setup_error or len(unit.failures) > unit.policy.max_restarts:
                     unit.gave_up = (
-                        f"{unit.name} failed {len(unit.failures)} times within {unit.policy.window_s:.0f}s "
-                        f"(last: {why}); not restarted again"
-                    )
+                        f"{unit.name} failed during setup twice with the same error: {unit.failure['reason']}"
+                        if same_setup_error
+                        else f"{unit.name} failed {len(unit.failures)} times within {unit.policy.window_s:.0f}s "
+                        f"(last: {unit.failure['reason']})"
+                    ) + "; not restarted again"
                     tail = "\n".join(f"    {line}" for line in unit.log_tail)
                     log.error("crash loop: %s; its last log lines:\n%s", unit.gave_up, tail)
                     self.event("crash_loop", unit, unit.gave_up)
                 else:
                     delay = min(unit.policy.max_backoff_s, unit.policy.backoff_s * 2 ** (len(unit.failures) - 1))
                     unit.restart_at = now + delay
-                    log.warning("%s failed (%s); restarting in %.2fs", unit.name, why, delay)
+                    log.warning("%s failed %s; restarting in %.2fs", unit.name, _why(unit.failure), delay)
                     self.event("restart", unit, f"{why}; restart in {delay:.2f}s")
             if unit.proc is None and unit.restart_at is not None and now >= unit.restart_at:
                 unit.restart_at = None
@@ -234,6 +282,8 @@ class Launcher:
         So every message published before the stop is handled downstream and recorded (a cycle of
         units stops together; docs/recording.md, "Recording")."""
         self.stopping = True
+        for u in self.units:
+            u.running_at_end = u.proc is not None
         remaining = [u for u in self.units if u.proc is not None]
         stopped: set[str] = set()
         while remaining:
@@ -335,10 +385,17 @@ class Launcher:
                 "nodes": u.node_ids,
                 "restarts": u.restarts,
                 "exit_codes": u.exit_codes,
+                "failure": u.failure,
+                "running_at_end": u.running_at_end,
                 "gaps": {nid: gaps(nid) for nid in u.node_ids},
             }
             for u in self.units
         }
+
+
+def _why(failure: dict) -> str:
+    """``during setup: REASON`` or ``(REASON)``, for log lines and the summary."""
+    return f"during setup: {failure['reason']}" if failure["phase"] == "setup" else f"({failure['reason']})"
 
 
 def _forward_log(stream, tail: collections.deque) -> None:
@@ -378,24 +435,26 @@ def run_graph(
     try:
         launcher.start()
         t_launch = time.monotonic()
-        t_end = None  # the duration counts from the moment every node is ready
+        t_end = None  # the duration counts from the moment every node is ready (or down for good)
+        started = False
         while not stop["flag"] and (t_end is None or time.monotonic() < t_end):
             launcher.poll()
             if not launcher.alive():
                 log.info("all nodes have exited")
                 break
             ready = lockstep or launcher.all_ready()
-            if t_end is None and duration_s is not None:
-                waited = time.monotonic() - t_launch
-                if ready or waited > START_WAIT_S:
+            waited = time.monotonic() - t_launch
+            settled = ready or launcher.settled() or waited > START_WAIT_S
+            if settled and not started:
+                started = True
+                if ready:
+                    log.info("all nodes ready after %.1fs", waited)
+                else:
+                    down = [nid for u in launcher.units if u.proc is None for nid in u.node_ids]
+                    log.warning("%.1fs after the launch, the other nodes start without %s", waited, ", ".join(down))
+                if duration_s is not None:
                     t_end = time.monotonic() + duration_s
-                    log.log(
-                        logging.INFO if ready else logging.WARNING,
-                        "%s after %.1fs",
-                        "all nodes ready" if ready else "not every node ready",
-                        waited,
-                    )
-            if ready and not lockstep:
+            if settled and not lockstep:
                 launcher.signal_start()
             time.sleep(0.05)
         launcher.stop()

@@ -12,7 +12,7 @@ from garbled contents into the same error.
 from __future__ import annotations
 
 import json
-from collections.abc import Collection, Iterator
+from collections.abc import Callable, Collection, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -92,3 +92,15 @@ def building(path, what: str, hint: str, error: type[ValueError] = NpzFileError)
         raise
     except (KeyError, TypeError, ValueError, AttributeError, IndexError, OverflowError) as exc:
         raise error(f"{path}: inconsistent {what} file ({type(exc).__name__}: {exc}); {hint}") from None
+
+
+def format_check(
+    what: str, hint: str, fmt: tuple[str, int, str], error: type[ValueError] = NpzFileError
+) -> Callable[[Path], None]:
+    """A preflight ``check`` for :class:`~handflow.framework.inputs.InputPath`: reads only the
+    metadata of the ``what`` file and checks its format and version (``fmt`` as in :func:`npz_metadata`)."""
+
+    def check(path: Path) -> None:
+        npz_metadata(read_npz(path, what, hint, error, names=("metadata",)), path, what, hint, error, fmt)
+
+    return check

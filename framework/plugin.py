@@ -65,7 +65,10 @@ class Node:
     - ``Params``: the ``params:`` block, a :class:`~handflow.framework.params.StrictModel` subclass
       (unknown keys rejected; choices as ``Literal``);
     - ``inputs`` / ``outputs``: port name → message type;
-    - ``description``: one line shown by ``handflow plugins`` (defaults to the docstring's first line).
+    - ``description``: one line shown by ``handflow plugins`` (defaults to the docstring's first line);
+    - ``requires``: modules beyond the core → the extra that installs them, e.g. ``{"mne_lsl": "lsl"}``
+      (checked by ``handflow validate``; files and devices the params name are declared with
+      :class:`~handflow.framework.inputs.InputPath`, docs/pipelines.md).
     A node with a ``tick`` override is ticked at ``tick_rate_hz()`` (default: ``params.rate_hz``).
     """
 
@@ -73,6 +76,7 @@ class Node:
     inputs: ClassVar[dict[str, type[Message]]] = {}
     outputs: ClassVar[dict[str, type[Message]]] = {}
     description: ClassVar[str] = ""
+    requires: ClassVar[dict[str, str]] = {}
 
     def __init__(self, params: BaseModel, ctx: Context) -> None:
         self.params = params

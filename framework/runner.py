@@ -54,6 +54,21 @@ ORPHAN_GRACE_S = 1.5
 STOPPED = "stopped"  # the state of a node's last heartbeat, sent after everything it published
 START_WAIT_S = 60.0  # without a start signal (no launcher), tick anyway after this long
 _STATE_SLOTS = 128
+EXPECTED_ERRORS = (OSError, ValueError, RuntimeError, ImportError)
+"""Errors a node raises on purpose with a message saying what to do: logged without a traceback."""
+
+
+class SetupError(Exception):
+    """A node's ``setup`` raised ``cause``."""
+
+    def __init__(self, node_id: str, cause: BaseException) -> None:
+        self.node_id, self.cause = node_id, cause
+        super().__init__(f"node '{node_id}' failed during setup: {cause}")
+
+
+def failure_file(state_dir: Path, node_ids: list[str]) -> Path:
+    """Where a node process leaves why it failed, for the launcher's report (docs/reliability.md)."""
+    return Path(state_dir) / f"failure-{','.join(node_ids)}.json"
 
 
 class SeqState:
@@ -193,6 +208,8 @@ class GroupRuntime:
         self.inbox = wakeup_queue()  # lock-step clock events; None wakes the loop
         self._lock = threading.Lock()
         self.failure: str | None = None
+        self.failure_reason: str | None = None  # one line of ``failure``, for the launcher's summary
+        self.set_up = False
         self.started = threading.Event()
         self._report_now = False  # the launcher asked for a heartbeat (transport.report_key)
         self.slots = [_NodeSlot(self, graph.nodes[nid], state_dir) for nid in node_ids]
@@ -259,16 +276,22 @@ class GroupRuntime:
                 self._deliver(slot, port, payload, att)
                 if self.lockstep:
                     self._publish_progress(slot)
-            except Exception:
+            except Exception as exc:
                 self.failure = f"node '{slot.id}' failed in on_message('{port}'):\n{traceback.format_exc()}"
+                self.failure_reason = f"node '{slot.id}' failed in on_message('{port}'): {type(exc).__name__}: {exc}"
                 self.stop_requested = True
                 self.inbox.put(None)
 
     # -- main loop --------------------------------------------------------------------------
     def run(self, duration_s: float | None = None) -> int:
-        """Set up, then tick (wall clock, or the replayer's virtual clock) until stopped; raise on a node failure."""
+        """Set up, then tick (wall clock, or the replayer's virtual clock) until stopped; raise on a node
+        failure (:class:`SetupError` for one during setup)."""
         for slot in self.slots:
-            slot.node.setup()
+            try:
+                slot.node.setup()
+            except Exception as exc:
+                raise SetupError(slot.id, exc) from exc
+        self.set_up = True
         self._subscribe()
         if not self.lockstep:
             self._await_start()
@@ -320,7 +343,11 @@ class GroupRuntime:
             slot = self.slots[i]
             if self.lockstep:
                 self.virtual_ns = due
-            slot.node.tick()
+            try:
+                slot.node.tick()
+            except Exception as exc:
+                self.failure_reason = f"node '{slot.id}' failed in tick(): {type(exc).__name__}: {exc}"
+                raise
             slot.ticks += 1
             nxt = due + slot.period_ns
             if not self.lockstep and nxt < until_ns - 5 * slot.period_ns:
@@ -373,8 +400,8 @@ class GroupRuntime:
             sub.undeclare()
         with self._lock:
             self._teardown_all()
-        # the last counters, after teardown's last outputs: the launcher's summary and its drain (STOPPED)
-        self._publish_health(STOPPED)
+        if self.set_up:  # the last counters, after teardown's last outputs: the launcher's summary and its
+            self._publish_health(STOPPED)  # drain (STOPPED); a node that never set up is not ready
         self.session.close()
 
     def _teardown_all(self) -> None:
@@ -426,14 +453,24 @@ def main(argv: list[str] | None = None, parent: int | None = None) -> int:
     signal.signal(signal.SIGINT, _stop)
     threading.Thread(target=_exit_with_parent, args=(parent,), daemon=True).start()
     faulthandler.register(signal.SIGUSR1, all_threads=True)  # the launcher asks for stacks before a kill
-    code = 0
+    code, failure = 0, None
     try:
         rt.run()
-    except Exception:
+    except SetupError as exc:
+        if isinstance(exc.cause, EXPECTED_ERRORS):  # the node's own message says what to do
+            log.error("%s", exc)
+        else:
+            log.error("%s\n%s", exc, "".join(traceback.format_exception(exc.cause)))
+        cause = exc.cause
+        reason = str(cause) if isinstance(cause, EXPECTED_ERRORS) else f"{type(cause).__name__}: {cause}"
+        code, failure = 1, {"phase": "setup", "reason": f"node '{exc.node_id}': {reason}"}
+    except Exception as exc:
         log.error("node group %s crashed:\n%s", args.nodes, traceback.format_exc())
-        code = 1
+        code, failure = 1, {"phase": "running", "reason": rt.failure_reason or f"{type(exc).__name__}: {exc}"}
     finally:
         rt.shutdown()
+    if failure is not None and args.state_dir is not None:
+        failure_file(args.state_dir, node_ids).write_text(json.dumps(failure))
     return code
 
 

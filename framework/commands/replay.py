@@ -155,7 +155,7 @@ def _replay_join(args: argparse.Namespace, recorded: str | None, stop: threading
 def _replay_into(args: argparse.Namespace, recorded: str | None, stop: threading.Event) -> int:
     """Launch ``--into`` (lock-step or not), feed it, let it drain, stop it."""
     try:
-        graph = load_graph(args.into)
+        graph = load_graph(args.into, preflight=True)
     except GraphError as exc:
         print(f"{exc}\n{args.into}: fix the graph file (see `handflow validate {args.into}`)", file=sys.stderr)
         return 2

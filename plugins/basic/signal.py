@@ -3,11 +3,12 @@ as ``Array`` messages or as ``JointState`` (the values as joint positions)."""
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Annotated, Literal
 
 import numpy as np
 from pydantic import Field
 
+from handflow.framework.inputs import InputPath
 from handflow.framework.messages import Array, JointState, Message
 from handflow.framework.params import StrictModel
 from handflow.framework.plugin import Node
@@ -20,7 +21,9 @@ class SignalParams(StrictModel):
     frequency_hz: float = Field(1.0, description="sine frequency; channel k is phase-shifted by k/width of a period")
     amplitude: float = 1.0
     seed: int = 0
-    csv: str | None = Field(None, description="CSV file with a header row (kind: csv); one row per message")
+    csv: (
+        Annotated[str, InputPath(what="CSV file", hint="fix the path (relative to the graph file's folder)")] | None
+    ) = Field(None, description="CSV file with a header row (kind: csv); one row per message")
     loop: bool = Field(True, description="restart the CSV at its end")
     message: Literal["array", "joint_state"] = Field(
         "array",
@@ -48,7 +51,10 @@ class SignalSource(Node):
                 raise ValueError("kind 'csv' needs the param 'csv' (path to a CSV file with a header row)")
             path = self.ctx.resolve_path(p.csv)
             self.names = path.read_text().splitlines()[0].split(",")
-            self.rows = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+            try:
+                self.rows = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+            except ValueError as exc:
+                raise ValueError(f"{path}: not numeric CSV rows under a header row ({exc}); fix the file") from None
             if not np.isfinite(self.rows).all():
                 raise ValueError(f"{path} holds NaN/inf values; clean the file")
         self.joint_names = self.names or [f"j{k}" for k in range(p.width)]  # message: joint_state

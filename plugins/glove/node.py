@@ -15,10 +15,11 @@ from __future__ import annotations
 
 import glob
 from pathlib import Path
-from typing import Literal
+from typing import Annotated, Literal
 
 from pydantic import Field
 
+from handflow.framework.inputs import InputFile, InputPath
 from handflow.framework.messages import GloveFrame, Status
 from handflow.framework.params import StrictModel
 from handflow.framework.plugin import Node
@@ -39,7 +40,9 @@ class FaultParams(StrictModel):
 class EmulatorParams(StrictModel):
     """Options of the embedded emulator (``port: emulator``)."""
 
-    frames: str | None = Field(None, description="raw frames file (.npy/.csv/.mcap) to loop; default: synthetic motion")
+    frames: InputFile | None = Field(
+        None, description="raw frames file (.npy/.csv/.mcap) to loop; default: synthetic motion"
+    )
     motion_period_s: float = 4.0
     noise: float = 0.5
     seed: int = 0
@@ -75,16 +78,24 @@ def serial_ports() -> list[str]:
     return sorted({p.device for p in list_ports.comports()} | set(glob.glob("/dev/rfcomm*")))
 
 
+def _no_device(port: str) -> bool:
+    """True for port values that name no device file."""
+    return port == "emulator" or port.startswith("bt://")
+
+
+DEVICE_HINT = (
+    "plug the glove in or pair it (Bluetooth: /dev/rfcommN), set 'port' to its device "
+    "(`python -m serial.tools.list_ports` lists them), or use 'port: emulator' to run without hardware"
+)
+GLOVE_PORT = InputPath("device", "glove device", DEVICE_HINT, skip=_no_device)
+
+
 def missing_device_message(port: str) -> str | None:
     """What to do when ``port`` names a serial device that does not exist (None if it exists or is not a path)."""
-    if port == "emulator" or port.startswith("bt://") or Path(port).exists():
+    if _no_device(port) or Path(port).exists():
         return None
     found = ", ".join(serial_ports()) or "none"
-    return (
-        f"glove device {port} not found (serial ports on this machine: {found}); plug the glove in or pair it "
-        f"(Bluetooth: /dev/rfcommN), set 'port' to its device, or use 'port: emulator' to run without "
-        f"hardware; retrying in the background"
-    )
+    return f"glove device {port} not found (serial ports on this machine: {found}); {DEVICE_HINT}"
 
 
 class CyberGloveNode(Node):
@@ -93,7 +104,9 @@ class CyberGloveNode(Node):
     class Params(ReaderConfig):
         """The reader's settings (declared once, in :class:`ReaderConfig`) and the node's."""
 
-        port: str = Field("emulator", description="serial device, bt://AA:BB:CC:DD:EE:FF[/channel], or 'emulator'")
+        port: Annotated[str, GLOVE_PORT] = Field(
+            "emulator", description="serial device, bt://AA:BB:CC:DD:EE:FF[/channel], or 'emulator'"
+        )
         rate_hz: float = Field(500.0, gt=0, description="how often the node drains the reader and publishes")
         status_period_s: float = Field(1.0, gt=0, description="link status is published at least this often")
         emulator: EmulatorParams = Field(default_factory=EmulatorParams)
@@ -108,7 +121,7 @@ class CyberGloveNode(Node):
             self.emulator = build_emulator(p.emulator, self.ctx.resolve_path).start()
             port = self.emulator.path
         elif (problem := missing_device_message(port)) is not None:
-            self.ctx.log.error(problem)
+            self.ctx.log.error("%s; retrying in the background", problem)
         cfg = ReaderConfig(**p.model_dump(include=set(ReaderConfig.model_fields) - {"port"}), port=port)
         self.reader = GloveReader(cfg, clock_ns=self.ctx.now_ns).start()
         self._last_state = None

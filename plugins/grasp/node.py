@@ -11,17 +11,18 @@ dataset (raw database) or nothing (purely tactile grasping).
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Annotated, Literal
 
 import numpy as np
 from pydantic import Field
 
+from handflow.framework.inputs import InputPath
 from handflow.framework.messages import Contacts, JointState, Label, MessageError, Status
 from handflow.framework.plugin import Node
 from handflow.plugins.hands.joints import HAND_MODELS
 
 from .controller import SHADOW_PREGRASP, ControllerConfig, ExperienceGraspController
-from .experience import ExperienceBase
+from .experience import EXPERIENCE_HINT, ExperienceBase
 from .hand_layout import hand_layout
 
 
@@ -29,7 +30,9 @@ class ExperienceGraspParams(ControllerConfig):
     """Parameters of ``grasp.experience``: the controller's (declared once, in :class:`ControllerConfig`) and the node's."""
 
     hand: Literal["shadow", "gifu", "human"] = Field("shadow", description="hand model")
-    experience: str | None = Field(None, description="SOM (.npz from grasp-som) or grasp dataset; none = tactile only")
+    experience: Annotated[str, InputPath(what="grasp experience file", hint=EXPERIENCE_HINT)] | None = Field(
+        None, description="SOM (.npz from grasp-som) or grasp dataset; none = tactile only"
+    )
     pregrasp: dict[str, float] | None = Field(None, description="pre-grasp joint targets (default: the hand's)")
     ignore_bodies: list[str] = Field(
         default_factory=lambda: ["table"], description="bodies whose contacts do not count"

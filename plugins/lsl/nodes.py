@@ -21,6 +21,7 @@ from handflow.framework.plugin import Node
 
 from .clock import lsl_to_stamps, stamp_to_lsl, wall_minus_lsl_ns
 
+REQUIRES = {"mne_lsl": "lsl"}  # checked by `handflow validate` (docs/pipelines.md, "Inputs")
 EXTRA_HINT = "the lsl plugins need the 'lsl' extra (mne-lsl, which bundles liblsl): pip install 'handflow[lsl]'"
 
 
@@ -30,14 +31,6 @@ def lsl_module() -> Any:
         return importlib.import_module("mne_lsl.lsl")
     except ImportError as exc:
         raise ImportError(f"{EXTRA_HINT} ({exc})") from None
-
-
-def _require_extra() -> None:
-    """Graph validation reports a missing extra at the node's params (pydantic wants a ValueError)."""
-    try:
-        lsl_module()
-    except ImportError as exc:
-        raise ValueError(str(exc)) from None
 
 
 class InletParams(StrictModel):
@@ -52,7 +45,6 @@ class InletParams(StrictModel):
     def _some_filter(self) -> InletParams:
         if not (self.name or self.type or self.source_id):
             raise ValueError("give at least one of name, type, source_id to find the stream")
-        _require_extra()
         return self
 
 
@@ -63,17 +55,13 @@ class OutletParams(StrictModel):
     sfreq: float = Field(0.0, ge=0, description="nominal rate in Hz; 0 = irregular")
     channels: int = Field(0, ge=0, description="channels per sample; 0 = the size of the first message")
 
-    @model_validator(mode="after")
-    def _extra(self) -> OutletParams:
-        _require_extra()
-        return self
-
 
 class LslInlet(Node):
     """Receive an LSL stream: one Array per sample on 'out', stamps clock-corrected to this host."""
 
     Params = InletParams
     outputs = {"out": Array}
+    requires = REQUIRES
 
     def setup(self) -> None:
         lsl, p = lsl_module(), self.params
@@ -115,6 +103,7 @@ class LslOutlet(Node):
 
     Params = OutletParams
     inputs = {"in": Array}
+    requires = REQUIRES
 
     def setup(self) -> None:
         self.lsl = lsl_module()

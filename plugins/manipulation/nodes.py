@@ -13,13 +13,16 @@ open hand).  The open-loop controller has no observations, so only the shutdown 
 
 from __future__ import annotations
 
-from typing import Literal, Optional
+from typing import Annotated, Literal, Optional
 
 from pydantic import Field
 
+from handflow.framework.inputs import InputPath
 from handflow.framework.messages import Contacts, JointState, LatentState, Points2D
+from handflow.framework.npz_files import format_check
 from handflow.framework.params import StrictModel
 from handflow.framework.plugin import Node
+from handflow.plugins.manifold.io import FORMAT, FORMAT_VERSION
 
 from .closed_loop import MASKS, ClosedLoopController
 from .feedback_init import GraspByNavigation, latent_from_grasp, touching_fingers
@@ -27,9 +30,18 @@ from .manifold_file import ManipulationManifold
 from .open_loop import OpenLoopController
 from .safety import open_hand
 
+_TRAIN = "train it with `handflow train configs/train/cap_*.yaml` (docs/manipulation.md)"
+MANIFOLD = InputPath(
+    what="manifold file",
+    hint=_TRAIN,
+    check=format_check("manipulation manifold", _TRAIN, (FORMAT, FORMAT_VERSION, "format_version")),
+)
+
 
 class _ControllerParams(StrictModel):
-    manifold: str = Field(description="manifold file (.npz, from `handflow train`), relative to the graph")
+    manifold: Annotated[str, MANIFOLD] = Field(
+        description="manifold file (.npz, from `handflow train`), relative to the graph"
+    )
     rate_hz: float = Field(30.0, gt=0, description="control rate (one command per tick)")
     delta: float = Field(0.02, gt=0, description="latent time step per control tick (speed)")
     safe_posture: dict[str, float] = Field(

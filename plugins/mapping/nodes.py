@@ -17,6 +17,7 @@ from typing import Literal
 
 import numpy as np
 
+from handflow.framework.inputs import InputFile
 from handflow.framework.messages import GloveFrame, JointState, MessageError
 from handflow.framework.params import StrictModel
 from handflow.framework.plugin import Node
@@ -32,8 +33,8 @@ class HumanHandMappingNode(Node):
     """Raw CyberGlove frames → 24 joints of the human hand model (docs/glove.md)."""
 
     class Params(StrictModel):
-        profile: str = str(DEFAULT_PROFILE)
-        calibration: str = str(DEFAULT_CALIBRATION)
+        profile: InputFile = str(DEFAULT_PROFILE)
+        calibration: InputFile = str(DEFAULT_CALIBRATION)
         handedness: Literal["right", "left"] = "right"
 
     inputs = {"raw": GloveFrame}

@@ -15,6 +15,7 @@ from typing import Literal
 import zenoh
 from pydantic import BaseModel, Field, field_validator
 
+from handflow.framework.inputs import InputFile
 from handflow.framework.messages import Array, Message, MessageError
 from handflow.framework.params import StrictModel
 from handflow.framework.plugin import Node
@@ -30,7 +31,7 @@ LOG_EVERY = 100  # a stream of bad samples is logged once per this many
 class Ros2Params(StrictModel):
     topic: str = Field(description="fully qualified ROS 2 topic name, e.g. /joint_states")
     type: str = Field(description="ROS 2 message type, e.g. sensor_msgs/msg/JointState")
-    msg_files: list[str] = Field(
+    msg_files: list[InputFile] = Field(
         default_factory=list, description=".msg files (<package>/msg/<Name>.msg) of types not in the Jazzy store"
     )
     domain_id: int = Field(0, ge=0, le=232, description="ROS_DOMAIN_ID")

@@ -10,24 +10,40 @@ evidence changes an earlier label).  Output stamps are the observation's stamp.
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Literal
+from typing import Annotated, Literal
 
 import numpy as np
 from pydantic import Field, model_validator
 
+from handflow.framework.inputs import InputPath
 from handflow.framework.messages import Array, JointState, Label, Message, MessageError, SegmentEvent
+from handflow.framework.npz_files import format_check
 from handflow.framework.params import StrictModel
 from handflow.framework.plugin import Node
+from handflow.plugins.manifold.io import FORMAT as UKR
+from handflow.plugins.manifold.io import FORMAT_VERSION as UKR_VERSION
 
 from .candidates import CandidateSet, load_candidates
 from .online import OnlineCLMSegmenter, SegmentChange, SegmentTracker
 from .online_scores import OnlineScoreCLMSegmenter
 from .running_scaling import RunningStandardizer
 from .scaling import ChannelScaling
-from .scorers import ScorerFileError, WindowScorer, load_scorer
+from .scorers import FORMAT, FORMAT_VERSION, ScorerFileError, WindowScorer, load_scorer
 from .ukr_only import UKROnlyRecognizer
 
 UNKNOWN = "unknown"
+UKR_FORMAT = (UKR, UKR_VERSION, "format_version")
+_TRAIN = "train them with `handflow train-classes` (docs/segmentation.md)"
+_FIT = "fit one with `handflow fit-scorer` (docs/segmentation.md)"
+Models = Annotated[
+    str,
+    InputPath("any", "class models", _TRAIN, check=format_check("class model", _TRAIN, UKR_FORMAT)),
+]
+"""A folder written by `handflow train-classes`, or one model file (its format and version checked)."""
+Scorer = Annotated[
+    str,
+    InputPath(what="scorer file", hint=_FIT, check=format_check("scorer", _FIT, (FORMAT, FORMAT_VERSION, "version"))),
+]
 
 
 def running_normaliser(scaling: ChannelScaling | None, frames: int) -> Callable[[np.ndarray], np.ndarray]:
@@ -44,7 +60,7 @@ def running_normaliser(scaling: ChannelScaling | None, frames: int) -> Callable[
 
 
 class RecognizerParams(StrictModel):
-    models: str | list[str] = Field(description="folder written by `handflow train-classes`, or model files")
+    models: Models | list[Models] = Field(description="folder written by `handflow train-classes`, or model files")
     history: int = Field(10, ge=1, description="H: history length / CLM neighbourhood")
     joints: list[str] = Field(
         default_factory=list,
@@ -105,14 +121,14 @@ class OnlineCLMNode(_RecognizerNode):
     (``source: ukr``) or a fitted frame scorer's evidence (``minirocket``, ``dtw``)."""
 
     class Params(RecognizerParams):
-        models: str | list[str] | None = Field(
+        models: Models | list[Models] | None = Field(
             None, description="source ukr: folder written by `handflow train-classes`, or model files"
         )
         source: Literal["ukr", "minirocket", "dtw"] = Field(
             "ukr", description="what the CLM groups: UKR manifolds (models) or a fitted scorer's class scores (scorer)"
         )
-        scorer: str | None = Field(None, description="source minirocket/dtw: file written by `handflow fit-scorer`")
-        novelty_models: str | list[str] | None = Field(
+        scorer: Scorer | None = Field(None, description="source minirocket/dtw: file written by `handflow fit-scorer`")
+        novelty_models: Models | list[Models] | None = Field(
             None,
             description="source minirocket/dtw: class manifolds (`handflow train-classes RECORDINGS --delay 8`) "
             "whose novelty weight scales the scorer's evidence, so motion they do not explain (in shape, or in "

@@ -138,18 +138,19 @@ def test_two_launchers_share_one_graph_over_tcp(tmp_path):
 
 
 def test_a_node_that_keeps_failing_is_a_crash_loop_with_its_log_and_exit_code_3(tmp_path):
-    graph = chain_graph(tmp_path)  # crashes at setup: a CSV source whose file is missing
+    graph = chain_graph(tmp_path)  # crashes at its first tick: one name in the CSV header, two values a row
+    (tmp_path / "wide.csv").write_text("a\n1,2\n3,4\n")
     graph.write_text(
         graph.read_text().replace(
             "params: {kind: sine, rate_hz: 100, width: 4}",
-            "params: {kind: csv, csv: missing.csv, rate_hz: 100}\n    restart: {max_restarts: 2, backoff_s: 0.1}",
+            "params: {kind: csv, csv: wide.csv, rate_hz: 100}\n    restart: {max_restarts: 2, backoff_s: 0.1}",
         )
     )
     proc = start("run", str(graph), "--duration", "4")
     _, err = proc.communicate(timeout=90)
     assert proc.returncode == 3, err
     assert "crash loop: source failed 3 times" in err
-    assert "missing.csv" in err.split("crash loop:")[1]  # the node's own last log lines are in the report
+    assert "names for 2 values" in err.split("crash loop:")[1]  # the node's own log lines are in the report
 
 
 def _running(pid: int) -> bool:

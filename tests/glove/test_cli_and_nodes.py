@@ -43,6 +43,18 @@ def test_calibrate_bad_input_exits_2_with_message(tmp_path, capsys):
     assert not out.exists()
 
 
+def test_calibrate_on_a_missing_port_exits_2_before_the_guided_session(tmp_path, capsys, run_handflow):
+    out = tmp_path / "c.yaml"
+    t0 = time.monotonic()
+    assert run_command(register_calibrate, ["--port", "/dev/handflow-no-such-glove", "-o", str(out)]) == 2
+    assert time.monotonic() - t0 < 2.0
+    err = capsys.readouterr().err
+    assert "glove device /dev/handflow-no-such-glove not found" in err and "port: emulator" in err
+    assert "Step 1/" not in err and not out.exists()
+    proc = run_handflow("calibrate", "--port", "/dev/nonexistent", "-o", str(out))  # the real command
+    assert proc.returncode == 2 and "Step 1/" not in proc.stderr and "Traceback" not in proc.stderr
+
+
 def test_calibrate_live_from_emulator(tmp_path, capsys):
     out = tmp_path / "live.json"
     assert run_command(register_calibrate, ["--port", "emulator", "-o", str(out), "--step-seconds", "0.15"]) == 0

@@ -71,3 +71,27 @@ nodes:
     assert all(v[1] == -v[0] for v in values) and values == sorted(values)
     assert len(received) > 50 and all(len(v) == 2 for v, _ in received)
     assert all(abs(t - lsl.local_clock()) < 30 for _, t in received)
+
+
+def test_an_inlet_without_a_stream_fails_the_run_and_nothing_claims_ready(tmp_path):
+    graph = tmp_path / "graph.yaml"
+    graph.write_text(f"""name: lsl_absent
+nodes:
+  - id: emg
+    plugin: lsl.inlet
+    params: {{source_id: absent-{uuid.uuid4().hex[:6]}, resolve_timeout_s: 1}}
+  - id: sink
+    plugin: basic.sink
+    inputs: {{in: emg/out}}
+""")
+    proc = subprocess.run(
+        [sys.executable, "-m", "handflow.framework.cli", "run", str(graph), "--duration", "2"],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert proc.returncode == 3, proc.stderr  # the same setup error twice: a crash loop
+    assert "ready" not in proc.stderr
+    assert "Traceback" not in proc.stderr
+    assert f"{graph}:3: emg (crash loop, not restarted): failed during setup: node 'emg': no LSL stream" in proc.stderr

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 from pydantic import ValidationError
 
+from handflow.framework.inputs import missing_modules
 from handflow.framework.messages import Array, MessageError
 from handflow.framework.testing import NodeHarness
 from handflow.plugins.lsl.clock import lsl_to_stamps, stamp_to_lsl, wall_minus_lsl_ns
@@ -93,10 +94,12 @@ def test_inlet_without_a_stream_fails_setup_with_what_it_looked_for():
         h.setup()
 
 
-def test_params_need_a_filter_and_name_the_extra_when_missing(monkeypatch):
+def test_params_need_a_filter_and_the_plugins_name_the_extra_when_missing(monkeypatch):
     with pytest.raises(ValidationError, match="give at least one of name, type, source_id"):
         InletParams()
-    monkeypatch.setitem(sys.modules, "mne_lsl.lsl", None)  # as if mne-lsl were not installed
-    with pytest.raises(ValidationError, match=r"pip install 'handflow\[lsl\]'"):
-        InletParams(name="x")
+    assert missing_modules(LslInlet.requires) == missing_modules(LslOutlet.requires) == []
+    monkeypatch.setitem(sys.modules, "mne_lsl", None)  # as if mne-lsl were not installed
+    assert missing_modules(LslInlet.requires) == [
+        "needs mne_lsl, which is not installed: install it with pip install 'handflow[lsl]'"
+    ]
     assert issubclass(MessageError, ValueError)

@@ -7,7 +7,7 @@ import json
 import sys
 from typing import Any
 
-from ..recording import ReadReport, RecordingError, iter_recording
+from ..files.mcap_writer import ReadReport, RecordingError, iter_recording
 
 
 def register(parser: argparse.ArgumentParser) -> None:

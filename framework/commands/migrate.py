@@ -5,8 +5,8 @@ from __future__ import annotations
 import argparse
 import sys
 
+from ..files.mcap_writer import McapWriter, ReadReport, RecordingError, iter_recording
 from ..messages import MessageError
-from ..recording import McapWriter, ReadReport, RecordingError, iter_recording
 
 
 def register(parser: argparse.ArgumentParser) -> None:

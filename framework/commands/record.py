@@ -8,9 +8,9 @@ import sys
 import threading
 from pathlib import Path
 
-from ..discovery import DiscoveryError, add_auth_arguments, join
-from ..graph import GraphError, load_graph
-from ..recording import GraphRecorder, McapWriter, RecordingError
+from ..files.mcap_writer import GraphRecorder, McapWriter, RecordingError
+from ..graphs.model import GraphError, load_graph
+from ..runtime.discovery import DiscoveryError, add_auth_arguments, join
 
 
 def register(parser: argparse.ArgumentParser) -> None:

@@ -9,12 +9,10 @@ import sys
 import threading
 from pathlib import Path
 
-from .. import transport
-from ..discovery import DiscoveryError, add_auth_arguments, join
-from ..graph import Graph, GraphError, load_graph
-from ..launcher import Launcher
-from ..recording import GraphRecorder, ReadReport, RecordingError, iter_recording
-from ..replay import (
+from ..files.mcap_writer import GraphRecorder, ReadReport, RecordingError, iter_recording
+from ..graphs.model import Graph, GraphError, load_graph
+from ..network import sessions as transport
+from ..recorder.replay import (
     GraphWatcher,
     LockstepReplayer,
     ReplayError,
@@ -23,6 +21,8 @@ from ..replay import (
     TimedReplayer,
     external_inputs,
 )
+from ..runtime.discovery import DiscoveryError, add_auth_arguments, join
+from ..runtime.launcher import Launcher
 
 log = logging.getLogger("handflow.replay")
 

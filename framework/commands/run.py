@@ -6,11 +6,11 @@ import argparse
 import json
 import sys
 
-from ..foxglove_bridge import BridgeError, start_bridge
-from ..graph import FoxgloveSettings, GraphError, load_graph
-from ..launcher import run_graph
-from ..transport import EndpointInUse
-from ..zygote import start_unless_disabled
+from ..graphs.model import FoxgloveSettings, GraphError, load_graph
+from ..network.sessions import EndpointInUse
+from ..observe.foxglove_bridge import BridgeError, start_bridge
+from ..runtime.launcher import run_graph
+from ..runtime.zygote import start_unless_disabled
 
 
 def register(parser: argparse.ArgumentParser) -> None:
@@ -56,7 +56,7 @@ def run(args: argparse.Namespace) -> int:
         if fox is not None:
             bridge = start_bridge(launcher.session, graph.name, fox.host, fox.port)
         if record_path:
-            from ..recording import GraphRecorder
+            from ..files.mcap_writer import GraphRecorder
 
             recorder = GraphRecorder.for_graph(graph, record_path)  # outputs are relative to the current directory
             recorder.attach(launcher.session)

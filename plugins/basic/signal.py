@@ -8,8 +8,8 @@ from typing import Literal
 import numpy as np
 from pydantic import Field
 
+from handflow.framework.files.params import StrictModel
 from handflow.framework.messages import Array, JointState, Message
-from handflow.framework.params import StrictModel
 from handflow.framework.plugin import Node
 
 

@@ -19,8 +19,8 @@ from typing import Literal
 
 from pydantic import Field
 
+from handflow.framework.files.params import StrictModel
 from handflow.framework.messages import GloveFrame, Status
-from handflow.framework.params import StrictModel
 from handflow.framework.plugin import Node
 
 from .emulator import Fault, GloveEmulator, array_source

@@ -15,8 +15,8 @@ from typing import Literal, Optional, Union
 import yaml
 from pydantic import Field, model_validator
 
-from handflow.framework.params import StrictModel
-from handflow.framework.yaml_files import YamlFileError, load_model
+from handflow.framework.files.params import StrictModel
+from handflow.framework.files.yaml import YamlFileError, load_model
 
 from .data import load_csv_dir, load_mcap, load_npz
 from .kernels import KernelName

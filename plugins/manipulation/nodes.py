@@ -17,8 +17,8 @@ from typing import Literal, Optional
 
 from pydantic import Field
 
+from handflow.framework.files.params import StrictModel
 from handflow.framework.messages import Contacts, JointState, LatentState, Points2D
-from handflow.framework.params import StrictModel
 from handflow.framework.plugin import Node
 
 from .closed_loop import MASKS, ClosedLoopController

@@ -28,8 +28,8 @@ import numpy as np
 from pydantic import Field
 from scipy.stats import spearmanr
 
-from handflow.framework.params import StrictModel
-from handflow.framework.yaml_files import YamlFileError, load_model
+from handflow.framework.files.params import StrictModel
+from handflow.framework.files.yaml import YamlFileError, load_model
 from handflow.plugins.manifold.cli import ModelConfig, TrainingConfig, _Progress, build_model, check_train_args
 from handflow.plugins.manifold.construction import ManifoldConstruction
 from handflow.plugins.manifold.model import StructuredUKR

@@ -17,8 +17,8 @@ from typing import Literal
 
 import numpy as np
 
+from handflow.framework.files.params import StrictModel
 from handflow.framework.messages import GloveFrame, JointState, MessageError
-from handflow.framework.params import StrictModel
 from handflow.framework.plugin import Node
 from handflow.plugins.hands.joints import HUMAN
 from handflow.plugins.hands.sensors import N_SENSORS

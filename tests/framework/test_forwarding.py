@@ -1,4 +1,4 @@
-"""Forwarding a received message unchanged re-sends its CDR body (framework/forwarding.py, docs/ros2.md)."""
+"""Forwarding a received message unchanged re-sends its CDR body (framework/runtime/forwarding.py, docs/ros2.md)."""
 
 from __future__ import annotations
 
@@ -9,13 +9,15 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from handflow.framework import forwarding, transport, wire
-from handflow.framework.fuzzing import sample_messages
-from handflow.framework.graph import ZenohSettings, load_graph
+from handflow.framework import wire
+from handflow.framework.graphs.model import ZenohSettings, load_graph
 from handflow.framework.messages import Header, JointState, Status
-from handflow.framework.replay import wait_matching
+from handflow.framework.network import sessions as transport
+from handflow.framework.recorder.replay import wait_matching
 from handflow.framework.ros2.types import encode_cdr, restamped_cdr
-from handflow.framework.runner import GroupRuntime
+from handflow.framework.runtime import forwarding
+from handflow.framework.runtime.runner import GroupRuntime
+from handflow.framework.testkit.fuzzing import sample_messages
 from tests.framework._rec_helpers import unique, write_graph
 
 STAMP = 1_700_000_000_123_456_789

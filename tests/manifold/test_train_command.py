@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 import yaml
 
+from handflow.framework.files.mcap_writer import McapWriter
 from handflow.framework.messages import Array, JointState
-from handflow.framework.recording import McapWriter
 from handflow.plugins.manifold import StructuredUKR, toy
 from handflow.plugins.manifold.cli import register_train
 from handflow.plugins.manifold.data import load_csv_dir, load_mcap, load_npz

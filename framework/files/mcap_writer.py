@@ -54,10 +54,11 @@ from mcap.records import Message as McapMessage
 from mcap.stream_reader import StreamReader
 from mcap.writer import CompressionType, Writer
 
-from . import transport, wire
-from .messages import Image, Message, MessageError, Text, decode, encode, json_schema, message_types
-from .ros2.types import decode_cdr, encode_cdr, handflow_type, ros_type, schema_text
-from .wire import WireHeader, peek_header  # noqa: F401  (re-exported: the JSON dialect's header reader)
+from .. import wire
+from ..messages import Image, Message, MessageError, Text, decode, encode, json_schema, message_types
+from ..network import sessions as transport
+from ..ros2.types import decode_cdr, encode_cdr, handflow_type, ros_type, schema_text
+from ..wire import WireHeader, peek_header  # noqa: F401  (re-exported: the JSON dialect's header reader)
 
 log = logging.getLogger("handflow.recording")
 

@@ -1,6 +1,6 @@
 """One node process: runs a group of graph nodes (docs/architecture.md).
 
-Started by the launcher as ``python -m handflow.framework.runner GRAPH --nodes a,b --hub ENDPOINT``.
+Started by the launcher as ``python -m handflow.framework.runtime.runner GRAPH --nodes a,b --hub ENDPOINT``.
 Messages are handled directly in the Zenoh callback and ticks in the main loop, serialised by one
 lock, so node code never runs concurrently with itself (no locks needed in plugins) and a message
 costs no thread hand-off.  Each node publishes a ``_health`` heartbeat with its counters.
@@ -37,13 +37,15 @@ from pathlib import Path
 
 import numpy as np
 
-from . import forwarding, transport, wire
-from .credentials import read_credentials, usrpwd_settings
+from .. import wire
+from ..graphs.model import Graph, ResolvedNode, load_graph
+from ..messages import Header, Message, MessageError, Status
+from ..network import sessions as transport
+from ..plugin import Node
+from ..security.credentials import read_credentials, usrpwd_settings
+from ..testkit.harness import check_publish
+from . import forwarding
 from .drops import DropLedger
-from .graph import Graph, ResolvedNode, load_graph
-from .messages import Header, Message, MessageError, Status
-from .plugin import Node
-from .testing import check_publish
 from .wakeup import wakeup_queue
 
 log = logging.getLogger("handflow.runner")
@@ -387,7 +389,7 @@ def main(argv: list[str] | None = None, parent: int | None = None) -> int:
     """Run the nodes; stop with the ``parent`` process (default: the one that started this one)."""
     parent = os.getppid() if parent is None else parent
     ap = argparse.ArgumentParser(
-        prog="python -m handflow.framework.runner", description="Run nodes of a graph (used by the launcher)."
+        prog="python -m handflow.framework.runtime.runner", description="Run nodes of a graph (used by the launcher)."
     )
     ap.add_argument("graph")
     ap.add_argument("--nodes", required=True, help="comma-separated node ids")

@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from .graph import Graph
+    from ..graphs.model import Graph
 
 log = logging.getLogger("handflow.credentials")
 _USER = re.compile(r"^[A-Za-z0-9_.@\-]+$")

@@ -8,9 +8,9 @@ loopback port, multicast scouting off, no router); every node process is a peer 
 the hub and finds the other peers through gossip.  A graph's ``zenoh.listen`` / ``zenoh.connect``
 endpoints are added to the hub so graphs on several machines join one Zenoh network.  With
 ``zenoh.tls`` the hub is a router speaking mutual TLS to other machines, with access control derived
-from the graph (:mod:`handflow.framework.access`), and node processes are its clients.  With
+from the graph (:mod:`handflow.framework.security.access`), and node processes are its clients.  With
 ``zenoh.usrpwd`` (alone or with TLS) the hub is a router too, checks every link against the graph's
-credentials (:mod:`handflow.framework.credentials`), and its node processes log in as clients.
+credentials (:mod:`handflow.framework.security.credentials`), and its node processes log in as clients.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ import socket
 
 import zenoh
 
-from .graph import ZenohSettings
+from ..graphs.model import ZenohSettings
 
 PREFIX = "handflow"
 
@@ -82,7 +82,7 @@ def open_hub(settings: ZenohSettings, hub_endpoint: str, secure: dict[str, objec
     """The launcher's session: listens on ``hub_endpoint`` plus the graph's endpoints.
 
     ``secure`` makes the hub a router: ``"tls"`` and ``"access_control"`` from
-    :mod:`handflow.framework.access`, ``"usrpwd"`` from :func:`credentials.usrpwd_settings`.  A
+    :mod:`handflow.framework.security.access`, ``"usrpwd"`` from :func:`credentials.usrpwd_settings`.  A
     listen endpoint already in use raises :class:`EndpointInUse` saying what to change.
     """
     secure = secure or {}

@@ -128,8 +128,8 @@ def join(
     """
     import zenoh
 
-    from .graph import ZenohSettings
-    from .transport import open_client, open_node_session
+    from ..graphs.model import ZenohSettings
+    from ..network.sessions import open_client, open_node_session
 
     run = None if connect else find_run(graph)
     endpoint = connect or run.hub
@@ -157,7 +157,7 @@ def _certificate(endpoint: str, certs: str | None, name: str | None) -> tuple[Pa
     """(CA, certificate, key) for a ``tls/`` endpoint, checked first; None for other endpoints."""
     if not endpoint.startswith("tls/"):
         return None
-    from .certs import CertError, check_host_files
+    from ..security.certs import CertError, check_host_files
 
     if not (certs and name):
         raise DiscoveryError(f"{endpoint} is a TLS endpoint: pass --certs DIR --cert-name NAME")
@@ -169,7 +169,7 @@ def _certificate(endpoint: str, certs: str | None, name: str | None) -> tuple[Pa
 
 def _login(run: RunInfo | None, credentials: str | None, user: str | None) -> dict[str, str] | None:
     """``usrpwd`` login from a credentials file; a local graph that needs one and got none is an error."""
-    from .credentials import CredentialsError, read_credentials, usrpwd_settings
+    from ..security.credentials import CredentialsError, read_credentials, usrpwd_settings
 
     if credentials is None:
         if user is not None:

@@ -17,12 +17,12 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, Field, ValidationError, field_validator
 
-from .messages import Message, message_types
-from .params import StrictModel
-from .plugin import Node
-from .registry import PluginError, load_plugin, plugin_entries
-from .ros2.rmw_zenoh import check_name
-from .yaml_files import Problem, YamlFileError, line_of, parse, pydantic_problems
+from ..files.params import StrictModel
+from ..files.yaml import Problem, YamlFileError, line_of, parse, pydantic_problems
+from ..messages import Message, message_types
+from ..plugin import Node
+from ..registry import PluginError, load_plugin, plugin_entries
+from ..ros2.rmw_zenoh import check_name
 
 _ID = re.compile(r"^[A-Za-z0-9_\-]+$")
 
@@ -320,7 +320,7 @@ def _zenoh_problems(spec: GraphSpec, lines) -> list[Problem]:
 
 def _usrpwd_problems(usrpwd: UsrPwdSettings, path: Path, lines) -> list[Problem]:
     """The credentials file must exist, parse and name the configured user (docs/security.md)."""
-    from .credentials import CredentialsError, read_credentials
+    from ..security.credentials import CredentialsError, read_credentials
 
     try:
         creds = read_credentials(path.parent / usrpwd.credentials)
@@ -407,14 +407,14 @@ def graph_path(argument: str | Path) -> Path:
     text = str(argument)
     if "/" in text or text.endswith((".yaml", ".yml")) or Path(text).exists():
         return Path(text)
-    from .resources import shipped
+    from ..files.resources import shipped
 
     return shipped(f"{text}.yaml")
 
 
 def shipped_graphs() -> list[str]:
     """Names of the graphs shipped with the package."""
-    from .resources import shipped
+    from ..files.resources import shipped
 
     return sorted(p.stem for p in shipped().glob("*.yaml"))
 

@@ -13,9 +13,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..graphs.model import Graph
+from ..network.sessions import PREFIX, events_key, topic_key
 from .certs import check_host_files
-from .graph import Graph
-from .transport import PREFIX, events_key, topic_key
 
 ALL_MESSAGES = [
     "put",

@@ -23,8 +23,9 @@ from typing import Any
 
 import numpy as np
 
-from . import transport, wire
-from .messages import Array, Message, MessageError, RuntimeEvent, Status
+from .. import wire
+from ..messages import Array, Message, MessageError, RuntimeEvent, Status
+from ..network import sessions as transport
 
 ALIVE_S = 2.0  # a node is alive if its last heartbeat is younger than this
 WINDOW_S = 5.0  # rate and latency are computed over this sliding window

@@ -9,11 +9,12 @@ from __future__ import annotations
 
 import logging
 
-from .. import transport, wire
-from ..graph import Graph
+from .. import wire
+from ..graphs.model import Graph
 from ..messages import MessageError
-from .rmw_zenoh import RosNode, RosPublisher
-from .types import ros_type, type_hash
+from ..network import sessions as transport
+from ..ros2.rmw_zenoh import RosNode, RosPublisher
+from ..ros2.types import ros_type, type_hash
 
 log = logging.getLogger(__name__)
 

@@ -30,10 +30,11 @@ from typing import Any
 
 import zenoh
 
-from . import transport, wire
-from .graph import Graph
-from .messages import MessageError
-from .recording import ReadReport, RecordedMessage, iter_recording
+from .. import wire
+from ..files.mcap_writer import ReadReport, RecordedMessage, iter_recording
+from ..graphs.model import Graph
+from ..messages import MessageError
+from ..network import sessions as transport
 
 log = logging.getLogger("handflow.replay")
 

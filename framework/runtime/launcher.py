@@ -1,6 +1,6 @@
 """Launch and supervise a graph: one process per node or per group (docs/pipelines.md, "Running").
 
-The launcher opens the hub Zenoh session, starts a :mod:`handflow.framework.runner` process per unit,
+The launcher opens the hub Zenoh session, starts a :mod:`handflow.framework.runtime.runner` process per unit,
 restarts crashed units according to their restart policy (default ``on-failure``: capped
 exponential backoff; more than ``max_restarts`` failures within ``window_s`` is a crash loop,
 reported with the unit's last log lines, after which it stays down), publishes every restart and
@@ -20,10 +20,12 @@ import threading
 import time
 from dataclasses import dataclass, field
 
-from . import discovery, transport, wire
-from .graph import Graph, RestartPolicy
-from .messages import Header, MessageError, RuntimeEvent, Status
-from .ros2.bridge import Ros2Bridge
+from .. import wire
+from ..graphs.model import Graph, RestartPolicy
+from ..messages import Header, MessageError, RuntimeEvent, Status
+from ..network import sessions as transport
+from . import discovery
+from .ros2_bridge import Ros2Bridge
 from .runner import START_WAIT_S
 from .zygote import ForkedProcess, Zygote, start_unless_disabled
 
@@ -110,12 +112,12 @@ class Launcher:
         """The hub's TLS, access-control and user/password settings (docs/security.md)."""
         secure: dict[str, object] = {}
         if self.graph.spec.zenoh.tls is not None:
-            from . import access
+            from ..security import access
 
             secure["tls"] = access.tls_settings(self.graph, host)
             secure["access_control"] = access.access_control(self.graph, host)
         if self.graph.spec.zenoh.usrpwd is not None:
-            from . import credentials
+            from ..security import credentials
 
             creds, self.user = credentials.graph_credentials(self.graph, host)
             dictionary = credentials.write_dictionary(creds, self._state_dir.name)
@@ -160,7 +162,7 @@ class Launcher:
             if self.zygote is not None:
                 log.warning("the zygote cannot fork %s; starting it as a new interpreter", unit.name)
             unit.proc = subprocess.Popen(
-                [sys.executable, "-m", "handflow.framework.runner", *args],
+                [sys.executable, "-m", "handflow.framework.runtime.runner", *args],
                 start_new_session=True,
                 stderr=subprocess.PIPE,
                 text=True,

@@ -20,10 +20,10 @@ try:  # the optional extra 'foxglove'
 except ImportError:
     foxglove = None
 
-from . import wire
-from .messages import MessageError
-from .ros2.types import ros_type, schema_text
-from .transport import PREFIX
+from .. import wire
+from ..messages import MessageError
+from ..network.sessions import PREFIX
+from ..ros2.types import ros_type, schema_text
 
 log = logging.getLogger("handflow.foxglove")
 

@@ -18,7 +18,7 @@ import statistics
 import time
 from pathlib import Path
 
-from handflow.framework.files.mcap_writer import iter_recording
+from handflow.framework.files.mcap_reader import iter_recording
 from handflow.framework.messages import MessageError, decode, encode
 from handflow.framework.testkit.fuzzing import malformed_payloads, sample_messages
 

@@ -28,7 +28,8 @@ import numpy as np
 from mcap.reader import make_reader
 from mcap.writer import CompressionType, Writer
 
-from handflow.framework.files.mcap_writer import McapWriter, iter_recording
+from handflow.framework.files.mcap_reader import iter_recording
+from handflow.framework.files.mcap_writer import McapWriter
 from handflow.framework.messages import Array, Header, encode
 
 REPO = Path(__file__).resolve().parents[1]

@@ -60,9 +60,9 @@ def _image(seq: int):
 # ------------------------------------------------------------------------------------------------
 def _role(args: argparse.Namespace) -> None:
     from handflow.framework import wire
-    from handflow.framework.graphs.model import ZenohSettings
     from handflow.framework.messages import Array, Header, JointState
     from handflow.framework.network import sessions as transport
+    from handflow.framework.network.settings import ZenohSettings
 
     settings = ZenohSettings()
     session = transport.open_node_session(settings, args.hub)
@@ -120,8 +120,8 @@ def _role(args: argparse.Namespace) -> None:
 
 def run_raw(rate: float, seconds: float, hops: int, payload: str = "joints", mode: str = "handflow") -> dict:
     """Bare-Zenoh processes; ``mode`` 'handflow' encodes/decodes every message, 'raw' only moves bytes."""
-    from handflow.framework.graphs.model import ZenohSettings
     from handflow.framework.network import sessions as transport
+    from handflow.framework.network.settings import ZenohSettings
 
     hub_ep = transport.hub_endpoint_for()
     hub = transport.open_hub(ZenohSettings(), hub_ep)

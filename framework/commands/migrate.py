@@ -5,7 +5,8 @@ from __future__ import annotations
 import argparse
 import sys
 
-from ..files.mcap_writer import McapWriter, ReadReport, RecordingError, iter_recording
+from ..files.mcap_reader import ReadReport, iter_recording
+from ..files.mcap_writer import McapWriter, RecordingError
 from ..messages import MessageError
 
 

@@ -8,8 +8,9 @@ import sys
 import threading
 from pathlib import Path
 
-from ..files.mcap_writer import GraphRecorder, McapWriter, RecordingError
+from ..files.mcap_writer import McapWriter, RecordingError
 from ..graphs.model import GraphError, load_graph
+from ..recorder.graph_recorder import GraphRecorder
 from ..runtime.discovery import DiscoveryError, add_auth_arguments, join
 
 

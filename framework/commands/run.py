@@ -56,7 +56,7 @@ def run(args: argparse.Namespace) -> int:
         if fox is not None:
             bridge = start_bridge(launcher.session, graph.name, fox.host, fox.port)
         if record_path:
-            from ..files.mcap_writer import GraphRecorder
+            from ..recorder.graph_recorder import GraphRecorder
 
             recorder = GraphRecorder.for_graph(graph, record_path)  # outputs are relative to the current directory
             recorder.attach(launcher.session)

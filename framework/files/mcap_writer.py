@@ -1,4 +1,4 @@
-"""MCAP recordings: writer, graph recorder, and a reader that recovers truncated files.
+"""MCAP recordings: the file layout and the writer (the reader is :mod:`.mcap_reader`).
 
 Recordings open in Foxglove and ROS 2 tools, are readable after a hard kill and keep the publish
 time (docs/recording.md).
@@ -19,17 +19,17 @@ the topic's node).  ``encoding="json"`` writes the earlier handflow JSON dialect
   ``foxglove_images=False`` saves the second copy of the pixels);
 - zstd chunks (``chunk_size``, default 4 MiB, as the ``mcap`` tool writes them) plus a flush of
   the open chunk every ``flush_interval_s`` (default 1 s): after a ``kill -9`` every complete
-  chunk is on disk and :func:`iter_recording` recovers it.  Documented choice: the writer keeps
+  chunk is on disk and :func:`~.mcap_reader.iter_recording` recovers it.  Documented choice: the writer keeps
   one index entry (≈ 1.5 kB with 20 channels) per chunk until it writes the summary, so small
   chunks make a long recording's memory grow (256 kB chunks: ≈ 5 a second in the flagship with
   its camera, ≈ 29 MB an hour); with 4 MiB chunks the 1 s flush cuts most of them (≈ 1 a second);
-- metadata/attachments saying how the recording was made (see :class:`GraphRecorder`).
+- metadata/attachments saying how the recording was made (see :class:`~handflow.framework.recorder.graph_recorder.GraphRecorder`).
 
 Helpers for code that writes recordings without the runtime::
 
     with McapWriter("demo.mcap") as w:
         w.write("handflow/demo/glove/frames", frame, log_time_ns)
-    for topic, msg, log_time_ns in read_messages("demo.mcap"):
+    for topic, msg, log_time_ns in mcap_reader.read_messages("demo.mcap"):
         ...
 """
 
@@ -37,28 +37,18 @@ from __future__ import annotations
 
 import json
 import logging
-import os
 import re
-import socket
-import struct
 import threading
 import time
-from collections.abc import Iterable, Iterator
-from dataclasses import dataclass, field
+from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
-from mcap.exceptions import EndOfFile, InvalidMagic
-from mcap.records import Attachment, Channel, Footer, Metadata, Schema
-from mcap.records import Message as McapMessage
-from mcap.stream_reader import StreamReader
 from mcap.writer import CompressionType, Writer
 
-from .. import wire
-from ..messages import Image, Message, MessageError, Text, decode, encode, json_schema, message_types
-from ..network import sessions as transport
-from ..ros2.types import decode_cdr, encode_cdr, handflow_type, ros_type, schema_text
-from ..wire import WireHeader, peek_header  # noqa: F401  (re-exported: the JSON dialect's header reader)
+from .. import keys
+from ..messages import Image, Message, encode, json_schema, message_types
+from ..ros2.types import encode_cdr, ros_type, schema_text
 
 log = logging.getLogger("handflow.recording")
 
@@ -76,7 +66,6 @@ DEFAULT_QOS = (
 TYPE_KEY = "handflow.type"  # channel metadata: the handflow message type
 VIEW_KEY = "handflow.view_of"  # channel metadata of a Foxglove view channel: the source topic
 FOXGLOVE_IMAGE_SUFFIX = "/foxglove_image"
-MAX_ATTACHED_FILE_BYTES = 64 * 2**20  # files named by params larger than this are listed, not attached
 
 FOXGLOVE_RAW_IMAGE_SCHEMA: dict[str, Any] = {
     "title": "foxglove.RawImage",
@@ -140,13 +129,13 @@ class TopicFilter:
         self._rx = [(g, _glob_regex(g)) for g in self.globs]
 
     def __call__(self, key: str) -> bool:
-        parts = transport.split_key(key)
+        parts = keys.split_key(key)
         if parts is None:
             return False
         _, node, port = parts
         local = f"{node}/{port}"
         for glob, rx in self._rx:
-            target = key if glob.startswith(transport.PREFIX + "/") else local
+            target = key if glob.startswith(keys.PREFIX + "/") else local
             if port.startswith("_") and not glob.rsplit("/", 1)[-1].startswith("_"):
                 continue
             if rx.match(target):
@@ -371,321 +360,3 @@ def _foxglove_image(data: bytes, stamp_ns: int) -> bytes:
         **{k: d[k] for k in ("frame_id", "width", "height", "encoding", "step", "data")},
     }
     return json.dumps(view, separators=(",", ":")).encode()
-
-
-# ----------------------------------------------------------------------------------------------
-# Recording a running graph
-# ----------------------------------------------------------------------------------------------
-def graph_provenance(graph: Any) -> tuple[dict[str, dict[str, str]], dict[str, tuple[str, bytes]]]:
-    """Metadata records and attachments that say how a recording of ``graph`` was made.
-
-    Metadata: ``handflow.graph`` (name, file, host, start time), ``handflow.params`` (node id →
-    resolved params as JSON), ``handflow.plugins`` (node id → plugin), ``handflow.files``
-    (``node.param`` → attachment name, or a note why the file is not attached).
-    Attachments: ``graph.yaml`` (the graph file) and every existing file a param names
-    (resolved relative to the graph folder), as ``files/<path>``.
-    """
-    meta = {
-        "handflow.graph": {
-            "name": graph.name,
-            "file": str(graph.path),
-            "host": socket.gethostname(),
-            "started_ns": str(time.time_ns()),
-        },
-        "handflow.params": {nid: json.dumps(rn.params.model_dump(mode="json")) for nid, rn in graph.nodes.items()},
-        "handflow.plugins": {nid: rn.spec.plugin for nid, rn in graph.nodes.items()},
-    }
-    attachments: dict[str, tuple[str, bytes]] = {}
-    try:
-        attachments["graph.yaml"] = ("application/yaml", graph.path.read_bytes())
-    except OSError as exc:
-        log.warning("graph file %s not attached: %s", graph.path, exc.strerror)
-    files: dict[str, str] = {}
-    for nid, rn in graph.nodes.items():
-        for name, value in _string_leaves(rn.params.model_dump(mode="json")):
-            path = _existing_file(graph.base_dir, value)
-            if path is None:
-                continue
-            label = f"{nid}.{name}"
-            size = path.stat().st_size
-            if size > MAX_ATTACHED_FILE_BYTES:
-                files[label] = f"not attached: {path} is {size} bytes (limit {MAX_ATTACHED_FILE_BYTES})"
-                continue
-            try:
-                rel = path.relative_to(graph.base_dir)
-            except ValueError:
-                rel = Path(str(path).lstrip("/"))
-            att = f"files/{rel.as_posix()}"
-            attachments.setdefault(att, ("application/octet-stream", path.read_bytes()))
-            files[label] = att
-    meta["handflow.files"] = files
-    return meta, attachments
-
-
-def _string_leaves(value: Any, prefix: str = "") -> Iterator[tuple[str, str]]:
-    if isinstance(value, str):
-        yield prefix, value
-    elif isinstance(value, dict):
-        for k, v in value.items():
-            yield from _string_leaves(v, f"{prefix}.{k}" if prefix else str(k))
-    elif isinstance(value, list):
-        for i, v in enumerate(value):
-            yield from _string_leaves(v, f"{prefix}[{i}]")
-
-
-def _existing_file(base: Path, value: str) -> Path | None:
-    if not value or "\n" in value or len(value) > 4096:
-        return None
-    p = Path(value).expanduser()
-    p = p if p.is_absolute() else base / p
-    try:
-        return p.resolve() if p.is_file() else None
-    except OSError:
-        return None
-
-
-class GraphRecorder:
-    """Records a graph's topics from a Zenoh session into an :class:`McapWriter`.
-
-    ``GraphRecorder.for_graph(graph, path)`` also stores the graph's provenance
-    (:func:`graph_provenance`); ``attach(session)`` subscribes to ``handflow/<graph>/**`` and keeps
-    the topics matching the ``record.topics`` globs; ``close()`` finalises the file.
-    Payloads are validated by :func:`decode` and stored as received (never re-encoded); invalid
-    payloads are counted in ``skipped`` and logged once per topic.  The first :class:`Text` document
-    of each topic (e.g. a robot description) is also attached as a file named after the topic
-    (``handflow/demo/sim/description.urdf`` for a URDF; docs/foxglove.md).
-    """
-
-    def __init__(self, writer: McapWriter, graph_name: str, topics: Iterable[str] | None = None) -> None:
-        self.writer = writer
-        self.graph_name = graph_name
-        self.filter = TopicFilter(topics)
-        self.skipped: dict[str, int] = {}
-        self._subscriber = None
-        self._documents: set[str] = set()
-
-    @classmethod
-    def for_graph(
-        cls, graph: Any, path: str | Path, topics: Iterable[str] | None = None, **writer_kw: Any
-    ) -> GraphRecorder:
-        if topics is None:
-            topics = graph.spec.record.topics if graph.spec.record else None
-        writer = McapWriter(path, **writer_kw)
-        meta, attachments = graph_provenance(graph)
-        for name, data in meta.items():
-            writer.add_metadata(name, data)
-        for name, (media_type, data) in attachments.items():
-            writer.add_attachment(name, data, media_type)
-        return cls(writer, graph.name, topics)
-
-    def attach(self, session: Any) -> None:
-        self._subscriber = session.declare_subscriber(f"{transport.PREFIX}/{self.graph_name}/**", self._on_sample)
-
-    def _on_sample(self, sample: Any) -> None:
-        key = str(sample.key_expr)
-        if not self.filter(key):
-            return
-        data, att = wire.sample_parts(sample)
-        try:
-            msg = wire.unpack(data, att)  # what replay and Foxglove read back must be valid (docs/robustness.md)
-            if (att is not None) == (
-                self.writer.encoding == "cdr"
-            ):  # already in the file's encoding: stored as received
-                self.writer.write_encoded(key, msg.TYPE, data, None, msg.header.stamp_ns, msg.header.seq)
-            else:
-                self.writer.write(key, msg)
-            if isinstance(msg, Text) and key not in self._documents:
-                self._documents.add(key)
-                self._attach_document(key, msg.data)
-        except (MessageError, RecordingError) as exc:
-            if self.writer.failure:
-                return  # reported once by the writer
-            if key not in self.skipped:
-                log.warning("not recording a payload on %s: %s", key, exc)
-            self.skipped[key] = self.skipped.get(key, 0) + 1
-
-    def _attach_document(self, key: str, text: str) -> None:
-        urdf = "<robot" in text[:2000]
-        name, media_type = (f"{key}.urdf", "application/xml") if urdf else (f"{key}.txt", "text/plain")
-        self.writer.add_attachment(name, text.encode(), media_type)
-
-    def close(self) -> None:
-        if self._subscriber is not None:
-            self._subscriber.undeclare()
-            self._subscriber = None
-        self.writer.close()
-        log.info(
-            "recorded %d message(s) on %d topic(s) to %s",
-            self.writer.message_count,
-            len(self.writer.counts),
-            self.writer.path,
-        )
-
-
-# ----------------------------------------------------------------------------------------------
-# Reading (with recovery of truncated files)
-# ----------------------------------------------------------------------------------------------
-@dataclass(frozen=True)
-class RecordedMessage:
-    """One stored message: its topic, handflow type, the stored bytes (``encoding`` cdr or json) and both times."""
-
-    topic: str
-    type_name: str
-    data: bytes
-    log_time_ns: int
-    publish_time_ns: int
-    sequence: int
-    encoding: str = MESSAGE_ENCODING
-
-    def decode(self) -> Message:
-        """The message, with header source (the topic's node) and seq (the MCAP sequence) for CDR records."""
-        if self.encoding == MESSAGE_ENCODING:
-            return decode(self.data)
-        parts = transport.split_key(self.topic)
-        return decode_cdr(self.data, self.type_name, parts[1] if parts else "", self.sequence)
-
-    def wire(self) -> tuple[bytes, bytes]:
-        """``(payload, attachment)`` to publish on the handflow wire (CDR records as stored)."""
-        if self.encoding == MESSAGE_ENCODING:
-            return wire.pack(self.decode())
-        parts = transport.split_key(self.topic)
-        return self.data, wire.attachment(self.type_name, parts[1] if parts else "", self.sequence)
-
-
-@dataclass
-class ReadReport:
-    """What a pass over a recording found; ``complete`` is False for a truncated/damaged file."""
-
-    path: Path
-    complete: bool = False
-    messages: int = 0
-    error: str = ""
-    metadata: dict[str, dict[str, str]] = field(default_factory=dict)
-    attachments: dict[str, Attachment] = field(default_factory=dict)
-    channels: dict[str, dict[str, str]] = field(default_factory=dict)  # topic → {"type", "schema", view info}
-
-    @property
-    def recovered(self) -> bool:
-        return not self.complete
-
-    def describe(self) -> str:
-        if self.complete:
-            return f"{self.path}: complete recording, {self.messages} message(s)"
-        return (
-            f"{self.path}: truncated or damaged recording ({self.error}); recovered {self.messages} message(s) "
-            f"from its complete chunks"
-        )
-
-
-def iter_recording(
-    path: str | Path,
-    topics: Iterable[str] | None = None,
-    *,
-    report: ReadReport | None = None,
-    include_views: bool = False,
-) -> Iterator[RecordedMessage]:
-    """Messages of a recording in file order; a truncated file yields every complete chunk.
-
-    ``topics``: :class:`TopicFilter` globs (None: all data topics).  Foxglove view channels are
-    skipped unless ``include_views``.  Pass a :class:`ReadReport` to learn whether the file was
-    complete and how many messages were read.  Chunk CRCs are checked, so a half-written chunk is
-    never yielded.
-    """
-    path = Path(path)
-    report = report if report is not None else ReadReport(path)
-    report.path = path
-    keep = TopicFilter(topics) if topics is not None else None
-    try:
-        f = open(path, "rb")
-    except OSError as exc:
-        raise RecordingError(f"cannot read recording {path}: {exc.strerror}") from exc
-    schemas: dict[int, Schema] = {}
-    channels: dict[int, tuple[Channel, bool, bool, str]] = {}  # id → (channel, is data, selected, handflow type)
-    with f:
-        records = StreamReader(f, validate_crcs=True).records
-        while True:
-            try:
-                rec = next(records)
-            except StopIteration:
-                break
-            except Exception as exc:
-                if isinstance(exc, InvalidMagic) and not schemas and not report.complete:
-                    raise RecordingError(
-                        f"{path} is not an MCAP file (bad magic bytes); pass a .mcap recording"
-                    ) from exc
-                report.error = _describe_read_error(exc, f)
-                log.warning("%s", report.describe())
-                return
-            if isinstance(rec, McapMessage):
-                ch = channels.get(rec.channel_id)
-                if ch is None or not ch[2]:
-                    continue
-                report.messages += 1
-                channel = ch[0]
-                yield RecordedMessage(
-                    channel.topic,
-                    ch[3],
-                    rec.data,
-                    rec.log_time,
-                    rec.publish_time,
-                    rec.sequence,
-                    channel.message_encoding,
-                )
-            elif isinstance(rec, Schema):
-                schemas[rec.id] = rec
-            elif isinstance(rec, Channel):
-                if rec.id in channels:
-                    continue
-                is_view = VIEW_KEY in rec.metadata
-                schema = schemas.get(rec.schema_id)
-                type_name = rec.metadata.get(TYPE_KEY) or _type_of_schema(schema)
-                is_data = not is_view and type_name in message_types() and rec.message_encoding in ENCODINGS
-                selected = (is_data or (is_view and include_views)) and (keep is None or keep(rec.topic))
-                channels[rec.id] = (rec, is_data, selected, type_name)
-                report.channels[rec.topic] = {
-                    "type": type_name,
-                    "schema": schema.name if schema else "",
-                    **({"view_of": rec.metadata[VIEW_KEY]} if is_view else {}),
-                }
-            elif isinstance(rec, Metadata):
-                report.metadata[rec.name] = dict(rec.metadata)
-            elif isinstance(rec, Attachment):
-                report.attachments[rec.name] = rec
-            elif isinstance(rec, Footer):
-                report.complete = True
-
-
-def _type_of_schema(schema: Schema | None) -> str:
-    """The handflow type of a channel without ``handflow.type`` metadata (e.g. written by ROS 2 tools)."""
-    if schema is None:
-        return ""
-    if schema.encoding != "ros2msg":
-        return schema.name
-    try:
-        return handflow_type(schema.name).TYPE
-    except MessageError:
-        return ""
-
-
-def _describe_read_error(exc: Exception, f: Any) -> str:
-    try:
-        where = f"byte {f.tell()} of {os.fstat(f.fileno()).st_size}"
-    except (OSError, ValueError):
-        where = "an unknown offset"
-    if isinstance(exc, (EndOfFile, struct.error)):
-        return f"the file ends inside a record at {where}"
-    return f"{type(exc).__name__}: {exc} at {where}"
-
-
-def read_messages(path: str | Path, topics: Iterable[str] | None = None) -> Iterator[tuple[str, Message, int]]:
-    """``(topic, message, log_time_ns)`` for every data message (truncated files: what was recovered)."""
-    for rm in iter_recording(path, topics):
-        yield rm.topic, rm.decode(), rm.log_time_ns
-
-
-def read_report(path: str | Path) -> ReadReport:
-    """Read a whole recording and return its :class:`ReadReport` (counts, metadata, attachments)."""
-    report = ReadReport(Path(path))
-    for _ in iter_recording(path, report=report):
-        pass
-    return report

@@ -21,8 +21,8 @@ except ImportError:
     foxglove = None
 
 from .. import wire
+from ..keys import PREFIX
 from ..messages import MessageError
-from ..network.sessions import PREFIX
 from ..ros2.types import ros_type, schema_text
 
 log = logging.getLogger("handflow.foxglove")

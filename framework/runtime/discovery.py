@@ -128,8 +128,8 @@ def join(
     """
     import zenoh
 
-    from ..graphs.model import ZenohSettings
     from ..network.sessions import open_client, open_node_session
+    from ..network.settings import ZenohSettings
 
     run = None if connect else find_run(graph)
     endpoint = connect or run.hub

@@ -20,7 +20,7 @@ import threading
 import time
 from dataclasses import dataclass, field
 
-from .. import wire
+from .. import keys, wire
 from ..graphs.model import Graph, RestartPolicy
 from ..messages import Header, MessageError, RuntimeEvent, Status
 from ..network import sessions as transport
@@ -101,10 +101,10 @@ class Launcher:
         )
         self.health: dict[str, Status] = {}
         self._health_sub = self.session.declare_subscriber(
-            transport.topic_key(graph.name, "*", "_health"), self._on_health
+            keys.topic_key(graph.name, "*", "_health"), self._on_health
         )
-        self._start_pub = self.session.declare_publisher(transport.start_key(graph.name))
-        self._event_pub = self.session.declare_publisher(transport.topic_key(graph.name, "_runtime", "events"))
+        self._start_pub = self.session.declare_publisher(keys.start_key(graph.name))
+        self._event_pub = self.session.declare_publisher(keys.topic_key(graph.name, "_runtime", "events"))
         self._event_seq = 0
         self.ros2 = Ros2Bridge(self.session, graph, host) if graph.spec.ros2 is not None else None
 
@@ -119,7 +119,7 @@ class Launcher:
         if self.graph.spec.zenoh.usrpwd is not None:
             from ..security import credentials
 
-            creds, self.user = credentials.graph_credentials(self.graph, host)
+            creds, self.user = credentials.graph_credentials(self.graph.spec.zenoh.usrpwd, self.graph.base_dir, host)
             dictionary = credentials.write_dictionary(creds, self._state_dir.name)
             secure["usrpwd"] = credentials.usrpwd_settings(creds, self.user, dictionary)
         return secure

@@ -9,10 +9,9 @@ from __future__ import annotations
 
 import logging
 
-from .. import wire
+from .. import keys, wire
 from ..graphs.model import Graph
 from ..messages import MessageError
-from ..network import sessions as transport
 from ..ros2.rmw_zenoh import RosNode, RosPublisher
 from ..ros2.types import ros_type, type_hash
 
@@ -38,7 +37,7 @@ class Ros2Bridge:
             pub = self.node.publisher(topic, ros, type_hash(ros), settings.depth)
             self.publishers[source] = pub
             node_id, _, port = source.partition("/")
-            key = transport.topic_key(graph.name, node_id, port)
+            key = keys.topic_key(graph.name, node_id, port)
             self._subs.append(session.declare_subscriber(key, lambda sample, pub=pub: _forward(sample, pub)))
             log.info("ROS 2: %s → %s (%s) on %s", source, topic, ros, pub.key)
 

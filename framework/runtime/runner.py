@@ -37,7 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import wire
+from .. import keys, wire
 from ..graphs.model import Graph, ResolvedNode, load_graph
 from ..messages import Header, Message, MessageError, Status
 from ..network import sessions as transport
@@ -86,7 +86,7 @@ class NodeContext:
         self._outputs = rn.cls.output_types(rn.params)
         self._state = state
         self._pubs = {
-            port: runtime.session.declare_publisher(transport.topic_key(self.graph_name, self.node_id, port))
+            port: runtime.session.declare_publisher(keys.topic_key(self.graph_name, self.node_id, port))
             for port in self._outputs
         }
         self.published = dict.fromkeys(self._outputs, 0)
@@ -136,7 +136,7 @@ class _NodeSlot:
         self.handled = dict.fromkeys(rn.spec.inputs, 0)
         self.gaps = dict.fromkeys(rn.spec.inputs, 0)
         topics = {
-            port: transport.topic_key(rt.graph.name, *source.partition("/")[::2])
+            port: keys.topic_key(rt.graph.name, *source.partition("/")[::2])
             for port, source in rn.spec.inputs.items()
         }
         self.drops = DropLedger(self.id, topics, self.ctx.log)
@@ -192,12 +192,12 @@ class GroupRuntime:
         self.slots = [_NodeSlot(self, graph.nodes[nid], state_dir) for nid in node_ids]
         self._subs = []
         self._health_pubs = {
-            s.id: self.session.declare_publisher(transport.topic_key(graph.name, s.id, "_health")) for s in self.slots
+            s.id: self.session.declare_publisher(keys.topic_key(graph.name, s.id, "_health")) for s in self.slots
         }
-        self._events_pub = self.session.declare_publisher(transport.events_key(graph.name))
+        self._events_pub = self.session.declare_publisher(keys.events_key(graph.name))
         self._progress_pubs = (
             {
-                s.id: self.session.declare_publisher(transport.topic_key(graph.name, s.id, "_progress"))
+                s.id: self.session.declare_publisher(keys.topic_key(graph.name, s.id, "_progress"))
                 for s in self.slots
             }
             if lockstep
@@ -214,7 +214,7 @@ class GroupRuntime:
         for slot in self.slots:
             for port, source in slot.rn.spec.inputs.items():
                 node, _, out = source.partition("/")
-                key = transport.topic_key(g, node, out)
+                key = keys.topic_key(g, node, out)
                 self._subs.append(
                     self.session.declare_subscriber(
                         key, lambda sample, s=slot, p=port: self._on_sample(s, p, *wire.sample_parts(sample))
@@ -223,11 +223,11 @@ class GroupRuntime:
         if self.lockstep:
             self._subs.append(
                 self.session.declare_subscriber(
-                    transport.clock_key(g), lambda sample: self.inbox.put(sample.payload.to_bytes())
+                    keys.clock_key(g), lambda sample: self.inbox.put(sample.payload.to_bytes())
                 )
             )
         else:
-            self._subs.append(self.session.declare_subscriber(transport.start_key(g), lambda _: self.started.set()))
+            self._subs.append(self.session.declare_subscriber(keys.start_key(g), lambda _: self.started.set()))
 
     def _await_start(self) -> None:
         """Report ready (heartbeats) until the launcher's start signal: no source ticks before every node listens."""

@@ -14,7 +14,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..graphs.model import Graph
-from ..network.sessions import PREFIX, events_key, topic_key
+from ..keys import PREFIX, events_key, topic_key
 from .certs import check_host_files
 
 ALL_MESSAGES = [

@@ -1,7 +1,7 @@
 """Record demonstrations to MCAP: the thesis pipeline with a scripted operator (docs/manipulation.md).
 
 Recordings use :class:`handflow.framework.files.mcap_writer.McapWriter` (JSON-schema channels, ``encode``d payloads,
-``log_time`` = simulated time in ns from the start of the recording), so ``handflow.framework.files.mcap_writer.
+``log_time`` = simulated time in ns from the start of the recording), so ``handflow.framework.files.mcap_reader.
 read_messages`` reads them back.  Everything is seeded: the same arguments give the same file.
 
 Cap turning (``record_cap``) — topics (graph name ``demo_cap``):

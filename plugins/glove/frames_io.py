@@ -10,7 +10,8 @@ from pathlib import Path
 
 import numpy as np
 
-from handflow.framework.files.mcap_writer import McapWriter, RecordingError, read_messages
+from handflow.framework.files.mcap_reader import read_messages
+from handflow.framework.files.mcap_writer import McapWriter, RecordingError
 from handflow.framework.messages import GloveFrame
 from handflow.plugins.hands.sensors import N_SENSORS
 

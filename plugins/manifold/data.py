@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from handflow.framework.files.mcap_writer import read_messages
+from handflow.framework.files.mcap_reader import read_messages
 from handflow.framework.files.npz import read_npz
 
 from .validation import InvalidInputError, check_array

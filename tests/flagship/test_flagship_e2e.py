@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import yaml
 
-from handflow.framework.files.mcap_writer import read_messages
+from handflow.framework.files.mcap_reader import read_messages
 from handflow.plugins.demo.gestures import GestureScript
 from tests.conftest import REPO, handflow
 

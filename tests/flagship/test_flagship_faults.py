@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from handflow.framework.files.mcap_writer import read_messages, read_report
+from handflow.framework.files.mcap_reader import read_messages, read_report
 from handflow.framework.messages import RuntimeEvent
 from tests.conftest import REPO
 

@@ -10,7 +10,7 @@ import time
 import pytest
 import yaml
 
-from handflow.framework.files.mcap_writer import read_messages
+from handflow.framework.files.mcap_reader import read_messages
 from handflow.framework.messages import RuntimeEvent
 from handflow.framework.runtime.discovery import join, live_runs
 from tests.conftest import REPO

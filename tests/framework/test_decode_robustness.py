@@ -15,7 +15,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from handflow.framework.files.mcap_writer import iter_recording
+from handflow.framework.files.mcap_reader import iter_recording
 from handflow.framework.messages import GloveFrame, Message, MessageError, decode, encode, message_types
 from handflow.framework.testkit.fuzzing import EXTREMES, OPS, Mutation, malformed_payloads, mutate, sample_messages
 from handflow.recordings import __file__ as _recordings_init

@@ -14,7 +14,8 @@ import sys
 
 import pytest
 
-from handflow.framework.files.mcap_writer import McapWriter, RecordingError, read_report
+from handflow.framework.files.mcap_reader import read_report
+from handflow.framework.files.mcap_writer import McapWriter, RecordingError
 from handflow.framework.messages import Array, Header
 from tests.framework._rec_helpers import chain, unique
 

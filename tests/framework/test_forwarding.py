@@ -9,10 +9,11 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from handflow.framework import wire
-from handflow.framework.graphs.model import ZenohSettings, load_graph
+from handflow.framework import keys, wire
+from handflow.framework.graphs.model import load_graph
 from handflow.framework.messages import Header, JointState, Status
 from handflow.framework.network import sessions as transport
+from handflow.framework.network.settings import ZenohSettings
 from handflow.framework.recorder.replay import wait_matching
 from handflow.framework.ros2.types import encode_cdr, restamped_cdr
 from handflow.framework.runtime import forwarding
@@ -130,7 +131,7 @@ def test_the_runtime_forwards_the_received_body_and_encodes_edited_messages(tmp_
         got.append(wire.sample_parts(sample)[0])
         arrived.set()
 
-    sub = hub.declare_subscriber(transport.topic_key(name, "sel", "out"), on)
+    sub = hub.declare_subscriber(keys.topic_key(name, "sel", "out"), on)
     rt.slots[0].node.setup()
     try:
         assert wait_matching([rt.slots[0].ctx._pubs["out"]], 10)

@@ -9,9 +9,9 @@ import time
 import numpy as np
 import pytest
 
-from handflow.framework.graphs.model import ZenohSettings
 from handflow.framework.messages import Array, Header, RuntimeEvent, Status, encode
 from handflow.framework.network import sessions as transport
+from handflow.framework.network.settings import ZenohSettings
 from handflow.framework.observe.monitor import Monitor, summarize
 from handflow.framework.recorder.replay import wait_matching
 from tests.framework._rec_helpers import chain, handflow, start, unique, wait_until

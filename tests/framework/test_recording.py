@@ -18,20 +18,12 @@ import pytest
 from mcap.reader import make_reader
 
 from handflow.framework.commands import inspect as inspect_cmd
-from handflow.framework.files.mcap_writer import (
-    FOXGLOVE_IMAGE_SUFFIX,
-    GraphRecorder,
-    McapWriter,
-    ReadReport,
-    RecordingError,
-    TopicFilter,
-    iter_recording,
-    peek_header,
-    read_messages,
-    read_report,
-)
+from handflow.framework.files.mcap_reader import ReadReport, iter_recording, read_messages, read_report
+from handflow.framework.files.mcap_writer import FOXGLOVE_IMAGE_SUFFIX, McapWriter, RecordingError, TopicFilter
 from handflow.framework.graphs.model import load_graph
 from handflow.framework.messages import Array, Header, Image, Label
+from handflow.framework.recorder.graph_recorder import GraphRecorder
+from handflow.framework.wire import peek_header
 
 TOPIC = "handflow/g/src/out"
 

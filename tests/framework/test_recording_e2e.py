@@ -10,7 +10,7 @@ import time
 
 import pytest
 
-from handflow.framework.files.mcap_writer import read_messages, read_report
+from handflow.framework.files.mcap_reader import read_messages, read_report
 from handflow.framework.runtime.discovery import live_runs
 from tests.framework._rec_helpers import chain, handflow, start, unique, wait_until
 

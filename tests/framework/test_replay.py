@@ -135,7 +135,7 @@ nodes:
 
 
 def _recorded_values(recording):
-    from handflow.framework.files.mcap_writer import read_messages
+    from handflow.framework.files.mcap_reader import read_messages
 
     return [m for t, m, _ in read_messages(recording, ["source/out"])]
 
@@ -180,7 +180,7 @@ def test_lockstep_replay_is_identical_whatever_the_load(tmp_path, recording):
     assert stamps == [T0 + k * 20_000_000 for k in range(1, 30)]
     assert [m["header"]["stamp_ns"] for m in quiet["scaled"]] == [T0 + i * 10_000_000 for i in range(N)]
     # --record kept the replayed graph's outputs: the same messages the sink wrote
-    from handflow.framework.files.mcap_writer import read_messages
+    from handflow.framework.files.mcap_reader import read_messages
 
     recorded_scaled = [m.to_dict() for t, m, _ in read_messages(tmp_path / "replayed.mcap") if t.endswith("/scale/out")]
     assert recorded_scaled == quiet["scaled"]

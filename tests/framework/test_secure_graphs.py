@@ -18,7 +18,8 @@ pytest.importorskip("cryptography")
 
 import zenoh
 
-from handflow.framework.files.mcap_writer import McapWriter, iter_recording
+from handflow.framework.files.mcap_reader import iter_recording
+from handflow.framework.files.mcap_writer import McapWriter
 from handflow.framework.graphs.model import load_graph, validate_file
 from handflow.framework.messages import Array, Header
 from handflow.framework.network.sessions import free_tcp_port

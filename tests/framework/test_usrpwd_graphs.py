@@ -16,7 +16,7 @@ import zenoh
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from handflow.framework.files.mcap_writer import iter_recording
+from handflow.framework.files.mcap_reader import iter_recording
 from handflow.framework.graphs.model import validate_file
 from handflow.framework.runtime.discovery import DiscoveryError, join, live_runs, write_run_file
 from handflow.framework.security.credentials import CredentialsError, parse_credentials, read_credentials

@@ -23,7 +23,19 @@ NODE_DRIVERS = {
 }
 RUNTIME = tuple(
     f"handflow.framework.{part}"
-    for part in ("graphs", "network", "runtime", "recorder", "observe", "security", "testkit", "commands", "cli", "plugin", "registry")
+    for part in (
+        "graphs",
+        "network",
+        "runtime",
+        "recorder",
+        "observe",
+        "security",
+        "testkit",
+        "commands",
+        "cli",
+        "plugin",
+        "registry",
+    )
 )
 
 _CHECK = """

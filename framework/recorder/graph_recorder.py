@@ -162,5 +162,3 @@ class GraphRecorder:
             len(self.writer.counts),
             self.writer.path,
         )
-
-

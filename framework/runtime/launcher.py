@@ -100,9 +100,7 @@ class Launcher:
             graph.name, self.hub_endpoint, graph.path, lockstep, usrpwd=self.user is not None
         )
         self.health: dict[str, Status] = {}
-        self._health_sub = self.session.declare_subscriber(
-            keys.topic_key(graph.name, "*", "_health"), self._on_health
-        )
+        self._health_sub = self.session.declare_subscriber(keys.topic_key(graph.name, "*", "_health"), self._on_health)
         self._start_pub = self.session.declare_publisher(keys.start_key(graph.name))
         self._event_pub = self.session.declare_publisher(keys.topic_key(graph.name, "_runtime", "events"))
         self._event_seq = 0

@@ -136,8 +136,7 @@ class _NodeSlot:
         self.handled = dict.fromkeys(rn.spec.inputs, 0)
         self.gaps = dict.fromkeys(rn.spec.inputs, 0)
         topics = {
-            port: keys.topic_key(rt.graph.name, *source.partition("/")[::2])
-            for port, source in rn.spec.inputs.items()
+            port: keys.topic_key(rt.graph.name, *source.partition("/")[::2]) for port, source in rn.spec.inputs.items()
         }
         self.drops = DropLedger(self.id, topics, self.ctx.log)
         rate = self.node.tick_rate_hz()
@@ -196,10 +195,7 @@ class GroupRuntime:
         }
         self._events_pub = self.session.declare_publisher(keys.events_key(graph.name))
         self._progress_pubs = (
-            {
-                s.id: self.session.declare_publisher(keys.topic_key(graph.name, s.id, "_progress"))
-                for s in self.slots
-            }
+            {s.id: self.session.declare_publisher(keys.topic_key(graph.name, s.id, "_progress")) for s in self.slots}
             if lockstep
             else {}
         )

@@ -127,10 +127,10 @@ class _NodeSlot:
     def __init__(self, rt: GroupRuntime, rn: ResolvedNode, state_dir: Path | None) -> None:
         self.rn = rn
         self.id = rn.spec.id
-        keys = [f"out:{p}" for p in sorted(rn.cls.output_types(rn.params))] + [
+        slot_keys = [f"out:{p}" for p in sorted(rn.cls.output_types(rn.params))] + [
             f"in:{p}" for p in sorted(rn.spec.inputs)
         ]
-        self.state = SeqState(state_dir / f"{self.id}.seq" if state_dir else None, keys)
+        self.state = SeqState(state_dir / f"{self.id}.seq" if state_dir else None, slot_keys)
         self.ctx = NodeContext(rt, rn, self.state)
         self.node: Node = rn.cls(rn.params, self.ctx)
         self.handled = dict.fromkeys(rn.spec.inputs, 0)

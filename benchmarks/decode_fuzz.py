@@ -1,6 +1,6 @@
 """Decoding robustness at scale: 100 000 malformed payloads through ``messages.decode`` (docs/robustness.md).
 
-Payloads are mutated copies (:mod:`handflow.framework.fuzzing`: numbers set to extremes, arrays
+Payloads are mutated copies (:mod:`handflow.framework.testkit.fuzzing`: numbers set to extremes, arrays
 emptied or repeated, bytes flipped or cut) of one sample of every message type and of messages of
 the shipped recordings.  Every payload must decode to a message that passes ``check()`` and
 re-encodes, or raise ``MessageError``; anything else is counted as *escaped* (goal: 0).  Cost per
@@ -18,9 +18,9 @@ import statistics
 import time
 from pathlib import Path
 
-from handflow.framework.fuzzing import malformed_payloads, sample_messages
+from handflow.framework.files.mcap_reader import iter_recording
 from handflow.framework.messages import MessageError, decode, encode
-from handflow.framework.recording import iter_recording
+from handflow.framework.testkit.fuzzing import malformed_payloads, sample_messages
 
 RECORDINGS = Path(__file__).resolve().parents[1] / "recordings"
 BATCH = 1000

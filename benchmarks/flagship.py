@@ -36,7 +36,7 @@ REPO = Path(__file__).resolve().parents[1]
 def _labels_seen(rec: Path) -> bool:
     import logging
 
-    from handflow.framework.recording import iter_recording
+    from handflow.framework.files.mcap_reader import iter_recording
 
     logging.getLogger("handflow.recording").setLevel(logging.ERROR)  # the file is still being written
     try:
@@ -77,7 +77,7 @@ def run_graph(graph: str, seconds: float, rec: Path, handflow: list[str], cwd: P
 def latencies(rec: Path, t0_ns: int, settle_s: float = 3.0) -> dict:
     """First-label time, and latencies of the messages stamped ``settle_s`` after the first label
     (the start-up backlog of the glove reader is not steady-state latency)."""
-    from handflow.framework.recording import iter_recording
+    from handflow.framework.files.mcap_reader import iter_recording
 
     messages = [("/".join(rm.topic.split("/")[2:]), rm.log_time_ns, rm.publish_time_ns) for rm in iter_recording(rec)]
     first_label = next((log for port, log, _ in messages if port == "segmenter/labels"), None)

@@ -18,7 +18,7 @@ import time
 
 import numpy as np
 
-from handflow.framework.testing import NodeHarness
+from handflow.framework.testkit.harness import NodeHarness
 from handflow.plugins.glove import protocol as P
 from handflow.plugins.glove.emulator import GloveEmulator, constant_source
 from handflow.plugins.glove.node import CyberGloveNode

@@ -22,7 +22,7 @@ import time
 import numpy as np
 
 from handflow.framework.messages import Points2D
-from handflow.framework.testing import NodeHarness
+from handflow.framework.testkit.harness import NodeHarness
 from handflow.plugins.manipulation.cli import CONFIGS_MODELS, TRAIN_CONFIGS, ensure_manifold
 from handflow.plugins.manipulation.nodes import ClosedLoopNode
 from handflow.plugins.manipulation.training import load_config, train_manifold

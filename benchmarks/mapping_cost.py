@@ -17,7 +17,7 @@ import time
 import numpy as np
 
 from handflow.framework.messages import GloveFrame
-from handflow.framework.testing import NodeHarness
+from handflow.framework.testkit.harness import NodeHarness
 from handflow.plugins.glove.synthetic import SyntheticGlove
 from handflow.plugins.mapping.nodes import HumanHandMappingNode, ShadowHandMappingNode
 from handflow.plugins.mapping.robot import ShadowHandMapping

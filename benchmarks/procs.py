@@ -54,4 +54,4 @@ def unit_name(pid: int) -> str:
         return str(pid)
     if "--nodes" in argv:
         return argv[argv.index("--nodes") + 1]
-    return "zygote" if "handflow.framework.zygote" in argv else "launcher"
+    return "zygote" if "handflow.framework.runtime.zygote" in argv else "launcher"

@@ -28,8 +28,9 @@ import numpy as np
 from mcap.reader import make_reader
 from mcap.writer import CompressionType, Writer
 
+from handflow.framework.files.mcap_reader import iter_recording
+from handflow.framework.files.mcap_writer import McapWriter
 from handflow.framework.messages import Array, Header, encode
-from handflow.framework.recording import McapWriter, iter_recording
 
 REPO = Path(__file__).resolve().parents[1]
 TOPIC = "handflow/bench/source/out"

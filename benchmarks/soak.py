@@ -62,7 +62,7 @@ def run(duration: float, window: float, sample: float, graph: str, workdir: Path
 
 
 def analyse(rss: dict, recording: Path, summary: dict, window: float) -> dict:
-    from handflow.framework.recording import iter_recording
+    from handflow.framework.files.mcap_reader import iter_recording
 
     seqs: dict[str, list[int]] = defaultdict(list)
     labels: list[tuple[int, int]] = []  # (log time, stamp)

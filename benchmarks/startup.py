@@ -21,7 +21,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from handflow.framework.recording import iter_recording
+from handflow.framework.files.mcap_reader import iter_recording
 
 
 def first_message_s(graph: str, duration: float, fork: bool = True) -> tuple[float, int]:

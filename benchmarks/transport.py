@@ -59,9 +59,10 @@ def _image(seq: int):
 # bare zenoh roles (run as subprocesses of this script)
 # ------------------------------------------------------------------------------------------------
 def _role(args: argparse.Namespace) -> None:
-    from handflow.framework import transport, wire
-    from handflow.framework.graph import ZenohSettings
+    from handflow.framework import wire
     from handflow.framework.messages import Array, Header, JointState
+    from handflow.framework.network import sessions as transport
+    from handflow.framework.network.settings import ZenohSettings
 
     settings = ZenohSettings()
     session = transport.open_node_session(settings, args.hub)
@@ -119,8 +120,8 @@ def _role(args: argparse.Namespace) -> None:
 
 def run_raw(rate: float, seconds: float, hops: int, payload: str = "joints", mode: str = "handflow") -> dict:
     """Bare-Zenoh processes; ``mode`` 'handflow' encodes/decodes every message, 'raw' only moves bytes."""
-    from handflow.framework import transport
-    from handflow.framework.graph import ZenohSettings
+    from handflow.framework.network import sessions as transport
+    from handflow.framework.network.settings import ZenohSettings
 
     hub_ep = transport.hub_endpoint_for()
     hub = transport.open_hub(ZenohSettings(), hub_ep)
@@ -249,7 +250,7 @@ def recording_rate(frames: int = 300, repeats: int = 3) -> dict:
     from mcap.writer import CompressionType, Writer
 
     from handflow.framework import wire
-    from handflow.framework.recording import McapWriter
+    from handflow.framework.files.mcap_writer import McapWriter
 
     payloads = [wire.pack(_image(i))[0] for i in range(8)]
     total_mb = frames * len(payloads[0]) / 1e6

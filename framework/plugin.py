@@ -26,8 +26,8 @@ from typing import Any, ClassVar, Protocol
 
 from pydantic import BaseModel
 
+from .files.params import StrictModel
 from .messages import Message
-from .params import StrictModel
 
 
 class NoParams(StrictModel):
@@ -35,7 +35,7 @@ class NoParams(StrictModel):
 
 
 class Context(Protocol):
-    """What the runtime gives a node (see ``handflow.framework.runner.NodeContext`` for the implementation)."""
+    """What the runtime gives a node (see ``handflow.framework.runtime.runner.NodeContext`` for the implementation)."""
 
     node_id: str
     graph_name: str
@@ -62,13 +62,13 @@ class Node:
     """Base class of all plugins.
 
     Class attributes to set in a subclass:
-    - ``Params``: the ``params:`` block, a :class:`~handflow.framework.params.StrictModel` subclass
+    - ``Params``: the ``params:`` block, a :class:`~handflow.framework.files.params.StrictModel` subclass
       (unknown keys rejected; choices as ``Literal``);
     - ``inputs`` / ``outputs``: port name → message type;
     - ``description``: one line shown by ``handflow plugins`` (defaults to the docstring's first line);
     - ``requires``: modules beyond the core → the extra that installs them, e.g. ``{"mne_lsl": "lsl"}``
       (checked by ``handflow validate``; files and devices the params name are declared with
-      :class:`~handflow.framework.inputs.InputPath`, docs/pipelines.md).
+      :class:`~handflow.framework.files.inputs.InputPath`, docs/pipelines.md).
     A node with a ``tick`` override is ticked at ``tick_rate_hz()`` (default: ``params.rate_hz``).
     """
 

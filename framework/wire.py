@@ -74,7 +74,7 @@ def pack(msg: Message) -> tuple[bytes, bytes]:
 
 def repack(msg: Message, body: bytes) -> tuple[bytes, bytes] | None:
     """:func:`pack` of a message that is unchanged since it was decoded from the CDR ``body``: the body
-    again with the header's stamp (:mod:`handflow.framework.forwarding`); ``None`` when the type's
+    again with the header's stamp (:mod:`handflow.framework.runtime.forwarding`); ``None`` when the type's
     body holds more of the header than the stamp."""
     h = msg.header
     payload = restamped_cdr(body, msg.TYPE, h.stamp_ns)

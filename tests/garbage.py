@@ -10,9 +10,16 @@ import numpy as np
 from hypothesis import strategies as st
 
 from handflow.framework import wire
-from handflow.framework.fuzzing import BYTE_OPS, Mutation, malformed_payloads, mutate, random_mutations, sample_messages
 from handflow.framework.messages import encode
-from handflow.framework.monitor import Monitor
+from handflow.framework.observe.monitor import Monitor
+from handflow.framework.testkit.fuzzing import (
+    BYTE_OPS,
+    Mutation,
+    malformed_payloads,
+    mutate,
+    random_mutations,
+    sample_messages,
+)
 
 # the original killer: a glove frame whose sensors are all 1e308
 HUGE_GLOVE = (

@@ -51,7 +51,7 @@ def test_every_parameter_and_config_model_derives_the_one_strict_base():
 
     import handflow.framework
     import handflow.plugins
-    from handflow.framework.params import StrictModel
+    from handflow.framework.files.params import StrictModel
 
     loose = []
     for package in (handflow.framework, handflow.plugins):

@@ -1,7 +1,7 @@
 """Every ``.npz`` file a node or command loads — UKR models and class models, manipulation
 manifolds, grasp SOMs and grasp datasets, recognition datasets and training data — loads, or is
 refused with a ``ValueError`` that names the file, whatever was done to it: truncated, bytes
-changed, metadata or arrays garbled (handflow.framework.npz_files, docs/robustness.md).  Scorer
+changed, metadata or arrays garbled (handflow.framework.files.npz, docs/robustness.md).  Scorer
 files have their own tests."""
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from handflow.framework.npz_files import NpzFileError, building, npz_metadata, read_npz
+from handflow.framework.files.npz import NpzFileError, building, npz_metadata, read_npz
 from handflow.plugins.grasp.experience import ExperienceBase, GraspDataset
 from handflow.plugins.grasp.som import load_som
 from handflow.plugins.manifold.data import load_npz

@@ -40,6 +40,6 @@ def test_the_wheel_runs_the_demo_validate_plugins_and_a_train_outside_the_checko
     assert "valid graph 'demo'" in _run([*handflow, "validate", "demo"], work)
     _run([*handflow, "run", "demo", "--duration", "3", "--record", "demo.mcap"], work, timeout=240)
     assert (work / "demo.mcap").stat().st_size > 0
-    config = _run([python, "-c", "from handflow.framework.resources import shipped; print(shipped('train', 'toy_cylinder.yaml'))"], work).strip()  # fmt: skip
+    config = _run([python, "-c", "from handflow.framework.files.resources import shipped; print(shipped('train', 'toy_cylinder.yaml'))"], work).strip()  # fmt: skip
     _run([*handflow, "train", config, "--out", "toy.npz", "--steps", "5", "--quiet"], work)
     assert (work / "toy.npz").is_file() and not list(work.rglob("*.yaml"))

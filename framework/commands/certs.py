@@ -23,7 +23,7 @@ def register_add_host(parser: argparse.ArgumentParser) -> None:
 
 
 def _init(args: argparse.Namespace) -> int:
-    from ..certs import CertError, init_ca
+    from ..security.certs import CertError, init_ca
 
     try:
         path = init_ca(args.directory, args.days)
@@ -35,7 +35,7 @@ def _init(args: argparse.Namespace) -> int:
 
 
 def _add_host(args: argparse.Namespace) -> int:
-    from ..certs import CertError, add_host
+    from ..security.certs import CertError, add_host
 
     try:
         path = add_host(args.directory, args.name, args.days)

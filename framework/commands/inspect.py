@@ -7,7 +7,8 @@ import json
 import sys
 from typing import Any
 
-from ..recording import ReadReport, RecordingError, iter_recording
+from ..files.mcap_reader import ReadReport, iter_recording
+from ..files.mcap_writer import RecordingError
 
 
 def register(parser: argparse.ArgumentParser) -> None:

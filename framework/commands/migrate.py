@@ -5,8 +5,9 @@ from __future__ import annotations
 import argparse
 import sys
 
+from ..files.mcap_reader import ReadReport, iter_recording
+from ..files.mcap_writer import McapWriter, RecordingError
 from ..messages import MessageError
-from ..recording import McapWriter, ReadReport, RecordingError, iter_recording
 
 
 def register(parser: argparse.ArgumentParser) -> None:

@@ -7,9 +7,9 @@ import json
 import sys
 import time
 
-from ..discovery import DiscoveryError, add_auth_arguments, join_graphs
-from ..foxglove_bridge import BridgeError, start_bridge
-from ..monitor import WINDOW_S, Monitor, render
+from ..observe.foxglove_bridge import BridgeError, start_bridge
+from ..observe.monitor import WINDOW_S, Monitor, render
+from ..runtime.discovery import DiscoveryError, add_auth_arguments, join_graphs
 
 
 def register(parser: argparse.ArgumentParser) -> None:

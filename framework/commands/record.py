@@ -8,9 +8,10 @@ import sys
 import threading
 from pathlib import Path
 
-from ..discovery import DiscoveryError, add_auth_arguments, join_graphs
-from ..graph import GraphError, load_graph
-from ..recording import GraphRecorder, McapWriter, RecordingError
+from ..files.mcap_writer import McapWriter, RecordingError
+from ..graphs.model import GraphError, load_graph
+from ..recorder.graph_recorder import GraphRecorder
+from ..runtime.discovery import DiscoveryError, add_auth_arguments, join_graphs
 
 
 def register(parser: argparse.ArgumentParser) -> None:

@@ -9,12 +9,12 @@ import sys
 import threading
 from pathlib import Path
 
-from .. import transport
-from ..discovery import DiscoveryError, add_auth_arguments, join
-from ..graph import Graph, GraphError, load_graph
-from ..launcher import Launcher
-from ..recording import GraphRecorder, ReadReport, RecordingError, iter_recording
-from ..replay import (
+from .. import keys
+from ..files.mcap_reader import ReadReport, iter_recording
+from ..files.mcap_writer import RecordingError
+from ..graphs.model import Graph, GraphError, load_graph
+from ..recorder.graph_recorder import GraphRecorder
+from ..recorder.replay import (
     GraphWatcher,
     LockstepReplayer,
     ReplayError,
@@ -23,6 +23,8 @@ from ..replay import (
     TimedReplayer,
     external_inputs,
 )
+from ..runtime.discovery import DiscoveryError, add_auth_arguments, join
+from ..runtime.launcher import Launcher
 
 log = logging.getLogger("handflow.replay")
 
@@ -67,7 +69,7 @@ def _recorded_graph(path: str) -> str | None:
         meta = report.metadata.get("handflow.graph", {})
         if meta.get("name"):
             return meta["name"]
-        parts = transport.split_key(rm.topic)
+        parts = keys.split_key(rm.topic)
         return parts[0] if parts else None
     return report.metadata.get("handflow.graph", {}).get("name")
 
@@ -186,7 +188,7 @@ def _replay_into(args: argparse.Namespace, recorded: str | None, stop: threading
             work = lambda: replayer.run(plan)  # noqa: E731
         else:
             timed = TimedReplayer(launcher.session, plan, speed=args.speed, loop=args.loop, stop=stop)
-            timed.pubs.prepare([transport.topic_key(graph.name, *s.split("/", 1)) for s in sources], args.ready_timeout)
+            timed.pubs.prepare([keys.topic_key(graph.name, *s.split("/", 1)) for s in sources], args.ready_timeout)
             work = timed.run
         thread = threading.Thread(target=_capture, args=(work, result), name="replay", daemon=True)
         thread.start()
@@ -224,7 +226,7 @@ def _capture(work, result: dict[str, object]) -> None:
 
 def _drain(graph: Graph, watcher: GraphWatcher, stats: ReplayStats, poll) -> None:
     """Timed replay: wait (bounded) until the heartbeats show every replayed message handled downstream."""
-    sent = {f"{p[1]}/{p[2]}": n for k, n in stats.published.items() if (p := transport.split_key(k))}
+    sent = {f"{p[1]}/{p[2]}": n for k, n in stats.published.items() if (p := keys.split_key(k))}
 
     def drained() -> bool:
         for nid, rn in graph.nodes.items():

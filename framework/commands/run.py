@@ -6,12 +6,12 @@ import argparse
 import json
 import sys
 
-from ..foxglove_bridge import BridgeError, start_bridge
-from ..graph import FoxgloveSettings, GraphError, load_graph
-from ..launcher import run_graph
-from ..status import StatusLine
-from ..transport import EndpointInUse
-from ..zygote import start_unless_disabled
+from ..graphs.model import FoxgloveSettings, GraphError, load_graph
+from ..network.sessions import EndpointInUse
+from ..observe.foxglove_bridge import BridgeError, start_bridge
+from ..runtime.launcher import run_graph
+from ..runtime.status import StatusLine
+from ..runtime.zygote import start_unless_disabled
 
 
 def register(parser: argparse.ArgumentParser) -> None:
@@ -66,7 +66,7 @@ def run(args: argparse.Namespace) -> int:
         if fox is not None:
             bridge = start_bridge(launcher.session, graph.name, fox.host, fox.port)
         if record_path:
-            from ..recording import GraphRecorder
+            from ..recorder.graph_recorder import GraphRecorder
 
             recorder = GraphRecorder.for_graph(graph, record_path)  # outputs are relative to the current directory
             recorder.attach(launcher.session)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from ..graph import validate_file
+from ..graphs.model import validate_file
 
 
 def register(parser: argparse.ArgumentParser) -> None:

@@ -7,8 +7,8 @@ from typing import Literal
 import cv2
 from pydantic import Field
 
+from handflow.framework.files.params import StrictModel
 from handflow.framework.messages import CompressedImage, Image, MessageError
-from handflow.framework.params import StrictModel
 from handflow.framework.plugin import Node
 
 _TO_BGR = {"rgb8": cv2.COLOR_RGB2BGR, "rgba8": cv2.COLOR_RGBA2BGR, "bgra8": cv2.COLOR_BGRA2BGR}

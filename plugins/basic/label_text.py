@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from pydantic import Field
 
+from handflow.framework.files.params import StrictModel
 from handflow.framework.messages import Label, Markers
-from handflow.framework.params import StrictModel
 from handflow.framework.plugin import Node
 
 

@@ -12,8 +12,8 @@ from typing import Literal
 
 from pydantic import Field
 
+from handflow.framework.files.params import StrictModel
 from handflow.framework.messages import JointState
-from handflow.framework.params import StrictModel
 from handflow.framework.plugin import Node
 
 INPUTS = ("primary", "secondary")

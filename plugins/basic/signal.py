@@ -8,9 +8,9 @@ from typing import Annotated, Literal
 import numpy as np
 from pydantic import Field
 
-from handflow.framework.inputs import InputPath
+from handflow.framework.files.inputs import InputPath
+from handflow.framework.files.params import StrictModel
 from handflow.framework.messages import Array, JointState, Message
-from handflow.framework.params import StrictModel
 from handflow.framework.plugin import Node
 
 

@@ -7,8 +7,8 @@ import time
 
 from pydantic import Field
 
+from handflow.framework.files.params import StrictModel
 from handflow.framework.messages import Message
-from handflow.framework.params import StrictModel
 from handflow.framework.plugin import Node
 
 

@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
+from handflow.framework.files.params import StrictModel
 from handflow.framework.messages import Array
-from handflow.framework.params import StrictModel
 from handflow.framework.plugin import Node
 
 

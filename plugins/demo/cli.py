@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from handflow.framework.recording import RecordingError
+from handflow.framework.files.mcap_writer import RecordingError
 
 from .demonstrations import CAP_RADII, record_balls, record_cap
 

@@ -1,7 +1,7 @@
 """Record demonstrations to MCAP: the thesis pipeline with a scripted operator (docs/manipulation.md).
 
-Recordings use :class:`handflow.framework.recording.McapWriter` (JSON-schema channels, ``encode``d payloads,
-``log_time`` = simulated time in ns from the start of the recording), so ``handflow.framework.recording.
+Recordings use :class:`handflow.framework.files.mcap_writer.McapWriter` (JSON-schema channels, ``encode``d payloads,
+``log_time`` = simulated time in ns from the start of the recording), so ``handflow.framework.files.mcap_reader.
 read_messages`` reads them back.  Everything is seeded: the same arguments give the same file.
 
 Cap turning (``record_cap``) — topics (graph name ``demo_cap``):
@@ -34,8 +34,8 @@ from pathlib import Path
 
 import numpy as np
 
+from handflow.framework.files.mcap_writer import McapWriter
 from handflow.framework.messages import Array, JointState, Points2D
-from handflow.framework.recording import McapWriter
 from handflow.plugins.hands.joints import GIFU, SHADOW
 from handflow.plugins.simulator.metrics import count_swaps
 from handflow.plugins.simulator.simulation import Simulation

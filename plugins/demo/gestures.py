@@ -44,8 +44,9 @@ from pathlib import Path
 
 import numpy as np
 
+from handflow.framework.files.mcap_reader import read_messages
+from handflow.framework.files.mcap_writer import McapWriter, RecordingError
 from handflow.framework.messages import GloveFrame, JointState, SegmentEvent
-from handflow.framework.recording import McapWriter, RecordingError, read_messages
 from handflow.plugins.glove.synthetic import SyntheticGlove
 from handflow.plugins.hands.joints import DEG, HUMAN, SHADOW
 from handflow.plugins.mapping.robot import ShadowHandMapping

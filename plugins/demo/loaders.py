@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from handflow.framework.recording import read_messages
+from handflow.framework.files.mcap_reader import read_messages
 
 
 def _by_suffix(path, suffixes: tuple[str, ...]) -> dict[str, list[tuple[int, object]]]:

@@ -1,6 +1,6 @@
 """Raw glove frames from and to files: ``.npy``, ``.csv`` (n × 22 integers) or MCAP recordings.
 
-MCAP files are read and written with :mod:`handflow.framework.recording` (GloveFrame messages, JSON), so a
+MCAP files are read and written with :mod:`handflow.framework.files.mcap_writer` (GloveFrame messages, JSON), so a
 recording made by the runtime, by ``handflow calibrate`` or by :func:`save_frames` all work.
 """
 
@@ -10,8 +10,9 @@ from pathlib import Path
 
 import numpy as np
 
+from handflow.framework.files.mcap_reader import read_messages
+from handflow.framework.files.mcap_writer import McapWriter, RecordingError
 from handflow.framework.messages import GloveFrame
-from handflow.framework.recording import McapWriter, RecordingError, read_messages
 from handflow.plugins.hands.sensors import N_SENSORS
 
 DEFAULT_TOPIC = "handflow/glove/glove/frames"

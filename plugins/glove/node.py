@@ -19,9 +19,9 @@ from typing import Annotated, Literal
 
 from pydantic import Field
 
-from handflow.framework.inputs import InputFile, InputPath
+from handflow.framework.files.inputs import InputFile, InputPath
+from handflow.framework.files.params import StrictModel
 from handflow.framework.messages import GloveFrame, Status
-from handflow.framework.params import StrictModel
 from handflow.framework.plugin import Node
 
 from .emulator import Fault, GloveEmulator, array_source

@@ -25,7 +25,7 @@ from collections.abc import Callable
 import serial
 from pydantic import Field
 
-from handflow.framework.params import StrictModel
+from handflow.framework.files.params import StrictModel
 from handflow.plugins.hands.sensors import N_SENSORS
 
 from . import protocol as P

@@ -10,7 +10,7 @@ from pathlib import Path
 
 from threadpoolctl import threadpool_limits
 
-from handflow.framework.resources import shipped
+from handflow.framework.files.resources import shipped
 
 from .evaluation import evaluate_grasping
 from .experience import GraspDataset

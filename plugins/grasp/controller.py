@@ -46,7 +46,7 @@ from typing import Literal, get_args
 import numpy as np
 from pydantic import ConfigDict, Field
 
-from handflow.framework.params import StrictModel
+from handflow.framework.files.params import StrictModel
 
 from .experience import ExperienceBase
 from .hand_layout import Finger, HandLayout

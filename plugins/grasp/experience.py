@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from handflow.framework.npz_files import NpzFileError, building, npz_metadata, read_npz
+from handflow.framework.files.npz import NpzFileError, building, npz_metadata, read_npz
 
 from .pcp import best_match_index, pcp_distances
 from .som import SOM, load_som
@@ -166,7 +166,7 @@ class GraspDataset:
     @classmethod
     def load(cls, path) -> GraspDataset:
         """Read a dataset written by :meth:`save`; a bad file raises
-        :class:`~handflow.framework.npz_files.NpzFileError` (a ``ValueError``) naming it."""
+        :class:`~handflow.framework.files.npz.NpzFileError` (a ``ValueError``) naming it."""
         what, hint = "grasp dataset", "regenerate it with `handflow grasp-experience` (docs/grasping.md)"
         arrays = read_npz(path, what, hint)
         meta = npz_metadata(arrays, path, what, hint, fmt=(DATASET_FORMAT, DATASET_VERSION, "format_version"))

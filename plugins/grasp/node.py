@@ -16,7 +16,7 @@ from typing import Annotated, Literal
 import numpy as np
 from pydantic import Field
 
-from handflow.framework.inputs import InputPath
+from handflow.framework.files.inputs import InputPath
 from handflow.framework.messages import Contacts, JointState, Label, MessageError, Status
 from handflow.framework.plugin import Node
 from handflow.plugins.hands.joints import HAND_MODELS

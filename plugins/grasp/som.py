@@ -31,7 +31,7 @@ import numpy as np
 from sklearn.base import BaseEstimator
 from sklearn.utils.validation import check_is_fitted
 
-from handflow.framework.npz_files import NpzFileError, building, npz_metadata, read_npz
+from handflow.framework.files.npz import NpzFileError, building, npz_metadata, read_npz
 
 from .pcp import check_mask
 
@@ -327,7 +327,7 @@ def save_som(som: SOM, path, metadata: dict | None = None) -> None:
 
 def load_som(path) -> tuple[SOM, dict]:
     """Read a SOM file written by :func:`save_som` → (fitted SOM, metadata dict); a bad file raises
-    :class:`~handflow.framework.npz_files.NpzFileError` (a ``ValueError``) naming it."""
+    :class:`~handflow.framework.files.npz.NpzFileError` (a ``ValueError``) naming it."""
     what, hint = "grasp SOM", "train it again with `handflow grasp-som` (docs/grasping.md)"
     arrays = read_npz(path, what, hint)
     meta = npz_metadata(arrays, path, what, hint, fmt=(FORMAT, FORMAT_VERSION, "format_version"))

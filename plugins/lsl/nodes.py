@@ -15,8 +15,8 @@ from typing import Any
 import numpy as np
 from pydantic import Field, model_validator
 
+from handflow.framework.files.params import StrictModel
 from handflow.framework.messages import Array, MessageError
-from handflow.framework.params import StrictModel
 from handflow.framework.plugin import Node
 
 from .clock import lsl_to_stamps, stamp_to_lsl, wall_minus_lsl_ns

@@ -10,8 +10,8 @@ from pathlib import Path
 
 import numpy as np
 
-from handflow.framework.npz_files import read_npz
-from handflow.framework.recording import read_messages
+from handflow.framework.files.mcap_reader import read_messages
+from handflow.framework.files.npz import read_npz
 
 from .validation import InvalidInputError, check_array
 

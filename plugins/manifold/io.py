@@ -14,7 +14,7 @@ from importlib import metadata as _md
 
 import numpy as np
 
-from handflow.framework.npz_files import NpzFileError, building, npz_metadata, read_npz
+from handflow.framework.files.npz import NpzFileError, building, npz_metadata, read_npz
 
 FORMAT = "handflow.structured_ukr"
 FORMAT_VERSION = 1
@@ -84,7 +84,7 @@ def load_model(cls, path):
 
     The loaded estimator's ``init`` is its stored latents (refitting continues from them).  Any
     bad file — missing, unreadable, foreign, another version, garbled — raises
-    :class:`~handflow.framework.npz_files.NpzFileError` (a ``ValueError``) naming it.
+    :class:`~handflow.framework.files.npz.NpzFileError` (a ``ValueError``) naming it.
     """
     what, hint = "Structured UKR model", RETRAIN
     arrays = read_npz(path, what, hint)

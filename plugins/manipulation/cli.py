@@ -15,7 +15,7 @@ import json
 import sys
 from pathlib import Path
 
-from handflow.framework.resources import shipped
+from handflow.framework.files.resources import shipped
 from handflow.plugins.manifold.validation import InvalidInputError
 
 from .evaluation import EvalPlan, evaluate

@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from handflow.framework.messages import Points2D
-from handflow.framework.testing import NodeHarness
+from handflow.framework.testkit.harness import NodeHarness
 from handflow.plugins.simulator.metrics import swap_progress, swaps_per_minute
 from handflow.plugins.simulator.simulation import Simulation
 from handflow.plugins.tracker.blobs import BallTracker, normalise_points

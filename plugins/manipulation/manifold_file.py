@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from handflow.framework.npz_files import building
+from handflow.framework.files.npz import building
 from handflow.plugins.hands.joints import HAND_MODELS
 from handflow.plugins.manifold.model import StructuredUKR
 from handflow.plugins.manifold.validation import InvalidInputError, parse_latent

@@ -17,10 +17,10 @@ from typing import Annotated, Literal, Optional
 
 from pydantic import Field
 
-from handflow.framework.inputs import InputPath
+from handflow.framework.files.inputs import InputPath
+from handflow.framework.files.npz import format_check
+from handflow.framework.files.params import StrictModel
 from handflow.framework.messages import Contacts, JointState, LatentState, Points2D
-from handflow.framework.npz_files import format_check
-from handflow.framework.params import StrictModel
 from handflow.framework.plugin import Node
 from handflow.plugins.manifold.io import FORMAT, FORMAT_VERSION
 

@@ -28,9 +28,15 @@ import numpy as np
 from pydantic import Field
 from scipy.stats import spearmanr
 
-from handflow.framework.params import StrictModel
-from handflow.framework.yaml_files import YamlFileError, load_model
-from handflow.plugins.manifold.cli import ModelConfig, TrainingConfig, _Progress, build_model, check_train_args
+from handflow.framework.files.params import StrictModel
+from handflow.framework.files.yaml import YamlFileError, load_model
+from handflow.plugins.manifold.config import (
+    ModelConfig,
+    TrainingConfig,
+    TrainingProgress,
+    build_model,
+    check_train_args,
+)
 from handflow.plugins.manifold.construction import ManifoldConstruction
 from handflow.plugins.manifold.model import StructuredUKR
 from handflow.plugins.manifold.validation import InvalidInputError
@@ -153,7 +159,7 @@ def run_manipulation_training(args: argparse.Namespace) -> int:
             if args.steps is not None
             else (cfg.construction.n_steps if cfg.mode == "construction" else cfg.training.n_steps)
         )
-        with _Progress(steps, args.quiet) as progress:
+        with TrainingProgress(steps, args.quiet) as progress:
             cb = progress if cfg.mode == "learning" else (lambda r, n, step, value: progress(step, value))
             manifold, info = train_manifold(cfg, args.steps, cb)
         manifold.save(

@@ -20,9 +20,9 @@ import numpy as np
 import yaml
 from pydantic import BaseModel, Field, ValidationError, field_validator, model_validator
 
-from handflow.framework.params import StrictModel
-from handflow.framework.resources import shipped
-from handflow.framework.yaml_files import YamlFileError, load_model
+from handflow.framework.files.params import StrictModel
+from handflow.framework.files.resources import shipped
+from handflow.framework.files.yaml import YamlFileError, load_model
 from handflow.plugins.hands.sensors import N_SENSORS, SENSOR_NAMES, sensor_index
 
 from .parallelogram import fit_intercepts, robust_extremes

@@ -17,9 +17,9 @@ from typing import Literal
 
 import numpy as np
 
-from handflow.framework.inputs import InputFile
+from handflow.framework.files.inputs import InputFile
+from handflow.framework.files.params import StrictModel
 from handflow.framework.messages import GloveFrame, JointState, MessageError
-from handflow.framework.params import StrictModel
 from handflow.framework.plugin import Node
 from handflow.plugins.hands.joints import HUMAN
 from handflow.plugins.hands.sensors import N_SENSORS

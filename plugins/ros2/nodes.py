@@ -15,9 +15,9 @@ from typing import Literal
 import zenoh
 from pydantic import BaseModel, Field, field_validator
 
-from handflow.framework.inputs import InputFile
+from handflow.framework.files.inputs import InputFile
+from handflow.framework.files.params import StrictModel
 from handflow.framework.messages import Array, Message, MessageError
-from handflow.framework.params import StrictModel
 from handflow.framework.plugin import Node
 from handflow.framework.ros2.rmw_zenoh import DEFAULT_DEPTH, RosNode, check_name
 from handflow.framework.ros2.type_hash import full_name

@@ -20,8 +20,8 @@ from typing import Any, Literal
 
 from pydantic import Field
 
+from handflow.framework.files.params import StrictModel
 from handflow.framework.messages import Array, Contacts, Image, JointState, Markers, MessageError, Text, Transforms
-from handflow.framework.params import StrictModel
 from handflow.framework.plugin import Node
 
 from .simulation import Simulation

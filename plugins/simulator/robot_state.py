@@ -13,8 +13,8 @@ from __future__ import annotations
 from pydantic import Field
 from scipy.spatial.transform import Rotation
 
+from handflow.framework.files.params import StrictModel
 from handflow.framework.messages import JointState, MessageError, Text, Transforms
-from handflow.framework.params import StrictModel
 from handflow.framework.plugin import Node
 
 from .hand_geometry import build_skeleton

@@ -9,8 +9,8 @@ from __future__ import annotations
 
 from pydantic import Field
 
+from handflow.framework.files.params import StrictModel
 from handflow.framework.messages import Image, MessageError, Points2D
-from handflow.framework.params import StrictModel
 from handflow.framework.plugin import Node
 
 from .blobs import BALL_HSV, MARK_A_HSV, MARK_B_HSV, BallTracker, HSVRange

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from handflow.framework.messages import Array, JointState
-from handflow.framework.testing import NodeHarness
+from handflow.framework.testkit.harness import NodeHarness
 from handflow.plugins.basic.signal import SignalSource
 
 

@@ -5,8 +5,8 @@ from __future__ import annotations
 import json
 
 from handflow.framework.messages import Label
-from handflow.framework.runner import SeqState
-from handflow.framework.testing import NodeHarness
+from handflow.framework.runtime.runner import SeqState
+from handflow.framework.testkit.harness import NodeHarness
 from handflow.plugins.basic.sink import Sink
 
 

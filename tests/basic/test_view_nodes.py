@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 
 from handflow.framework.messages import Image, Label, MessageError
 from handflow.framework.ros2.types import decode_cdr, encode_cdr
-from handflow.framework.testing import NodeHarness
+from handflow.framework.testkit.harness import NodeHarness
 from handflow.plugins.basic.compress_image import CompressImage, compress
 from handflow.plugins.basic.label_text import LabelText
 

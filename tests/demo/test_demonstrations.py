@@ -6,7 +6,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from handflow.framework.recording import read_messages, read_report
+from handflow.framework.files.mcap_reader import read_messages, read_report
 from handflow.plugins.demo import load_ball_demonstrations, load_cap_demonstrations
 from handflow.plugins.demo.cap_turning import CapTurningDemonstrator
 from handflow.plugins.demo.cli import register_demo_record

@@ -39,9 +39,9 @@ from pathlib import Path
 import pytest
 import yaml
 
-from handflow.framework.discovery import live_runs
-from handflow.framework.graph import load_graph
-from handflow.framework.recording import iter_recording
+from handflow.framework.files.mcap_reader import iter_recording
+from handflow.framework.graphs.model import load_graph
+from handflow.framework.runtime.discovery import live_runs
 
 REPO = Path(__file__).resolve().parents[2]
 TESTED_ELSEWHERE = {"recording.md", "monitoring.md"}  # tests/framework/test_recording_docs.py

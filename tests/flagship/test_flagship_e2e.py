@@ -10,7 +10,7 @@ import pytest
 import yaml
 
 from handflow.framework.commands.inspect import summarize
-from handflow.framework.recording import read_messages
+from handflow.framework.files.mcap_reader import read_messages
 from handflow.plugins.demo.gestures import GestureScript
 from tests.conftest import REPO, handflow
 

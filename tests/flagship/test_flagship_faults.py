@@ -12,8 +12,8 @@ from pathlib import Path
 
 import pytest
 
+from handflow.framework.files.mcap_reader import read_messages, read_report
 from handflow.framework.messages import RuntimeEvent
-from handflow.framework.recording import read_messages, read_report
 from tests.conftest import REPO
 
 pytestmark = pytest.mark.slow

@@ -10,9 +10,9 @@ import time
 import pytest
 import yaml
 
-from handflow.framework.discovery import join, live_runs
+from handflow.framework.files.mcap_reader import read_messages
 from handflow.framework.messages import RuntimeEvent
-from handflow.framework.recording import read_messages
+from handflow.framework.runtime.discovery import join, live_runs
 from tests.conftest import REPO
 from tests.garbage import GarbagePeer
 

@@ -143,8 +143,8 @@ def test_regeneration_path_on_a_reduced_scale(tmp_path):
 
 
 def test_dataset_from_a_recording_without_segments_says_how_to_record(tmp_path, capsys):
+    from handflow.framework.files.mcap_writer import McapWriter
     from handflow.framework.messages import Array
-    from handflow.framework.recording import McapWriter
 
     path = tmp_path / "other.mcap"
     with McapWriter(path, flush_interval_s=None) as w:

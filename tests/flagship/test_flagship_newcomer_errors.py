@@ -10,7 +10,7 @@ import sys
 
 import pytest
 
-from handflow.framework.testing import NodeHarness
+from handflow.framework.testkit.harness import NodeHarness
 from handflow.plugins.glove.node import CyberGloveNode, serial_ports
 from handflow.plugins.segmenter.candidates import ModelsMissingError
 from handflow.plugins.segmenter.nodes import OnlineCLMNode

@@ -6,7 +6,7 @@ import pytest
 from pydantic import ValidationError
 
 from handflow.framework.messages import JointState
-from handflow.framework.testing import NodeHarness
+from handflow.framework.testkit.harness import NodeHarness
 from handflow.plugins.basic.select import Select
 
 

@@ -17,7 +17,7 @@ import yaml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from handflow.framework.graph import read_graph_text, validate_file
+from handflow.framework.graphs.model import read_graph_text, validate_file
 from handflow.plugins.manifold.cli import load_config
 from handflow.plugins.manifold.validation import InvalidInputError
 from handflow.plugins.mapping.calibration import CalibrationFileError, load_calibration, load_profile

@@ -15,9 +15,9 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from handflow.framework.fuzzing import EXTREMES, OPS, Mutation, malformed_payloads, mutate, sample_messages
+from handflow.framework.files.mcap_reader import iter_recording
 from handflow.framework.messages import GloveFrame, Message, MessageError, decode, encode, message_types
-from handflow.framework.recording import iter_recording
+from handflow.framework.testkit.fuzzing import EXTREMES, OPS, Mutation, malformed_payloads, mutate, sample_messages
 from handflow.recordings import __file__ as _recordings_init
 
 SAMPLES = {type(m).TYPE: encode(m) for m in sample_messages()}

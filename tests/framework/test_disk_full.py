@@ -14,8 +14,9 @@ import sys
 
 import pytest
 
+from handflow.framework.files.mcap_reader import read_report
+from handflow.framework.files.mcap_writer import McapWriter, RecordingError
 from handflow.framework.messages import Array, Header
-from handflow.framework.recording import McapWriter, RecordingError, read_report
 from tests.framework._rec_helpers import chain, unique
 
 LIMIT = 16_000  # bytes: the header, metadata and a few seconds of the chain
@@ -30,7 +31,7 @@ _WRITER = """
 import sys
 import numpy as np
 from handflow.framework.messages import Array, Header
-from handflow.framework.recording import McapWriter, RecordingError
+from handflow.framework.files.mcap_writer import McapWriter, RecordingError
 w = McapWriter(sys.argv[1], chunk_size=2048, flush_interval_s=None)
 rng = np.random.default_rng(0)
 try:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import logging
 
-from handflow.framework.drops import DropLedger
+from handflow.framework.runtime.drops import DropLedger
 
 
 def test_counts_rate_limits_the_log_and_reports_each_drop_once(caplog):
@@ -31,7 +31,7 @@ def test_counts_rate_limits_the_log_and_reports_each_drop_once(caplog):
 
 def test_the_next_log_line_says_how_many_were_not_logged(caplog, monkeypatch):
     clock = [100.0]
-    monkeypatch.setattr("handflow.framework.drops.time.monotonic", lambda: clock[0])
+    monkeypatch.setattr("handflow.framework.runtime.drops.time.monotonic", lambda: clock[0])
     ledger = DropLedger("n", {"in": "handflow/g/a/b"}, logging.getLogger("handflow.node.n"), log_interval_s=5)
     with caplog.at_level(logging.WARNING, logger="handflow.node.n"):
         for reason in ("first", "second", "third"):

@@ -1,4 +1,4 @@
-"""Forwarding a received message unchanged re-sends its CDR body (framework/forwarding.py, docs/ros2.md)."""
+"""Forwarding a received message unchanged re-sends its CDR body (framework/runtime/forwarding.py, docs/ros2.md)."""
 
 from __future__ import annotations
 
@@ -9,13 +9,16 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from handflow.framework import forwarding, transport, wire
-from handflow.framework.fuzzing import sample_messages
-from handflow.framework.graph import ZenohSettings, load_graph
+from handflow.framework import keys, wire
+from handflow.framework.graphs.model import load_graph
 from handflow.framework.messages import Header, JointState, Status
-from handflow.framework.replay import wait_matching
+from handflow.framework.network import sessions as transport
+from handflow.framework.network.settings import ZenohSettings
+from handflow.framework.recorder.replay import wait_matching
 from handflow.framework.ros2.types import encode_cdr, restamped_cdr
-from handflow.framework.runner import GroupRuntime
+from handflow.framework.runtime import forwarding
+from handflow.framework.runtime.runner import GroupRuntime
+from handflow.framework.testkit.fuzzing import sample_messages
 from tests.framework._rec_helpers import unique, write_graph
 
 STAMP = 1_700_000_000_123_456_789
@@ -128,7 +131,7 @@ def test_the_runtime_forwards_the_received_body_and_encodes_edited_messages(tmp_
         got.append(wire.sample_parts(sample)[0])
         arrived.set()
 
-    sub = hub.declare_subscriber(transport.topic_key(name, "sel", "out"), on)
+    sub = hub.declare_subscriber(keys.topic_key(name, "sel", "out"), on)
     rt.slots[0].node.setup()
     try:
         assert wait_matching([rt.slots[0].ctx._pubs["out"]], 10)

@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 from websockets.sync.client import connect
 
-from handflow.framework.transport import free_tcp_port
+from handflow.framework.network.sessions import free_tcp_port
 
 pytestmark = pytest.mark.slow
 REPO = Path(__file__).resolve().parents[2]
@@ -137,7 +137,7 @@ def test_monitor_foxglove_joins_a_running_graph(tmp_path):
 
 
 def test_without_the_foxglove_extra_the_live_view_says_what_to_install(monkeypatch):
-    from handflow.framework import foxglove_bridge
+    from handflow.framework.observe import foxglove_bridge
 
     monkeypatch.setattr(foxglove_bridge, "foxglove", None)
     with pytest.raises(foxglove_bridge.BridgeError, match=r"pip install 'handflow\[foxglove\]'"):

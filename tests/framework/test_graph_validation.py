@@ -6,7 +6,7 @@ import textwrap
 
 import pytest
 
-from handflow.framework.graph import GraphError, load_graph, validate_file
+from handflow.framework.graphs.model import GraphError, load_graph, validate_file
 
 GOOD = """\
 name: chain

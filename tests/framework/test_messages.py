@@ -24,7 +24,7 @@ from handflow.framework.messages import (
     json_schema,
     message_types,
 )
-from handflow.framework.testing import NodeHarness
+from handflow.framework.testkit.harness import NodeHarness
 from handflow.plugins.basic.transform import GainOffset
 
 SAMPLES = [

@@ -9,11 +9,11 @@ import time
 import numpy as np
 import pytest
 
-from handflow.framework import transport
-from handflow.framework.graph import ZenohSettings
 from handflow.framework.messages import Array, Header, RuntimeEvent, Status, encode
-from handflow.framework.monitor import Monitor, summarize
-from handflow.framework.replay import wait_matching
+from handflow.framework.network import sessions as transport
+from handflow.framework.network.settings import ZenohSettings
+from handflow.framework.observe.monitor import Monitor, summarize
+from handflow.framework.recorder.replay import wait_matching
 from tests.framework._rec_helpers import chain, handflow, start, unique, wait_until
 
 
@@ -113,7 +113,7 @@ def test_monitor_once_json_on_a_running_graph(tmp_path):
     graph = chain(tmp_path / "g.yaml", name, rate=50)
     proc = start("run", str(graph))
     try:
-        from handflow.framework.discovery import live_runs
+        from handflow.framework.runtime.discovery import live_runs
 
         wait_until(lambda: any(r.graph == name for r in live_runs()), what="the run-file")
         time.sleep(1.0)  # nodes up and publishing

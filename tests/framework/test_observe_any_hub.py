@@ -3,7 +3,7 @@
 Two real launchers (hosts ``a`` and ``b`` of docs/examples/two_machines_*.yaml, on free ports) speak
 mutual TLS; B reaches A through a TCP relay that counts the bytes on the A–B link, so the test sees
 what crosses it with and without a reader.  Readers are real ``handflow monitor``/``record``
-processes or real Zenoh sessions with the ``laptop`` certificate made by :mod:`handflow.framework.certs`.
+processes or real Zenoh sessions with the ``laptop`` certificate made by :mod:`handflow.framework.security.certs`.
 """
 
 from __future__ import annotations
@@ -19,11 +19,11 @@ import pytest
 
 pytest.importorskip("cryptography")
 
-from handflow.framework import certs
-from handflow.framework.discovery import join_graphs, live_runs
-from handflow.framework.monitor import Monitor
-from handflow.framework.recording import iter_recording
-from handflow.framework.transport import free_tcp_port
+from handflow.framework.files.mcap_reader import iter_recording
+from handflow.framework.network.sessions import free_tcp_port
+from handflow.framework.observe.monitor import Monitor
+from handflow.framework.runtime.discovery import join_graphs, live_runs
+from handflow.framework.security import certs
 
 from .test_runtime_e2e import start
 

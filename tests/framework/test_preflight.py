@@ -176,9 +176,9 @@ def test_the_declarations_of_docs_pipelines_md_are_checked_for_a_user_plugin(tmp
     doc = (REPO / "docs" / "pipelines.md").read_text()
     code = re.search(r"### Inputs.*?```python\n(.*?)```", doc, re.S).group(1)
     ns: dict = {}
-    src = "from handflow.framework.params import StrictModel\nfrom handflow.framework.plugin import Node\n" + code
+    src = "from handflow.framework.files.params import StrictModel\nfrom handflow.framework.plugin import Node\n" + code
     exec(compile(src, "docs/pipelines.md", "exec", dont_inherit=True), ns)  # without this module's __future__
-    from handflow.framework.inputs import node_input_problems
+    from handflow.framework.files.inputs import node_input_problems
 
     params = ns["Params"](table="t.csv", models="m", weights="w.npz", port="/dev/handflow-no-such-sensor")
     assert [loc for loc, _ in node_input_problems(ns["MyNode"], params, tmp_path)] == [

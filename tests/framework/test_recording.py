@@ -18,20 +18,12 @@ import pytest
 from mcap.reader import make_reader
 
 from handflow.framework.commands import inspect as inspect_cmd
-from handflow.framework.graph import load_graph
+from handflow.framework.files.mcap_reader import ReadReport, iter_recording, read_messages, read_report
+from handflow.framework.files.mcap_writer import FOXGLOVE_IMAGE_SUFFIX, McapWriter, RecordingError, TopicFilter
+from handflow.framework.graphs.model import load_graph
 from handflow.framework.messages import Array, Header, Image, Label
-from handflow.framework.recording import (
-    FOXGLOVE_IMAGE_SUFFIX,
-    GraphRecorder,
-    McapWriter,
-    ReadReport,
-    RecordingError,
-    TopicFilter,
-    iter_recording,
-    peek_header,
-    read_messages,
-    read_report,
-)
+from handflow.framework.recorder.graph_recorder import GraphRecorder
+from handflow.framework.wire import peek_header
 
 TOPIC = "handflow/g/src/out"
 
@@ -236,7 +228,7 @@ def test_writer_is_thread_safe(tmp_path):
 _KILLED_WRITER = """
 import sys, time, numpy as np
 from handflow.framework.messages import Array, Header
-from handflow.framework.recording import McapWriter
+from handflow.framework.files.mcap_writer import McapWriter
 w = McapWriter(sys.argv[1], chunk_size=1 << 20, flush_interval_s=0.1)
 i = 0
 while True:

@@ -14,7 +14,7 @@ import sys
 import pytest
 import yaml
 
-from handflow.framework.discovery import live_runs
+from handflow.framework.runtime.discovery import live_runs
 from tests.framework._rec_helpers import REPO, wait_until
 
 pytestmark = pytest.mark.slow

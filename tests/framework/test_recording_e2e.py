@@ -10,8 +10,8 @@ import time
 
 import pytest
 
-from handflow.framework.discovery import live_runs
-from handflow.framework.recording import read_messages, read_report
+from handflow.framework.files.mcap_reader import read_messages, read_report
+from handflow.framework.runtime.discovery import live_runs
 from tests.framework._rec_helpers import chain, handflow, start, unique, wait_until
 
 pytestmark = pytest.mark.slow

@@ -8,7 +8,7 @@ import re
 import pytest
 from mcap.reader import make_reader
 
-from handflow.framework.recording import read_messages
+from handflow.framework.files.mcap_reader import read_messages
 from tests.framework._rec_helpers import REPO, chain, handflow, read_jsonl, unique, write_graph
 
 PAGE = (REPO / "docs" / "recording.md").read_text()

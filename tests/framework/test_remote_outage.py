@@ -16,7 +16,7 @@ import time
 
 import pytest
 
-from handflow.framework.transport import free_tcp_port
+from handflow.framework.network.sessions import free_tcp_port
 from tests.framework.test_runtime_e2e import REPO, chain_graph, read_sink, start
 
 pytestmark = pytest.mark.slow

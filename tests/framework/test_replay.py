@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 
 from handflow.framework.commands import replay as replay_cmd
-from handflow.framework.graph import load_graph
+from handflow.framework.files.mcap_writer import McapWriter
+from handflow.framework.graphs.model import load_graph
 from handflow.framework.messages import Array, Header
-from handflow.framework.recording import McapWriter
-from handflow.framework.replay import external_inputs, remap_key
+from handflow.framework.recorder.replay import external_inputs, remap_key
 from tests.framework._rec_helpers import handflow, read_jsonl, unique, write_graph
 
 T0 = 1_700_000_000_000_000_000
@@ -135,7 +135,7 @@ nodes:
 
 
 def _recorded_values(recording):
-    from handflow.framework.recording import read_messages
+    from handflow.framework.files.mcap_reader import read_messages
 
     return [m for t, m, _ in read_messages(recording, ["source/out"])]
 
@@ -180,7 +180,7 @@ def test_lockstep_replay_is_identical_whatever_the_load(tmp_path, recording):
     assert stamps == [T0 + k * 20_000_000 for k in range(1, 30)]
     assert [m["header"]["stamp_ns"] for m in quiet["scaled"]] == [T0 + i * 10_000_000 for i in range(N)]
     # --record kept the replayed graph's outputs: the same messages the sink wrote
-    from handflow.framework.recording import read_messages
+    from handflow.framework.files.mcap_reader import read_messages
 
     recorded_scaled = [m.to_dict() for t, m, _ in read_messages(tmp_path / "replayed.mcap") if t.endswith("/scale/out")]
     assert recorded_scaled == quiet["scaled"]

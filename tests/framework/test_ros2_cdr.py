@@ -7,10 +7,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from handflow.framework.fuzzing import BYTE_OPS, Mutation, mutate, sample_messages
 from handflow.framework.messages import Image, JointState, Markers, Message, MessageError, Status, Text, Transforms
 from handflow.framework.ros2 import cdr
 from handflow.framework.ros2.types import decode_cdr, encode_cdr, own_msgs, ros_type, schema_text
+from handflow.framework.testkit.fuzzing import BYTE_OPS, Mutation, mutate, sample_messages
 
 typesys = pytest.importorskip("rosbags.typesys")
 

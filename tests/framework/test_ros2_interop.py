@@ -14,13 +14,13 @@ from hypothesis import strategies as st
 
 from handflow.framework import wire
 from handflow.framework.cli import main
-from handflow.framework.graph import read_graph_text
+from handflow.framework.graphs.model import read_graph_text
 from handflow.framework.messages import Array, Header, JointState, MessageError
+from handflow.framework.network.sessions import free_tcp_port
 from handflow.framework.ros2 import rmw_zenoh as rz
-from handflow.framework.ros2.bridge import Ros2Bridge
 from handflow.framework.ros2.type_hash import full_name, rihs01
 from handflow.framework.ros2.types import STANDARD_MSGS, own_msgs, type_hash
-from handflow.framework.transport import free_tcp_port
+from handflow.framework.runtime.ros2_bridge import Ros2Bridge
 
 typesys = pytest.importorskip("rosbags.typesys")
 

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from handflow.framework.transport import free_tcp_port
+from handflow.framework.network.sessions import free_tcp_port
 
 pytestmark = pytest.mark.slow
 REPO = Path(__file__).resolve().parents[2]

@@ -18,13 +18,14 @@ pytest.importorskip("cryptography")
 
 import zenoh
 
-from handflow.framework import certs
-from handflow.framework.access import access_control
-from handflow.framework.discovery import join, live_runs
-from handflow.framework.graph import load_graph, validate_file
+from handflow.framework.files.mcap_reader import iter_recording
+from handflow.framework.files.mcap_writer import McapWriter
+from handflow.framework.graphs.model import load_graph, validate_file
 from handflow.framework.messages import Array, Header
-from handflow.framework.recording import McapWriter, iter_recording
-from handflow.framework.transport import free_tcp_port
+from handflow.framework.network.sessions import free_tcp_port
+from handflow.framework.runtime.discovery import join, live_runs
+from handflow.framework.security import certs
+from handflow.framework.security.access import access_control
 
 from .test_runtime_e2e import chain_graph, read_sink, start
 

@@ -5,10 +5,12 @@ from __future__ import annotations
 import logging
 import time
 
-from handflow.framework import transport, wire
-from handflow.framework.graph import StatusSpec, ZenohSettings
+from handflow.framework import keys, wire
+from handflow.framework.graphs.model import StatusSpec
 from handflow.framework.messages import Label
-from handflow.framework.status import StatusLine
+from handflow.framework.network import sessions as transport
+from handflow.framework.network.settings import ZenohSettings
+from handflow.framework.runtime.status import StatusLine
 
 
 def _shown(caplog) -> list[str]:
@@ -42,7 +44,7 @@ def test_labels_published_on_zenoh_reach_the_status_line(caplog):
     try:
         with caplog.at_level(logging.INFO, logger="handflow.status"):
             line.attach(hub)
-            pub = peer.declare_publisher(transport.topic_key("g", "seg", "labels"))
+            pub = peer.declare_publisher(keys.topic_key("g", "seg", "labels"))
             deadline = time.monotonic() + 10
             while not _shown(caplog) and time.monotonic() < deadline:  # until the subscription is matched
                 _put(pub, "unknown")

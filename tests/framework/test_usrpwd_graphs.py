@@ -16,10 +16,10 @@ import zenoh
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from handflow.framework.credentials import CredentialsError, parse_credentials, read_credentials
-from handflow.framework.discovery import DiscoveryError, join, live_runs, write_run_file
-from handflow.framework.graph import validate_file
-from handflow.framework.recording import iter_recording
+from handflow.framework.files.mcap_reader import iter_recording
+from handflow.framework.graphs.model import validate_file
+from handflow.framework.runtime.discovery import DiscoveryError, join, live_runs, write_run_file
+from handflow.framework.security.credentials import CredentialsError, parse_credentials, read_credentials
 
 from .test_runtime_e2e import chain_graph, read_sink, start
 
@@ -222,8 +222,8 @@ def test_a_usrpwd_graph_runs_records_and_admits_only_tools_with_the_right_passwo
 @pytest.mark.slow
 def test_over_tls_a_tool_needs_both_its_certificate_and_its_password(tmp_path, monkeypatch):
     pytest.importorskip("cryptography")
-    from handflow.framework import certs
-    from handflow.framework.transport import free_tcp_port
+    from handflow.framework.network.sessions import free_tcp_port
+    from handflow.framework.security import certs
 
     monkeypatch.setenv("HANDFLOW_RUN_DIR", str(tmp_path / "runs"))
     ca = tmp_path / "certs"
@@ -266,7 +266,7 @@ def test_over_tls_a_tool_needs_both_its_certificate_and_its_password(tmp_path, m
 
 @pytest.mark.slow
 def test_two_graphs_log_in_to_each_other_and_a_wrong_password_joins_nothing(tmp_path, monkeypatch):
-    from handflow.framework.transport import free_tcp_port
+    from handflow.framework.network.sessions import free_tcp_port
 
     monkeypatch.setenv("HANDFLOW_RUN_DIR", str(tmp_path / "runs"))
     endpoint = f"tcp/127.0.0.1:{free_tcp_port()}"

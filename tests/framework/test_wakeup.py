@@ -1,4 +1,4 @@
-"""The runtime's wake-up queue returns in time when a signal handler runs across its deadline (framework/wakeup.py)."""
+"""The runtime's wake-up queue returns in time when a signal handler runs across its deadline (framework/runtime/wakeup.py)."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import sys
 
 PROBE = """
 import queue, signal, time
-from handflow.framework.wakeup import wakeup_queue
+from handflow.framework.runtime.wakeup import wakeup_queue
 
 q = wakeup_queue()
 signal.signal(signal.SIGALRM, lambda *_: time.sleep(0.02))  # the handler runs past the wait's deadline

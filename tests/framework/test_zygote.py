@@ -14,9 +14,9 @@ from pathlib import Path
 
 import pytest
 
-from handflow.framework.graph import load_graph
-from handflow.framework.launcher import run_graph
-from handflow.framework.zygote import Zygote
+from handflow.framework.graphs.model import load_graph
+from handflow.framework.runtime.launcher import run_graph
+from handflow.framework.runtime.zygote import Zygote
 from tests.framework.test_runtime_e2e import chain_graph, read_sink
 
 SINK_GRAPH = """name: zygote_probe
@@ -66,7 +66,7 @@ def test_a_killed_child_reports_the_signal_and_shows_its_command(zygote, tmp_pat
     deadline = time.monotonic() + 15  # the child names itself first thing
     while "--nodes sink" not in _title(proc.pid) and time.monotonic() < deadline:
         time.sleep(0.05)
-    assert "-m handflow.framework.runner" in _title(proc.pid) and "--nodes sink" in _title(proc.pid)
+    assert "-m handflow.framework.runtime.runner" in _title(proc.pid) and "--nodes sink" in _title(proc.pid)
     proc.send_signal(signal.SIGKILL)
     assert proc.wait(timeout=30) == -signal.SIGKILL
     proc.send_signal(signal.SIGTERM)  # a process that has exited is not signalled again
@@ -111,7 +111,7 @@ def test_a_killed_zygote_costs_a_restart_not_the_graph(tmp_path):
         while not read_sink(tmp_path / "sink.jsonl") and time.monotonic() < deadline:
             time.sleep(0.2)
         children = Path(f"/proc/{proc.pid}/task/{proc.pid}/children").read_text().split()
-        (zygote_pid,) = [int(p) for p in children if "handflow.framework.zygote" in _title(int(p))]
+        (zygote_pid,) = [int(p) for p in children if "handflow.framework.runtime.zygote" in _title(int(p))]
         subprocess.run(["kill", "-9", str(zygote_pid)], check=True)
         killed_at = time.time_ns()
         deadline = time.monotonic() + 60

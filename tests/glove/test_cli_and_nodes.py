@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from handflow.framework.messages import GloveFrame, JointState
-from handflow.framework.testing import NodeHarness
+from handflow.framework.testkit.harness import NodeHarness
 from handflow.plugins.glove.cli import register_calibrate, register_emulator
 from handflow.plugins.glove.frames_io import save_frames
 from handflow.plugins.glove.node import CyberGloveNode

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from handflow.framework.messages import Contacts, JointState, Label
-from handflow.framework.testing import NodeHarness
+from handflow.framework.testkit.harness import NodeHarness
 from handflow.plugins.grasp.experience import GraspDataset
 from handflow.plugins.grasp.hand_layout import hand_layout
 from handflow.plugins.grasp.node import ExperienceGraspNode

@@ -72,7 +72,7 @@ def test_centred_cylinder_is_grasped_stably(experience):
 @pytest.mark.slow
 def test_grasp_node_drives_the_simulator_node(tmp_path):
     """The two node wrappers wired as in configs/grasp/experience_grasp.yaml, in-process, on the table."""
-    from handflow.framework.testing import NodeHarness
+    from handflow.framework.testkit.harness import NodeHarness
     from handflow.plugins.grasp.node import ExperienceGraspNode
     from handflow.plugins.simulator.node import PybulletSimulatorNode
 

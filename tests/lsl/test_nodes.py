@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 from pydantic import ValidationError
 
-from handflow.framework.inputs import missing_modules
+from handflow.framework.files.inputs import missing_modules
 from handflow.framework.messages import Array, MessageError
-from handflow.framework.testing import NodeHarness
+from handflow.framework.testkit.harness import NodeHarness
 from handflow.plugins.lsl.clock import lsl_to_stamps, stamp_to_lsl, wall_minus_lsl_ns
 from handflow.plugins.lsl.nodes import InletParams, LslInlet, LslOutlet
 

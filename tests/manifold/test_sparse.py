@@ -5,7 +5,7 @@ import pytest
 
 from handflow.plugins.manifold import StructuredUKR
 from handflow.plugins.manifold import sparse as sparse_module
-from handflow.plugins.manifold.cli import ModelConfig, TrainingConfig, build_model
+from handflow.plugins.manifold.config import ModelConfig, TrainingConfig, build_model
 from handflow.plugins.manifold.kernels import Kernel, ProductKernel
 from handflow.plugins.manifold.objective import Objective, SequenceLayout
 from handflow.plugins.manifold.projection import Manifold

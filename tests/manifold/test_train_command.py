@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 import yaml
 
+from handflow.framework.files.mcap_writer import McapWriter
 from handflow.framework.messages import Array, JointState
-from handflow.framework.recording import McapWriter
 from handflow.plugins.manifold import StructuredUKR, toy
 from handflow.plugins.manifold.cli import register_train
 from handflow.plugins.manifold.data import load_csv_dir, load_mcap, load_npz
@@ -96,16 +96,16 @@ def test_mcap_data_field(tmp_path):
 
 def test_ctrl_c_saves_best_model(tmp_path, csv_dir, monkeypatch):
     cfg = write_config(tmp_path, {"csv_dir": "rings", "time_column": "t"}, n_steps=50)
-    import handflow.plugins.manifold.cli as cli
+    from handflow.plugins.manifold.config import TrainingProgress
 
-    real = cli._Progress.__call__
+    real = TrainingProgress.__call__
 
     def interrupting(self, step, value):
         real(self, step, value)
         if step == 3:
             raise KeyboardInterrupt
 
-    monkeypatch.setattr(cli._Progress, "__call__", interrupting)
+    monkeypatch.setattr(TrainingProgress, "__call__", interrupting)
     assert run(cfg, "--out", tmp_path / "m.npz") == 0
     model = StructuredUKR.load(tmp_path / "m.npz")
     assert model.interrupted_ and len(model.history_) == 4

@@ -110,7 +110,7 @@ def test_an_unknown_ball_controller_is_rejected(ball_manifold):
 @pytest.mark.slow
 @pytest.mark.parametrize("radius_cm", [1.5, 3.5])
 def test_quick_evaluation_turns_the_smallest_and_largest_cap_forward(radius_cm):
-    from handflow.framework.resources import shipped
+    from handflow.framework.files.resources import shipped
     from handflow.plugins.manipulation import ManipulationManifold
     from handflow.plugins.manipulation.evaluation import cap_turning
 
@@ -123,7 +123,7 @@ def test_quick_evaluation_turns_the_smallest_and_largest_cap_forward(radius_cm):
 
 @pytest.mark.slow
 def test_the_cap_closed_loop_regrasps_a_smaller_cap_that_stops_the_open_loop():
-    from handflow.framework.resources import shipped
+    from handflow.framework.files.resources import shipped
     from handflow.plugins.manipulation import ManipulationManifold
     from handflow.plugins.manipulation.disturbances import CAP_CLASSES
     from handflow.plugins.manipulation.evaluation import CapSettings, cap_turning

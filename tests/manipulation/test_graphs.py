@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 import yaml
 
-from handflow.framework.recording import read_messages
-from handflow.framework.testing import NodeHarness
+from handflow.framework.files.mcap_reader import read_messages
+from handflow.framework.testkit.harness import NodeHarness
 from handflow.plugins.manipulation import nodes
 from handflow.plugins.manipulation.cli import ensure_manifold
 

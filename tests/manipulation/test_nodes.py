@@ -3,9 +3,10 @@
 import numpy as np
 import pytest
 
+from handflow.framework.files.mcap_reader import read_messages
+from handflow.framework.files.mcap_writer import McapWriter
 from handflow.framework.messages import Contacts, JointState, Points2D
-from handflow.framework.recording import McapWriter, read_messages
-from handflow.framework.testing import NodeHarness
+from handflow.framework.testkit.harness import NodeHarness
 from handflow.plugins.hands.joints import GIFU, SHADOW
 from handflow.plugins.manifold import InvalidInputError
 from handflow.plugins.manipulation.nodes import ClosedLoopNode, FeedbackInitNode, OpenLoopNode

@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 import zenoh
 
+from handflow.framework.network.sessions import free_tcp_port
 from handflow.framework.ros2 import rmw_zenoh as rz
 from handflow.framework.ros2.types import own_msgs, type_hash
-from handflow.framework.transport import free_tcp_port
 
 typesys = pytest.importorskip("rosbags.typesys")
 pytestmark = pytest.mark.slow

@@ -11,12 +11,12 @@ import zenoh
 from hypothesis import given
 from hypothesis import strategies as st
 
-from handflow.framework.graph import read_graph_text
+from handflow.framework.graphs.model import read_graph_text
 from handflow.framework.messages import Array, JointState, MessageError
+from handflow.framework.network.sessions import free_tcp_port
 from handflow.framework.ros2 import rmw_zenoh as rz
 from handflow.framework.ros2.types import type_hash
-from handflow.framework.testing import NodeHarness
-from handflow.framework.transport import free_tcp_port
+from handflow.framework.testkit.harness import NodeHarness
 from handflow.plugins.ros2.codec import RosCodec
 from handflow.plugins.ros2.nodes import Ros2Publish, Ros2Subscribe
 

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from handflow.framework.testing import NodeHarness
+from handflow.framework.testkit.harness import NodeHarness
 from handflow.plugins.demo.ball_swap import BallSwapMotion, keyframes, run_open_loop_swaps
 from handflow.plugins.simulator.metrics import count_swaps
 from handflow.plugins.simulator.node import PybulletSimulatorNode

@@ -6,7 +6,7 @@ import re
 import pytest
 
 from handflow.framework.messages import JointState
-from handflow.framework.testing import NodeHarness
+from handflow.framework.testkit.harness import NodeHarness
 from handflow.plugins.simulator.node import PybulletSimulatorNode
 
 

@@ -4,7 +4,7 @@ from pathlib import Path
 
 import pytest
 
-from handflow.framework.graph import validate_file
+from handflow.framework.graphs.model import validate_file
 
 CONFIGS = Path(__file__).resolve().parents[2] / "configs"
 

@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
 from handflow.framework.messages import JointState, Transforms
-from handflow.framework.testing import NodeHarness
+from handflow.framework.testkit.harness import NodeHarness
 from handflow.plugins.hands.joints import HAND_MODELS, HUMAN
 from handflow.plugins.simulator.hand_geometry import build_skeleton
 from handflow.plugins.simulator.kinematics import HandKinematics

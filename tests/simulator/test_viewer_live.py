@@ -12,8 +12,8 @@ import time
 import pytest
 from websockets.sync.client import connect
 
+from handflow.framework.network.sessions import free_tcp_port
 from handflow.framework.ros2.types import decode_cdr
-from handflow.framework.transport import free_tcp_port
 from tests.conftest import REPO
 from tests.simulator.test_viewer import assert_tree_matches_urdf
 

@@ -6,7 +6,7 @@ from collections import Counter
 
 import pytest
 
-from handflow.framework.recording import read_messages
+from handflow.framework.files.mcap_reader import read_messages
 
 GRAPH = """name: sim_e2e
 nodes:

@@ -5,7 +5,7 @@ import pybullet as p
 import pytest
 
 from handflow.framework.messages import Image
-from handflow.framework.testing import NodeHarness
+from handflow.framework.testkit.harness import NodeHarness
 from handflow.plugins.simulator.simulation import Simulation
 from handflow.plugins.tracker.blobs import BallTracker, normalise_points
 from handflow.plugins.tracker.node import ColorBlobTrackerNode

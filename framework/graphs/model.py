@@ -17,60 +17,16 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, Field, ValidationError, field_validator
 
-from .inputs import node_input_problems
-from .messages import Message, message_types
-from .params import StrictModel
-from .plugin import Node
-from .registry import PluginError, load_plugin, plugin_entries
-from .ros2.rmw_zenoh import check_name
-from .yaml_files import Problem, YamlFileError, line_of, parse, pydantic_problems
+from ..files.inputs import node_input_problems
+from ..files.params import StrictModel
+from ..files.yaml import Problem, YamlFileError, line_of, parse, pydantic_problems
+from ..messages import Message, message_types
+from ..network.settings import UsrPwdSettings, ZenohSettings, is_loopback_endpoint
+from ..plugin import Node
+from ..registry import PluginError, load_plugin, plugin_entries
+from ..ros2.rmw_zenoh import check_name
 
 _ID = re.compile(r"^[A-Za-z0-9_\-]+$")
-
-
-class TlsSettings(StrictModel):
-    """Mutual TLS between the graph's machines; access rights derived from the graph (docs/security.md)."""
-
-    certs: str = Field(description="directory made by `handflow certs init`, relative to the graph file")
-    host: str | None = Field(None, description="this machine's certificate name (default: `handflow run --host`)")
-    readers: list[str] = Field(
-        default_factory=list, description="certificate names that may read every topic (monitor, record, replay)"
-    )
-    publishers: dict[str, list[str]] = Field(
-        default_factory=dict, description="external topic (node/port) → certificate names that may publish it"
-    )
-
-
-class UsrPwdSettings(StrictModel):
-    """Zenoh user/password authentication on every link of the graph (docs/security.md)."""
-
-    credentials: str = Field(description="file of 'user:password' lines, relative to the graph file")
-    user: str | None = Field(
-        None, description="this machine's user (default: `handflow run --host`, else the only one)"
-    )
-
-
-class ZenohSettings(StrictModel):
-    """Transport settings. Default: embedded peer on loopback, multicast scouting off, no router."""
-
-    mode: Literal["peer", "client"] = "peer"
-    listen: list[str] = Field(
-        default_factory=list, description="extra endpoints this graph listens on, e.g. tcp/0.0.0.0:7450"
-    )
-    connect: list[str] = Field(
-        default_factory=list, description="endpoints of other machines' graphs, e.g. tcp/192.168.1.7:7450"
-    )
-    multicast_scouting: bool = False
-    tls: TlsSettings | None = Field(None, description="mutual TLS and generated access control (docs/security.md)")
-    usrpwd: UsrPwdSettings | None = Field(None, description="user/password authentication (docs/security.md)")
-    insecure: bool = Field(False, description="allow plain endpoints beyond loopback (anyone who reaches them joins)")
-
-
-def is_loopback_endpoint(endpoint: str) -> bool:
-    """``tcp/127.0.0.1:7447``, ``tcp/localhost:0``, ``tcp/[::1]:7447`` → True; other addresses → False."""
-    addr = endpoint.partition("/")[2].split("#", 1)[0]
-    host = addr.rsplit(":", 1)[0].strip("[]")
-    return host == "localhost" or host.startswith("127.") or host == "::1"
 
 
 class RestartPolicy(StrictModel):
@@ -345,7 +301,7 @@ def _zenoh_problems(spec: GraphSpec, lines) -> list[Problem]:
 
 def _usrpwd_problems(usrpwd: UsrPwdSettings, path: Path, lines) -> list[Problem]:
     """The credentials file must exist, parse and name the configured user (docs/security.md)."""
-    from .credentials import CredentialsError, read_credentials
+    from ..security.credentials import CredentialsError, read_credentials
 
     try:
         creds = read_credentials(path.parent / usrpwd.credentials)
@@ -456,14 +412,14 @@ def graph_path(argument: str | Path) -> Path:
     text = str(argument)
     if "/" in text or text.endswith((".yaml", ".yml")) or Path(text).exists():
         return Path(text)
-    from .resources import shipped
+    from ..files.resources import shipped
 
     return shipped(f"{text}.yaml")
 
 
 def shipped_graphs() -> list[str]:
     """Names of the graphs shipped with the package."""
-    from .resources import shipped
+    from ..files.resources import shipped
 
     return sorted(p.stem for p in shipped().glob("*.yaml"))
 

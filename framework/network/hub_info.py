@@ -4,7 +4,7 @@ A reader (monitor, record, Foxglove bridge) that joins a hub with ``--connect`` 
 ``handflow/*/_runtime/info`` and learns the graphs there, then subscribes to each graph's topics;
 no answer means it reached no graph (or its certificate is not granted), which the commands report
 as an error (docs/monitoring.md, "Watching from another machine").  In a TLS graph only readers may
-ask (:mod:`handflow.framework.access`).
+ask (:mod:`handflow.framework.security.access`).
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ from __future__ import annotations
 import json
 from typing import Any
 
-from .transport import PREFIX
+from ..keys import PREFIX
 
 ANY_GRAPH = "*"
 

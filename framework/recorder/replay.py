@@ -30,10 +30,10 @@ from typing import Any
 
 import zenoh
 
-from . import transport, wire
-from .graph import Graph
-from .messages import MessageError
-from .recording import ReadReport, RecordedMessage, iter_recording
+from .. import keys, wire
+from ..files.mcap_reader import ReadReport, RecordedMessage, iter_recording
+from ..graphs.model import Graph
+from ..messages import MessageError
 
 log = logging.getLogger("handflow.replay")
 
@@ -44,10 +44,10 @@ class ReplayError(RuntimeError):
 
 def remap_key(key: str, graph: str | None) -> str:
     """``handflow/<recorded>/<node>/<port>`` → ``handflow/<graph>/<node>/<port>`` (unchanged if graph is None)."""
-    parts = transport.split_key(key)
+    parts = keys.split_key(key)
     if graph is None or parts is None:
         return key
-    return transport.topic_key(graph, parts[1], parts[2])
+    return keys.topic_key(graph, parts[1], parts[2])
 
 
 def external_inputs(graph: Graph) -> set[str]:
@@ -84,8 +84,8 @@ class GraphWatcher:
         self.progress: dict[str, dict[str, Any]] = {}
         self.cond = threading.Condition()
         self._subs = [
-            session.declare_subscriber(transport.topic_key(graph_name, "*", "_health"), self._on_health),
-            session.declare_subscriber(transport.topic_key(graph_name, "*", "_progress"), self._on_progress),
+            session.declare_subscriber(keys.topic_key(graph_name, "*", "_health"), self._on_health),
+            session.declare_subscriber(keys.topic_key(graph_name, "*", "_progress"), self._on_progress),
         ]
 
     def _on_health(self, sample: Any) -> None:
@@ -99,7 +99,7 @@ class GraphWatcher:
             self.cond.notify_all()
 
     def _on_progress(self, sample: Any) -> None:
-        parts = transport.split_key(str(sample.key_expr))
+        parts = keys.split_key(str(sample.key_expr))
         if parts is None:
             return
         body = json.loads(sample.payload.to_bytes())
@@ -207,7 +207,7 @@ class ReplayPlan:
         for rm in iter_recording(self.path, self.topics, report=report):
             key = remap_key(rm.topic, self.target_graph)
             if self.only_sources is not None:
-                parts = transport.split_key(key)
+                parts = keys.split_key(key)
                 if parts is None or f"{parts[1]}/{parts[2]}" not in self.only_sources:
                     continue
             yield key, rm
@@ -281,7 +281,7 @@ class LockstepReplayer:
         self.poll = poll
         self.pubs = _Publishers(session, match_timeout_s=step_timeout_s)
         self.clock_pub = session.declare_publisher(
-            transport.clock_key(graph.name), congestion_control=zenoh.CongestionControl.BLOCK
+            keys.clock_key(graph.name), congestion_control=zenoh.CongestionControl.BLOCK
         )
         self.sent: Counter = Counter()  # node/port → messages the replayer published
         self.edges = [(src, nid, port) for nid in self.node_ids for port, src in graph.nodes[nid].spec.inputs.items()]
@@ -336,7 +336,7 @@ class LockstepReplayer:
             if t_ns is None or stamp > t_ns:
                 t_ns = stamp
                 self.advance_clock(t_ns)
-            parts = transport.split_key(key)
+            parts = keys.split_key(key)
             source = f"{parts[1]}/{parts[2]}"
             with self.watcher.cond:
                 self.sent[source] += 1

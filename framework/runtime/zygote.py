@@ -1,11 +1,11 @@
 """Fork server for node processes: import a graph's plugins once, fork every node process from it.
 
-Started by the launcher before its own Zenoh session exists (``python -m handflow.framework.zygote
+Started by the launcher before its own Zenoh session exists (``python -m handflow.framework.runtime.zygote
 GRAPH FD``); it loads the graph (which imports every plugin module the graph names, with their numpy,
 scikit-learn, numba and pybullet), then forks one child per spawn request.  A child starts its own
 session (setsid), takes the stderr pipe the launcher passed with the request, the launcher's working
-directory and environment, and runs :func:`handflow.framework.runner.main` as a node process started
-with ``python -m handflow.framework.runner`` would.  The zygote reports each child's pid and, when it
+directory and environment, and runs :func:`handflow.framework.runtime.runner.main` as a node process started
+with ``python -m handflow.framework.runtime.runner`` would.  The zygote reports each child's pid and, when it
 exits, its exit status (negative: killed by that signal, as :class:`subprocess.Popen` reports it).
 It exits when the launcher's end of the socket closes (the launcher stopped or was killed); its
 children then see their parent gone and stop (docs/architecture.md, "Process start-up").
@@ -60,7 +60,7 @@ def _child(sock: socket.socket, request: dict, stderr_fd: int, zygote: int) -> N
             sys.modules["numpy"].random.seed()
         from . import runner
 
-        sys.argv = ["handflow.framework.runner", *request["argv"]]
+        sys.argv = ["handflow.framework.runtime.runner", *request["argv"]]
         code = runner.main(request["argv"], parent=zygote)
     except SystemExit as exc:
         code = exc.code if isinstance(exc.code, int) else 1
@@ -78,7 +78,8 @@ def _child(sock: socket.socket, request: dict, stderr_fd: int, zygote: int) -> N
 
 def _preload(graph_source: str) -> None:
     """Import what the graph's nodes import; a graph that does not load is the launcher's to report."""
-    from . import graph, runner  # noqa: F401  (the node runtime itself)
+    from ..graphs import model as graph
+    from . import runner  # noqa: F401  (the node runtime itself)
 
     try:
         graph.load_graph(graph_source)
@@ -92,7 +93,7 @@ def _set_title(argv: list[str]) -> None:
         import setproctitle
     except ImportError:  # pragma: no cover (a declared dependency)
         return
-    setproctitle.setproctitle(" ".join([sys.executable, "-m", "handflow.framework.runner", *argv]))
+    setproctitle.setproctitle(" ".join([sys.executable, "-m", "handflow.framework.runtime.runner", *argv]))
 
 
 def serve(sock: socket.socket) -> None:
@@ -212,7 +213,7 @@ class Zygote:
     def start(cls, graph_source: str | os.PathLike) -> Zygote:
         ours, theirs = socket.socketpair(socket.AF_UNIX, socket.SOCK_STREAM)
         proc = subprocess.Popen(
-            [sys.executable, "-m", "handflow.framework.zygote", str(graph_source), str(theirs.fileno())],
+            [sys.executable, "-m", "handflow.framework.runtime.zygote", str(graph_source), str(theirs.fileno())],
             pass_fds=[theirs.fileno()],
             stdin=subprocess.DEVNULL,
         )
@@ -256,7 +257,7 @@ class Zygote:
             os.close(read_fd)
             return None
         stderr = open(read_fd, encoding="utf-8", errors="replace", buffering=1)
-        return ForkedProcess(self, pid, stderr, ["handflow.framework.runner", *argv])
+        return ForkedProcess(self, pid, stderr, ["handflow.framework.runtime.runner", *argv])
 
     def exit_code(self, pid: int) -> int | None:
         """The child's exit status once it has exited; a child whose zygote is gone is asked directly."""

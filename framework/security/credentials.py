@@ -14,10 +14,8 @@ import re
 import stat
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
 
-if TYPE_CHECKING:
-    from .graph import Graph
+from ..network.settings import UsrPwdSettings
 
 log = logging.getLogger("handflow.credentials")
 _USER = re.compile(r"^[A-Za-z0-9_.@\-]+$")
@@ -94,11 +92,10 @@ def read_credentials(path: str | Path, warn_shared: bool = False) -> Credentials
     return creds
 
 
-def graph_credentials(graph: Graph, host: str | None) -> tuple[Credentials, str]:
-    """The graph's credentials and this machine's user (``usrpwd.user``, else ``run --host``, else the only user)."""
-    usrpwd = graph.spec.zenoh.usrpwd
-    assert usrpwd is not None
-    creds = read_credentials(graph.base_dir / usrpwd.credentials, warn_shared=True)
+def graph_credentials(usrpwd: UsrPwdSettings, base_dir: Path, host: str | None) -> tuple[Credentials, str]:
+    """A graph's credentials (``usrpwd`` of the graph file in ``base_dir``) and this machine's user
+    (``usrpwd.user``, else ``run --host``, else the only user)."""
+    creds = read_credentials(base_dir / usrpwd.credentials, warn_shared=True)
     user = usrpwd.user or (host if host in creds.users else None)
     return creds, creds.login(user, "`handflow run --host NAME` or set 'zenoh: {usrpwd: {user: NAME}}'")[0]
 

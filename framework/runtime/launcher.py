@@ -1,6 +1,6 @@
 """Launch and supervise a graph: one process per node or per group (docs/pipelines.md, "Running").
 
-The launcher opens the hub Zenoh session, starts a :mod:`handflow.framework.runner` process per unit,
+The launcher opens the hub Zenoh session, starts a :mod:`handflow.framework.runtime.runner` process per unit,
 restarts crashed units according to their restart policy (default ``on-failure``: capped
 exponential backoff; more than ``max_restarts`` failures within ``window_s``, or a failure during
 setup with the same error as the one before, is a crash loop, reported with the unit's last log
@@ -23,10 +23,13 @@ import threading
 import time
 from dataclasses import dataclass, field
 
-from . import discovery, hub_info, transport, wire
-from .graph import Graph, RestartPolicy
-from .messages import Header, MessageError, RuntimeEvent, Status
-from .ros2.bridge import Ros2Bridge
+from .. import keys, wire
+from ..graphs.model import Graph, RestartPolicy
+from ..messages import Header, MessageError, RuntimeEvent, Status
+from ..network import hub_info
+from ..network import sessions as transport
+from . import discovery
+from .ros2_bridge import Ros2Bridge
 from .runner import START_WAIT_S, STOPPED, failure_file
 from .zygote import ForkedProcess, Zygote, start_unless_disabled
 
@@ -104,12 +107,10 @@ class Launcher:
             graph.name, self.hub_endpoint, graph.path, lockstep, usrpwd=self.user is not None
         )
         self.health: dict[str, Status] = {}
-        self._health_sub = self.session.declare_subscriber(
-            transport.topic_key(graph.name, "*", "_health"), self._on_health
-        )
-        self._start_pub = self.session.declare_publisher(transport.start_key(graph.name))
-        self._report_pub = self.session.declare_publisher(transport.report_key(graph.name))
-        self._event_pub = self.session.declare_publisher(transport.topic_key(graph.name, "_runtime", "events"))
+        self._health_sub = self.session.declare_subscriber(keys.topic_key(graph.name, "*", "_health"), self._on_health)
+        self._start_pub = self.session.declare_publisher(keys.start_key(graph.name))
+        self._report_pub = self.session.declare_publisher(keys.report_key(graph.name))
+        self._event_pub = self.session.declare_publisher(keys.topic_key(graph.name, "_runtime", "events"))
         self._event_seq = 0
         self._info = hub_info.declare_info(self.session, graph.name, host, list(graph.nodes))
         self.ros2 = Ros2Bridge(self.session, graph, host) if graph.spec.ros2 is not None else None
@@ -118,14 +119,14 @@ class Launcher:
         """The hub's TLS, access-control and user/password settings (docs/security.md)."""
         secure: dict[str, object] = {}
         if self.graph.spec.zenoh.tls is not None:
-            from . import access
+            from ..security import access
 
             secure["tls"] = access.tls_settings(self.graph, host)
             secure["access_control"] = access.access_control(self.graph, host)
         if self.graph.spec.zenoh.usrpwd is not None:
-            from . import credentials
+            from ..security import credentials
 
-            creds, self.user = credentials.graph_credentials(self.graph, host)
+            creds, self.user = credentials.graph_credentials(self.graph.spec.zenoh.usrpwd, self.graph.base_dir, host)
             dictionary = credentials.write_dictionary(creds, self._state_dir.name)
             secure["usrpwd"] = credentials.usrpwd_settings(creds, self.user, dictionary)
         return secure
@@ -177,7 +178,7 @@ class Launcher:
             if self.zygote is not None:
                 log.warning("the zygote cannot fork %s; starting it as a new interpreter", unit.name)
             unit.proc = subprocess.Popen(
-                [sys.executable, "-m", "handflow.framework.runner", *args],
+                [sys.executable, "-m", "handflow.framework.runtime.runner", *args],
                 start_new_session=True,
                 stderr=subprocess.PIPE,
                 text=True,

@@ -17,9 +17,9 @@ from collections.abc import Iterable
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
-from . import transport
-from .messages import MessageError
-from .recording import ReadReport, RecordedMessage, iter_recording
+from .. import keys
+from ..messages import MessageError
+from .mcap_reader import ReadReport, RecordedMessage, iter_recording
 
 
 @dataclass
@@ -39,7 +39,7 @@ class TopicComparison:
 
 
 def _topic(key: str) -> str:
-    parts = transport.split_key(key)
+    parts = keys.split_key(key)
     return f"{parts[1]}/{parts[2]}" if parts else key
 
 
@@ -68,7 +68,7 @@ def compare_recordings(
 ) -> tuple[list[TopicComparison], ReadReport, ReadReport]:
     """Compare the topics (:class:`TopicFilter` globs, default every data topic) of two recordings.
 
-    Raises :class:`handflow.framework.recording.RecordingError` for a missing or non-MCAP file.
+    Raises :class:`handflow.framework.files.mcap_writer.RecordingError` for a missing or non-MCAP file.
     """
     reports = ReadReport(Path(a)), ReadReport(Path(b))
     index_a, index_b = _index(a, topics, reports[0]), _index(b, topics, reports[1])

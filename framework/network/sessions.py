@@ -8,9 +8,9 @@ loopback port, multicast scouting off, no router); every node process is a peer 
 the hub and finds the other peers through gossip.  A graph's ``zenoh.listen`` / ``zenoh.connect``
 endpoints are added to the hub so graphs on several machines join one Zenoh network.  With
 ``zenoh.tls`` the hub is a router speaking mutual TLS to other machines, with access control derived
-from the graph (:mod:`handflow.framework.access`), and node processes are its clients.  With
+from the graph (:mod:`handflow.framework.security.access`), and node processes are its clients.  With
 ``zenoh.usrpwd`` (alone or with TLS) the hub is a router too, checks every link against the graph's
-credentials (:mod:`handflow.framework.credentials`), and its node processes log in as clients.
+credentials (:mod:`handflow.framework.security.credentials`), and its node processes log in as clients.
 """
 
 from __future__ import annotations
@@ -20,50 +20,7 @@ import socket
 
 import zenoh
 
-from .graph import ZenohSettings
-
-PREFIX = "handflow"
-
-
-def topic_key(graph: str, node: str, port: str) -> str:
-    return f"{PREFIX}/{graph}/{node}/{port}"
-
-
-def clock_key(graph: str) -> str:
-    return f"{PREFIX}/{graph}/_clock"
-
-
-def start_key(graph: str) -> str:
-    """The launcher's start signal: nodes tick only once every node of the graph has reported ready."""
-    return f"{PREFIX}/{graph}/_start"
-
-
-def report_key(graph: str) -> str:
-    """The launcher asks the nodes for a heartbeat now, which also wakes their main loop (at shutdown)."""
-    return f"{PREFIX}/{graph}/_report"
-
-
-def events_key(graph: str) -> str:
-    """Where the runtime publishes :class:`handflow.framework.messages.RuntimeEvent` messages."""
-    return f"{PREFIX}/{graph}/_runtime/events"
-
-
-def ros_name(key: str) -> str:
-    """The ROS 2 topic name of a Zenoh key: a leading ``/`` (recordings and the live view, docs/recording.md)."""
-    return key if key.startswith("/") else "/" + key
-
-
-def key_of_ros_name(name: str) -> str:
-    """The Zenoh key of a recorded topic name, with or without the leading ``/`` (Zenoh keys cannot start with one)."""
-    return name[1:] if name.startswith("/") else name
-
-
-def split_key(key: str) -> tuple[str, str, str] | None:
-    """``handflow/<graph>/<node>/<port>`` → (graph, node, port), else None."""
-    parts = str(key).split("/")
-    if len(parts) != 4 or parts[0] != PREFIX:
-        return None
-    return parts[1], parts[2], parts[3]
+from .settings import ZenohSettings
 
 
 def free_tcp_port(host: str = "127.0.0.1") -> int:
@@ -97,7 +54,7 @@ def open_hub(settings: ZenohSettings, hub_endpoint: str, secure: dict[str, objec
     """The launcher's session: listens on ``hub_endpoint`` plus the graph's endpoints.
 
     ``secure`` makes the hub a router: ``"tls"`` and ``"access_control"`` from
-    :mod:`handflow.framework.access`, ``"usrpwd"`` from :func:`credentials.usrpwd_settings`.  A
+    :mod:`handflow.framework.security.access`, ``"usrpwd"`` from :func:`credentials.usrpwd_settings`.  A
     listen endpoint already in use raises :class:`EndpointInUse` saying what to change.
     """
     secure = secure or {}

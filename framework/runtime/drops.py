@@ -14,7 +14,7 @@ import logging
 import time
 from dataclasses import dataclass
 
-from .messages import RuntimeEvent
+from ..messages import RuntimeEvent
 
 LOG_INTERVAL_S = 5.0
 

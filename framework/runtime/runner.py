@@ -1,6 +1,6 @@
 """One node process: runs a group of graph nodes (docs/architecture.md).
 
-Started by the launcher as ``python -m handflow.framework.runner GRAPH --nodes a,b --hub ENDPOINT``.
+Started by the launcher as ``python -m handflow.framework.runtime.runner GRAPH --nodes a,b --hub ENDPOINT``.
 Messages are handled directly in the Zenoh callback and ticks in the main loop, serialised by one
 lock, so node code never runs concurrently with itself (no locks needed in plugins) and a message
 costs no thread hand-off.  Each node publishes a ``_health`` heartbeat with its counters.
@@ -37,13 +37,15 @@ from pathlib import Path
 
 import numpy as np
 
-from . import forwarding, transport, wire
-from .credentials import read_credentials, usrpwd_settings
+from .. import keys, wire
+from ..graphs.model import Graph, ResolvedNode, load_graph
+from ..messages import Header, Message, MessageError, Status
+from ..network import sessions as transport
+from ..plugin import Node
+from ..security.credentials import read_credentials, usrpwd_settings
+from ..testkit.harness import check_publish
+from . import forwarding
 from .drops import DropLedger
-from .graph import Graph, ResolvedNode, load_graph
-from .messages import Header, Message, MessageError, Status
-from .plugin import Node
-from .testing import check_publish
 from .wakeup import wakeup_queue
 
 log = logging.getLogger("handflow.runner")
@@ -103,7 +105,7 @@ class NodeContext:
         self._state = state
         self.restarted = state.resumed
         self._pubs = {
-            port: runtime.session.declare_publisher(transport.topic_key(self.graph_name, self.node_id, port))
+            port: runtime.session.declare_publisher(keys.topic_key(self.graph_name, self.node_id, port))
             for port in self._outputs
         }
         self.published = dict.fromkeys(self._outputs, 0)
@@ -144,17 +146,16 @@ class _NodeSlot:
     def __init__(self, rt: GroupRuntime, rn: ResolvedNode, state_dir: Path | None) -> None:
         self.rn = rn
         self.id = rn.spec.id
-        keys = [f"out:{p}" for p in sorted(rn.cls.output_types(rn.params))] + [
+        slot_keys = [f"out:{p}" for p in sorted(rn.cls.output_types(rn.params))] + [
             f"in:{p}" for p in sorted(rn.spec.inputs)
         ]
-        self.state = SeqState(state_dir / f"{self.id}.seq" if state_dir else None, keys)
+        self.state = SeqState(state_dir / f"{self.id}.seq" if state_dir else None, slot_keys)
         self.ctx = NodeContext(rt, rn, self.state)
         self.node: Node = rn.cls(rn.params, self.ctx)
         self.handled = dict.fromkeys(rn.spec.inputs, 0)
         self.gaps = dict.fromkeys(rn.spec.inputs, 0)
         topics = {
-            port: transport.topic_key(rt.graph.name, *source.partition("/")[::2])
-            for port, source in rn.spec.inputs.items()
+            port: keys.topic_key(rt.graph.name, *source.partition("/")[::2]) for port, source in rn.spec.inputs.items()
         }
         self.drops = DropLedger(self.id, topics, self.ctx.log)
         rate = self.node.tick_rate_hz()
@@ -211,18 +212,15 @@ class GroupRuntime:
         self.failure_reason: str | None = None  # one line of ``failure``, for the launcher's summary
         self.set_up = False
         self.started = threading.Event()
-        self._report_now = False  # the launcher asked for a heartbeat (transport.report_key)
+        self._report_now = False  # the launcher asked for a heartbeat (keys.report_key)
         self.slots = [_NodeSlot(self, graph.nodes[nid], state_dir) for nid in node_ids]
         self._subs = []
         self._health_pubs = {
-            s.id: self.session.declare_publisher(transport.topic_key(graph.name, s.id, "_health")) for s in self.slots
+            s.id: self.session.declare_publisher(keys.topic_key(graph.name, s.id, "_health")) for s in self.slots
         }
-        self._events_pub = self.session.declare_publisher(transport.events_key(graph.name))
+        self._events_pub = self.session.declare_publisher(keys.events_key(graph.name))
         self._progress_pubs = (
-            {
-                s.id: self.session.declare_publisher(transport.topic_key(graph.name, s.id, "_progress"))
-                for s in self.slots
-            }
+            {s.id: self.session.declare_publisher(keys.topic_key(graph.name, s.id, "_progress")) for s in self.slots}
             if lockstep
             else {}
         )
@@ -237,7 +235,7 @@ class GroupRuntime:
         for slot in self.slots:
             for port, source in slot.rn.spec.inputs.items():
                 node, _, out = source.partition("/")
-                key = transport.topic_key(g, node, out)
+                key = keys.topic_key(g, node, out)
                 self._subs.append(
                     self.session.declare_subscriber(
                         key, lambda sample, s=slot, p=port: self._on_sample(s, p, *wire.sample_parts(sample))
@@ -246,12 +244,12 @@ class GroupRuntime:
         if self.lockstep:
             self._subs.append(
                 self.session.declare_subscriber(
-                    transport.clock_key(g), lambda sample: self.inbox.put(sample.payload.to_bytes())
+                    keys.clock_key(g), lambda sample: self.inbox.put(sample.payload.to_bytes())
                 )
             )
         else:
-            self._subs.append(self.session.declare_subscriber(transport.start_key(g), lambda _: self.started.set()))
-        self._subs.append(self.session.declare_subscriber(transport.report_key(g), self._on_report_request))
+            self._subs.append(self.session.declare_subscriber(keys.start_key(g), lambda _: self.started.set()))
+        self._subs.append(self.session.declare_subscriber(keys.report_key(g), self._on_report_request))
 
     def _on_report_request(self, _sample) -> None:
         self._report_now = True
@@ -429,7 +427,7 @@ def main(argv: list[str] | None = None, parent: int | None = None) -> int:
     """Run the nodes; stop with the ``parent`` process (default: the one that started this one)."""
     parent = os.getppid() if parent is None else parent
     ap = argparse.ArgumentParser(
-        prog="python -m handflow.framework.runner", description="Run nodes of a graph (used by the launcher)."
+        prog="python -m handflow.framework.runtime.runner", description="Run nodes of a graph (used by the launcher)."
     )
     ap.add_argument("graph")
     ap.add_argument("--nodes", required=True, help="comma-separated node ids")

@@ -10,9 +10,9 @@ import logging
 import time
 from typing import Any
 
-from . import transport, wire
-from .graph import StatusSpec
-from .messages import MessageError
+from .. import keys, wire
+from ..graphs.model import StatusSpec
+from ..messages import MessageError
 
 log = logging.getLogger("handflow.status")
 
@@ -22,7 +22,7 @@ class StatusLine:
 
     def __init__(self, graph_name: str, spec: StatusSpec) -> None:
         self.spec = spec
-        self.key = transport.topic_key(graph_name, *spec.topic.split("/", 1))
+        self.key = keys.topic_key(graph_name, *spec.topic.split("/", 1))
         self.shown: Any = None
         self.shown_at: float | None = None
         self._subscriber: Any = None

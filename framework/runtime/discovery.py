@@ -130,8 +130,8 @@ def join(
     """
     import zenoh
 
-    from .graph import ZenohSettings
-    from .transport import open_client, open_node_session
+    from ..network.sessions import open_client, open_node_session
+    from ..network.settings import ZenohSettings
 
     run = None if connect else find_run(graph)
     endpoint = connect or run.hub
@@ -166,7 +166,7 @@ def join_graphs(
     """:func:`join` as a reader, and the graphs whose hubs answer there (only ``graph`` when given).
 
     The graph of a run-file is the one joined; ``--connect`` lists every graph on that hub
-    (:mod:`handflow.framework.hub_info`).  Reaching no hub, or no graph, is a :class:`DiscoveryError`
+    (:mod:`handflow.framework.network.hub_info`).  Reaching no hub, or no graph, is a :class:`DiscoveryError`
     naming the option to change: never an empty view.
     """
     session, run = join(graph, connect, certs, name, credentials, user)
@@ -212,7 +212,7 @@ def _certificate(endpoint: str, certs: str | None, name: str | None) -> tuple[Pa
     """(CA, certificate, key) for a ``tls/`` endpoint, checked first; None for other endpoints."""
     if not endpoint.startswith("tls/"):
         return None
-    from .certs import CertError, check_host_files
+    from ..security.certs import CertError, check_host_files
 
     if not (certs and name):
         raise DiscoveryError(f"{endpoint} is a TLS endpoint: pass --certs DIR --cert-name NAME")
@@ -224,7 +224,7 @@ def _certificate(endpoint: str, certs: str | None, name: str | None) -> tuple[Pa
 
 def _login(run: RunInfo | None, credentials: str | None, user: str | None) -> dict[str, str] | None:
     """``usrpwd`` login from a credentials file; a local graph that needs one and got none is an error."""
-    from .credentials import CredentialsError, read_credentials, usrpwd_settings
+    from ..security.credentials import CredentialsError, read_credentials, usrpwd_settings
 
     if credentials is None:
         if user is not None:

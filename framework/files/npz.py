@@ -97,7 +97,7 @@ def building(path, what: str, hint: str, error: type[ValueError] = NpzFileError)
 def format_check(
     what: str, hint: str, fmt: tuple[str, int, str], error: type[ValueError] = NpzFileError
 ) -> Callable[[Path], None]:
-    """A preflight ``check`` for :class:`~handflow.framework.inputs.InputPath`: reads only the
+    """A preflight ``check`` for :class:`~handflow.framework.files.inputs.InputPath`: reads only the
     metadata of the ``what`` file and checks its format and version (``fmt`` as in :func:`npz_metadata`)."""
 
     def check(path: Path) -> None:

@@ -23,8 +23,8 @@ from typing import Any
 
 import numpy as np
 
-from . import transport, wire
-from .messages import Array, Message, MessageError, RuntimeEvent, Status
+from .. import keys, wire
+from ..messages import Array, Message, MessageError, RuntimeEvent, Status
 
 ALIVE_S = 2.0  # a node is alive if its last heartbeat is younger than this
 WINDOW_S = 5.0  # rate and latency are computed over this sliding window
@@ -110,12 +110,12 @@ class Monitor:
         self.nodes: dict[tuple[str, str], NodeHealth] = {}
         self._lock = threading.Lock()
         graphs = [graph] if isinstance(graph, str) else graph or ["*"]
-        self._subs = [session.declare_subscriber(f"{transport.PREFIX}/{g}/**", self._on_sample) for g in graphs]
+        self._subs = [session.declare_subscriber(f"{keys.PREFIX}/{g}/**", self._on_sample) for g in graphs]
 
     def _on_sample(self, sample: Any) -> None:
         now_wall, now_m = time.time_ns(), time.monotonic()
         key = str(sample.key_expr)
-        parts = transport.split_key(key)
+        parts = keys.split_key(key)
         if parts is None or parts[2] == "_progress":
             return  # the lock-step clock and progress reports are runtime traffic, not data
         data = wire.sample_parts(sample)
@@ -235,7 +235,7 @@ def render(snapshot: dict[str, Any], title: str = "handflow monitor", graph: str
         lat = "-" if t["latency_ms"] is None else f"{t['latency_ms']:.2f}"
         lost = f"{t['gaps']}/{t['dropped']}"
         lost = f"[red]{lost}[/red]" if t["gaps"] or t["dropped"] else lost
-        name = t["topic"].removeprefix(f"{transport.PREFIX}/{graph}/") if graph else t["topic"]
+        name = t["topic"].removeprefix(f"{keys.PREFIX}/{graph}/") if graph else t["topic"]
         topics.add_row(
             name, t["type"].removeprefix("handflow."), f"{t['rate_hz']:.1f}", lat, lost, str(t["count"]), t["last"]
         )

@@ -12,8 +12,8 @@ from collections import defaultdict
 from pathlib import Path
 from typing import Any
 
-from .messages import Header, Message, MessageError
-from .plugin import Node
+from ..messages import Header, Message, MessageError
+from ..plugin import Node
 
 
 class HarnessContext:

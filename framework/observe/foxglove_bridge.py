@@ -20,10 +20,10 @@ try:  # the optional extra 'foxglove'
 except ImportError:
     foxglove = None
 
-from . import wire
-from .messages import MessageError
-from .ros2.types import ros_type, schema_text
-from .transport import PREFIX, ros_name
+from .. import wire
+from ..keys import PREFIX, ros_name
+from ..messages import MessageError
+from ..ros2.types import ros_type, schema_text
 
 log = logging.getLogger("handflow.foxglove")
 

@@ -6,7 +6,7 @@ common name of their certificate (= the host name of ``handflow certs add-host``
 publish only the outputs of its own nodes (and the external topics naming it in
 ``zenoh.tls.publishers``) and receives only what its nodes consume plus the runtime's health and
 progress topics; ``zenoh.tls.readers`` receive everything and publish nothing, and may ask which
-graphs the hub serves (:mod:`handflow.framework.hub_info`).  A graph with readers lets every host
+graphs the hub serves (:mod:`handflow.framework.network.hub_info`).  A graph with readers lets every host
 receive every topic of the graph, since a reader may join any hub and that hub relays the other
 machines' topics to it; Zenoh routes by declared subscriptions, so a topic still crosses a link only
 while someone on the far side subscribes to it.  Everything else, including a valid certificate of
@@ -17,10 +17,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..graphs.model import Graph
+from ..keys import PREFIX, events_key, topic_key
+from ..network.hub_info import ANY_GRAPH, info_key
 from .certs import check_host_files
-from .graph import Graph
-from .hub_info import ANY_GRAPH, info_key
-from .transport import PREFIX, events_key, topic_key
 
 ALL_MESSAGES = [
     "put",

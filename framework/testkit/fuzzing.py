@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from .messages import (
+from ..messages import (
     Array,
     CompressedImage,
     Contacts,

@@ -9,11 +9,11 @@ from __future__ import annotations
 
 import logging
 
-from .. import transport, wire
-from ..graph import Graph
+from .. import keys, wire
+from ..graphs.model import Graph
 from ..messages import MessageError
-from .rmw_zenoh import RosNode, RosPublisher
-from .types import ros_type, type_hash
+from ..ros2.rmw_zenoh import RosNode, RosPublisher
+from ..ros2.types import ros_type, type_hash
 
 log = logging.getLogger(__name__)
 
@@ -37,7 +37,7 @@ class Ros2Bridge:
             pub = self.node.publisher(topic, ros, type_hash(ros), settings.depth)
             self.publishers[source] = pub
             node_id, _, port = source.partition("/")
-            key = transport.topic_key(graph.name, node_id, port)
+            key = keys.topic_key(graph.name, node_id, port)
             self._subs.append(session.declare_subscriber(key, lambda sample, pub=pub: _forward(sample, pub)))
             log.info("ROS 2: %s → %s (%s) on %s", source, topic, ros, pub.key)
 

@@ -23,7 +23,7 @@ import functools
 
 import numpy as np
 
-from .messages import Message
+from ..messages import Message
 
 _IMMUTABLE_TYPES = frozenset((str, int, float, bool, bytes, type(None)))
 

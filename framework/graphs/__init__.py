@@ -1,0 +1,1 @@
+"""Graph files: their schema, validation and loading (docs/pipelines.md)."""

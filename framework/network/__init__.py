@@ -1,0 +1,1 @@
+"""The Zenoh network: session settings and sessions (docs/architecture.md)."""

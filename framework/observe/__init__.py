@@ -1,0 +1,1 @@
+"""Watching a running graph: the monitor and the Foxglove bridge (docs/monitoring.md)."""

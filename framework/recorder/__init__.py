@@ -1,0 +1,1 @@
+"""Recording a running graph and replaying recordings into one (docs/recording.md)."""

@@ -1,0 +1,1 @@
+"""TLS certificates, access control and user/password credentials (docs/security.md)."""

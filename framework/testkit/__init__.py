@@ -1,0 +1,1 @@
+"""Testing plugins: the node harness and message fuzzing (docs/pipelines.md)."""

@@ -7,7 +7,8 @@ import json
 import numpy as np
 import pytest
 
-from handflow.framework.files.mcap_writer import McapWriter, iter_recording
+from handflow.framework.files.mcap_reader import iter_recording
+from handflow.framework.files.mcap_writer import McapWriter
 from tests.framework._rec_helpers import REPO, chain, handflow, unique
 
 GESTURES = REPO / "recordings" / "gestures.mcap"  # shipped, old style: JSON, no leading '/'

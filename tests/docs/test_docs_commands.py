@@ -45,6 +45,20 @@ from handflow.framework.recording import iter_recording
 
 REPO = Path(__file__).resolve().parents[2]
 TESTED_ELSEWHERE = {"recording.md", "monitoring.md"}  # tests/framework/test_recording_docs.py
+BENCHMARKS = {
+    "soak.py": "its bounded variant (3 min of the 60-minute soak) is tests/flagship/test_flagship_soak.py",
+    "decode_fuzz.py": "its bounded variant is tests/framework/test_decode_robustness.py",
+    **dict.fromkeys(
+        (
+            f"{name}.py"
+            for name in "calibration_curve clm_score_grouping evaluation_fold flagship glove_reader grasp manipulation"
+            " mapping_cost novelty_probe online_score_segmenter online_segmenter recording scorer_fit sim startup"
+            " transport ukr_speed ukr_toy viewer".split()
+        ),
+        "a measurement of this machine (minutes; figures and load in docs/benchmarks.md), not run by the tests",
+    ),
+}
+"""The ``python benchmarks/X.py`` commands of the docs, in tables and prose: why the docs test does not run them."""
 SLOW = ("handflow run", "handflow replay", "handflow calibrate --port", "&", "grasp-experience", "demo-record")
 """Commands that mark their page's test slow: several processes, or a minute of computing."""
 FENCE = re.compile(r"^```(\w*)\s*$")
@@ -323,6 +337,16 @@ def test_every_command_states_its_outcome():
                 if not (cmd.endswith("&") or JOB_STOP.fullmatch(cmd) or block.expectations(original)):
                     unchecked.append(f"{path.name}:{block.line}: {original}")
     assert not unchecked, "commands without an 'expect' marker or a reason not to run them:\n" + "\n".join(unchecked)
+
+
+def test_every_benchmark_the_docs_name_is_listed_with_a_reason():
+    named = set()
+    for path in [REPO / "README.md", *(REPO / "docs").glob("*.md")]:
+        named |= set(re.findall(r"python benchmarks/(\w+\.py)", path.read_text()))
+    assert named and named <= set(BENCHMARKS), f"benchmarks without a reason in BENCHMARKS: {named - set(BENCHMARKS)}"
+    assert all((REPO / "benchmarks" / name).is_file() for name in named), named
+    for reason in BENCHMARKS.values():
+        assert all((REPO / f).is_file() for f in re.findall(r"tests/\S+\.py", reason)), reason
 
 
 def test_graph_files_named_in_doc_commands_validate():

@@ -1,6 +1,6 @@
 """Every shell command in the user docs runs, and the outcomes the pages state hold.
 
-The commands are the lines of the fenced ```bash blocks and the ``$ `` lines of the ```console
+The commands are the lines of the fenced ```bash / ```sh blocks and the ``$ `` lines of the ```console
 blocks of README.md and docs/*.md.  docs/recording.md and docs/monitoring.md are run by
 tests/framework/test_recording_docs.py and skipped here.  A comment right before a block adapts
 it for the test (it stays invisible in rendered Markdown):
@@ -12,7 +12,14 @@ it for the test (it stays invisible in rendered Markdown):
 - ``<!-- doc-test: needs "MODULE" -->``: the block (and the graphs it names) is checked only where
   MODULE imports (an optional extra, e.g. ``mne_lsl`` of ``handflow[lsl]``);
 - ``<!-- doc-test: expect "TEXT" "CHECK ARG..." -->``: the outcome the page states for the
-  commands containing TEXT, asserted after they ran: a check of :data:`EXPECTATIONS`.
+  commands containing TEXT (as written), asserted after they ran: a check of :data:`EXPECTATIONS`
+  (arguments split like a shell line; ``sub`` markers apply to them too).  A command exits 0 unless
+  its ``exit N`` check says otherwise.
+
+Every command that runs needs an ``expect`` (a background job ``CMD &`` is checked by its
+``kill -INT %N``, whose ``expect`` markers see the job's output); a command that does not run says
+why (``skip``/``drop`` REASON, ``needs``, :data:`TESTED_ELSEWHERE`).  A fenced block without a
+language that holds commands must be ```bash or ```text (a synopsis).
 
 Commands run in order, per document, with ``bash`` in a scratch copy of ``configs/``, ``docs/``
 and ``recordings/`` (so nothing in the repository changes); ``handflow`` and ``python`` are this
@@ -197,7 +204,7 @@ def _topics_seen(o: Outcome, *topics: str) -> None:
 
 def _nodes_alive(o: Outcome, *nodes: str) -> None:
     """``monitor --once --json`` printed every node, alive."""
-    alive = {n["node"]: n["alive"] for n in json.loads(o.stdout)["nodes"]}
+    alive = {n["id"]: n["alive"] for n in json.loads(o.stdout)["nodes"]}
     assert all(alive.get(n) for n in nodes), f"expected {nodes} alive, seen {alive}"
 
 

@@ -190,12 +190,6 @@ def _files(o: Outcome, *files: str) -> None:
             assert yaml.safe_load(path.read_text()), name
 
 
-def _lines(o: Outcome, file: str, count: str) -> None:
-    """FILE has COUNT lines."""
-    n = len((o.ws / file).read_text().splitlines())
-    assert n == int(count), f"{file} has {n} lines, expected {count}"
-
-
 def _topics_seen(o: Outcome, *topics: str) -> None:
     """``monitor --once --json`` printed every topic with a count > 0."""
     counts = {t["topic"]: t["count"] for t in json.loads(o.stdout)["topics"]}
@@ -227,12 +221,6 @@ def _rate(o: Outcome, file: str, topic: str, hz: str) -> None:
     assert abs(rates.get(topic, 0) - float(hz)) <= 0.1 * float(hz), f"{topic}: {rates.get(topic)} Hz, expected {hz}"
 
 
-def _same_recordings(o: Outcome, a: str, b: str, *globs: str) -> None:
-    """``handflow compare A B --topics GLOBS`` finds every message equal (exit 0, something compared)."""
-    out = _handflow_json(o, "compare", a, b, *(("--topics", *globs) if globs else ()))
-    assert out["equal"] and all(t["equal"] > 0 for t in out["topics"]), out
-
-
 def _replayed_labels(o: Outcome, jsonl: str, mcap: str, topic: str) -> None:
     """The replay's JSON lines are the recording's labels on TOPIC: same count, index, label and stamp."""
     replayed = [json.loads(line)["msg"] for line in (o.ws / jsonl).read_text().splitlines()]
@@ -255,12 +243,10 @@ EXPECTATIONS = {
     "never": _never,
     "json": _json_field,
     "file": _files,
-    "lines": _lines,
     "topics": _topics_seen,
     "nodes": _nodes_alive,
     "recorded": _recorded,
     "rate": _rate,
-    "same": _same_recordings,
     "replayed": _replayed_labels,
     "same-arrays": _same_arrays,
 }

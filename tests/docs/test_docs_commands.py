@@ -1,6 +1,6 @@
 """Every shell command in the user docs runs, and the outcomes the pages state hold.
 
-The commands are the lines of the fenced ```bash blocks and the ``$ `` lines of the ```console
+The commands are the lines of the fenced ```bash / ```sh blocks and the ``$ `` lines of the ```console
 blocks of README.md and docs/*.md.  docs/recording.md and docs/monitoring.md are run by
 tests/framework/test_recording_docs.py and skipped here.  A comment right before a block adapts
 it for the test (it stays invisible in rendered Markdown):
@@ -12,7 +12,14 @@ it for the test (it stays invisible in rendered Markdown):
 - ``<!-- doc-test: needs "MODULE" -->``: the block (and the graphs it names) is checked only where
   MODULE imports (an optional extra, e.g. ``mne_lsl`` of ``handflow[lsl]``);
 - ``<!-- doc-test: expect "TEXT" "CHECK ARG..." -->``: the outcome the page states for the
-  commands containing TEXT, asserted after they ran: a check of :data:`EXPECTATIONS`.
+  commands containing TEXT (as written), asserted after they ran: a check of :data:`EXPECTATIONS`
+  (arguments split like a shell line; ``sub`` markers apply to them too).  A command exits 0 unless
+  its ``exit N`` check says otherwise.
+
+Every command that runs needs an ``expect`` (a background job ``CMD &`` is checked by its
+``kill -INT %N``, whose ``expect`` markers see the job's output); a command that does not run says
+why (``skip``/``drop`` REASON, ``needs``, :data:`TESTED_ELSEWHERE`).  A fenced block without a
+language that holds commands must be ```bash or ```text (a synopsis).
 
 Commands run in order, per document, with ``bash`` in a scratch copy of ``configs/``, ``docs/``
 and ``recordings/`` (so nothing in the repository changes); ``handflow`` and ``python`` are this
@@ -22,7 +29,6 @@ interpreter.  ``CMD &`` starts a background job (waited for until its graph's ru
 
 from __future__ import annotations
 
-import collections
 import importlib.util
 import json
 import os
@@ -36,6 +42,7 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
 import pytest
 import yaml
 
@@ -45,10 +52,26 @@ from handflow.framework.runtime.discovery import live_runs
 
 REPO = Path(__file__).resolve().parents[2]
 TESTED_ELSEWHERE = {"recording.md", "monitoring.md"}  # tests/framework/test_recording_docs.py
-AWAITING_MARKERS = {"grasping.md": "its commands run ~10 min as written; needs doc-test markers for bounded variants"}
-"""Documents whose owners have not yet added the markers that bound their commands (reported to the lead)."""
-MULTI_PROCESS = ("handflow run", "handflow replay", "handflow calibrate --port", "&")
+BENCHMARKS = {
+    "soak.py": "its bounded variant (3 min of the 60-minute soak) is tests/flagship/test_flagship_soak.py",
+    "decode_fuzz.py": "its bounded variant is tests/framework/test_decode_robustness.py",
+    **dict.fromkeys(
+        (
+            f"{name}.py"
+            for name in "calibration_curve clm_score_grouping evaluation_fold flagship glove_reader grasp manipulation"
+            " mapping_cost novelty_probe online_score_segmenter online_segmenter recording scorer_fit sim startup"
+            " transport ukr_speed ukr_toy viewer".split()
+        ),
+        "a measurement of this machine (minutes; figures and load in docs/benchmarks.md), not run by the tests",
+    ),
+}
+"""The ``python benchmarks/X.py`` commands of the docs, in tables and prose: why the docs test does not run them."""
+SLOW = ("handflow run", "handflow replay", "handflow calibrate --port", "&", "grasp-experience", "demo-record")
+"""Commands that mark their page's test slow: several processes, or a minute of computing."""
 FENCE = re.compile(r"^```(\w*)\s*$")
+JOB_STOP = re.compile(r"kill -INT %(\d+)")
+RUN = ("bash", "sh", "console")
+COMMAND = re.compile(r"^(\$ |handflow |python |pip )")
 MARKER = re.compile(r"^<!--\s*doc-test:\s*(skip|sub|drop|needs|expect)\b(.*?)-->\s*$")
 QUOTED = re.compile(r'"((?:[^"\\]|\\.)*)"')
 
@@ -59,6 +82,7 @@ class Block:
     line: int
     commands: list[str]
     markers: list[tuple[str, str]] = field(default_factory=list)
+    lang: str = "bash"
 
     def available(self) -> bool:
         """Whether every module named by a ``needs`` marker imports here."""
@@ -68,47 +92,171 @@ class Block:
             if kind == "needs"
         )
 
-    def runnable(self) -> list[str]:
-        """The commands after the block's markers are applied ([] when skipped)."""
-        if not self.available():
-            return []
-        commands = list(self.commands)
+    def plan(self) -> list[tuple[str, str]]:
+        """The commands as written and as run, after the block's markers ([] when skipped)."""
+        pairs = [(c, c) for c in self.commands]
         for kind, arg in self.markers:
             quoted = QUOTED.findall(arg)
             if kind == "skip":
                 return []
             if kind == "sub":
                 old, new = quoted[0], quoted[1]
-                assert any(old in c for c in commands), f"{self.doc}:{self.line}: sub '{old}' matches nothing"
-                commands = [c.replace(old, new) for c in commands]
+                assert any(old in c for _, c in pairs), f"{self.doc}:{self.line}: sub '{old}' matches nothing"
+                pairs = [(o, c.replace(old, new)) for o, c in pairs]
             elif kind == "drop":
-                commands = [c for c in commands if quoted[0] not in c]
-        return commands
+                pairs = [(o, c) for o, c in pairs if quoted[0] not in o]
+        return pairs
+
+    def runnable(self) -> list[tuple[str, str]]:
+        """:meth:`plan`, [] where a module named by ``needs`` is missing."""
+        return self.plan() if self.available() else []
 
     def expectations(self, command: str) -> list[list[str]]:
-        """The ``expect`` checks (name and arguments) of one of the block's commands."""
-        quoted = [QUOTED.findall(arg) for kind, arg in self.markers if kind == "expect"]
-        return [q[1].split() for q in quoted if q[0] in command]
+        """The ``expect`` checks (name and arguments) of one of the block's commands, as written; the
+        ``sub`` markers apply to the arguments too (a bounded variant writes elsewhere)."""
+        marks = [(kind, [q.replace('\\"', '"') for q in QUOTED.findall(arg)]) for kind, arg in self.markers]
+        checks = [q[1] for kind, q in marks if kind == "expect" and q[0] in command]
+        for old, new in (q[:2] for kind, q in marks if kind == "sub"):
+            checks = [c.replace(old, new) for c in checks]
+        return [shlex.split(c) for c in checks]
 
 
-def _topics_seen(ws: Path, stdout: str, *topics: str) -> None:
+@dataclass
+class Outcome:
+    """What one command did: its workspace, output and exit code (a ``kill``: its background job's)."""
+
+    ws: Path
+    stdout: str
+    stderr: str
+    code: int
+    since: float  # when the command (or job) started
+
+
+def _exit(o: Outcome, code: str) -> None:
+    """The command exits with CODE (without this check: 0)."""
+    assert o.code == int(code), f"exit {o.code}, expected {code}"
+
+
+def _says(o: Outcome, *texts: str) -> None:
+    """The command printed every TEXT (stdout or stderr, where the logs go)."""
+    missing = [t for t in texts if t not in o.stdout + o.stderr]
+    assert not missing, f"{missing} not printed:\n{o.stdout[-1500:]}\n{o.stderr[-1500:]}"
+
+
+def _never(o: Outcome, *texts: str) -> None:
+    """The command printed none of TEXTS (e.g. ``WARNING`` where the page says a normal run logs none)."""
+    found = [line for line in (o.stdout + o.stderr).splitlines() if any(t in line for t in texts)]
+    assert not found, "\n".join(found[:10])
+
+
+def _json_field(o: Outcome, path: str, value: str) -> None:
+    """stdout is JSON whose field PATH (dotted, list indices as numbers) is VALUE (JSON or a plain string)."""
+    field = json.loads(o.stdout)
+    for key in path.split("."):
+        field = field[int(key)] if isinstance(field, list) else field[key]
+    try:
+        value = json.loads(value)
+    except json.JSONDecodeError:
+        pass
+    assert field == value, f"{path} is {field!r}, expected {value!r}"
+
+
+def _handflow_json(o: Outcome, *args: str) -> dict:
+    proc = subprocess.run(["handflow", *args, "--json"], cwd=o.ws, capture_output=True, text=True, timeout=150)
+    assert proc.stdout.strip(), f"handflow {' '.join(args)}: {proc.stderr[-2000:]}"
+    return json.loads(proc.stdout)
+
+
+def _files(o: Outcome, *files: str) -> None:
+    """Every FILE (relative to the workspace) was written by the command and reads as its suffix says
+    (MCAP, npz/npy, PNG, JSON, JSON lines, YAML)."""
+    for name in files:
+        path = o.ws / name
+        assert path.is_file() and path.stat().st_size > 0, f"{name} not written"
+        assert path.stat().st_mtime >= o.since - 1, f"{name} is older than the command"
+        if path.suffix == ".mcap":
+            assert _handflow_json(o, "inspect", name)["total_messages"] > 0, name
+        elif path.suffix == ".npz":
+            assert np.load(path).files, name
+        elif path.suffix == ".npy":
+            assert np.load(path).size, name
+        elif path.suffix == ".png":
+            assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n", name
+        elif path.suffix == ".json":
+            json.loads(path.read_text())
+        elif path.suffix == ".jsonl":
+            assert [json.loads(line) for line in path.read_text().splitlines()], name
+        elif path.suffix == ".yaml":
+            assert yaml.safe_load(path.read_text()), name
+
+
+def _topics_seen(o: Outcome, *topics: str) -> None:
     """``monitor --once --json`` printed every topic with a count > 0."""
-    counts = {t["topic"]: t["count"] for t in json.loads(stdout)["topics"]}
+    counts = {t["topic"]: t["count"] for t in json.loads(o.stdout)["topics"]}
     assert all(counts.get(t, 0) > 0 for t in topics), f"expected {topics}, seen {counts}"
 
 
-def _recorded(ws: Path, stdout: str, file: str, *topics: str) -> None:
-    """The recording FILE (relative to the workspace) holds messages of every topic."""
-    counts = collections.Counter(rm.topic for rm in iter_recording(ws / file))
-    assert all(counts[t] > 0 for t in topics), f"expected {topics} in {file}, recorded {dict(counts)}"
+def _nodes_alive(o: Outcome, *nodes: str) -> None:
+    """``monitor --once --json`` printed every node, alive."""
+    alive = {n["id"]: n["alive"] for n in json.loads(o.stdout)["nodes"]}
+    assert all(alive.get(n) for n in nodes), f"expected {nodes} alive, seen {alive}"
 
 
-EXPECTATIONS = {"topics": _topics_seen, "recorded": _recorded}
-"""Checks named by ``expect`` markers: called with the workspace, the command's stdout and the arguments."""
+def _recorded(o: Outcome, file: str, *topics: str) -> None:
+    """The recording FILE holds messages of every TOPIC (``TOPIC=N``: exactly N) and, given ``channels=N``,
+    messages on exactly N topics."""
+    counts = {t["topic"]: t["count"] for t in _handflow_json(o, "inspect", file)["topics"]}
+    for want in topics:
+        name, _, n = want.partition("=")
+        if name == "channels":
+            assert len(counts) == int(n), f"{file}: {len(counts)} topics, expected {n}: {sorted(counts)}"
+        else:
+            got = counts.get(name, counts.get("/" + name, 0))
+            assert (got == int(n)) if n else got > 0, f"expected {want} in {file}, recorded {counts}"
+
+
+def _rate(o: Outcome, file: str, topic: str, hz: str) -> None:
+    """TOPIC of the recording FILE has the rate HZ (within 10 %)."""
+    rates = {t["topic"].lstrip("/"): t["rate_hz"] for t in _handflow_json(o, "inspect", file)["topics"]}
+    assert abs(rates.get(topic, 0) - float(hz)) <= 0.1 * float(hz), f"{topic}: {rates.get(topic)} Hz, expected {hz}"
+
+
+def _replayed_labels(o: Outcome, jsonl: str, mcap: str, topic: str) -> None:
+    """The replay's JSON lines are the recording's labels on TOPIC: same count, index, label and stamp."""
+    replayed = [json.loads(line)["msg"] for line in (o.ws / jsonl).read_text().splitlines()]
+    live = [rm.decode() for rm in iter_recording(o.ws / mcap, [topic])]
+    assert len(live) > 100 and len(replayed) == len(live), (len(live), len(replayed))
+    for a, b in zip(live, replayed):
+        assert (a.index, a.label, a.header.stamp_ns) == (b["index"], b["label"], b["header"]["stamp_ns"])
+
+
+def _same_arrays(o: Outcome, a: str, b: str, *keys: str) -> None:
+    """The .npz files A and B hold equal arrays under every KEY."""
+    with np.load(o.ws / a) as x, np.load(o.ws / b) as y:
+        for key in keys:
+            np.testing.assert_array_equal(x[key], y[key], err_msg=f"{a}[{key}] != {b}[{key}]")
+
+
+EXPECTATIONS = {
+    "exit": _exit,
+    "says": _says,
+    "never": _never,
+    "json": _json_field,
+    "file": _files,
+    "topics": _topics_seen,
+    "nodes": _nodes_alive,
+    "recorded": _recorded,
+    "rate": _rate,
+    "replayed": _replayed_labels,
+    "same-arrays": _same_arrays,
+}
+"""Checks named by ``expect`` markers: called with the command's :class:`Outcome` and the arguments."""
 
 
 def doc_blocks(path: Path) -> list[Block]:
-    """The ```bash / ```console blocks of one Markdown file, with the markers right before them."""
+    """The ```bash / ```sh / ```console blocks of one Markdown file, with the markers right before them, and
+    the blocks without a language that hold commands (which :func:`test_every_command_states_its_outcome`
+    refuses)."""
     blocks, markers, lang, body, start = [], [], None, [], 0
     for no, line in enumerate(path.read_text().splitlines(), 1):
         if lang is None:
@@ -122,30 +270,30 @@ def doc_blocks(path: Path) -> list[Block]:
         if not FENCE.match(line):
             body.append(line)
             continue
-        if lang in ("bash", "console"):
-            blocks.append(Block(path.name, start, _commands(lang, body), markers))
+        if lang in RUN or (lang == "" and any(COMMAND.match(line) for line in body)):
+            blocks.append(Block(path.name, start, _commands(lang, body), markers, lang))
         lang, markers = None, []
     return blocks
 
 
 def _commands(lang: str, body: list[str]) -> list[str]:
-    if lang == "console":
+    if lang == "console" or lang == "":
         return [line[2:].strip() for line in body if line.startswith("$ ")]
     text = "\n".join(body).replace("\\\n", " ")
     return [line.strip() for line in text.splitlines() if line.strip() and not line.strip().startswith("#")]
 
 
 def documents() -> list[Path]:
-    skip = TESTED_ELSEWHERE | set(AWAITING_MARKERS)
+    skip = TESTED_ELSEWHERE
     return [REPO / "README.md"] + sorted(p for p in (REPO / "docs").glob("*.md") if p.name not in skip)
 
 
 def _params():
     out = []
     for path in documents():
-        commands = [c for b in doc_blocks(path) for c in b.runnable()]
+        commands = [c for b in doc_blocks(path) for _, c in b.runnable()]
         if commands:
-            slow = any(k in c for c in commands for k in MULTI_PROCESS)
+            slow = any(k in c for c in commands for k in SLOW)
             out.append(pytest.param(path, marks=[pytest.mark.slow] if slow else [], id=path.name))
     return out
 
@@ -156,18 +304,42 @@ def _params():
 def test_markers_and_blocks_are_well_formed():
     for path in documents():
         for block in doc_blocks(path):
-            block.runnable()  # a stale 'sub' fails here
+            where = f"{path.name}:{block.line}"
+            block.plan()  # a stale 'sub' fails here
             for kind, arg in block.markers:
-                assert kind == "skip" or len(QUOTED.findall(arg)) >= (2 if kind in ("sub", "expect") else 1), (
-                    path,
-                    arg,
-                )
+                quoted = QUOTED.findall(arg)
+                assert len(quoted) >= {"sub": 2, "expect": 2, "skip": 0}.get(kind, 1), (where, arg)
+                assert kind not in ("skip", "drop") or QUOTED.sub("", arg).strip(), f"{where}: {kind} needs a reason"
                 if kind == "expect":
-                    text, check = QUOTED.findall(arg)[:2]
-                    assert any(text in c for c in block.commands), (
-                        f"{path.name}:{block.line}: expect '{text}' matches nothing"
-                    )
-                    assert check.split()[0] in EXPECTATIONS, f"{path.name}:{block.line}: unknown check '{check}'"
+                    assert any(quoted[0] in c for c in block.commands), f"{where}: expect '{quoted[0]}' matches nothing"
+                    assert block.expectations(quoted[0])[0][0] in EXPECTATIONS, f"{where}: unknown check '{quoted[1]}'"
+
+
+def test_every_command_states_its_outcome():
+    """Each command the docs test runs has an ``expect`` marker, or is not run for a stated reason (``skip``,
+    ``drop``, a page in TESTED_ELSEWHERE).  A background job (``&``) is checked by its ``kill -INT %N``:
+    started, then exit 0 (and the ``expect`` markers of that ``kill`` line, on the job's output)."""
+    unchecked = []
+    for path in documents():
+        for block in doc_blocks(path):
+            if not block.lang:
+                unchecked.append(
+                    f"{path.name}:{block.line}: a command block needs a language: ```bash (run) or ```text"
+                )
+            for original, cmd in block.plan():
+                if not (cmd.endswith("&") or JOB_STOP.fullmatch(cmd) or block.expectations(original)):
+                    unchecked.append(f"{path.name}:{block.line}: {original}")
+    assert not unchecked, "commands without an 'expect' marker or a reason not to run them:\n" + "\n".join(unchecked)
+
+
+def test_every_benchmark_the_docs_name_is_listed_with_a_reason():
+    named = set()
+    for path in [REPO / "README.md", *(REPO / "docs").glob("*.md")]:
+        named |= set(re.findall(r"python benchmarks/(\w+\.py)", path.read_text()))
+    assert named and named <= set(BENCHMARKS), f"benchmarks without a reason in BENCHMARKS: {named - set(BENCHMARKS)}"
+    assert all((REPO / "benchmarks" / name).is_file() for name in named), named
+    for reason in BENCHMARKS.values():
+        assert all((REPO / f).is_file() for f in re.findall(r"tests/\S+\.py", reason)), reason
 
 
 def test_graph_files_named_in_doc_commands_validate():
@@ -235,13 +407,13 @@ def test_documented_commands_run(doc, workspace):
     started: dict[str, int] = {}
     try:
         for block in doc_blocks(doc):
-            for cmd in block.runnable():
+            for original, cmd in block.runnable():
                 where = f"{doc.name}:{block.line}: {cmd}"
-                if kill := re.fullmatch(r"kill -INT %(\d+)", cmd):
+                if kill := JOB_STOP.fullmatch(cmd):
                     job = jobs[int(kill.group(1)) - 1]
                     job.send_signal(signal.SIGINT)
                     out, err = job.communicate(timeout=60)
-                    assert job.returncode == 0, f"{where}\n{out}\n{err}"
+                    _check(block, original, Outcome(workspace, out, err, job.returncode, job.since), where)
                 elif cmd.endswith("&"):
                     name = _graph_name(workspace, cmd)
                     started[name] = started.get(name, 0) + 1
@@ -254,16 +426,28 @@ def test_documented_commands_run(doc, workspace):
                             stderr=subprocess.PIPE,
                         )
                     )
+                    jobs[-1].since = time.time()
                     _wait_started(name, started[name])
                 else:
+                    since = time.time()
                     proc = subprocess.run(
-                        ["bash", "-c", cmd], cwd=workspace, capture_output=True, text=True, timeout=150
+                        ["bash", "-c", cmd], cwd=workspace, capture_output=True, text=True, timeout=300
                     )
-                    assert proc.returncode == 0, f"{where}\n{proc.stdout[-2000:]}\n{proc.stderr[-4000:]}"
-                    for name, *args in block.expectations(cmd):
-                        EXPECTATIONS[name](workspace, proc.stdout, *args)
+                    _check(block, original, Outcome(workspace, proc.stdout, proc.stderr, proc.returncode, since), where)
     finally:
         for job in jobs:
             if job.poll() is None:
                 job.kill()
                 job.communicate()
+
+
+def _check(block: Block, original: str, outcome: Outcome, where: str) -> None:
+    """The command's exit code (0 unless an ``exit`` check says otherwise), then its ``expect`` checks."""
+    checks = block.expectations(original)
+    code = next((int(args[0]) for name, *args in checks if name == "exit"), 0)
+    assert outcome.code == code, f"{where}: exit {outcome.code}\n{outcome.stdout[-2000:]}\n{outcome.stderr[-4000:]}"
+    for name, *args in checks:
+        try:
+            EXPECTATIONS[name](outcome, *args)
+        except AssertionError as e:
+            raise AssertionError(f"{where}: expect {name} {' '.join(args)}: {e}") from None

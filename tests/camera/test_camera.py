@@ -164,9 +164,8 @@ def test_video_file_streams_into_a_recording_that_replays_with_the_same_frames(t
     replayed = [rm.decode() for rm in iter_recording(rep) if rm.topic.endswith("/cam/image")]
     assert len(replayed) == FRAMES
     assert all(np.array_equal(a.to_array(), b.to_array()) for a, b in zip(images, replayed))
-    proc = handflow("compare", str(rec), str(rep), "--topics", "cam/image", "jpeg/compressed", "--json", check=True)
-    result = json.loads(proc.stdout)
-    assert result, proc.stdout
+    # exit 0: every image and JPEG equal, none only on one side
+    handflow("compare", str(rec), str(rep), "--topics", "cam/image", "jpeg/compressed", check=True)
 
 
 @pytest.mark.slow

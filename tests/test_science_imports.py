@@ -15,7 +15,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 import pytest
 
-FAMILIES = ("manifold", "segmenter", "grasp", "manipulation", "mapping", "hands", "tracker", "glove")
+FAMILIES = ("manifold", "segmenter", "grasp", "manipulation", "mapping", "hands", "tracker", "glove", "camera")
 # the families' runtime side: node wrappers, command-line modules, and what drives nodes
 NODE_AND_CLI_NAMES = {"nodes", "node", "cli", "stream_cli"}
 NODE_DRIVERS = {

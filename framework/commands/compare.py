@@ -6,8 +6,8 @@ import argparse
 import json
 import sys
 
-from ..comparison import TopicComparison, as_json, compare_recordings
-from ..recording import RecordingError
+from ..files.mcap_compare import TopicComparison, as_json, compare_recordings
+from ..files.mcap_writer import RecordingError
 
 
 def register(parser: argparse.ArgumentParser) -> None:

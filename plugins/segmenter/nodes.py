@@ -15,7 +15,7 @@ from typing import Annotated, Literal
 import numpy as np
 from pydantic import Field, model_validator
 
-from handflow.framework.inputs import InputPath
+from handflow.framework.files.inputs import InputPath
 from handflow.framework.messages import Array, JointState, Label, Message, MessageError, SegmentEvent
 from handflow.framework.npz_files import format_check
 from handflow.framework.params import StrictModel

@@ -178,7 +178,7 @@ def join_graphs(
 
 
 def _graphs_reached(session: zenoh.Session, endpoint: str, graph: str | None, cert_name: str | None) -> dict:
-    from .hub_info import graphs_on
+    from ..network.hub_info import graphs_on
 
     deadline = time.monotonic() + REACH_S
     while not (session.info.routers_zid() or session.info.peers_zid()):

@@ -22,6 +22,7 @@ interpreter.  ``CMD &`` starts a background job (waited for until its graph's ru
 
 from __future__ import annotations
 
+import configparser
 import importlib.util
 import json
 import os
@@ -31,6 +32,7 @@ import shutil
 import signal
 import subprocess
 import sys
+import textwrap
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -259,3 +261,14 @@ def test_the_training_tutorial_works_from_an_empty_directory(workspace):
 
     model = StructuredUKR.load(out / "my_manifold.npz")
     assert model.latents_.shape[1] == 1 and model.Y_.shape[1] == 24  # one latent time, 24 ShadowHand joints
+
+
+def test_the_loopback_lsl_setup_shown_in_lsl_md_is_the_shipped_file():
+    """docs/lsl.md shows docs/examples/lsl_api_loopback.cfg, which liblsl reads through LSLAPICFG."""
+    shown = re.search(r"```ini\n(.*?)```", (REPO / "docs" / "lsl.md").read_text(), re.S).group(1)
+    page, shipped = configparser.ConfigParser(), configparser.ConfigParser()
+    page.optionxform = shipped.optionxform = str  # liblsl's keys are case-sensitive
+    page.read_string(textwrap.dedent(shown))
+    shipped.read(REPO / "docs" / "examples" / "lsl_api_loopback.cfg")
+    assert {s: dict(page[s]) for s in page.sections()} == {s: dict(shipped[s]) for s in shipped.sections()}
+    assert shipped["multicast"]["ResolveScope"] == "machine" and "127.0.0.1" in shipped["lab"]["KnownPeers"]

@@ -8,6 +8,7 @@ Each entry point names ``register(parser)``, which adds its arguments to its sub
 from __future__ import annotations
 
 import argparse
+import importlib.metadata
 import logging
 import signal
 import sys
@@ -40,6 +41,12 @@ def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
         "plugins over Zenoh; learns, drives and recognises motions with structured manifolds.",
     )
     parser.add_argument("--log-level", default="INFO", choices=["DEBUG", "INFO", "WARNING", "ERROR"])
+    parser.add_argument(
+        "--version",
+        action="version",
+        version=f"%(prog)s {importlib.metadata.version('handflow')}",
+        help="print the installed handflow distribution's version and exit",
+    )
     subparsers: dict[tuple[str, ...], argparse._SubParsersAction] = {
         (): parser.add_subparsers(dest="command", metavar="COMMAND")
     }

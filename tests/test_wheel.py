@@ -1,12 +1,14 @@
 """The wheel works anywhere: built from the checkout, installed into a fresh venv, run from a directory
 outside the checkout (README "Set-up"; docs/architecture.md).
 
-The venv sees this machine's installed dependencies (``--system-site-packages``) so the test needs no
+The venv sees the dependencies installed for the interpreter running the test (a ``.pth`` file lists its
+site-packages, so this works from the system interpreter and from inside a venv alike) and needs no
 network; handflow itself comes from the wheel, which the test checks.
 """
 
 from __future__ import annotations
 
+import site
 import subprocess
 import sys
 import venv
@@ -24,12 +26,25 @@ def _run(cmd, cwd, timeout=300):
     return proc.stdout
 
 
+def _venv_seeing_this_interpreters_packages(root: Path) -> Path:
+    """A venv whose path ends with this interpreter's site-packages: ``system_site_packages`` alone would
+    show the base interpreter's packages, not those of the venv the tests run in (issue #37).  Plain path
+    lines process no ``.pth`` file there, so an editable install of the checkout stays invisible."""
+    venv.EnvBuilder(with_pip=False).create(root)
+    python = root / "bin" / "python"
+    purelib = subprocess.run(
+        [python, "-c", "import sysconfig; print(sysconfig.get_path('purelib'))"], capture_output=True, text=True
+    ).stdout.strip()
+    dirs = [*site.getsitepackages(), *([site.getusersitepackages()] if site.ENABLE_USER_SITE else [])]
+    Path(purelib, "outer_site_packages.pth").write_text("\n".join(dirs) + "\n")
+    return python
+
+
 def test_the_wheel_runs_the_demo_validate_plugins_and_a_train_outside_the_checkout(tmp_path):
     dist = tmp_path / "dist"
     _run([sys.executable, "-m", "pip", "wheel", "--no-deps", "-w", dist, REPO], tmp_path)
     (wheel,) = dist.glob("handflow-*.whl")
-    venv.EnvBuilder(system_site_packages=True, with_pip=False).create(tmp_path / "venv")
-    python = tmp_path / "venv" / "bin" / "python"
+    python = _venv_seeing_this_interpreters_packages(tmp_path / "venv")
     _run([sys.executable, "-m", "pip", "--python", python, "install", "-q", "--no-deps", wheel], tmp_path)
     work = tmp_path / "elsewhere"
     work.mkdir()

@@ -16,6 +16,9 @@ it for the test (it stays invisible in rendered Markdown):
   (arguments split like a shell line; ``sub`` markers apply to them too).  A command exits 0 unless
   its ``exit N`` check says otherwise.
 
+- ``<!-- doc-test: file "PATH" -->`` before a block of any language: the page asks the reader to save
+  that block as PATH, so the test writes it there before running the page's next command.
+
 Every command that runs needs an ``expect`` (a background job ``CMD &`` is checked by its
 ``kill -INT %N``, whose ``expect`` markers see the job's output); a command that does not run says
 why (``skip``/``drop`` REASON, ``needs``, :data:`TESTED_ELSEWHERE`).  A fenced block without a
@@ -29,6 +32,7 @@ interpreter.  ``CMD &`` starts a background job (waited for until its graph's ru
 
 from __future__ import annotations
 
+import configparser
 import importlib.util
 import json
 import os
@@ -38,6 +42,7 @@ import shutil
 import signal
 import subprocess
 import sys
+import textwrap
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -52,6 +57,7 @@ from handflow.framework.runtime.discovery import live_runs
 
 REPO = Path(__file__).resolve().parents[2]
 TESTED_ELSEWHERE = {"recording.md", "monitoring.md"}  # tests/framework/test_recording_docs.py
+FROM_ANY_DIRECTORY = {"tutorial_training.md"}  # run from an empty directory below, outcome asserted
 BENCHMARKS = {
     "soak.py": "its bounded variant (3 min of the 60-minute soak) is tests/flagship/test_flagship_soak.py",
     "decode_fuzz.py": "its bounded variant is tests/framework/test_decode_robustness.py",
@@ -72,7 +78,7 @@ FENCE = re.compile(r"^```(\w*)\s*$")
 JOB_STOP = re.compile(r"kill -INT %(\d+)")
 RUN = ("bash", "sh", "console")
 COMMAND = re.compile(r"^(\$ |handflow |python |pip )")
-MARKER = re.compile(r"^<!--\s*doc-test:\s*(skip|sub|drop|needs|expect)\b(.*?)-->\s*$")
+MARKER = re.compile(r"^<!--\s*doc-test:\s*(skip|sub|drop|needs|expect|file)\b(.*?)-->\s*$")
 QUOTED = re.compile(r'"((?:[^"\\]|\\.)*)"')
 
 
@@ -83,6 +89,7 @@ class Block:
     commands: list[str]
     markers: list[tuple[str, str]] = field(default_factory=list)
     lang: str = "bash"
+    text: str = ""  # the block's body, for a ``file`` marker
 
     def available(self) -> bool:
         """Whether every module named by a ``needs`` marker imports here."""
@@ -272,6 +279,8 @@ def doc_blocks(path: Path) -> list[Block]:
             continue
         if lang in RUN or (lang == "" and any(COMMAND.match(line) for line in body)):
             blocks.append(Block(path.name, start, _commands(lang, body), markers, lang))
+        elif any(kind == "file" for kind, _ in markers):
+            blocks.append(Block(path.name, start, [], markers, lang, "\n".join(body) + "\n"))
         lang, markers = None, []
     return blocks
 
@@ -291,6 +300,8 @@ def documents() -> list[Path]:
 def _params():
     out = []
     for path in documents():
+        if path.name in FROM_ANY_DIRECTORY:
+            continue
         commands = [c for b in doc_blocks(path) for _, c in b.runnable()]
         if commands:
             slow = any(k in c for c in commands for k in SLOW)
@@ -403,10 +414,18 @@ def _wait_started(name: str, count: int, timeout: float = 60.0) -> None:
 
 @pytest.mark.parametrize("doc", _params())
 def test_documented_commands_run(doc, workspace):
+    run_page(doc, workspace)
+
+
+def run_page(doc: Path, workspace: Path) -> None:
+    """Run a page's commands in order in ``workspace``, checking each one's stated outcome."""
     jobs: list[subprocess.Popen] = []
     started: dict[str, int] = {}
     try:
         for block in doc_blocks(doc):
+            for kind, arg in block.markers:
+                if kind == "file":
+                    (workspace / QUOTED.findall(arg)[0]).write_text(block.text)
             for original, cmd in block.runnable():
                 where = f"{doc.name}:{block.line}: {cmd}"
                 if kill := JOB_STOP.fullmatch(cmd):
@@ -451,3 +470,28 @@ def _check(block: Block, original: str, outcome: Outcome, where: str) -> None:
             EXPECTATIONS[name](outcome, *args)
         except AssertionError as e:
             raise AssertionError(f"{where}: expect {name} {' '.join(args)}: {e}") from None
+
+
+@pytest.mark.slow
+def test_the_training_tutorial_works_from_an_empty_directory(workspace):
+    """docs/tutorial_training.md from a directory holding nothing of the checkout writes what it says."""
+    elsewhere = workspace.parent / "elsewhere"
+    elsewhere.mkdir()
+    run_page(REPO / "docs" / "tutorial_training.md", elsewhere)
+    out = elsewhere / "out"
+    assert sorted(p.name for p in (out / "my_plots").iterdir()) == ["latents.png", "manifold.png", "objective.png"]
+    from handflow.plugins.manifold import StructuredUKR
+
+    model = StructuredUKR.load(out / "my_manifold.npz")
+    assert model.latents_.shape[1] == 1 and model.Y_.shape[1] == 24  # one latent time, 24 ShadowHand joints
+
+
+def test_the_loopback_lsl_setup_shown_in_lsl_md_is_the_shipped_file():
+    """docs/lsl.md shows docs/examples/lsl_api_loopback.cfg, which liblsl reads through LSLAPICFG."""
+    shown = re.search(r"```ini\n(.*?)```", (REPO / "docs" / "lsl.md").read_text(), re.S).group(1)
+    page, shipped = configparser.ConfigParser(), configparser.ConfigParser()
+    page.optionxform = shipped.optionxform = str  # liblsl's keys are case-sensitive
+    page.read_string(textwrap.dedent(shown))
+    shipped.read(REPO / "docs" / "examples" / "lsl_api_loopback.cfg")
+    assert {s: dict(page[s]) for s in page.sections()} == {s: dict(shipped[s]) for s in shipped.sections()}
+    assert shipped["multicast"]["ResolveScope"] == "machine" and "127.0.0.1" in shipped["lab"]["KnownPeers"]

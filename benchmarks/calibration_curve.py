@@ -24,9 +24,9 @@ import sys
 
 import numpy as np
 
-from handflow.plugins.segmenter.continuous import load_recordings
-from handflow.plugins.segmenter.frame_methods import METHODS, ScoreCLMMethod, UKRCLMMethod
-from handflow.plugins.segmenter.stream_evaluation import StreamEvaluator
+from handflow.plugins.segmenter.datasets import load_recordings
+from handflow.plugins.segmenter.evaluation import ScoreCLMMethod, StreamEvaluator, UKRCLMMethod
+from handflow.plugins.segmenter.evaluation._methods import METHODS
 
 FINE = 2.0 ** np.arange(-5, 6.01, 0.25)  # background factors 1/32 … 64
 

@@ -18,12 +18,11 @@ import time
 
 import numpy as np
 
-from handflow.plugins.segmenter.clm_segmenter import CLMSegmenter
+from handflow.plugins.segmenter.clm import CLMSegmenter
 from handflow.plugins.segmenter.compatibility import evidence_band, score_evidence
-from handflow.plugins.segmenter.continuous import load_recordings, segments
-from handflow.plugins.segmenter.frame_methods import MiniRocketMethod
-from handflow.plugins.segmenter.openset import frame_metrics, segment_f1
-from handflow.plugins.segmenter.stream_evaluation import _zscore
+from handflow.plugins.segmenter.datasets import load_recordings, segments
+from handflow.plugins.segmenter.evaluation import MiniRocketMethod, frame_metrics, segment_f1
+from handflow.plugins.segmenter.evaluation._recordings import _zscore
 
 
 def clm_labels(scores: np.ndarray, classes: np.ndarray, history: int) -> np.ndarray:

@@ -3,7 +3,7 @@ the same fold run with the code before a speed-up (the baseline, run in the same
 
 - ``--baseline feature-novelty``: every MiniRocket fit also fits its feature novelty (before,
   the methods that do not use it fitted it too);
-- ``--baseline einsum``: the batched UKR projection (:mod:`handflow.plugins.segmenter.fast_projection`)
+- ``--baseline einsum``: the batched UKR projection (:mod:`handflow.plugins.segmenter.models`)
   with its kernel-weighted sums and grid distances as plain ``np.einsum`` contractions, not
   matrix products.
 
@@ -30,10 +30,10 @@ from pathlib import Path
 
 import numpy as np
 
-from handflow.plugins.segmenter.continuous import load_recordings
-from handflow.plugins.segmenter.fast_projection import BatchedPeriodicProjector
-from handflow.plugins.segmenter.frame_methods import METHODS, MiniRocketMethod
-from handflow.plugins.segmenter.stream_evaluation import StreamEvaluator
+from handflow.plugins.segmenter.datasets import load_recordings
+from handflow.plugins.segmenter.evaluation import MiniRocketMethod, StreamEvaluator
+from handflow.plugins.segmenter.evaluation._methods import METHODS
+from handflow.plugins.segmenter.models import BatchedPeriodicProjector
 
 
 @contextmanager

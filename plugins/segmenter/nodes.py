@@ -19,13 +19,11 @@ from handflow.framework.messages import Array, JointState, Label, Message, Messa
 from handflow.framework.params import StrictModel
 from handflow.framework.plugin import Node
 
-from .candidates import CandidateSet, load_candidates
-from .online import OnlineCLMSegmenter, SegmentChange, SegmentTracker
-from .online_scores import OnlineScoreCLMSegmenter
-from .running_scaling import RunningStandardizer
-from .scaling import ChannelScaling
+from .clm import UKROnlyRecognizer
+from .features import ChannelScaling, RunningStandardizer
+from .models import CandidateSet, load_candidates
+from .online import OnlineCLMSegmenter, OnlineScoreCLMSegmenter, SegmentChange, SegmentTracker
 from .scorers import ScorerFileError, WindowScorer, load_scorer
-from .ukr_only import UKROnlyRecognizer
 
 UNKNOWN = "unknown"
 

@@ -3,7 +3,7 @@ import pytest
 from handflow.framework.messages import Array, JointState
 from handflow.framework.testing import NodeHarness
 from handflow.plugins.segmenter import save_class_models
-from handflow.plugins.segmenter.candidates import ModelsMissingError
+from handflow.plugins.segmenter.models import ModelsMissingError
 from handflow.plugins.segmenter.nodes import UNKNOWN, OnlineCLMNode, UKROnlyNode
 
 

@@ -23,7 +23,7 @@ from .clm import UKROnlyRecognizer
 from .features import ChannelScaling, RunningStandardizer
 from .models import CandidateSet, load_candidates
 from .online import OnlineCLMSegmenter, OnlineScoreCLMSegmenter, SegmentChange, SegmentTracker
-from .scorers import ScorerFileError, WindowScorer, load_scorer
+from .scorers import MiniRocketScorer, ScorerFileError, WindowScorer, load_scorer
 
 UNKNOWN = "unknown"
 
@@ -176,7 +176,7 @@ class OnlineCLMNode(_RecognizerNode):
                 raise ValueError(f"source '{self.source}' needs 'scorer' (a file from `handflow fit-scorer`)")
             if self.source == "ukr" and self.novelty_models:
                 raise ValueError("novelty_models needs source minirocket or dtw (the UKR source rejects by itself)")
-            if self.source != "minirocket" and self.distance_z is not None:
+            if self.source != MiniRocketScorer.kind and self.distance_z is not None:
                 raise ValueError("distance_z needs source minirocket (the only scorer with features)")
             if self.source != "ukr" and self.min_progress:
                 raise ValueError("min_progress needs source 'ukr' (a scorer's evidence has no latent time)")

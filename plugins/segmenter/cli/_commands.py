@@ -16,9 +16,11 @@ from ..evaluation import (
     METHODS,
     NORMALISATIONS,
     PSEUDO_UNKNOWNS,
+    REGISTRY,
     SELECTIONS,
     Evaluator,
     TrajectoryProtocol,
+    UKROnlyMethod,
 )
 from ..features import DERIVED, RunningStandardizer
 from ..models import (
@@ -337,7 +339,7 @@ def write_plots(ev: Evaluator, result: dict, folder: Path) -> None:
         if case is None:
             continue
         Y = ev.sequence("test", case)
-        for method in ("ukr_only", "ukr_clm"):
+        for method in (m for m in METHODS if REGISTRY[m].manifolds):
             params = result["parameters"]["selected"].get(method)
             if params is None:
                 continue
@@ -350,12 +352,12 @@ def write_plots(ev: Evaluator, result: dict, folder: Path) -> None:
                 f"{method}: {exp} {case.name} H={H}",
                 truth=case.truth,
             )
-        if "ukr_only" in result["parameters"]["selected"]:
+        if UKROnlyMethod.name in result["parameters"]["selected"]:
             proj = ev.projection("test", case)
             rec = UKROnlyRecognizer(
                 ev.candidates.without(case.left_out) if case.left_out else ev.candidates,
                 history=H,
-                **result["parameters"]["selected"]["ukr_only"],
+                **result["parameters"]["selected"][UKROnlyMethod.name],
             )
             plot_compatibilities(
                 rec.compatibilities_projected(proj),

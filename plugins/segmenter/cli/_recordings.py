@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import inspect
 import json
 import sys
 import time
@@ -164,9 +165,8 @@ def run_fit_scorer(args) -> int:
         segs = known_segments(args.recordings, args.known)
         names = list(segs)
         cls = SCORERS[args.source]
-        scorer = (
-            cls(window=args.window, random_state=args.seed) if args.source == "minirocket" else cls(window=args.window)
-        )
+        seeded = "random_state" in inspect.signature(cls).parameters
+        scorer = cls(window=args.window, **({"random_state": args.seed} if seeded else {}))
         scorer.fit(segs)
     except (ValueError, ImportError) as exc:
         print(f"error: {exc}", file=sys.stderr)

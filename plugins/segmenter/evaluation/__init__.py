@@ -4,14 +4,22 @@ recordings protocol (docs/segmentation.md)."""
 import warnings
 
 from ._methods import (
+    MAX_FIT_RATIOS,
+    MIN_PROGRESS,
+    MIN_SPANS,
+    REGISTRY,
+    TRAJECTORY_METHODS,
     DTWMethod,
     Fitted,
     HMMMethod,
+    Method,
     MiniRocketMethod,
     NoveltyCLMMethod,
     ScoreCLMMethod,
     ScoreMethod,
+    ThresholdOnTrajectories,
     UKRCLMMethod,
+    UKRCLMOnlineMethod,
     UKRMethod,
     UKROnlyMethod,
 )
@@ -39,10 +47,7 @@ from ._recordings import (
 )
 from ._trajectories import (
     EXPERIMENTS,
-    MAX_FIT_RATIOS,
     METHODS,
-    MIN_PROGRESS,
-    MIN_SPANS,
     REJECTION_EXPERIMENTS,
     SEGMENT_RULES,
     SELECTION_EXPERIMENTS,
@@ -56,6 +61,11 @@ from ._trajectories import (
 )
 
 __all__ = [
+    "REGISTRY",
+    "TRAJECTORY_METHODS",
+    "Method",
+    "ThresholdOnTrajectories",
+    "UKRCLMOnlineMethod",
     "CALIBRATIONS",
     "Case",
     "Choice",

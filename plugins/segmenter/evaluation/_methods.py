@@ -1,6 +1,8 @@
-"""Every recogniser as a frame labeller for continuous recordings (docs/segmentation.md).
+"""The method registry of both evaluation protocols (docs/segmentation.md): every recogniser by
+its name, as a frame labeller for continuous recordings and, where the trajectory protocol runs
+it, as a labeller of the trajectory cases (:data:`REGISTRY`).
 
-A :class:`FrameMethod` is fitted on training segments per known class (global class indices),
+A method is fitted on training segments per known class (global class indices),
 then labels a recording in two stages: :meth:`~FrameMethod.prepare` does the expensive part once
 (projection onto the class manifolds, window scores), :meth:`~FrameMethod.labels` applies one
 value of the method's *rejection parameter* — a score threshold for the classifiers, the
@@ -17,11 +19,16 @@ import numpy as np
 
 from ..base import REJECTED
 from ..clm import CLMSegmenter, UKROnlyRecognizer
-from ..compatibility import evidence_band, history_compatibility, novelty_weight, score_evidence
+from ..compatibility import evidence_band, history_compatibility, novelty_weight, reject_segments, score_evidence
 from ..models import CandidateSet, Projection, fit_recording_models
 from ..novelty import distance_weight
-from ..scorers import MiniRocketScorer, PerClassHMM, SlidingDTW1NN
+from ..online import OnlineCLMSegmenter
+from ..scorers import MiniRocketScorer, PerClassHMM, SlidingDTW1NN, decide
 from ._metrics import score_thresholds, threshold_labels
+
+MIN_PROGRESS = (0.0, 0.3)  # the CLM's min_progress grid (periods; docs/segmentation.md)
+MIN_SPANS = (0, 20)  # the CLM's min_span grid (observations; docs/segmentation.md)
+MAX_FIT_RATIOS = (None, 2.0)  # the CLM's max_fit_ratio grid (None = off; docs/segmentation.md)
 
 
 @dataclass
@@ -42,10 +49,43 @@ def _to_global(local: np.ndarray, classes: list[int]) -> np.ndarray:
     return lut[np.where(local < 0, len(classes), local)]
 
 
-class ScoreMethod(ABC):
-    """Methods with per-frame class scores; rejection = a threshold on the winning score."""
+class Method:
+    """One entry of the registry: what the two protocols ask of a method besides labelling.
+
+    ``on_trajectories``: the trajectory protocol runs it (:meth:`trajectory_grid`,
+    :meth:`predict_case`, given the protocol's ``Evaluator``); ``repeated_runs``: its test cases
+    run ``runs`` times (a stochastic solver); ``strong_background``: it is also judged on the
+    rejection experiments with a strong background; ``batch``: the method whose fitted models an
+    online method replays sample by sample (None: it is fitted itself).
+    """
 
     name = ""
+    on_trajectories = False
+    manifolds = False  # recognises with the class manifolds (their figures can be drawn)
+    repeated_runs = False
+    strong_background = False
+    batch: Method | None = None
+
+
+class ThresholdOnTrajectories:
+    """The trajectory protocol's classifier baselines: scores of the cases' sequences, rejection =
+    a threshold on the winning score (the evaluator's data-derived grid)."""
+
+    on_trajectories = True
+
+    def trajectory_grid(self, evaluator, split: str) -> list[dict]:
+        return [{"threshold": th} for th in evaluator.baseline_thresholds(self.name, split)]
+
+    def predict_case(self, evaluator, params: dict, split: str, case, seed: int) -> np.ndarray:
+        scores = evaluator.baseline_scores(self.name, split, case)
+        keep = [k for k, c in enumerate(evaluator.classes) if c != case.left_out]
+        labels = decide(scores[:, keep], params.get("threshold"))
+        return evaluator.to_global(labels, [evaluator.classes[k] for k in keep])
+
+
+class ScoreMethod(Method, ABC):
+    """Methods with per-frame class scores; rejection = a threshold on the winning score."""
+
     has_features = False  # whether :meth:`prepare_with_novelty` gives a feature novelty
 
     @property
@@ -83,7 +123,7 @@ class ScoreMethod(ABC):
         return None
 
 
-class DTWMethod(ScoreMethod):
+class DTWMethod(ThresholdOnTrajectories, ScoreMethod):
     """Sliding-window subsequence DTW 1-NN (:class:`SlidingDTW1NN`); parameter: the window."""
 
     name = "dtw_1nn"
@@ -99,8 +139,12 @@ class DTWMethod(ScoreMethod):
     def prepare(self, fitted, X):
         return fitted.model.scores(X)
 
+    @staticmethod
+    def trajectory_model(evaluator) -> SlidingDTW1NN:
+        return evaluator.dtw
 
-class HMMMethod(ScoreMethod):
+
+class HMMMethod(ThresholdOnTrajectories, ScoreMethod):
     """Per-class Gaussian HMMs, windowed log-likelihood (:class:`PerClassHMM`); states and window."""
 
     name = "hmm"
@@ -115,6 +159,10 @@ class HMMMethod(ScoreMethod):
 
     def prepare(self, fitted, X):
         return fitted.model.scores(X)
+
+    @staticmethod
+    def trajectory_model(evaluator) -> PerClassHMM:
+        return evaluator.hmm
 
 
 class MiniRocketMethod(ScoreMethod):
@@ -155,12 +203,14 @@ def _thin(seqs: list[np.ndarray], k: int) -> list[np.ndarray]:
     return [s[::k] if len(s) >= 8 * k else s for s in seqs]
 
 
-class UKRMethod:
+class UKRMethod(Method):
     """Shared part of the manifold methods: one periodic structured UKR per class over a delay
     embedding of the frames, errors in one metric (:func:`..models.fit_recording_models`); the
-    delay window is chosen on validation."""
+    delay window is chosen on validation.  On trajectories the class models are the protocol's
+    candidates (without the left-out class of a case)."""
 
-    name = ""
+    on_trajectories = True
+    manifolds = True
     steps = 150
     delays = ((8,), (4, 8, 16))  # delay windows (frames, step 1) of the quick and the full grid
 
@@ -192,11 +242,35 @@ class UKRCLMMethod(UKRMethod):
     1 / factor in units of the training frames' median error)."""
 
     name = "ukr_clm"
+    repeated_runs = True
+    strong_background = True
     histories = ((20,), (10, 20))  # CLM neighbourhood H of the quick and the full grid
     label_params = ("history",)  # chosen without refitting the class models
 
     def grid(self, quick: bool) -> list[dict]:
         return [{"delay": w, "history": h} for w in self.delays[not quick] for h in self.histories[not quick]]
+
+    def trajectory_grid(self, evaluator, split: str) -> list[dict]:
+        return [
+            {"background_factor": f, "error_scale": e, "min_progress": p, "min_span": s, "max_fit_ratio": r}
+            for e in (1.0, 0.1)
+            for f in (1.0, 0.5, 0.25, 0.1, 1.5, 2.0, 3.0)
+            for p in MIN_PROGRESS
+            for s in MIN_SPANS
+            for r in MAX_FIT_RATIOS
+        ]
+
+    def predict_case(self, evaluator, params: dict, split: str, case, seed: int) -> np.ndarray:
+        proj, cands = evaluator.projection(split, case), evaluator.case_candidates(case)
+        labels = reject_segments(
+            evaluator.clm_labels(split, case, seed, cands, proj, params),
+            proj.latent_time,
+            proj.errors,
+            params.get("min_progress", 0.0),
+            params.get("max_fit_ratio"),
+            reversed_errors=proj.reversed_errors,
+        )
+        return evaluator.to_global(labels, proj.classes)
 
     def fit(self, segments, params, seed) -> Fitted:
         return Fitted(self._fit_candidates(segments, seed, params["delay"]), sorted(segments), params)
@@ -230,6 +304,19 @@ class UKROnlyMethod(UKRMethod):
         lams = (0.5,) if quick else (0.3, 0.5)
         return [{"lam": lam, "order_rating": "cos", "delay": w} for lam in lams for w in self.delays[not quick]]
 
+    def trajectory_grid(self, evaluator, split: str) -> list[dict]:
+        return [
+            {"lam": lam, "gamma": 0.9, "order_rating": r, "threshold": th}
+            for th in (None, 0.5, 0.0)
+            for r in ("cos", "sign")
+            for lam in (0.3, 0.5)
+        ]
+
+    def predict_case(self, evaluator, params: dict, split: str, case, seed: int) -> np.ndarray:
+        proj, cands = evaluator.projection(split, case), evaluator.case_candidates(case)
+        labels = UKROnlyRecognizer(cands, history=case.history, **params).predict_projected(proj)
+        return evaluator.to_global(labels, proj.classes)
+
     def fit(self, segments, params, seed) -> Fitted:
         return Fitted(self._fit_candidates(segments, seed, params["delay"]), sorted(segments), params)
 
@@ -245,7 +332,7 @@ class UKROnlyMethod(UKRMethod):
         return score_thresholds(np.concatenate([self._compat(fitted, s, fitted.model).max(axis=1) for s in states]))
 
 
-class ScoreCLMMethod:
+class ScoreCLMMethod(Method):
     """The CLM as a segmentation layer over a classifier's per-frame scores: evidence
     (:func:`..compatibility.score_evidence`) → banded compatibilities within the history H
     (:func:`..compatibility.evidence_band`) → one CLM layer per class plus the background;
@@ -356,13 +443,41 @@ class NoveltyCLMMethod(ScoreCLMMethod):
         return super().evidence(fitted, scores, drop) * history_compatibility(known, self.history, 1.0)
 
 
-METHODS = {
+class UKRCLMOnlineMethod(Method):
+    """The UKR/CLM segmenter run online (:class:`..online.OnlineCLMSegmenter`) with the models and
+    the rejection chosen for :class:`UKRCLMMethod` (``batch``): each frame's final published label,
+    on arrival, then confirmed revisions."""
+
+    name = "ukr_clm_online"
+
+    def __init__(self, batch: UKRCLMMethod) -> None:
+        self.batch = batch
+
+    def labels_online(self, fitted: Fitted, reject: float, X: np.ndarray) -> np.ndarray:
+        seg = self.batch.segmenter(fitted.model, reject, fitted.params["history"], kind=OnlineCLMSegmenter)
+        published = np.full(len(X), -1)
+        for y in X:
+            update = seg.update(y)
+            published[update.index] = update.label
+            for ev in update.events:
+                if ev.kind == "revision":
+                    published[ev.start : ev.end + 1] = ev.label
+        for ev in seg.finish():  # the recording ends: the last observations get their final labels
+            if ev.kind == "revision":
+                published[ev.start : ev.end + 1] = ev.label
+        lut = np.r_[np.asarray(fitted.classes), -1]
+        return lut[np.where(published < 0, len(fitted.classes), published)]
+
+
+_UKR_CLM = UKRCLMMethod()
+REGISTRY: dict[str, Method] = {
     m.name: m
     for m in (
-        UKRCLMMethod(),
         UKROnlyMethod(),
+        _UKR_CLM,
         DTWMethod(),
         HMMMethod(),
+        UKRCLMOnlineMethod(_UKR_CLM),
         MiniRocketMethod(),
         ScoreCLMMethod(MiniRocketMethod()),
         ScoreCLMMethod(DTWMethod()),
@@ -370,3 +485,5 @@ METHODS = {
         NoveltyCLMMethod(DTWMethod()),
     )
 }
+METHODS = REGISTRY  # the name of the flat layout
+TRAJECTORY_METHODS = tuple(name for name, m in REGISTRY.items() if m.on_trajectories)

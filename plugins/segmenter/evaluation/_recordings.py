@@ -38,7 +38,7 @@ import numpy as np
 
 from ..datasets import Recording, RecordingSet, segments
 from ..features import DERIVED, ChannelScaling, RunningStandardizer, derive
-from ._methods import METHODS, Fitted
+from ._methods import REGISTRY, Fitted
 from ._metrics import calibrate, frame_metrics, segment_f1, tradeoff_curve
 
 INNER_FOLDS = 3  # validation recordings of the inner split (each validated by a fit on the others)
@@ -153,11 +153,11 @@ class StreamEvaluator:
         unknown_names = sorted(set(known or []) - set(data.class_names))
         if unknown_names:
             raise ValueError(f"--known names classes {unknown_names} that the data lacks; it has {data.class_names}")
-        bad = sorted(set(methods) - set(METHODS) - {"ukr_clm_online"})
+        bad = sorted(set(methods) - set(REGISTRY))
         if bad:
-            raise ValueError(f"unknown methods {bad}; choose from {sorted(METHODS) + ['ukr_clm_online']}")
-        if "ukr_clm_online" in methods and "ukr_clm" not in methods:
-            methods = ("ukr_clm", *methods)
+            raise ValueError(f"unknown methods {bad}; choose from {sorted(REGISTRY)}")
+        batches = [REGISTRY[m].batch.name for m in methods if REGISTRY[m].batch is not None]
+        methods = (*dict.fromkeys(b for b in batches if b not in methods), *methods)
         if len(data.recordings) < 3:
             raise ValueError("leave-one-recording-out needs at least 3 recordings (2 to train and validate, 1 to test)")
         self.data = data
@@ -194,7 +194,7 @@ class StreamEvaluator:
     def _select(self, name: str, views: dict[str, list[Recording]]) -> Choice:
         """Derived features, hyper-parameters and rejection value of one method, chosen on inner
         splits of the training recordings (``views``: derived features → those recordings)."""
-        method = METHODS[name]
+        method = REGISTRY[name]
         choices = []
         for derived, train in views.items():
             for params in method.grid(self.quick):
@@ -300,11 +300,11 @@ class StreamEvaluator:
             )
         labels, selected, sweeps, strict = {}, {}, {}, {}
         for name in self.methods:
-            if name == "ukr_clm_online":
-                continue
+            if REGISTRY[name].batch is not None:
+                continue  # replayed with the models of its batch method, below
             t0 = time.perf_counter()
             choice = self._select(name, {d: train for d, (train, _) in views.items()})
-            method = METHODS[name]
+            method = REGISTRY[name]
             fitted, state, test = self._final(method, choice.params, views)
             labels[name] = method.labels(fitted, state, choice.reject)
             sweeps[name] = [method.labels(fitted, state, r) for r in method.reject_grid(fitted, [state])]
@@ -314,9 +314,9 @@ class StreamEvaluator:
                 selected[name]["strict"] = {**choice.strict.params, "reject": float(choice.strict.reject)}
                 strict_fit, strict_state, _ = self._final(method, choice.strict.params, views)
                 strict[name] = method.labels(strict_fit, strict_state, choice.strict.reject)
-            if name == "ukr_clm" and "ukr_clm_online" in self.methods:
-                labels["ukr_clm_online"] = self._online(fitted, choice.reject, test.X)
-                selected["ukr_clm_online"] = selected[name]
+            for online in (REGISTRY[m] for m in self.methods if REGISTRY[m].batch is method):
+                labels[online.name] = online.labels_online(fitted, choice.reject, test.X)
+                selected[online.name] = selected[name]
             self.progress(f"  {held}: {name} {selected[name]} in {time.perf_counter() - t0:.1f}s")
         return FoldResult(held, views[self.derived[0]][1].y, labels, selected, sweeps, strict, untrained)
 
@@ -326,23 +326,6 @@ class StreamEvaluator:
         train, test = views[params["derived"]]
         fitted = self._fit(method, train, params)
         return fitted, self._prepare(method, fitted, test), test
-
-    def _online(self, fitted: Fitted, reject: float, X: np.ndarray) -> np.ndarray:
-        from ..online import OnlineCLMSegmenter
-
-        seg = METHODS["ukr_clm"].segmenter(fitted.model, reject, fitted.params["history"], kind=OnlineCLMSegmenter)
-        published = np.full(len(X), -1)
-        for y in X:  # each sample's final published label: on arrival, then confirmed revisions
-            update = seg.update(y)
-            published[update.index] = update.label
-            for ev in update.events:
-                if ev.kind == "revision":
-                    published[ev.start : ev.end + 1] = ev.label
-        for ev in seg.finish():  # the recording ends: the last observations get their final labels
-            if ev.kind == "revision":
-                published[ev.start : ev.end + 1] = ev.label
-        lut = np.r_[np.asarray(fitted.classes), -1]
-        return lut[np.where(published < 0, len(fitted.classes), published)]
 
     # -- all folds --------------------------------------------------------------------------
     def evaluate(self) -> dict:
@@ -388,8 +371,8 @@ class StreamEvaluator:
                 }
                 for f in folds
             ]
-            if name == "ukr_clm_online":
-                batch = np.concatenate([f.labels["ukr_clm"] for f in folds])
+            if REGISTRY[name].batch is not None:
+                batch = np.concatenate([f.labels[REGISTRY[name].batch.name] for f in folds])
                 res["agreement"] = float(np.mean(pred == batch))
             out["methods"][name] = res
         self.folds_ = folds
@@ -424,7 +407,7 @@ class StreamEvaluator:
                 else "the operating point of the best validation objective, whatever it is",
             },
             "quick": self.quick,
-            "grids": {n: METHODS[n].grid(self.quick) for n in self.methods if n in METHODS},
+            "grids": {n: REGISTRY[n].grid(self.quick) for n in self.methods if REGISTRY[n].batch is None},
         }
 
     def _normalisation(self) -> dict:

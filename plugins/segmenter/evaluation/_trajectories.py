@@ -38,20 +38,17 @@ from functools import cached_property
 
 import numpy as np
 
-from ..clm import CLMSegmenter, UKROnlyRecognizer
-from ..compatibility import reject_segments
+from ..clm import CLMSegmenter
 from ..datasets import LabelledDataset, Trajectory
 from ..models import CandidateSet, Projection
-from ..scorers import PerClassHMM, SlidingDTW1NN, decide
+from ..scorers import PerClassHMM, SlidingDTW1NN
+from ._methods import REGISTRY, TRAJECTORY_METHODS
 
 EXPERIMENTS = ("single", "concatenated", "middle_halves", "reversed_rejection", "left_out_rejection")
-METHODS = ("ukr_only", "ukr_clm", "dtw_1nn", "hmm")
+METHODS = TRAJECTORY_METHODS  # the methods of this protocol (the registry's, in its order)
 SELECTION_EXPERIMENTS = ("single", "concatenated", "middle_halves")
 REJECTION_EXPERIMENTS = ("reversed_rejection", "left_out_rejection")
 SELECTIONS = ("open_set", "recognition")
-MIN_PROGRESS = (0.0, 0.3)  # the CLM's min_progress grid (periods; docs/segmentation.md)
-MIN_SPANS = (0, 20)  # the CLM's min_span grid (observations; docs/segmentation.md)
-MAX_FIT_RATIOS = (None, 2.0)  # the CLM's max_fit_ratio grid (None = off; docs/segmentation.md)
 SEGMENT_RULES = ("min_progress", "max_fit_ratio")  # judged after the CLM: its labels are shared
 STRONG_BACKGROUND = 3.0  # docs/segmentation.md: a "strong" background is 3 λ_bg (λ_bg = 1 − 10/N)
 
@@ -205,71 +202,40 @@ class Evaluator:
         trajs = self.dataset.split(split)
         return np.vstack([trajs[i].data[idx] for i, idx in case.parts])
 
-    def _to_global(self, labels: np.ndarray, names: list[str]) -> np.ndarray:
+    def case_candidates(self, case: Case) -> CandidateSet:
+        """The candidates a case is recognised with (without its left-out class)."""
+        return self.candidates.without(case.left_out) if case.left_out else self.candidates
+
+    def to_global(self, labels: np.ndarray, names: list[str]) -> np.ndarray:
         lut = np.array([self.classes.index(n) for n in names] + [-1])
         return lut[np.where(labels < 0, len(names), labels)]
 
-    # -- methods ----------------------------------------------------------------------------
+    # -- methods (the registry's, docs/segmentation.md) -------------------------------------
     def grid(self, method: str, split: str = "validation") -> list[dict]:
         """The parameter grid of a method (documented, small; thresholds are data-derived)."""
-        if method == "ukr_only":
-            g = [
-                {"lam": lam, "gamma": 0.9, "order_rating": r, "threshold": th}
-                for th in (None, 0.5, 0.0)
-                for r in ("cos", "sign")
-                for lam in (0.3, 0.5)
-            ]
-        elif method == "ukr_clm":
-            g = [
-                {"background_factor": f, "error_scale": e, "min_progress": p, "min_span": s, "max_fit_ratio": r}
-                for e in (1.0, 0.1)
-                for f in (1.0, 0.5, 0.25, 0.1, 1.5, 2.0, 3.0)
-                for p in MIN_PROGRESS
-                for s in MIN_SPANS
-                for r in MAX_FIT_RATIOS
-            ]
-        else:
-            g = [{"threshold": th} for th in self._baseline_thresholds(method, split)]
+        g = REGISTRY[method].trajectory_grid(self, split)
         return g[: self.protocol.grid_size] if self.protocol.grid_size else g
 
-    def _baseline_thresholds(self, method: str, split: str) -> list[float | None]:
+    def baseline_thresholds(self, method: str, split: str) -> list[float | None]:
         """None plus the 5 % and 25 % quantiles of the winning score on the split's single cases."""
         best = np.concatenate(
-            [self._baseline_scores(method, split, c).max(axis=1) for c in self.cases[split] if c.experiment == "single"]
+            [self.baseline_scores(method, split, c).max(axis=1) for c in self.cases[split] if c.experiment == "single"]
         )
         return [None, float(np.quantile(best, 0.25)), float(np.quantile(best, 0.05))]
 
-    def _baseline_scores(self, method: str, split: str, case: Case) -> np.ndarray:
+    def baseline_scores(self, method: str, split: str, case: Case) -> np.ndarray:
         key = (method, split, case.key, case.history)
         if key not in self._scores:
-            model = self.dtw if method == "dtw_1nn" else self.hmm
+            model = REGISTRY[method].trajectory_model(self)
             model.window = case.history
             self._scores[key] = model.scores(self.sequence(split, case))
         return self._scores[key]
 
     def predict(self, method: str, params: dict, split: str, case: Case, seed: int = 0) -> np.ndarray:
         """Global class index per point of a case (−1 = rejected)."""
-        if method in ("ukr_only", "ukr_clm"):
-            proj = self.projection(split, case)
-            cands = self.candidates.without(case.left_out) if case.left_out else self.candidates
-            if method == "ukr_only":
-                labels = UKROnlyRecognizer(cands, history=case.history, **params).predict_projected(proj)
-            else:
-                labels = reject_segments(
-                    self._clm_labels(split, case, seed, cands, proj, params),
-                    proj.latent_time,
-                    proj.errors,
-                    params.get("min_progress", 0.0),
-                    params.get("max_fit_ratio"),
-                    reversed_errors=proj.reversed_errors,
-                )
-            return self._to_global(labels, proj.classes)
-        scores = self._baseline_scores(method, split, case)
-        keep = [k for k, c in enumerate(self.classes) if c != case.left_out]
-        labels = decide(scores[:, keep], params.get("threshold"))
-        return self._to_global(labels, [self.classes[k] for k in keep])
+        return REGISTRY[method].predict_case(self, params, split, case, seed)
 
-    def _clm_labels(
+    def clm_labels(
         self, split: str, case: Case, seed: int, cands: CandidateSet, proj: Projection, params: dict
     ) -> np.ndarray:
         """The CLM's labels before the segment rules (:data:`SEGMENT_RULES`, which only reject after
@@ -355,10 +321,11 @@ class Evaluator:
             t0 = time.perf_counter()
             self.progress(f"{method}: selecting parameters on validation")
             params, score = self.select(method)
-            runs = self.protocol.runs if method == "ukr_clm" else 1
+            entry = REGISTRY[method]
+            runs = self.protocol.runs if entry.repeated_runs else 1
             self.progress(f"{method}: evaluating {params} on test ({runs} run(s) per case)")
             out["methods"][method] = self.run(method, params, "test", runs=runs)
-            if method == "ukr_clm":
+            if entry.strong_background:
                 strong = dict(params, background_factor=STRONG_BACKGROUND)
                 self.progress(f"{method}: rejection experiments with a strong background {strong}")
                 for exp, res in self.run(method, strong, "test", runs=runs, experiments=REJECTION_EXPERIMENTS).items():

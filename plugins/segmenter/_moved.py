@@ -2,7 +2,8 @@
 
 ``import handflow.plugins.segmenter.clm_segmenter`` (and every other moved path) still works: a
 finder on ``sys.meta_path`` answers it with a module that forwards every attribute to the module's
-new home and warns with a ``DeprecationWarning`` naming the path to import from instead.
+new home (then to :mod:`.base`, where ``REJECTED`` and ``runs`` went) and warns with a
+``DeprecationWarning`` naming the path to import from instead.
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ import types
 import warnings
 from pathlib import Path
 
-MOVED = {  # old module -> its new home (sub-package and private module)
+MOVED = {  # old module -> its new home (private module, or the sub-package of a module split up)
     "scaling": "features._scaling",
     "running_scaling": "features._running_scaling",
     "delay": "features._delay",
@@ -30,7 +31,7 @@ MOVED = {  # old module -> its new home (sub-package and private module)
     "clm_segmenter": "clm._segmenter",
     "ukr_only": "clm._ukr_only",
     "online_scores": "online._scores",
-    "baselines": "scorers._baselines",
+    "baselines": "scorers",  # split: DTW, HMM and what they share
     "continuous": "datasets._recordings",
     "synthetic": "datasets._synthetic",
     "openset": "evaluation._metrics",
@@ -74,9 +75,16 @@ class _MovedModules(importlib.abc.MetaPathFinder, importlib.abc.Loader):
         public = f"{self.package}.{new.partition('.')[0]}"
         message = f"{module.__name__} is deprecated and goes in the next release: import from {public}"
         warnings.warn(message, DeprecationWarning, stacklevel=_importer_level())
-        home = importlib.import_module(f"{self.package}.{new}")
-        module.__getattr__ = lambda name: getattr(home, name)
-        module.__dir__ = lambda: dir(home)
+        homes = [importlib.import_module(f"{self.package}.{m}") for m in (new, "base")]
+
+        def forward(name: str):
+            for home in homes:
+                if hasattr(home, name):
+                    return getattr(home, name)
+            raise AttributeError(f"module {module.__name__!r} has no attribute {name!r}")
+
+        module.__getattr__ = forward
+        module.__dir__ = lambda: sorted({n for home in homes for n in dir(home)})
 
 
 def install(package: str) -> None:

@@ -1,22 +1,30 @@
 """Window scorers and the baselines: sliding DTW 1-NN, per-class HMM and MiniRocket, with the
 scorer files (docs/segmentation.md)."""
 
-from ._baselines import (
-    PerClassHMM,
+from ._dtw import (
+    DTWScorer,
     SlidingDTW1NN,
+)
+from ._files import (
+    SCORERS,
+    load_scorer,
+)
+from ._hmm import (
+    PerClassHMM,
+)
+from ._minirocket import (
+    WINDOWS_PER_SEGMENT,
+    MiniRocketScorer,
+)
+from ._scores import (
     decide,
 )
 from ._window import (
     FORMAT,
     FORMAT_VERSION,
-    SCORERS,
-    WINDOWS_PER_SEGMENT,
-    DTWScorer,
-    MiniRocketScorer,
     ScorerFileError,
     WindowScorer,
     causal_windows,
-    load_scorer,
 )
 
 __all__ = [

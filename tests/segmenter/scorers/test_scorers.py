@@ -21,7 +21,7 @@ from handflow.plugins.segmenter.scorers import FORMAT_VERSION, DTWScorer, MiniRo
 from tests.conftest import run_command
 from tests.garbage import damaged_file
 
-DEMO = Path(__file__).resolve().parents[2] / "recordings" / "segmenter_demo"
+DEMO = Path(__file__).resolve().parents[3] / "recordings" / "segmenter_demo"
 FUZZ = settings(max_examples=80, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 
 

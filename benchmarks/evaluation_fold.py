@@ -31,16 +31,15 @@ from pathlib import Path
 import numpy as np
 
 from handflow.plugins.segmenter.datasets import load_recordings
-from handflow.plugins.segmenter.evaluation import MiniRocketMethod, StreamEvaluator
-from handflow.plugins.segmenter.evaluation._methods import METHODS
+from handflow.plugins.segmenter.evaluation import REGISTRY, MiniRocketMethod, RecordingsEvaluator
 from handflow.plugins.segmenter.models import BatchedPeriodicProjector
 
 
 @contextmanager
 def feature_novelty_everywhere():
     """Every MiniRocket scorer of the evaluation fits its feature novelty, as before."""
-    scorers = [m for m in METHODS.values() if isinstance(m, MiniRocketMethod)]
-    scorers += [m.scorer for m in METHODS.values() if isinstance(getattr(m, "scorer", None), MiniRocketMethod)]
+    scorers = [m for m in REGISTRY.values() if isinstance(m, MiniRocketMethod)]
+    scorers += [m.scorer for m in REGISTRY.values() if isinstance(getattr(m, "scorer", None), MiniRocketMethod)]
     before = [m.has_features for m in scorers]
     for m in scorers:
         m.has_features = True
@@ -76,7 +75,7 @@ def timed_fold(data, held: str, methods: tuple[str, ...], quick: bool) -> tuple[
         if len(words) > 1 and words[0] == f"{held}:" and words[1] in methods:
             marks[words[1]] = time.perf_counter()
 
-    ev = StreamEvaluator(data, methods=methods, quick=quick, progress=progress)
+    ev = RecordingsEvaluator(data, methods=methods, quick=quick, progress=progress)
     fold = ev.run_fold(held)
     seconds, last = {}, start
     for name in methods:

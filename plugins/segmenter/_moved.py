@@ -79,8 +79,10 @@ class _MovedModules(importlib.abc.MetaPathFinder, importlib.abc.Loader):
 
         def forward(name: str):
             for home in homes:
-                if hasattr(home, name):
+                try:
                     return getattr(home, name)
+                except AttributeError:
+                    pass
             raise AttributeError(f"module {module.__name__!r} has no attribute {name!r}")
 
         module.__getattr__ = forward
@@ -91,3 +93,19 @@ def install(package: str) -> None:
     """Answer the moved module paths of ``package`` (once per interpreter)."""
     if not any(isinstance(f, _MovedModules) and f.package == package for f in sys.meta_path):
         sys.meta_path.append(_MovedModules(package))
+
+
+def renamed(module: str, names: dict[str, str]):
+    """A module ``__getattr__`` that answers each old name in ``names`` (old → new) with the object
+    of its new name, warning with a ``DeprecationWarning`` that names the new one."""
+    namespace = sys.modules[module].__dict__
+
+    def __getattr__(name: str):
+        if name not in names:
+            raise AttributeError(f"module {module!r} has no attribute {name!r}")
+        warnings.warn(
+            f"{name} is deprecated and goes in the next release: use {names[name]}", DeprecationWarning, stacklevel=2
+        )
+        return namespace[names[name]]
+
+    return __getattr__

@@ -18,9 +18,9 @@ from ._recordings import (
     register_make_continuous,
     run_fit_scorer,
     run_make_continuous,
-    run_stream_evaluation,
+    run_recordings_evaluation,
     run_train_recording_models,
-    write_stream_plots,
+    write_recordings_plots,
 )
 
 __all__ = [
@@ -36,9 +36,9 @@ __all__ = [
     "run_evaluate",
     "run_fit_scorer",
     "run_make_continuous",
-    "run_stream_evaluation",
+    "run_recordings_evaluation",
     "run_train_classes",
     "run_train_recording_models",
     "write_plots",
-    "write_stream_plots",
+    "write_recordings_plots",
 ]

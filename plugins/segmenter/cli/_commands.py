@@ -32,7 +32,7 @@ from ..models import (
     save_class_models,
     train_class_models,
 )
-from ._recordings import run_stream_evaluation, run_train_recording_models
+from ._recordings import run_recordings_evaluation, run_train_recording_models
 
 
 def _progress(msg: str) -> None:
@@ -256,7 +256,7 @@ def run_evaluate(args) -> int:
                 file=sys.stderr,
             )
             return 2
-        return run_stream_evaluation(args, _progress)
+        return run_recordings_evaluation(args, _progress)
     t0 = time.perf_counter()
     try:
         if (args.normalise, args.pseudo_unknowns, args.derived, args.calibration) != (
@@ -284,7 +284,8 @@ def run_evaluate(args) -> int:
             _progress(f"training one manifold per class ({len(ds.classes)} classes)")
             candidates = candidate_set(_train(ds, args))
         protocol = replace(
-            TrajectoryProtocol.quick() if args.quick else TrajectoryProtocol(), selection=(args.select or "open-set").replace("-", "_")
+            TrajectoryProtocol.quick() if args.quick else TrajectoryProtocol(),
+            selection=(args.select or "open-set").replace("-", "_"),
         )
         evaluator = Evaluator(ds, candidates, protocol, random_state=args.seed, progress=_progress)
     except (DatasetError, ModelsMissingError, ValueError) as exc:

@@ -11,13 +11,14 @@ from pathlib import Path
 
 import numpy as np
 
+from .._moved import renamed
 from ..datasets import basicmotions_continuous, load_recordings, segments
-from ..evaluation import DEFAULT_METHODS, StreamEvaluator
+from ..evaluation import DEFAULT_METHODS, RecordingsEvaluator
 from ..models import fit_recording_models, save_class_models
 from ..scorers import SCORERS
 
 
-def run_stream_evaluation(args, progress) -> int:
+def run_recordings_evaluation(args, progress) -> int:
     """Leave-one-recording-out evaluation of a folder of CSV recordings or a continuous .npz."""
     t0 = time.perf_counter()
     if args.cv != "leave-one-recording-out":
@@ -26,7 +27,7 @@ def run_stream_evaluation(args, progress) -> int:
     methods = tuple(m for m in (args.methods or ",".join(DEFAULT_METHODS)).split(",") if m)
     try:
         data = load_recordings(args.dataset)
-        evaluator = StreamEvaluator(
+        evaluator = RecordingsEvaluator(
             data,
             known=args.known.split(",") if args.known else None,
             methods=methods,
@@ -44,7 +45,7 @@ def run_stream_evaluation(args, progress) -> int:
         return 2
     result["runtime_s"] = round(time.perf_counter() - t0, 2)
     if args.plots:
-        write_stream_plots(evaluator, result, Path(args.plots))
+        write_recordings_plots(evaluator, result, Path(args.plots))
         progress(f"plots written to {args.plots}")
     print(json.dumps(result, indent=1) if args.json else format_stream_table(result))
     return 0
@@ -63,7 +64,7 @@ def format_stream_table(result: dict) -> str:
     return "\n".join(lines)
 
 
-def write_stream_plots(ev: StreamEvaluator, result: dict, folder: Path) -> None:
+def write_recordings_plots(ev: RecordingsEvaluator, result: dict, folder: Path) -> None:
     from ..plots import plot_confusion, plot_label_ribbons, plot_tradeoff
 
     names = ev.data.class_names
@@ -177,3 +178,8 @@ def run_fit_scorer(args) -> int:
         f"to {out} in {time.perf_counter() - t0:.1f}s"
     )
     return 0
+
+
+__getattr__ = renamed(
+    __name__, {"run_stream_evaluation": "run_recordings_evaluation", "write_stream_plots": "write_recordings_plots"}
+)  # the names before the recordings rename

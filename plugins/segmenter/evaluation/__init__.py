@@ -43,7 +43,7 @@ from ._recordings import (
     REJECT_ALL_OBJECTIVE,
     Choice,
     FoldResult,
-    StreamEvaluator,
+    RecordingsEvaluator,
 )
 from ._trajectories import (
     EXPERIMENTS,
@@ -96,7 +96,7 @@ __all__ = [
     "STRONG_BACKGROUND",
     "ScoreCLMMethod",
     "ScoreMethod",
-    "StreamEvaluator",
+    "RecordingsEvaluator",
     "UKRCLMMethod",
     "UKRMethod",
     "UKROnlyMethod",

@@ -36,6 +36,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from .._moved import renamed
 from ..datasets import Recording, RecordingSet, segments
 from ..features import DERIVED, ChannelScaling, RunningStandardizer, derive
 from ._methods import REGISTRY, Fitted
@@ -126,7 +127,7 @@ def _fallback_note(folds: int, fell_back: int, strict: dict | None) -> str | Non
     )
 
 
-class StreamEvaluator:
+class RecordingsEvaluator:
     """Runs the leave-one-recording-out protocol for the chosen methods."""
 
     def __init__(
@@ -418,3 +419,6 @@ class StreamEvaluator:
             "description": "each recording standardised causally, prior = the fold's training frames (every method)",
             **RunningStandardizer().get_params(),
         }
+
+
+__getattr__ = renamed(__name__, {"StreamEvaluator": "RecordingsEvaluator"})  # the names before the recordings rename

@@ -20,16 +20,16 @@ from handflow.plugins.segmenter.datasets import (
     segments,
 )
 from handflow.plugins.segmenter.evaluation import (
+    REGISTRY,
     DTWMethod,
     Fitted,
     NoveltyCLMMethod,
-    StreamEvaluator,
+    RecordingsEvaluator,
     calibrate,
     frame_metrics,
     segment_f1,
     tradeoff_curve,
 )
-from handflow.plugins.segmenter.evaluation._methods import METHODS
 from handflow.plugins.segmenter.features import derive
 from handflow.plugins.segmenter.models import fit_recording_models
 from tests.segmenter.conftest import SHARED
@@ -191,13 +191,13 @@ def _synthetic_recordings(seed: int):
     return np.vstack(X), np.concatenate(y)
 
 
-def held_out_class_evaluation(tmp_path, method: str) -> tuple[StreamEvaluator, dict]:
+def held_out_class_evaluation(tmp_path, method: str) -> tuple[RecordingsEvaluator, dict]:
     """Five synthetic recordings of classes a, b, c evaluated with c unknown (never trained on)."""
     arrays = {"class_names": np.array(["a", "b", "c"])}
     for k in range(5):
         arrays[f"X_r{k}"], arrays[f"y_r{k}"] = _synthetic_recordings(k)
     np.savez(tmp_path / "s.npz", **arrays)
-    ev = StreamEvaluator(load_recordings(tmp_path / "s.npz"), known=["a", "b"], methods=(method,), quick=True)
+    ev = RecordingsEvaluator(load_recordings(tmp_path / "s.npz"), known=["a", "b"], methods=(method,), quick=True)
     return ev, ev.evaluate()["methods"][method]
 
 
@@ -232,7 +232,7 @@ def test_clm_over_classifier_scores_groups_frames_and_rejects_with_its_backgroun
     assert four[0, 0, 0] > 0 > four[1, 0, 0]  # above chance (1/4) supports, below repels, with 4 classes
 
     X, y = _synthetic_recordings(0)
-    method = METHODS["clm_dtw"]
+    method = REGISTRY["clm_dtw"]
     fitted = method.fit({c: [X[y == c]] for c in (0, 1, 2)}, {"window": 20}, seed=0)
     state = method.prepare(fitted, X)
     kept = method.labels(fitted, state, reject=0.0)
@@ -247,10 +247,10 @@ def test_novelty_from_the_class_manifolds_rejects_what_the_classifier_labels_con
     manifolds' null model (the novelty term) sends them to the background, keeping the known frames."""
     X, y = _synthetic_recordings(0)
     segments = {c: [X[y == c]] for c in (0, 1)}
-    plain, novelty = METHODS["clm_dtw"], NoveltyCLMMethod(DTWMethod())
+    plain, novelty = REGISTRY["clm_dtw"], NoveltyCLMMethod(DTWMethod())
     assert novelty.name == "clm_dtw_novelty" and all("delay" in p for p in novelty.grid(quick=True))
     assert {p["distance_z"] for p in novelty.grid(quick=True)} == {None}  # DTW has no features to measure
-    assert {p["distance_z"] for p in METHODS["clm_minirocket_novelty"].grid(quick=True)} == {1.0, 2.0}
+    assert {p["distance_z"] for p in REGISTRY["clm_minirocket_novelty"].grid(quick=True)} == {1.0, 2.0}
     fitted = novelty.fit(segments, {"window": 20, "delay": 8, "novelty": 0.25}, seed=0)
     state = novelty.prepare(fitted, X)
     unknown, known = y == 2, y != 2
@@ -287,14 +287,14 @@ def _indistinguishable_recordings(tmp_path):
 
 def test_rejection_is_switched_off_when_nothing_beats_rejecting_everything(tmp_path):
     data = _indistinguishable_recordings(tmp_path)
-    ev = StreamEvaluator(data, methods=("dtw_1nn",), quick=True, calibration="fallback")
+    ev = RecordingsEvaluator(data, methods=("dtw_1nn",), quick=True, calibration="fallback")
     res = ev.evaluate()["methods"]["dtw_1nn"]
     assert all(
         f["selected"]["rejection"] == "off" and f["selected"]["validation_objective"] <= 0.55 for f in res["folds"]
     )
     assert res["known_accuracy"] == res["no_rejection"]["known_accuracy"]  # every frame keeps its best label
     assert "rejection is off in 4 of 4 folds" in res["calibration_note"]
-    strict = StreamEvaluator(data, methods=("dtw_1nn",), quick=True).evaluate()  # the default
+    strict = RecordingsEvaluator(data, methods=("dtw_1nn",), quick=True).evaluate()  # the default
     strict = strict["methods"]["dtw_1nn"]
     assert "strict" not in strict and "--calibration fallback switches rejection off" in strict["calibration_note"]
     assert res["strict"] == {k: strict[k] for k in res["strict"]}  # what the objective alone would give
@@ -307,7 +307,7 @@ def test_derived_features_are_chosen_per_method_on_validation(tmp_path):
         arrays[f"X_r{k}"], arrays[f"y_r{k}"] = _synthetic_recordings(k)
     np.savez(tmp_path / "s.npz", **arrays)
     said = []
-    ev = StreamEvaluator(
+    ev = RecordingsEvaluator(
         load_recordings(tmp_path / "s.npz"),
         methods=("dtw_1nn",),
         quick=True,
@@ -322,7 +322,7 @@ def test_derived_features_are_chosen_per_method_on_validation(tmp_path):
         pair = objectives[2 * k : 2 * k + 2]
         assert fold["selected"]["derived"] == ("none", "velocities")[int(pair[1] > pair[0])]
     with pytest.raises(ValueError, match="derived features"):
-        StreamEvaluator(ev.data, derived=("accelerations",))
+        RecordingsEvaluator(ev.data, derived=("accelerations",))
 
 
 def test_a_calibration_that_rejects_everything_is_explained():
@@ -356,7 +356,7 @@ def test_a_joint_classifier_is_refitted_for_the_pseudo_unknowns_of_the_calibrati
     pytest.importorskip("aeon")
     X, y = _synthetic_recordings(0)
     segments = {c: [X[y == c]] for c in (0, 1, 2)}
-    method = METHODS["minirocket"]
+    method = REGISTRY["minirocket"]
     fitted = method.fit(segments, {"window": 16}, seed=0)
     unseen = method.without_class(fitted, segments, 2, seed=0)
     assert unseen.classes == [0, 1] and unseen.model.classes_ == [0, 1]
@@ -365,18 +365,18 @@ def test_a_joint_classifier_is_refitted_for_the_pseudo_unknowns_of_the_calibrati
     assert refitted.shape == (len(X), 2)  # a binary ridge still scores one column per class
     refitted = refitted[y == 2].max(axis=1)
     assert np.median(refitted) > np.median(dropped) + 0.2  # a class never seen gets confident scores
-    assert METHODS["clm_minirocket"].without_class(fitted, segments, 2, seed=0).classes == [0, 1]
+    assert REGISTRY["clm_minirocket"].without_class(fitted, segments, 2, seed=0).classes == [0, 1]
     manifolds = fit_recording_models({str(c): s for c, s in segments.items()}, delay=4, n_steps=20)
-    novelty = METHODS["clm_minirocket_novelty"]
+    novelty = REGISTRY["clm_minirocket_novelty"]
     both = Fitted((fitted, manifolds), [0, 1, 2], {"window": 16, "delay": 4, "novelty": 0.25, "distance_z": 2.0})
     unseen = novelty.without_class(both, segments, 2, seed=0)  # the ridge refitted, class 2's manifold left out
     assert unseen.classes == [0, 1] and unseen.model[1].classes == ["0", "1"]
     labels = novelty.labels(unseen, novelty.prepare(unseen, X), reject=0.5)
     assert set(np.unique(labels)) <= {-1, 0, 1}
-    assert METHODS["dtw_1nn"].without_class(fitted, segments, 2, seed=0) is None
+    assert REGISTRY["dtw_1nn"].without_class(fitted, segments, 2, seed=0) is None
     two = {c: segments[c] for c in (0, 1)}  # one class left: no ridge; the column is dropped instead
     assert method.without_class(method.fit(two, {"window": 16}, seed=0), two, 1, seed=0) is None
-    assert METHODS["ukr_clm"].without_class(fitted, segments, 2, seed=0) is None
+    assert REGISTRY["ukr_clm"].without_class(fitted, segments, 2, seed=0) is None
 
 
 def test_a_class_recorded_in_one_recording_only_is_left_out_of_the_folds_that_lack_it(tmp_path):
@@ -389,7 +389,9 @@ def test_a_class_recorded_in_one_recording_only_is_left_out_of_the_folds_that_la
         arrays[f"X_r{k}"], arrays[f"y_r{k}"] = X, np.where((y == 2) & (k > 0), -1, y)
     np.savez(tmp_path / "s.npz", **arrays)
     said = []
-    ev = StreamEvaluator(load_recordings(tmp_path / "s.npz"), methods=("minirocket",), quick=True, progress=said.append)
+    ev = RecordingsEvaluator(
+        load_recordings(tmp_path / "s.npz"), methods=("minirocket",), quick=True, progress=said.append
+    )
     res = ev.evaluate()["methods"]["minirocket"]
     assert [f["untrained_classes"] for f in res["folds"]] == [["c"], [], [], []]
     assert any("no training segment of ['c']" in s for s in said)
@@ -404,7 +406,7 @@ def test_a_class_recorded_in_one_recording_only_is_left_out_of_the_folds_that_la
         arrays[f"X_r{k}"], arrays[f"y_r{k}"] = X, np.where(k == 0, y % 2, np.where(y == 0, 0, -1))
     np.savez(tmp_path / "one.npz", **arrays)  # b only in r0: holding r0 out leaves one class to train
     with pytest.raises(ValueError, match="needs at least 2: add recordings"):
-        StreamEvaluator(load_recordings(tmp_path / "one.npz"), methods=("dtw_1nn",), quick=True).evaluate()
+        RecordingsEvaluator(load_recordings(tmp_path / "one.npz"), methods=("dtw_1nn",), quick=True).evaluate()
 
 
 def _odd(kind: str, k: int, rng) -> tuple[np.ndarray, np.ndarray]:
@@ -444,6 +446,6 @@ def test_odd_but_valid_recordings_are_evaluated_to_the_end(tmp_path, kind):
         arrays[f"X_r{k}"], arrays[f"y_r{k}"] = _odd(kind, k, rng)
     np.savez(tmp_path / "odd.npz", **arrays)
     methods = ("dtw_1nn", "hmm") if importlib.util.find_spec("hmmlearn") else ("dtw_1nn",)  # hmm: an extra
-    out = StreamEvaluator(load_recordings(tmp_path / "odd.npz"), methods=methods, quick=True).evaluate()
+    out = RecordingsEvaluator(load_recordings(tmp_path / "odd.npz"), methods=methods, quick=True).evaluate()
     for res in out["methods"].values():
         assert len(res["folds"]) == 4 and 0 <= res["open_set_accuracy"] <= 1

@@ -32,5 +32,6 @@ def test_no_module_outside_the_registry_compares_a_string_with_a_method_name():
 
 
 def test_the_check_finds_a_comparison():
-    assert COMPARISON.search('if method == "ukr_clm":') and re.search(r"""["'](ukr_clm)["']""", 'if method == "ukr_clm":')
-
+    assert COMPARISON.search('if method == "ukr_clm":') and re.search(
+        r"""["'](ukr_clm)["']""", 'if method == "ukr_clm":'
+    )

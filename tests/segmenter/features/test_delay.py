@@ -7,7 +7,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from handflow.plugins.segmenter import CLMSegmenter, OnlineCLMSegmenter
-from handflow.plugins.segmenter.evaluation._methods import METHODS
+from handflow.plugins.segmenter.evaluation import REGISTRY
 from handflow.plugins.segmenter.features import DelayEmbedding, Derived
 from tests.segmenter.datasets.test_recordings import _synthetic_recordings, held_out_class_evaluation
 
@@ -41,7 +41,7 @@ def test_embedding_is_causal_and_complete_windows_lie_inside_the_segment():
 @pytest.fixture(scope="module")
 def fitted():
     X, y = _synthetic_recordings(0)
-    method = METHODS["ukr_clm"]
+    method = REGISTRY["ukr_clm"]
     return method, method.fit({c: [X[y == c]] for c in (0, 1, 2)}, {"delay": 4, "history": 10}, seed=0), X, y
 
 

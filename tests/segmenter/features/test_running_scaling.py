@@ -16,7 +16,7 @@ from handflow.framework.testing import NodeHarness
 from handflow.plugins.segmenter import save_class_models, train_class_models
 from handflow.plugins.segmenter.cli import register_evaluate
 from handflow.plugins.segmenter.datasets import Recording
-from handflow.plugins.segmenter.evaluation import StreamEvaluator
+from handflow.plugins.segmenter.evaluation import RecordingsEvaluator
 from handflow.plugins.segmenter.evaluation._recordings import _zscore
 from handflow.plugins.segmenter.features import ChannelScaling, RunningStandardizer
 from handflow.plugins.segmenter.nodes import OnlineCLMNode
@@ -128,7 +128,7 @@ def test_recording_normalisation_applies_the_training_prior_to_every_recording()
     np.testing.assert_array_equal(out[1].X, s.transform(held.X))
     np.testing.assert_allclose(_zscore(train, [held])[0].X, (held.X - X0.mean(axis=0)) / X0.std(axis=0))
     with pytest.raises(ValueError, match="normalise must be one of"):
-        StreamEvaluator(None, normalise="person")
+        RecordingsEvaluator(None, normalise="person")
 
 
 def test_cli_reports_the_normalisation_in_json(tmp_path, capsys):
@@ -147,7 +147,7 @@ def test_cli_reports_the_normalisation_in_json(tmp_path, capsys):
         assert run_command(register_evaluate, [str(tmp_path), *option]) == 2  # not continuous recordings
         assert "apply to continuous recordings" in capsys.readouterr().err
     with pytest.raises(ValueError, match="pseudo_unknowns must be one of"):
-        StreamEvaluator(None, pseudo_unknowns="guess")
+        RecordingsEvaluator(None, pseudo_unknowns="guess")
 
 
 @pytest.fixture(scope="module")

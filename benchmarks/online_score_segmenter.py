@@ -69,7 +69,7 @@ def node_path_latency(seg: OnlineScoreCLMSegmenter, X: np.ndarray) -> tuple[np.n
     wall, cpu = [], []
     for x in X:
         t0, c0 = time.perf_counter(), time.thread_time()
-        seg.update(x)
+        seg.push(x)
         wall.append(time.perf_counter() - t0)
         cpu.append(time.thread_time() - c0)
     return np.array(wall[WARMUP:]), np.array(cpu[WARMUP:])

@@ -38,7 +38,7 @@ def running_normaliser(scaling: ChannelScaling | None, frames: int) -> Callable[
             "retrain them with `handflow train-classes`"
         )
     stream = RunningStandardizer(prior_frames=frames).set_prior(scaling.offset_, scaling.scale_).stream()
-    return lambda y: scaling.inverse_transform(stream.update(y))
+    return lambda y: scaling.inverse_transform(stream.push(y))
 
 
 class RecognizerParams(StrictModel):
@@ -245,7 +245,7 @@ class OnlineCLMNode(_RecognizerNode):
         return scorer
 
     def recognise(self, y: np.ndarray, stamp: int) -> None:
-        up = self.segmenter.update(y if self.running is None else self.running(y))
+        up = self.segmenter.push(y if self.running is None else self.running(y))
         self.ctx.publish(
             "labels",
             Label(label=self.name(up.label), index=up.index, classes=self.classes, scores=up.scores),
@@ -278,7 +278,7 @@ class UKROnlyNode(_RecognizerNode):
         self.index = 0
 
     def recognise(self, y: np.ndarray, stamp: int) -> None:
-        label, C = self.recognizer.update(y)
+        label, C = self.recognizer.push(y)
         self.ctx.publish(
             "labels", Label(label=self.name(label), index=self.index, classes=self.classes, scores=C), stamp_ns=stamp
         )

@@ -1,6 +1,6 @@
 """UKR-only recogniser (docs/segmentation.md §A): local + history compatibilities, winner-take-all.
 
-Inherently online: :meth:`UKROnlyRecognizer.update` takes one observation at a time and gives
+Inherently online: :meth:`UKROnlyRecognizer.push` takes one observation at a time and gives
 exactly the values :meth:`UKROnlyRecognizer.predict` computes for the whole sequence.
 """
 
@@ -101,14 +101,18 @@ class UKROnlyRecognizer(BaseEstimator):
             self._check()
             self.reset()
 
-    def update(self, y: np.ndarray) -> tuple[int, np.ndarray]:
+    def push(self, y: np.ndarray) -> tuple[int, np.ndarray]:
         """Consume one observation (d,); return (label index or −1, C (M,))."""
         self._start()
         proj = self._stream.project(y)
         return self.update_projected(proj.latent_time[0], proj.errors[0])
 
+    def update(self, y: np.ndarray) -> tuple[int, np.ndarray]:
+        """:meth:`push` (its name before the streaming contract, docs/segmentation.md)."""
+        return self.push(y)
+
     def update_projected(self, latent_time: np.ndarray, errors: np.ndarray) -> tuple[int, np.ndarray]:
-        """:meth:`update` for an observation already projected onto all candidates."""
+        """:meth:`push` for an observation already projected onto all candidates."""
         self._start()
         c_rec = reconstruction_compatibility(errors)
         if self._locals.maxlen != self.history:

@@ -457,7 +457,7 @@ class UKRCLMOnlineMethod(Method):
         seg = self.batch.segmenter(fitted.model, reject, fitted.params["history"], kind=OnlineCLMSegmenter)
         published = np.full(len(X), -1)
         for y in X:
-            update = seg.update(y)
+            update = seg.push(y)
             published[update.index] = update.label
             for ev in update.events:
                 if ev.kind == "revision":

@@ -1,6 +1,7 @@
 """Causal feature transforms of a stream: channel scaling, running scaling, delay embedding,
 derived features and headings (docs/segmentation.md)."""
 
+from ._contract import CausalTransform, SampleStream
 from ._delay import (
     DelayEmbedding,
     DelayStream,
@@ -24,9 +25,13 @@ from ._running_scaling import (
 from ._scaling import (
     MIN_SCALE,
     ChannelScaling,
+    ScalingStream,
 )
 
 __all__ = [
+    "CausalTransform",
+    "SampleStream",
+    "ScalingStream",
     "ChannelScaling",
     "DERIVED",
     "DelayEmbedding",

@@ -34,6 +34,10 @@ class DelayEmbedding:
         """Frames of past one embedded frame reaches back."""
         return (int(self.window) - 1) * int(self.step)
 
+    def fit(self, X=None, y=None) -> DelayEmbedding:
+        """Nothing to learn: the embedding is fixed by its parameters (the streaming contract)."""
+        return self
+
     def transform(self, X: np.ndarray) -> np.ndarray:
         """(T, d) → (T, window·d), causal; the first frame stands in for the missing past."""
         X = np.asarray(X, dtype=float)

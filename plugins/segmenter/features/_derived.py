@@ -39,6 +39,10 @@ class Derived:
         """Channels out per channel in."""
         return 2 if self.active else 1
 
+    def fit(self, X=None, y=None) -> Derived:
+        """Nothing to learn: a derived feature is fixed by its parameters (the streaming contract)."""
+        return self
+
     def transform(self, X: np.ndarray) -> np.ndarray:
         """Frames (T, d) with the derived features appended: (T, factor·d)."""
         X = np.asarray(X, dtype=float)

@@ -111,7 +111,7 @@ class RunningStream:
         self._s1 = np.zeros(scaler.n_features_in_)
         self._s2 = np.zeros(scaler.n_features_in_)
 
-    def update(self, x) -> np.ndarray:
+    def push(self, x) -> np.ndarray:
         """The standardised frame (channels,) of the newest frame x; a bad frame raises ValueError
         and leaves the stream as it was."""
         u = self.scaler._prior_units(_frames(x, "frame", self.scaler.n_features_in_, single=True))[0]
@@ -120,3 +120,7 @@ class RunningStream:
         z = self.scaler._standardised(u, s1, s2, self.scaler.prior_frames + (self.count + 1.0))
         self._s1, self._s2, self.count = s1, s2, self.count + 1
         return z
+
+    def update(self, x) -> np.ndarray:
+        """:meth:`push` (its name before the streaming contract, docs/segmentation.md)."""
+        return self.push(x)

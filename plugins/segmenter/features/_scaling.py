@@ -43,6 +43,10 @@ class ChannelScaling:
             )
         return (Y - self.offset_) / self.scale_
 
+    def stream(self) -> ScalingStream:
+        """A sample-by-sample scaler equal to :meth:`transform` (it keeps no state)."""
+        return ScalingStream(self)
+
     def inverse_transform(self, Z: np.ndarray) -> np.ndarray:
         """Scaled observations back in the raw channel units."""
         return self.offset_ + self.scale_ * np.asarray(Z, dtype=float)
@@ -64,3 +68,14 @@ class ChannelScaling:
             and np.array_equal(self.offset_, other.offset_)
             and np.array_equal(self.scale_, other.scale_)
         )
+
+
+class ScalingStream:
+    """Scales one frame at a time (see :meth:`ChannelScaling.stream`)."""
+
+    def __init__(self, scaling: ChannelScaling) -> None:
+        self.scaling = scaling
+
+    def push(self, y: np.ndarray) -> np.ndarray:
+        """The scaled frame (d,) of the newest observation y (d,)."""
+        return self.scaling.transform(np.asarray(y, dtype=float).reshape(-1))

@@ -78,7 +78,7 @@ class OnlineScoreCLMSegmenter(OnlineCLMSegmenter):
     def _source_rows(self, m: int) -> dict[str, np.ndarray]:
         return {"evidence": np.zeros((self.window, m))}
 
-    def update(self, y: np.ndarray) -> OnlineUpdate:
+    def push(self, y: np.ndarray) -> OnlineUpdate:
         """Consume one observation (d,): score its causal window, then re-segment the window."""
         y = self.scorer.check_input(y)[0]
         self._recent.append(y)
@@ -93,7 +93,7 @@ class OnlineScoreCLMSegmenter(OnlineCLMSegmenter):
         return self.scorer.scores_and_novelty_last(recent)
 
     def update_scores(self, scores: np.ndarray, known: float | np.ndarray = 1.0) -> OnlineUpdate:
-        """:meth:`update` for an observation already scored (M,), with its novelty weights (M,)."""
+        """:meth:`push` for an observation already scored (M,), with its novelty weights (M,)."""
         self._append(evidence=self.scorer.evidence(scores)[0] * known)
         return self._segment()
 

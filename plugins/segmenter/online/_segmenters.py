@@ -114,7 +114,7 @@ class SegmentTracker:
 
 @dataclass
 class OnlineUpdate:
-    """Result of one :meth:`OnlineCLMSegmenter.update`."""
+    """Result of one :meth:`OnlineCLMSegmenter.push`."""
 
     index: int
     label: int
@@ -263,13 +263,17 @@ class OnlineCLMSegmenter(CLMSegmenter):
         """Labels as reported so far (on arrival, then by revisions), oldest first."""
         return self._published.copy()
 
-    def update(self, y: np.ndarray) -> OnlineUpdate:
+    def push(self, y: np.ndarray) -> OnlineUpdate:
         """Consume one observation (d,) and re-segment the window."""
         y = np.asarray(y, dtype=float).reshape(1, -1)
         if not np.isfinite(y).all():  # checked before it enters the delay buffer
             raise ValueError("observations hold NaN/inf; drop or repair those rows before recognition")
         proj = self._stream.project(y)
         return self.update_projected(*proj.row())
+
+    def update(self, y: np.ndarray) -> OnlineUpdate:
+        """:meth:`push` (its name before the streaming contract, docs/segmentation.md)."""
+        return self.push(y)
 
     def _append(self, **rows: np.ndarray) -> None:
         """Add one observation's source rows (:meth:`_source_rows`) and its new band entries."""
@@ -308,7 +312,7 @@ class OnlineCLMSegmenter(CLMSegmenter):
     def update_projected(
         self, latent_time: np.ndarray, errors: np.ndarray, reversed_errors: np.ndarray | None = None
     ) -> OnlineUpdate:
-        """:meth:`update` for an observation already projected onto all candidates
+        """:meth:`push` for an observation already projected onto all candidates
         (``reversed_errors``: with its headings turned round, :mod:`..features`)."""
         errors = np.asarray(errors, dtype=float) * self.error_scale
         rows = {"latent": np.asarray(latent_time, dtype=float), "errors": errors}
@@ -427,7 +431,7 @@ class OnlineCLMSegmenter(CLMSegmenter):
         return events
 
     def replay(self, Y: np.ndarray) -> np.ndarray:
-        """Feed a whole (N, d) stream through :meth:`update` (the node's code path) from a fresh
+        """Feed a whole (N, d) stream through :meth:`push` (the node's code path) from a fresh
         state and :meth:`finish` it; returns each observation's *final* published label (on
         arrival, then changed only by revisions) — what a subscriber to the node's labels and
         events ends up with."""

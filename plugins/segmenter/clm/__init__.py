@@ -5,6 +5,7 @@ from ._segmenter import (
     ETA_HEADED,
     RECONSTRUCTIONS,
     CLMSegmenter,
+    default_solver,
 )
 from ._solver import (
     LANCZOS_MIN_N,
@@ -23,6 +24,7 @@ __all__ = [
     "CLMResult",
     "CLMRun",
     "CLMSegmenter",
+    "default_solver",
     "CompetitiveLayerModel",
     "ETA",
     "ETA_HEADED",

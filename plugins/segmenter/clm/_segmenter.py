@@ -8,8 +8,10 @@ observation is its label; the background layer means rejected (−1).
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
-from sklearn.base import BaseEstimator
+from sklearn.base import BaseEstimator, clone
 from sklearn.exceptions import NotFittedError
 
 from ..base import REJECTED
@@ -29,6 +31,34 @@ from ._solver import CLMResult, CompetitiveLayerModel
 RECONSTRUCTIONS = ("absolute", "relative")
 ETA = 0.98  # annealing factor per sweep (docs/segmentation.md, documented choices)
 ETA_HEADED = 0.998  # ... for candidates with heading channels, whose energy has near-equal minima
+SOLVER_PARAMS = ("J", "eta", "tol", "max_sweeps", "inhibition_margin", "spectral")  # once keywords of the segmenter
+
+
+def default_solver(candidates: CandidateSet | None = None, **params) -> CompetitiveLayerModel:
+    """The CLM solver a segmenter of ``candidates`` uses when given none: annealing factor
+    :data:`ETA`, or :data:`ETA_HEADED` for candidates with heading channels, and ``params``."""
+    headed = candidates is not None and candidates.headings.active
+    return CompetitiveLayerModel(**{"eta": ETA_HEADED if headed else ETA, **params})
+
+
+class _Result:
+    """A result of a segmentation; before one, reading it raises ``NotFittedError``."""
+
+    def __set_name__(self, owner, name: str) -> None:
+        self.name = name
+
+    def __get__(self, obj, owner=None):
+        if obj is None:
+            return self
+        try:
+            return obj.__dict__[self.name]
+        except KeyError:
+            raise NotFittedError(
+                f"{type(obj).__name__}.{self.name} exists after a segmentation: call fit_predict(sequence) first"
+            ) from None
+
+    def __set__(self, obj, value) -> None:
+        obj.__dict__[self.name] = value
 
 
 class CLMSegmenter(BaseEstimator):
@@ -76,15 +106,18 @@ class CLMSegmenter(BaseEstimator):
     max_fit_ratio : a segment whose candidate fits it worse (mean error) than this many times the
         best-fitting candidate is rejected after the CLM (``None`` = off, the spec;
         :func:`..compatibility.reject_poor_fit`, documented choice); applied with ``min_progress``.
+    solver : the :class:`CompetitiveLayerModel` that runs the CLM (its ``J``, ``eta``, ``tol``,
+        ``max_sweeps``, ``inhibition_margin``, ``spectral``); ``None`` = :func:`default_solver`: η =
+        0.98, or 0.998 for candidates with heading channels (documented choice, docs/segmentation.md:
+        their energy has near-equal minima that faster annealing picks at random, so the online
+        labels could not equal the batch's).  A copy seeded with ``random_state`` runs.
     restarts : independent cold runs per sequence; the lowest-energy solution is kept
         (documented choice: the annealed Gauss–Seidel dynamics end in a local minimum of the
         CLM energy — on real letter pairs the true segmentation often has lower energy than a
         single run's result; keeping the best of 3 minimises the same energy better).
-    eta : annealing factor per sweep; ``None`` = 0.98, or 0.998 for candidates with heading
-        channels (documented choice, docs/segmentation.md: their energy has near-equal minima that
-        faster annealing picks at random, so the online labels could not equal the batch's).
-    J, tol, max_sweeps, inhibition_margin, spectral : passed to the CLM solver.
     random_state : seed of the stochastic solver.
+    J, eta, tol, max_sweeps, inhibition_margin, spectral : deprecated keywords, set on the solver
+        (with a ``DeprecationWarning``): pass ``solver=default_solver(candidates, ...)`` instead.
 
     The constructor only stores the parameters (scikit-learn convention: ``get_params``,
     ``set_params`` and ``clone`` work); they are checked, and the solver ``solver_`` with its
@@ -93,6 +126,14 @@ class CLMSegmenter(BaseEstimator):
     After :meth:`fit_predict`: ``labels_``, ``n_sweeps_``, ``energy_``, ``converged_``,
     ``activities_`` (L+1, N) and ``result_``.
     """
+
+    SPECTRAL = "eigen"  # how the default solver bounds λ_max (the CLM's exact eigenvalue)
+    labels_ = _Result()
+    n_sweeps_ = _Result()
+    energy_ = _Result()
+    converged_ = _Result()
+    activities_ = _Result()
+    result_ = _Result()
 
     def __init__(
         self,
@@ -106,19 +147,27 @@ class CLMSegmenter(BaseEstimator):
         background: float | None = None,
         background_factor: float = 1.0,
         background_radius: int | None = None,
-        J: float = 2.0,
-        eta: float | None = None,
-        tol: float = 1e-3,
-        max_sweeps: int = 1000,
-        inhibition_margin: float = 1.5,
-        spectral: str = "eigen",
+        solver: CompetitiveLayerModel | None = None,
         error_scale: float = 1.0,
         reconstruction: str = "absolute",
         min_progress: float = 0.0,
         max_fit_ratio: float | None = None,
         restarts: int = 1,
         random_state=None,
+        **solver_params,
     ) -> None:
+        if solver_params:
+            unknown = sorted(set(solver_params) - set(SOLVER_PARAMS))
+            if unknown:
+                raise TypeError(f"{type(self).__name__} got unexpected keyword arguments {unknown}")
+            warnings.warn(
+                f"{sorted(solver_params)} of {type(self).__name__} are deprecated and go in the next release: "
+                "pass solver=default_solver(candidates, ...) (a CompetitiveLayerModel) instead",
+                DeprecationWarning,
+                stacklevel=2,
+            )
+            base = default_solver(candidates) if solver is None else clone(solver)
+            solver = base.set_params(**{k: v for k, v in solver_params.items() if v is not None})
         self.candidates = candidates
         self.history = history
         self.order_rating = order_rating
@@ -128,12 +177,7 @@ class CLMSegmenter(BaseEstimator):
         self.background = background
         self.background_factor = background_factor
         self.background_radius = background_radius
-        self.J = J
-        self.eta = eta
-        self.tol = tol
-        self.max_sweeps = max_sweeps
-        self.inhibition_margin = inhibition_margin
-        self.spectral = spectral
+        self.solver = solver
         self.error_scale = error_scale
         self.reconstruction = reconstruction
         self.min_progress = min_progress
@@ -160,35 +204,17 @@ class CLMSegmenter(BaseEstimator):
                 raise ValueError(f"min_progress must be >= 0 periods, got {self.min_progress}")
             if self.max_fit_ratio is not None and not float(self.max_fit_ratio) >= 1:
                 raise ValueError(f"max_fit_ratio must be >= 1 (or None = off), got {self.max_fit_ratio}")
-            self.solver_ = CompetitiveLayerModel(
-                J=self.J,
-                eta=self.annealing_factor(),
-                tol=self.tol,
-                max_sweeps=self.max_sweeps,
-                inhibition_margin=self.inhibition_margin,
-                spectral=self.spectral,
-                random_state=self.random_state,
-            )
+            if self.solver is not None and not isinstance(self.solver, CompetitiveLayerModel):
+                raise ValueError(f"solver must be a CompetitiveLayerModel (or None), got {type(self.solver).__name__}")
+            solver = default_solver(self.candidates) if self.solver is None else clone(self.solver)
+            self.solver_ = solver.set_params(random_state=self.random_state)
         return self.solver_
-
-    def annealing_factor(self) -> float:
-        """``eta``, or its default for these candidates (see the class docstring)."""
-        if self.eta is not None:
-            return float(self.eta)
-        return ETA_HEADED if self.candidates is not None and self.candidates.headings.active else ETA
 
     @property
     def classes_(self) -> list[str]:
         if self.candidates is None:
             raise ValueError("this CLMSegmenter has no candidates (it segments given layer bands only)")
         return self.candidates.classes
-
-    def __getattr__(self, name: str):
-        if name.endswith("_") and not name.startswith("__"):
-            raise NotFittedError(
-                f"{type(self).__name__}.{name} exists after a segmentation: call fit_predict(sequence) first"
-            )
-        raise AttributeError(name)
 
     def background_strength(self, n: int) -> float:
         base = thesis_background_strength(n) if self.background is None else float(self.background)

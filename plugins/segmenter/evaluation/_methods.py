@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..base import REJECTED
-from ..clm import CLMSegmenter, UKROnlyRecognizer
+from ..clm import CLMSegmenter, UKROnlyRecognizer, default_solver
 from ..compatibility import evidence_band, history_compatibility, novelty_weight, reject_segments, score_evidence
 from ..models import CandidateSet, Projection, fit_recording_models
 from ..novelty import distance_weight
@@ -282,7 +282,7 @@ class UKRCLMMethod(UKRMethod):
             history=history,
             background_factor=reject,
             reconstruction="relative",
-            max_sweeps=300,
+            solver=default_solver(candidates, max_sweeps=300, spectral=kind.SPECTRAL),
             random_state=0,
         )
 
@@ -366,7 +366,9 @@ class ScoreCLMMethod(Method):
         return evidence / evidence.sum(axis=1, keepdims=True)
 
     def labels(self, fitted, state, reject, drop=None):
-        seg = CLMSegmenter(None, history=self.history, background_factor=reject, max_sweeps=300, random_state=0)
+        seg = CLMSegmenter(
+            None, history=self.history, background_factor=reject, solver=default_solver(max_sweeps=300), random_state=0
+        )
         _, _, width = seg.widths()
         band = evidence_band(self.evidence(fitted, state, drop), width, self.history)
         local = seg.fit_predict_bands(*seg.with_background(band))

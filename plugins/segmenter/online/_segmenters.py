@@ -30,7 +30,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..base import REJECTED
-from ..clm import CLMRun, CLMSegmenter
+from ..clm import CLMRun, CLMSegmenter, default_solver
 from ..compatibility import SPIKE_LENGTH, candidate_band, evidence_band, order_rating, pair_error
 from ..models import CandidateSet
 
@@ -127,8 +127,8 @@ class OnlineUpdate:
 class OnlineCLMSegmenter(CLMSegmenter):
     """Sliding-window CLM segmentation of a stream: fast labels on arrival, batch-equal final labels.
 
-    Takes the parameters of :class:`CLMSegmenter` (with ``spectral="gershgorin"`` by default: the
-    exact λ_max costs more than the sweeps here) plus the ones below.
+    Takes the parameters of :class:`CLMSegmenter` (its default solver with ``spectral="gershgorin"``:
+    the exact λ_max costs more than the sweeps here) plus the ones below.
 
     window : number of most recent observations the CLM sees (200 = 2 s at 100 Hz).
     tail : observations the fast run solves (the newest ones; the older ones' activities are a
@@ -158,6 +158,8 @@ class OnlineCLMSegmenter(CLMSegmenter):
     the labels on arrival are not filtered (documented choice, docs/segmentation.md).
     """
 
+    SPECTRAL = "gershgorin"  # the exact λ_max costs more than the sweeps of a window
+
     def __init__(
         self,
         candidates: CandidateSet,
@@ -171,7 +173,8 @@ class OnlineCLMSegmenter(CLMSegmenter):
         edge: int | None = None,
         **clm_params,
     ) -> None:
-        clm_params.setdefault("spectral", "gershgorin")
+        if clm_params.get("solver") is None:
+            clm_params["solver"] = default_solver(candidates, spectral=self.SPECTRAL)
         super().__init__(candidates, **clm_params)
         if window < 2:
             raise ValueError(f"window must hold at least 2 observations, got {window}")
@@ -179,7 +182,7 @@ class OnlineCLMSegmenter(CLMSegmenter):
         if not 0 <= block <= window:
             raise ValueError(f"block must lie in 0…window ({window}), got {block}")
         if block_sweeps is None:
-            block_sweeps = -(-int(self.max_sweeps) // max(block, 1))  # ceil: the cap within one block
+            block_sweeps = -(-int(self.solver.max_sweeps) // max(block, 1))  # ceil: the cap within one block
         if update_sweeps < 1 or block_sweeps < 1:
             raise ValueError(f"update_sweeps and block_sweeps must be >= 1, got {update_sweeps}, {block_sweeps}")
         if confirm < 1:
@@ -367,7 +370,9 @@ class OnlineCLMSegmenter(CLMSegmenter):
         # the run must end before its first unfinalised observation leaves the window (a full
         # window drops its oldest observation at the next update)
         last_chance = due or (self.n == self.window and self._finalised <= self.window_start)
-        if self._run is not None and self._run[2].advance(self.max_sweeps if last_chance else self.block_sweeps):
+        if self._run is not None and self._run[2].advance(
+            self._solver().max_sweeps if last_chance else self.block_sweeps
+        ):
             events = self._finalise(*self._run)
             self._run = None
         stop = self.seen - (self.window - self.block) // 2  # observations with that much context after them
@@ -421,7 +426,7 @@ class OnlineCLMSegmenter(CLMSegmenter):
         and fix every label not yet final; returns the revisions (the stream may go on after it)."""
         events = []
         if self._run is not None:
-            self._run[2].advance(self.max_sweeps)
+            self._run[2].advance(self._solver().max_sweeps)
             events = self._finalise(*self._run)
             self._run = None
         if self.n:

@@ -8,6 +8,7 @@ from hypothesis import strategies as st
 
 from handflow.plugins.segmenter import (
     CLMSegmenter,
+    CompetitiveLayerModel,
     OnlineCLMSegmenter,
     candidate_set,
     load_candidates,
@@ -117,7 +118,7 @@ def test_headed_candidates_anneal_slower_by_default(headed, candidates):
     assert CLMSegmenter(headed)._solver().eta == 0.998
     assert OnlineCLMSegmenter(headed)._solver().eta == 0.998
     assert CLMSegmenter(candidates)._solver().eta == 0.98
-    assert CLMSegmenter(headed, eta=0.9)._solver().eta == 0.9
+    assert CLMSegmenter(headed, solver=CompetitiveLayerModel(eta=0.9))._solver().eta == 0.9
 
 
 def test_headed_segmenters_reject_a_reversed_letter_in_batch_and_online_alike(headed, synthetic):

@@ -1,6 +1,7 @@
 import numpy as np
 
 from handflow.plugins.segmenter import CLMSegmenter, OnlineCLMSegmenter
+from handflow.plugins.segmenter.clm import default_solver
 from handflow.plugins.segmenter.models import Projection
 
 
@@ -28,7 +29,8 @@ def test_block_runs_spread_the_sweep_cap_over_a_block_by_default(candidates, two
     """A block run that uses the solver's whole sweep budget must end before the next is due, so
     that no update has to finish a run at once: by default the cap is spread over the block."""
     assert OnlineCLMSegmenter(candidates, window=200, block=50).block_sweeps == 20
-    seg = OnlineCLMSegmenter(candidates, window=60, block=20, max_sweeps=300, eta=1.0, random_state=0)
+    solver = default_solver(candidates, max_sweeps=300, eta=1.0, spectral=OnlineCLMSegmenter.SPECTRAL)
+    seg = OnlineCLMSegmenter(candidates, window=60, block=20, solver=solver, random_state=0)
     assert seg.block_sweeps == 15
     Y, _ = two_letters
     proj = candidates.project(Y[:100])

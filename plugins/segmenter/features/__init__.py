@@ -18,6 +18,7 @@ from ._headings import (
     Headings,
     HeadingStream,
 )
+from ._pipeline import FeaturePipeline, PipelineStream
 from ._running_scaling import (
     RunningStandardizer,
     RunningStream,
@@ -29,6 +30,8 @@ from ._scaling import (
 )
 
 __all__ = [
+    "FeaturePipeline",
+    "PipelineStream",
     "CausalTransform",
     "SampleStream",
     "ScalingStream",

@@ -22,7 +22,7 @@ import numpy as np
 
 from handflow.framework.npz_files import building
 
-from ..features import ChannelScaling, DelayEmbedding, Derived, Headings
+from ..features import ChannelScaling, DelayEmbedding, Derived, FeaturePipeline, Headings
 from ..novelty import IntensityRanges, log_intensity
 
 INDEX_FILE = "classes.json"
@@ -172,9 +172,11 @@ def stroke_seam(latent_time: np.ndarray, sequence_ids: np.ndarray) -> float:
 
 
 class CandidateSet:
-    """One candidate model per class label (labels keep the given order)."""
+    """One candidate model per class label (labels keep the given order) and the feature pipeline
+    that turns observations into their input (:class:`..features.FeaturePipeline`; ``None`` = the
+    one the models record in their provenance, as model files do)."""
 
-    def __init__(self, models: dict[str, CandidateModel]) -> None:
+    def __init__(self, models: dict[str, CandidateModel], pipeline: FeaturePipeline | None = None) -> None:
         if not models:
             raise ModelsMissingError(f"no candidate models given; {TRAIN_HINT}")
         for name, m in models.items():
@@ -183,24 +185,11 @@ class CandidateSet:
         self.models = dict(models)
         self._batched = None
         provenances = [getattr(getattr(m, "model", None), "provenance_", None) or {} for m in self.models.values()]
-        delays = {DelayEmbedding.from_provenance(p) for p in provenances}
-        if len(delays) > 1:
-            raise ValueError(
-                f"candidates were trained on different delay embeddings {sorted(map(str, delays))}; retrain them alike"
-            )
-        self.delay = delays.pop()
-        headings = {Headings.from_provenance(p) for p in provenances}
-        if len(headings) > 1:
-            raise ValueError(
-                f"candidates were trained on different heading channels {sorted(map(str, headings))}; retrain them alike"
-            )
-        self.headings = headings.pop()
-        derived = {Derived.from_provenance(p) for p in provenances}
-        if len(derived) > 1:
-            raise ValueError(
-                f"candidates were trained on different derived features {sorted(d.kind for d in derived)}; retrain them alike"
-            )
-        self.derived = derived.pop()
+        if pipeline is None:  # what the models record (model files written before the pipeline was held)
+            first = next(iter(self.models.values()))
+            scaling = first.scaling if isinstance(first, UKRCandidate) else None
+            pipeline = FeaturePipeline.from_provenances(provenances, scaling)
+        self.pipeline = pipeline
         self.evidence_temperature = float(provenances[0].get("evidence_temperature", 1.0))
         self.own_errors = np.array([float(p.get("own_error", 1.0)) for p in provenances])
         self.intensity = IntensityRanges.from_provenances(provenances)  # None for models without ranges
@@ -236,21 +225,31 @@ class CandidateSet:
         return len(self.models)
 
     @property
+    def delay(self) -> DelayEmbedding:
+        return self.pipeline.delay
+
+    @property
+    def headings(self) -> Headings:
+        return self.pipeline.headings
+
+    @property
+    def derived(self) -> Derived:
+        return self.pipeline.derived
+
+    @property
     def scaling(self) -> ChannelScaling | None:
-        """The channel scaling of the (first) candidate (:mod:`..features`); None for raw channels."""
-        first = next(iter(self.models.values()))
-        return first.scaling if isinstance(first, UKRCandidate) else None
+        """The channel scaling of the pipeline (the candidates'); None for raw channels."""
+        return self.pipeline.scaling
 
     def scaled(self, Y: np.ndarray) -> np.ndarray:
-        """Observations in the channel scaling of the (first) candidate."""
-        Y = np.asarray(Y, dtype=float)
-        return Y if self.scaling is None else self.scaling.transform(Y)
+        """Observations in the channel scaling of the pipeline."""
+        return self.pipeline.scaled(np.asarray(Y, dtype=float))
 
     @property
     def stateful(self) -> bool:
         """True when an observation's model input depends on the ones before it (a delay
         embedding, heading channels or velocities): a stream goes through :meth:`stream`."""
-        return self.delay.window > 1 or self.headings.active or self.derived.active
+        return self.pipeline.stateful
 
     def stream(self) -> ObservationStream:
         """Prepares a stream's observations one at a time, equal to :meth:`project` of the whole stream."""
@@ -278,10 +277,7 @@ class CandidateSet:
                 lt[:, j], e[:, j] = m.project(Y)
             return Projection(lt, e, self.classes)
         if not embedded:
-            Z = self.headings.transform(self.derived.transform(Y))
-            Y = self.delay.transform(self.scaled(Z))
-            if self.headings.active:
-                reversed_rows = self.delay.transform(self.scaled(self.headings.reversed(Z)))
+            Y, reversed_rows = self.pipeline.transform_both(Y)
         lt, e = self._batched_project(batched, Y)
         reversed_errors = None if reversed_rows is None else self._batched_project(batched, reversed_rows)[1]
         return Projection(lt, e, self.classes, reversed_errors)
@@ -296,7 +292,7 @@ class CandidateSet:
         return lt, e
 
     def without(self, label: str) -> CandidateSet:
-        return CandidateSet({k: v for k, v in self.models.items() if k != label})
+        return CandidateSet({k: v for k, v in self.models.items() if k != label}, self.pipeline)
 
     def intensity_weights(self, Y: np.ndarray) -> np.ndarray:
         """Per observation and candidate (N, M), how far Y's motion intensity lies within the
@@ -322,10 +318,8 @@ class ObservationStream:
 
     def __init__(self, candidates: CandidateSet) -> None:
         self.candidates = candidates
-        self._derived = candidates.derived.stream()
+        self._features = candidates.pipeline.stream()
         self._derived_for_intensity = candidates.derived.stream()  # advanced by intensity_weights alone
-        self._headings = candidates.headings.stream()
-        self._delays = [candidates.delay.stream() for _ in range(1 + candidates.headings.active)]
         self._intensity = candidates.intensity.stream() if candidates.intensity else None
 
     def project(self, y: np.ndarray) -> Projection:
@@ -347,11 +341,7 @@ class ObservationStream:
     def push(self, y: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
         """The prepared row (1, D) of the newest observation y (d,), and the row with its heading
         turned round (None without heading channels)."""
-        c = self.candidates
-        z = self._headings.push(self._derived.push(y))
-        variants = [z, c.headings.reversed(z)] if c.headings.active else [z]
-        rows = [d.push(c.scaled(v[None])[0])[None] for d, v in zip(self._delays, variants)]
-        return rows[0], (rows[1] if len(rows) > 1 else None)
+        return self._features.push(y)
 
 
 def _load_ukr(path: Path):

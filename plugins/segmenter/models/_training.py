@@ -27,7 +27,7 @@ import numpy as np
 
 from ..compatibility import evidence_temperature
 from ..datasets import LabelledDataset
-from ..features import ChannelScaling, DelayEmbedding, Derived, Headings
+from ..features import ChannelScaling, DelayEmbedding, Derived, FeaturePipeline, Headings
 from ..novelty import IntensityRanges
 from ._candidates import INDEX_FILE, CandidateSet, UKRCandidate
 from ._cycles import phase_direction, split_cycles
@@ -221,7 +221,8 @@ def fit_recording_models(
         model.train_variance_ = pooled_variance
         model.provenance_ = dict(model.provenance_, **extra)
         models[c] = model
-    cands = candidate_set(models)
+    pipeline = FeaturePipeline(features, Headings(), scaler, embedding)
+    cands = candidate_set(models, pipeline)
     errors = {c: np.vstack([cands.project(s).errors for s in segs]) for c, segs in by_class.items()}  # (frames, M)
     own = {c: errors[c][:, j] for j, c in enumerate(frames)}
     reference = float(np.median(np.concatenate(list(own.values())))) or 1.0
@@ -235,12 +236,13 @@ def fit_recording_models(
             own_error=float(np.median(own[c])) / reference,
             **intensity.class_provenance(row),
         )
-    return candidate_set(models)  # reads the shared settings back from the provenance
+    return candidate_set(models, pipeline)
 
 
-def candidate_set(models: dict) -> CandidateSet:
-    """Wrap fitted StructuredUKR models as candidates."""
-    return CandidateSet({label: UKRCandidate(m) for label, m in models.items()})
+def candidate_set(models: dict, pipeline: FeaturePipeline | None = None) -> CandidateSet:
+    """Wrap fitted StructuredUKR models as candidates with the feature ``pipeline`` they were
+    trained on (None: the one their provenance records)."""
+    return CandidateSet({label: UKRCandidate(m) for label, m in models.items()}, pipeline)
 
 
 def save_class_models(models: dict | CandidateSet, out_dir: str | Path, provenance: dict | None = None) -> Path:

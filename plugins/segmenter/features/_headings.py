@@ -27,9 +27,10 @@ from ._derived import FrameSteps
 SOFTNESS_OF_MEDIAN_STEP = 0.2  # σ as a fraction of the median training step (documented choice)
 
 
-@dataclass(frozen=True)
+@dataclass(unsafe_hash=True)
 class Headings:
-    """Headings of ``channels`` (column indices) with softness ``softness``; no channels = off."""
+    """Headings of ``channels`` (column indices) with softness ``softness``; no channels = off.
+    :meth:`fit` learns the softness from training sequences (the streaming contract)."""
 
     channels: tuple[int, ...] = ()
     softness: float = 0.0
@@ -44,20 +45,21 @@ class Headings:
     def active(self) -> bool:
         return bool(self.channels)
 
-    @classmethod
-    def fit(cls, channels: tuple[int, ...], sequences: list[np.ndarray]) -> Headings:
-        """Headings of ``channels`` whose softness is :data:`SOFTNESS_OF_MEDIAN_STEP` of the median
-        step length over the training ``sequences``."""
-        channels = tuple(int(c) for c in channels)
+    def fit(self, sequences: list[np.ndarray], y=None) -> Headings:
+        """Set the softness to :data:`SOFTNESS_OF_MEDIAN_STEP` of the median step length of the
+        heading channels over the training ``sequences``; returns the headings."""
+        channels = self.channels = tuple(int(c) for c in self.channels)
         if not channels:
-            return cls()
+            self.softness = 0.0
+            return self
         width = min(np.asarray(s).shape[1] for s in sequences)
         if max(channels) >= width:
             raise ValueError(f"heading channel {max(channels)} does not exist: observations have {width} channels")
         steps = np.concatenate(
             [np.linalg.norm(np.diff(np.asarray(s, float)[:, channels], axis=0), axis=1) for s in sequences]
         )
-        return cls(channels, SOFTNESS_OF_MEDIAN_STEP * float(np.median(steps)) if steps.size else 0.0)
+        self.softness = SOFTNESS_OF_MEDIAN_STEP * float(np.median(steps)) if steps.size else 0.0
+        return self
 
     def headings(self, steps: np.ndarray) -> np.ndarray:
         """Soft unit vectors of steps (N, c)."""

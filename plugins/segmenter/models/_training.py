@@ -128,7 +128,7 @@ def fit_class_models(
     compact = kernel == "periodic_quartic"
     if scaling not in SCALINGS:
         raise ValueError(f"scaling must be one of {SCALINGS}, got {scaling!r}")
-    heading = Headings.fit(tuple(headings), [s for seqs in by_class.values() for s in seqs])
+    heading = Headings(tuple(headings)).fit([s for seqs in by_class.values() for s in seqs])
     by_class = {label: [heading.transform(s) for s in seqs] for label, seqs in by_class.items()}
     scaler = ChannelScaling().fit([s for seqs in by_class.values() for s in seqs]) if scaling == "standard" else None
     models = {}
@@ -227,7 +227,7 @@ def fit_recording_models(
     own = {c: errors[c][:, j] for j, c in enumerate(frames)}
     reference = float(np.median(np.concatenate(list(own.values())))) or 1.0
     tau = evidence_temperature(-np.vstack(list(errors.values())) / reference)
-    intensity = IntensityRanges.fit(frames)
+    intensity = IntensityRanges().fit(frames)
     for row, (c, model) in enumerate(models.items()):
         model.provenance_ = dict(
             model.provenance_,

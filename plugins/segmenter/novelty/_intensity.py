@@ -49,19 +49,19 @@ def _segment_intensity(segment: np.ndarray, floor: np.ndarray) -> np.ndarray:
     return _log_std(segment, floor, axis=0)[None]
 
 
-@dataclass(frozen=True)
+@dataclass
 class IntensityRanges:
-    """Per class (rows, in candidate order) the low and high intensity per channel (M, d)."""
+    """Per class (rows, in candidate order) the low and high intensity per channel (M, d), given or
+    learned by :meth:`fit` (the streaming contract), with the channels' ``floor`` (d,)."""
 
-    low: np.ndarray
-    high: np.ndarray
-    floor: np.ndarray
+    low: np.ndarray | None = None
+    high: np.ndarray | None = None
+    floor: np.ndarray | None = None
     window: int = WINDOW
 
-    @classmethod
-    def fit(cls, by_class: dict[str, list[np.ndarray]]) -> IntensityRanges:
+    def fit(self, by_class: dict[str, list[np.ndarray]], y=None) -> IntensityRanges:
         """Ranges of each class's training segments (complete windows only; a segment shorter
-        than a window counts once, with its whole length as the window)."""
+        than a window counts once, with its whole length as the window); returns the ranges."""
         frames = np.vstack([s for segs in by_class.values() for s in segs])
         floor = np.maximum(FLOOR * frames.std(axis=0), np.finfo(float).tiny)
         low, high = [], []
@@ -69,7 +69,8 @@ class IntensityRanges:
             values = np.vstack([_segment_intensity(s, floor) for s in segs])
             low.append(np.quantile(values, QUANTILE, axis=0))
             high.append(np.quantile(values, 1.0 - QUANTILE, axis=0))
-        return cls(np.array(low), np.array(high), floor)
+        self.low, self.high, self.floor = np.array(low), np.array(high), floor
+        return self
 
     def class_provenance(self, row: int) -> dict:
         """What one class model stores (its own range and the shared floor and window)."""

@@ -25,7 +25,7 @@ X = np.cumsum(RNG.normal(size=(25, 3)), axis=0)
 TRANSFORMS = {
     "delay": lambda: DelayEmbedding(3, 2).fit(TRAIN),
     "derived": lambda: Derived("velocities").fit(TRAIN),
-    "headings": lambda: Headings.fit((0, 1), [TRAIN]),
+    "headings": lambda: Headings((0, 1)).fit([TRAIN]),
     "running_scaling": lambda: RunningStandardizer().fit(TRAIN),
     "scaling": lambda: ChannelScaling().fit([TRAIN]),
 }
@@ -40,10 +40,12 @@ def test_a_transform_streams_what_it_transforms(name):
     np.testing.assert_array_equal(np.array([stream.push(x) for x in X]), transform.transform(X))
 
 
-@pytest.mark.parametrize("make", [lambda: DelayEmbedding(3, 2), lambda: Derived("velocities")])
+@pytest.mark.parametrize(
+    "make", [lambda: DelayEmbedding(3, 2), lambda: Derived("velocities"), lambda: Headings((0, 1)), ChannelScaling]
+)
 def test_fit_returns_the_transform_itself(make):
     transform = make()
-    assert transform.fit(TRAIN) is transform
+    assert transform.fit([TRAIN]) is transform
 
 
 def test_running_scaling_keeps_update_as_the_alias_of_push():

@@ -45,9 +45,9 @@ def test_a_heading_is_the_soft_unit_step_and_turns_round_backward():
 
 def test_fitted_softness_follows_the_median_step_and_bad_channels_are_refused():
     seq = np.cumsum(np.full((11, 2), [0.3, 0.4]), axis=0)  # every step 0.5 long
-    assert Headings.fit((0, 1), [seq]).softness == pytest.approx(0.1)
+    assert Headings((0, 1)).fit([seq]).softness == pytest.approx(0.1)
     with pytest.raises(ValueError, match="does not exist"):
-        Headings.fit((2,), [seq])
+        Headings((2,)).fit([seq])
     with pytest.raises(ValueError, match="distinct"):
         Headings((0, 0))
     with pytest.raises(ValueError, match="the models head channel 1"):

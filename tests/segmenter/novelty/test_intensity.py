@@ -39,7 +39,7 @@ def test_intensity_is_measured_in_log_units_whatever_a_channels_scale():
 
 
 def test_gentler_or_more_vigorous_motion_falls_outside_the_range_of_its_class():
-    ranges = IntensityRanges.fit({"circle": [_sine(1.0, seed=1), _sine(1.2, seed=2)]})
+    ranges = IntensityRanges().fit({"circle": [_sine(1.0, seed=1), _sine(1.2, seed=2)]})
     weights = {a: ranges.weights(log_intensity(_sine(a, seed=3), ranges.floor))[:, 0] for a in (0.2, 1.1, 5.0)}
     assert np.all(weights[1.1] == 1.0)  # within the trained amplitudes
     settled = slice(WINDOW - 1, None)

@@ -244,11 +244,12 @@ def test_a_moved_module_path_warns_and_keeps_its_names(old):
     new = f"{PACKAGE}.{MOVED[old].partition('.')[0]}"
     with pytest.warns(DeprecationWarning, match=f"{PACKAGE}.{old} is deprecated.*import from {new}$"):
         module = importlib.import_module(f"{PACKAGE}.{old}")
-    missing = [name for name in OLD_NAMES[old] if not hasattr(module, name)]
-    assert not missing
-    assert getattr(module, OLD_NAMES[old][0]) is getattr(
-        importlib.import_module(f"{PACKAGE}.{MOVED[old]}"), OLD_NAMES[old][0]
-    )
+    new_home = importlib.import_module(f"{PACKAGE}.{MOVED[old]}")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)  # renamed names, tested below
+        missing = [name for name in OLD_NAMES[old] if not hasattr(module, name)]
+        assert not missing
+        assert all(getattr(module, n) is getattr(new_home, n) for n in OLD_NAMES[old] if hasattr(new_home, n))
 
 
 @pytest.mark.parametrize("old", sorted(set(OLD_NAMES) - set(MOVED)))
@@ -274,3 +275,20 @@ def test_protocol_is_a_deprecated_name_of_trajectory_protocol():
     with pytest.warns(DeprecationWarning, match="use TrajectoryProtocol"):
         from handflow.plugins.segmenter.evaluation import Protocol
     assert Protocol is TrajectoryProtocol
+
+
+@pytest.mark.parametrize(
+    "old, name, new",
+    [
+        ("stream_evaluation", "StreamEvaluator", "RecordingsEvaluator"),
+        ("stream_cli", "run_stream_evaluation", "run_recordings_evaluation"),
+        ("stream_cli", "write_stream_plots", "write_recordings_plots"),
+    ],
+)
+def test_the_renamed_recordings_names_warn_with_their_new_name(old, name, new):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)
+        module = importlib.import_module(f"{PACKAGE}.{old}")
+    with pytest.warns(DeprecationWarning, match=f"{name} is deprecated.*use {new}$"):
+        renamed = getattr(module, name)
+    assert renamed is getattr(module, new)

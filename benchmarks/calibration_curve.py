@@ -24,16 +24,15 @@ import sys
 
 import numpy as np
 
-from handflow.plugins.segmenter.continuous import load_recordings
-from handflow.plugins.segmenter.frame_methods import METHODS, ScoreCLMMethod, UKRCLMMethod
-from handflow.plugins.segmenter.stream_evaluation import StreamEvaluator
+from handflow.plugins.segmenter.datasets import load_recordings
+from handflow.plugins.segmenter.evaluation import REGISTRY, RecordingsEvaluator, ScoreCLMMethod, UKRCLMMethod
 
 FINE = 2.0 ** np.arange(-5, 6.01, 0.25)  # background factors 1/32 … 64
 
 
-def curve(ev: StreamEvaluator, method_name: str, held: str, fine: bool) -> list[dict]:
+def curve(ev: RecordingsEvaluator, method_name: str, held: str, fine: bool) -> list[dict]:
     """One row per (derived, params, rejection value) on the inner folds of fold ``held``."""
-    method = METHODS[method_name]
+    method = REGISTRY[method_name]
     rows = []
     for derived, (train, _) in ev.fold_views(held).items():
         for params in method.grid(ev.quick):
@@ -63,7 +62,7 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("recordings")
     ap.add_argument("--held-out", default=None, help="outer fold whose inner folds are swept (default: the first)")
-    ap.add_argument("--method", default="ukr_clm", choices=sorted(METHODS))
+    ap.add_argument("--method", default="ukr_clm", choices=sorted(n for n, m in REGISTRY.items() if m.batch is None))
     ap.add_argument("--known", default=None, help="comma-separated classes to model (default all)")
     ap.add_argument("--normalise", default="training", choices=("training", "recording"))
     ap.add_argument("--derived", default="none", help="comma-separated derived-feature choices, as in the evaluation")
@@ -71,11 +70,11 @@ def main(argv=None) -> int:
     ap.add_argument("--full", action="store_true", help="the full grid instead of the evaluation's --quick one")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args(argv)
-    if args.fine and not isinstance(METHODS[args.method], (UKRCLMMethod, ScoreCLMMethod)):
+    if args.fine and not isinstance(REGISTRY[args.method], (UKRCLMMethod, ScoreCLMMethod)):
         ap.error(f"--fine sweeps a background factor; {args.method} rejects by a score threshold (drop --fine)")
     data = load_recordings(args.recordings)
     held = args.held_out or data.names()[0]
-    ev = StreamEvaluator(
+    ev = RecordingsEvaluator(
         data,
         known=args.known.split(",") if args.known else None,
         methods=(args.method,),

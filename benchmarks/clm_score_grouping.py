@@ -18,16 +18,15 @@ import time
 
 import numpy as np
 
-from handflow.plugins.segmenter.clm_segmenter import CLMSegmenter
+from handflow.plugins.segmenter.clm import CLMSegmenter, default_solver
 from handflow.plugins.segmenter.compatibility import evidence_band, score_evidence
-from handflow.plugins.segmenter.continuous import load_recordings, segments
-from handflow.plugins.segmenter.frame_methods import MiniRocketMethod
-from handflow.plugins.segmenter.openset import frame_metrics, segment_f1
-from handflow.plugins.segmenter.stream_evaluation import _zscore
+from handflow.plugins.segmenter.datasets import load_recordings, segments
+from handflow.plugins.segmenter.evaluation import MiniRocketMethod, frame_metrics, segment_f1
+from handflow.plugins.segmenter.evaluation._recordings import _zscore
 
 
 def clm_labels(scores: np.ndarray, classes: np.ndarray, history: int) -> np.ndarray:
-    seg = CLMSegmenter(history=history, background_factor=0.0, max_sweeps=300, random_state=0)
+    seg = CLMSegmenter(history=history, background_factor=0.0, solver=default_solver(max_sweeps=300), random_state=0)
     _, _, width = seg.widths()
     local = seg.fit_predict_bands(*seg.with_background(evidence_band(score_evidence(scores), width, history)))
     return np.where(local >= 0, classes[np.maximum(local, 0)], -1)

@@ -3,7 +3,7 @@ the same fold run with the code before a speed-up (the baseline, run in the same
 
 - ``--baseline feature-novelty``: every MiniRocket fit also fits its feature novelty (before,
   the methods that do not use it fitted it too);
-- ``--baseline einsum``: the batched UKR projection (:mod:`handflow.plugins.segmenter.fast_projection`)
+- ``--baseline einsum``: the batched UKR projection (:mod:`handflow.plugins.segmenter.models`)
   with its kernel-weighted sums and grid distances as plain ``np.einsum`` contractions, not
   matrix products.
 
@@ -30,17 +30,16 @@ from pathlib import Path
 
 import numpy as np
 
-from handflow.plugins.segmenter.continuous import load_recordings
-from handflow.plugins.segmenter.fast_projection import BatchedPeriodicProjector
-from handflow.plugins.segmenter.frame_methods import METHODS, MiniRocketMethod
-from handflow.plugins.segmenter.stream_evaluation import StreamEvaluator
+from handflow.plugins.segmenter.datasets import load_recordings
+from handflow.plugins.segmenter.evaluation import REGISTRY, MiniRocketMethod, RecordingsEvaluator
+from handflow.plugins.segmenter.models import BatchedPeriodicProjector
 
 
 @contextmanager
 def feature_novelty_everywhere():
     """Every MiniRocket scorer of the evaluation fits its feature novelty, as before."""
-    scorers = [m for m in METHODS.values() if isinstance(m, MiniRocketMethod)]
-    scorers += [m.scorer for m in METHODS.values() if isinstance(getattr(m, "scorer", None), MiniRocketMethod)]
+    scorers = [m for m in REGISTRY.values() if isinstance(m, MiniRocketMethod)]
+    scorers += [m.scorer for m in REGISTRY.values() if isinstance(getattr(m, "scorer", None), MiniRocketMethod)]
     before = [m.has_features for m in scorers]
     for m in scorers:
         m.has_features = True
@@ -76,7 +75,7 @@ def timed_fold(data, held: str, methods: tuple[str, ...], quick: bool) -> tuple[
         if len(words) > 1 and words[0] == f"{held}:" and words[1] in methods:
             marks[words[1]] = time.perf_counter()
 
-    ev = StreamEvaluator(data, methods=methods, quick=quick, progress=progress)
+    ev = RecordingsEvaluator(data, methods=methods, quick=quick, progress=progress)
     fold = ev.run_fold(held)
     seconds, last = {}, start
     for name in methods:

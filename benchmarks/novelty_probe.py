@@ -14,7 +14,7 @@ held-out recording gets
   class*, divided by that class's own spread (the median leave-one-out nearest-neighbour distance
   among its training windows);
 - ``feature_novelty``: the scorer's own feature novelty (the term of ``clm_minirocket_novelty``,
-  :mod:`handflow.plugins.segmenter.feature_novelty`), a robust z-score; its rejection and known
+  :mod:`handflow.plugins.segmenter.novelty`), a robust z-score; its rejection and known
   frames kept are reported at the limits ``distance_z`` 1 and 2 of the evaluation's grid.
 Reported per term: ROC AUC unknown-vs-known (1 = perfect separation, 0.5 = chance) and, at the
 threshold where 95 % of the *training* windows count as known (known distance/score quantile),
@@ -35,7 +35,7 @@ import sys
 import numpy as np
 from sklearn.metrics import roc_auc_score
 
-from handflow.plugins.segmenter.continuous import load_recordings, segments
+from handflow.plugins.segmenter.datasets import load_recordings, segments
 from handflow.plugins.segmenter.scorers import WINDOWS_PER_SEGMENT, MiniRocketScorer, causal_windows
 
 PCA_DIMS = 32

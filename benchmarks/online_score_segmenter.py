@@ -31,10 +31,10 @@ from pathlib import Path
 
 import numpy as np
 
-from handflow.plugins.segmenter.continuous import load_recordings, segments
-from handflow.plugins.segmenter.online_scores import OnlineScoreCLMSegmenter, batch_labels
+from handflow.plugins.segmenter.datasets import load_recordings, segments
+from handflow.plugins.segmenter.models import fit_recording_models
+from handflow.plugins.segmenter.online import OnlineScoreCLMSegmenter, batch_labels
 from handflow.plugins.segmenter.scorers import MiniRocketScorer, load_scorer
-from handflow.plugins.segmenter.training import fit_recording_models
 
 WARMUP = 50  # samples skipped in the latency figures (JIT, filling the window)
 
@@ -69,7 +69,7 @@ def node_path_latency(seg: OnlineScoreCLMSegmenter, X: np.ndarray) -> tuple[np.n
     wall, cpu = [], []
     for x in X:
         t0, c0 = time.perf_counter(), time.thread_time()
-        seg.update(x)
+        seg.push(x)
         wall.append(time.perf_counter() - t0)
         cpu.append(time.thread_time() - c0)
     return np.array(wall[WARMUP:]), np.array(cpu[WARMUP:])

@@ -18,7 +18,7 @@ BLAS is limited to one thread (one core); numba code is single-threaded.
         [--reconstruction absolute|relative] [--delay 8] [--background-factor F] [--headings 0,1]
 
 ``--reconstruction relative`` uses the class models for real recordings
-(:func:`handflow.plugins.segmenter.training.fit_recording_models`: delay embedding, relative
+(:func:`handflow.plugins.segmenter.models.fit_recording_models`: delay embedding, relative
 evidence with a null-model background; docs/segmentation.md) instead of the thesis' models; each
 sample is then embedded sample by sample as the node does.  ``--headings 0,1`` gives the thesis'
 models the heading channels of columns 0 and 1 (docs/segmentation.md); each sample is then headed
@@ -46,7 +46,7 @@ from handflow.plugins.segmenter import (
     load_dataset,
     train_class_models,
 )
-from handflow.plugins.segmenter.training import fit_recording_models
+from handflow.plugins.segmenter.models import fit_recording_models
 
 RATE_HZ = 100.0
 

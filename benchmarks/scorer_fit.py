@@ -26,9 +26,9 @@ from unittest import mock
 
 import numpy as np
 
-from handflow.plugins.segmenter import feature_novelty
-from handflow.plugins.segmenter.continuous import load_recordings, segments
-from handflow.plugins.segmenter.feature_novelty import FeatureNovelty
+from handflow.plugins.segmenter.datasets import load_recordings, segments
+from handflow.plugins.segmenter.novelty import FeatureNovelty
+from handflow.plugins.segmenter.novelty import _feature_novelty as feature_novelty
 from handflow.plugins.segmenter.scorers import MiniRocketScorer
 
 

@@ -16,8 +16,8 @@ from sklearn.exceptions import NotFittedError
 
 from handflow.plugins.grasp.som import SOM
 from handflow.plugins.manifold import StructuredUKR
-from handflow.plugins.segmenter.baselines import PerClassHMM, SlidingDTW1NN
-from handflow.plugins.segmenter.running_scaling import RunningStandardizer
+from handflow.plugins.segmenter.features import RunningStandardizer
+from handflow.plugins.segmenter.scorers import PerClassHMM, SlidingDTW1NN
 from tests.manifold.ukr_helpers import RING_LATENT, closed_curves
 
 

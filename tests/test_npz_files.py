@@ -23,9 +23,8 @@ from handflow.plugins.grasp.som import load_som
 from handflow.plugins.manifold.data import load_npz
 from handflow.plugins.manifold.model import StructuredUKR
 from handflow.plugins.manipulation.manifold_file import ManipulationManifold
-from handflow.plugins.segmenter.candidates import load_candidates
-from handflow.plugins.segmenter.continuous import basicmotions_continuous, load_recordings
-from handflow.plugins.segmenter.datasets import load_dataset
+from handflow.plugins.segmenter.datasets import basicmotions_continuous, load_dataset, load_recordings
+from handflow.plugins.segmenter.models import load_candidates
 from tests.garbage import damaged_file
 
 CONFIGS = Path(__file__).resolve().parents[1] / "configs"

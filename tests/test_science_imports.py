@@ -17,7 +17,7 @@ import pytest
 
 FAMILIES = ("manifold", "segmenter", "grasp", "manipulation", "mapping", "hands", "tracker", "glove", "camera")
 # the families' runtime side: node wrappers, command-line modules, and what drives nodes
-NODE_AND_CLI_NAMES = {"nodes", "node", "cli", "stream_cli"}
+NODE_AND_CLI_NAMES = {"nodes", "node", "cli"}
 NODE_DRIVERS = {
     "handflow.plugins.manipulation.evaluation",  # runs the manipulation nodes in a NodeHarness
 }

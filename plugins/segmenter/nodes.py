@@ -16,20 +16,18 @@ import numpy as np
 from pydantic import Field, model_validator
 
 from handflow.framework.files.inputs import InputPath
+from handflow.framework.files.npz import format_check
+from handflow.framework.files.params import StrictModel
 from handflow.framework.messages import Array, JointState, Label, Message, MessageError, SegmentEvent
-from handflow.framework.npz_files import format_check
-from handflow.framework.params import StrictModel
 from handflow.framework.plugin import Node
 from handflow.plugins.manifold.io import FORMAT as UKR
 from handflow.plugins.manifold.io import FORMAT_VERSION as UKR_VERSION
 
-from .candidates import CandidateSet, load_candidates
-from .online import OnlineCLMSegmenter, SegmentChange, SegmentTracker
-from .online_scores import OnlineScoreCLMSegmenter
-from .running_scaling import RunningStandardizer
-from .scaling import ChannelScaling
-from .scorers import FORMAT, FORMAT_VERSION, ScorerFileError, WindowScorer, load_scorer
-from .ukr_only import UKROnlyRecognizer
+from .clm import UKROnlyRecognizer
+from .features import ChannelScaling, RunningStandardizer
+from .models import CandidateSet, load_candidates
+from .online import OnlineCLMSegmenter, OnlineScoreCLMSegmenter, SegmentChange, SegmentTracker
+from .scorers import FORMAT, FORMAT_VERSION, MiniRocketScorer, ScorerFileError, WindowScorer, load_scorer
 
 UNKNOWN = "unknown"
 UKR_FORMAT = (UKR, UKR_VERSION, "format_version")
@@ -56,7 +54,7 @@ def running_normaliser(scaling: ChannelScaling | None, frames: int) -> Callable[
             "retrain them with `handflow train-classes`"
         )
     stream = RunningStandardizer(prior_frames=frames).set_prior(scaling.offset_, scaling.scale_).stream()
-    return lambda y: scaling.inverse_transform(stream.update(y))
+    return lambda y: scaling.inverse_transform(stream.push(y))
 
 
 class RecognizerParams(StrictModel):
@@ -194,7 +192,7 @@ class OnlineCLMNode(_RecognizerNode):
                 raise ValueError(f"source '{self.source}' needs 'scorer' (a file from `handflow fit-scorer`)")
             if self.source == "ukr" and self.novelty_models:
                 raise ValueError("novelty_models needs source minirocket or dtw (the UKR source rejects by itself)")
-            if self.source != "minirocket" and self.distance_z is not None:
+            if self.source != MiniRocketScorer.kind and self.distance_z is not None:
                 raise ValueError("distance_z needs source minirocket (the only scorer with features)")
             if self.source != "ukr" and self.min_progress:
                 raise ValueError("min_progress needs source 'ukr' (a scorer's evidence has no latent time)")
@@ -275,7 +273,7 @@ class OnlineCLMNode(_RecognizerNode):
         return scorer
 
     def recognise(self, y: np.ndarray, stamp: int) -> None:
-        up = self.segmenter.update(y if self.running is None else self.running(y))
+        up = self.segmenter.push(y if self.running is None else self.running(y))
         self.ctx.publish(
             "labels",
             Label(label=self.name(up.label), index=up.index, classes=self.classes, scores=up.scores),
@@ -308,7 +306,7 @@ class UKROnlyNode(_RecognizerNode):
         self.index = 0
 
     def recognise(self, y: np.ndarray, stamp: int) -> None:
-        label, C = self.recognizer.update(y)
+        label, C = self.recognizer.push(y)
         self.ctx.publish(
             "labels", Label(label=self.name(label), index=self.index, classes=self.classes, scores=C), stamp_ns=stamp
         )

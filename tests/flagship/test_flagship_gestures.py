@@ -12,9 +12,9 @@ import yaml
 from handflow.plugins.demo import gestures as G
 from handflow.plugins.glove.frames_io import load_frames
 from handflow.plugins.hands.joints import DEG, HUMAN
-from handflow.plugins.segmenter.candidates import load_candidates
 from handflow.plugins.segmenter.cli import register_train_classes
 from handflow.plugins.segmenter.datasets import load_dataset
+from handflow.plugins.segmenter.models import load_candidates
 
 REPO = Path(__file__).resolve().parents[2]
 MODELS = REPO / "configs" / "models" / "gestures"

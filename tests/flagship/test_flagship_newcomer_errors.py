@@ -12,7 +12,7 @@ import pytest
 
 from handflow.framework.testkit.harness import NodeHarness
 from handflow.plugins.glove.node import CyberGloveNode, serial_ports
-from handflow.plugins.segmenter.candidates import ModelsMissingError
+from handflow.plugins.segmenter.models import ModelsMissingError
 from handflow.plugins.segmenter.nodes import OnlineCLMNode
 from tests.conftest import REPO, handflow
 

@@ -144,7 +144,7 @@ def test_too_dense_latents_are_refused_not_allocated():
 
 
 def test_segmenter_class_models_train_on_every_point_sparse(monkeypatch):
-    from handflow.plugins.segmenter.training import fit_class_models
+    from handflow.plugins.segmenter.models import fit_class_models
 
     monkeypatch.setattr(sparse_module, "SPARSE_MIN_N", 500)  # keep the test small
     rng = np.random.default_rng(1)

@@ -7,8 +7,8 @@ import uuid
 
 import pytest
 
+from handflow.framework.files.mcap_writer import McapWriter
 from handflow.framework.messages import Array, Header
-from handflow.framework.recording import McapWriter
 from handflow.plugins.segmenter import save_class_models
 
 T0 = 1_700_000_000_000_000_000

@@ -2,9 +2,9 @@ import numpy as np
 import pytest
 
 from handflow.framework.messages import Array, JointState
-from handflow.framework.testing import NodeHarness
+from handflow.framework.testkit.harness import NodeHarness
 from handflow.plugins.segmenter import save_class_models
-from handflow.plugins.segmenter.candidates import ModelsMissingError
+from handflow.plugins.segmenter.models import ModelsMissingError
 from handflow.plugins.segmenter.nodes import UNKNOWN, OnlineCLMNode, UKROnlyNode
 
 

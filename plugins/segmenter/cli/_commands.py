@@ -1,0 +1,370 @@
+"""Commands ``handflow train-classes`` and ``handflow evaluate segmentation`` (docs/segmentation.md)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from dataclasses import replace
+from pathlib import Path
+
+from ..datasets import DatasetError, is_continuous, load_dataset
+from ..evaluation import (
+    CALIBRATIONS,
+    EXPERIMENTS,
+    METHODS,
+    NORMALISATIONS,
+    PSEUDO_UNKNOWNS,
+    REGISTRY,
+    SELECTIONS,
+    Evaluator,
+    TrajectoryProtocol,
+    UKROnlyMethod,
+)
+from ..features import DERIVED, RunningStandardizer
+from ..models import (
+    INITS,
+    KERNELS,
+    ModelsMissingError,
+    candidate_set,
+    load_candidates,
+    save_class_models,
+    train_class_models,
+)
+from ._recordings import run_recordings_evaluation, run_train_recording_models
+
+
+def _progress(msg: str) -> None:
+    print(f"[{time.strftime('%H:%M:%S')}] {msg}", file=sys.stderr, flush=True)
+
+
+def _add_dataset_args(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "dataset",
+        help="folder with train/validation/test sub-folders of <label>_*.csv, or an .npz (see docs/segmentation.md)",
+    )
+    parser.add_argument("--classes", help="comma-separated subset of class labels to use")
+    parser.add_argument(
+        "--keep-pen-lift",
+        action="store_true",
+        help="keep the pen-lift tail marked in an .npz's metadata (default: cut it)",
+    )
+    parser.add_argument("--beta", default="auto", help="periodic UKR bandwidth, or 'auto' = 12·mean_length/45")
+    parser.add_argument("--steps", type=int, default=300, help="UKR optimisation steps per class")
+    parser.add_argument(
+        "--init",
+        choices=INITS,
+        default="equidistant",
+        help="latent init of the class manifolds (equidistant over the period, or isomap)",
+    )
+    parser.add_argument(
+        "--kernel",
+        choices=KERNELS,
+        default="periodic",
+        help="time kernel of the class manifolds; periodic_quartic trains on every point in linear time",
+    )
+    parser.add_argument(
+        "--headings",
+        default="",
+        help="comma-separated channels (names or 0-based indices, e.g. 0,1 for a pen's x,y) whose direction "
+        "of motion is appended to every observation (docs/segmentation.md, heading channels)",
+    )
+    parser.add_argument("--seed", type=int, default=0)
+
+
+def heading_channels(spec: str, columns: list[str]) -> tuple[int, ...]:
+    """Column indices of a ``--headings`` value (names or 0-based indices)."""
+    out = []
+    for item in filter(None, (part.strip() for part in spec.split(","))):
+        if item in columns:
+            out.append(columns.index(item))
+        elif item.isdigit() and int(item) < len(columns):
+            out.append(int(item))
+        else:
+            raise DatasetError(
+                f"--headings: no channel {item!r}; the data's channels are {columns} (or 0–{len(columns) - 1})"
+            )
+    return tuple(out)
+
+
+def _dataset(args):
+    ds = load_dataset(args.dataset, trim_pen_lift=not args.keep_pen_lift)
+    return ds.restrict(args.classes.split(",")) if args.classes else ds
+
+
+def _beta(args):
+    if args.beta == "auto":
+        return "auto"
+    try:
+        return float(args.beta)
+    except ValueError:
+        raise DatasetError(f"--beta must be a number or 'auto', got {args.beta!r}") from None
+
+
+# -- train-classes ------------------------------------------------------------------------------
+def register_train_classes(parser: argparse.ArgumentParser) -> None:
+    parser.description = (
+        "Train one structured UKR manifold (1D periodic time) per class: of a labelled dataset's train split "
+        "(the thesis' models), or of every labelled segment of continuous recordings (delay-embedded models "
+        "for real streams, docs/segmentation.md)."
+    )
+    _add_dataset_args(parser)
+    parser.add_argument("--out", required=True, help="output folder (gets <label>.npz and classes.json)")
+    parser.add_argument(
+        "--delay",
+        type=int,
+        default=8,
+        help="continuous recordings: frames of the delay embedding of the class models (docs/segmentation.md)",
+    )
+    parser.add_argument(
+        "--derived",
+        choices=DERIVED,
+        default="none",
+        help="continuous recordings: 'velocities' appends each channel's step from the frame before; the models "
+        "derive it from raw streams themselves (choose it with `evaluate segmentation --derived none,velocities`)",
+    )
+    parser.set_defaults(func=run_train_classes)
+
+
+def _train(ds, args):
+    """One manifold per class of ``ds`` with the command's training options."""
+    return train_class_models(
+        ds,
+        beta=_beta(args),
+        n_steps=args.steps,
+        init=args.init,
+        random_state=args.seed,
+        progress=_progress,
+        kernel=args.kernel,
+        headings=heading_channels(args.headings, ds.columns),
+    )
+
+
+HEADINGS_ON_RECORDINGS = "error: --headings applies to labelled trajectories, not to continuous recordings (drop it)"
+
+
+def run_train_classes(args) -> int:
+    if is_continuous(args.dataset):
+        if args.headings:
+            print(HEADINGS_ON_RECORDINGS, file=sys.stderr)
+            return 2
+        return run_train_recording_models(args, _progress)
+    try:
+        if args.derived != "none":
+            raise DatasetError("--derived applies to continuous recordings (docs/segmentation.md)")
+        ds = _dataset(args)
+        models = _train(ds, args)
+    except (DatasetError, ValueError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    out = save_class_models(
+        models,
+        args.out,
+        provenance={
+            "dataset": ds.source,
+            "split": "train",
+            "steps": args.steps,
+            "beta": str(args.beta),
+            "init": args.init,
+            "headings": args.headings,
+        },
+    )
+    _progress(f"wrote {len(models)} models to {out}")
+    return 0
+
+
+# -- evaluate segmentation ----------------------------------------------------------------------
+def register_evaluate(parser: argparse.ArgumentParser) -> None:
+    parser.description = (
+        "Run the thesis recognition/segmentation protocol (docs/segmentation.md §D) for "
+        "ukr_only, ukr_clm and the dtw_1nn / hmm baselines: validation picks parameters, "
+        "test reports."
+    )
+    _add_dataset_args(parser)
+    parser.add_argument("--models", help="folder written by train-classes (default: train on the train split)")
+    parser.add_argument("--json", action="store_true", help="print the full result as JSON on stdout")
+    parser.add_argument("--plots", help="folder for figures (labelled trajectories, compatibilities, summary)")
+    parser.add_argument("--quick", action="store_true", help="reduced protocol (N^th 1,2; H 10; 2 CLM runs; 6 pairs)")
+    parser.add_argument(
+        "--methods",
+        help=f"subset of {','.join(METHODS)} (continuous recordings: also ukr_clm_online, minirocket, clm_minirocket, clm_dtw, clm_minirocket_novelty, clm_dtw_novelty; default all but clm_dtw and the *_novelty methods)",
+    )
+    parser.add_argument(
+        "--cv",
+        default="leave-one-recording-out",
+        help="continuous recordings: cross-validation scheme (leave-one-recording-out)",
+    )
+    parser.add_argument(
+        "--known", help="continuous recordings: comma-separated classes to model; frames of others must be rejected"
+    )
+    parser.add_argument(
+        "--select",
+        choices=[s.replace("_", "-") for s in SELECTIONS],
+        help="labelled trajectories: what the validation split selects parameters by — 'open-set' (default): "
+        "the mean of the recognition and the rejection experiments' shares, so one operating point keeps "
+        "known motions and rejects reversed and left-out ones; 'recognition': the recognition experiments "
+        "only, as in the thesis (docs/segmentation.md §D)",
+    )
+    parser.add_argument(
+        "--normalise",
+        choices=NORMALISATIONS,
+        default="training",
+        help="continuous recordings, every method alike: 'training' (default) z-scores every recording with the "
+        "fold's training frames; 'recording' standardises each recording causally, frame by frame, with its "
+        f"running mean/std and those training statistics as a prior of {RunningStandardizer().prior_frames} "
+        "frames — for recordings of different people or sensor placements (docs/segmentation.md)",
+    )
+    parser.add_argument(
+        "--pseudo-unknowns",
+        choices=PSEUDO_UNKNOWNS,
+        default="refit",
+        help="continuous recordings: how the calibration makes a known class unknown — 'refit' (default) refits "
+        "a classifier trained on all classes at once (MiniRocket's ridge) without it, so its frames are as "
+        "unknown as a class never seen; 'drop' only drops its decision column (faster, and optimistic: "
+        "rejection then comes out too weak). Per-class models (UKR, DTW, HMM) leave the class's model out "
+        "either way (docs/segmentation.md)",
+    )
+    parser.add_argument(
+        "--derived",
+        default="none",
+        help="continuous recordings, every method alike: comma-separated derived features to choose among on "
+        "the inner folds, per method — 'none' (default) and/or 'velocities' (each channel's step from the "
+        "frame before, appended before the scaling); 'none,velocities' doubles every grid (docs/segmentation.md)",
+    )
+    parser.add_argument(
+        "--calibration",
+        choices=CALIBRATIONS,
+        default="strict",
+        help="continuous recordings: 'strict' (default) takes the operating point of the best validation "
+        "objective, whatever it is; 'fallback' switches rejection off for a method and fold when no operating "
+        "point beats rejecting everything on the inner folds (the result says so) — for data whose classes are "
+        "not separable enough for open-set rejection (docs/segmentation.md)",
+    )
+    parser.set_defaults(func=run_evaluate)
+
+
+def run_evaluate(args) -> int:
+    if is_continuous(args.dataset):
+        if args.headings:
+            print(HEADINGS_ON_RECORDINGS, file=sys.stderr)
+            return 2
+        if args.select:
+            print(
+                "error: --select applies to labelled trajectories; continuous recordings calibrate by the "
+                "open-set objective of docs/segmentation.md (drop --select)",
+                file=sys.stderr,
+            )
+            return 2
+        return run_recordings_evaluation(args, _progress)
+    t0 = time.perf_counter()
+    try:
+        if (args.normalise, args.pseudo_unknowns, args.derived, args.calibration) != (
+            "training",
+            "refit",
+            "none",
+            "strict",
+        ):
+            raise DatasetError(
+                "--normalise, --pseudo-unknowns, --derived and --calibration apply to continuous recordings "
+                "(docs/segmentation.md)"
+            )
+        methods = tuple(m for m in (args.methods or ",".join(METHODS)).split(",") if m)
+        unknown = sorted(set(methods) - set(METHODS))
+        if unknown:
+            raise DatasetError(f"unknown method(s) {unknown}; choose from {list(METHODS)}")
+        ds = _dataset(args)
+        if args.models:
+            if args.headings:
+                raise DatasetError(
+                    f"drop --headings: the models in {args.models} keep the heading channels they were trained with"
+                )
+            candidates = load_candidates(args.models)
+        else:
+            _progress(f"training one manifold per class ({len(ds.classes)} classes)")
+            candidates = candidate_set(_train(ds, args))
+        protocol = replace(
+            TrajectoryProtocol.quick() if args.quick else TrajectoryProtocol(),
+            selection=(args.select or "open-set").replace("-", "_"),
+        )
+        evaluator = Evaluator(ds, candidates, protocol, random_state=args.seed, progress=_progress)
+    except (DatasetError, ModelsMissingError, ValueError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    result = evaluator.evaluate(methods)
+    result["parameters"].update(
+        steps=args.steps,
+        beta=str(args.beta),
+        init=args.init,
+        quick=bool(args.quick),
+        seed=args.seed,
+        headings=args.headings,
+    )
+    result["runtime_s"] = round(time.perf_counter() - t0, 2)
+    if args.plots:
+        write_plots(evaluator, result, Path(args.plots))
+    if args.json:
+        print(json.dumps(result, indent=1))
+    else:
+        print(format_table(result))
+    return 0
+
+
+def format_table(result: dict) -> str:
+    """Plain-text summary: share ≥ 85 % / share perfect / mean correct per method and experiment."""
+    lines = [
+        f"{'method':10s} " + " ".join(f"{e:>22s}" for e in EXPERIMENTS),
+        f"{'':10s} " + " ".join(f"{'>=85% perfect mean':>22s}" for _ in EXPERIMENTS),
+    ]
+    for m, exps in result["methods"].items():
+        cells = []
+        for e in EXPERIMENTS:
+            r = exps[e]
+            cells.append(
+                "—".rjust(22)
+                if r["mean_correct"] is None
+                else f"{r['share_ge_85']:6.2f} {r['share_perfect']:7.2f} {r['mean_correct']:6.2f}".rjust(22)
+            )
+        lines.append(f"{m:10s} " + " ".join(cells))
+    return "\n".join(lines)
+
+
+def write_plots(ev: Evaluator, result: dict, folder: Path) -> None:
+    """Thesis-like figures for the first test case of every experiment (middle H, every point)."""
+    from ..clm import UKROnlyRecognizer
+    from ..plots import plot_compatibilities, plot_labelled_trajectory, plot_summary
+
+    H = ev.protocol.histories[len(ev.protocol.histories) // 2]
+    for exp in EXPERIMENTS:
+        case = next((c for c in ev.cases["test"] if c.experiment == exp and c.history == H and c.nth == 1), None)
+        if case is None:
+            continue
+        Y = ev.sequence("test", case)
+        for method in (m for m in METHODS if REGISTRY[m].manifolds):
+            params = result["parameters"]["selected"].get(method)
+            if params is None:
+                continue
+            labels = ev.predict(method, params, "test", case)
+            plot_labelled_trajectory(
+                Y,
+                labels,
+                ev.classes,
+                folder / f"{exp}_{method}.png",
+                f"{method}: {exp} {case.name} H={H}",
+                truth=case.truth,
+            )
+        if UKROnlyMethod.name in result["parameters"]["selected"]:
+            proj = ev.projection("test", case)
+            rec = UKROnlyRecognizer(
+                ev.candidates.without(case.left_out) if case.left_out else ev.candidates,
+                history=H,
+                **result["parameters"]["selected"][UKROnlyMethod.name],
+            )
+            plot_compatibilities(
+                rec.compatibilities_projected(proj),
+                proj.classes,
+                folder / f"{exp}_compatibilities.png",
+                f"UKR-only C(t): {exp} {case.name}",
+            )
+    plot_summary(result, folder / "summary.png")
+    _progress(f"plots written to {folder}")

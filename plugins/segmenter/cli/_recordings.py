@@ -1,0 +1,185 @@
+"""``handflow evaluate segmentation`` on continuous recordings, ``basicmotions-continuous`` and
+``fit-scorer`` (docs/segmentation.md)."""
+
+from __future__ import annotations
+
+import inspect
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from .._moved import renamed
+from ..datasets import basicmotions_continuous, load_recordings, segments
+from ..evaluation import DEFAULT_METHODS, RecordingsEvaluator
+from ..models import fit_recording_models, save_class_models
+from ..scorers import SCORERS
+
+
+def run_recordings_evaluation(args, progress) -> int:
+    """Leave-one-recording-out evaluation of a folder of CSV recordings or a continuous .npz."""
+    t0 = time.perf_counter()
+    if args.cv != "leave-one-recording-out":
+        print(f"error: continuous recordings support --cv leave-one-recording-out, got {args.cv!r}", file=sys.stderr)
+        return 2
+    methods = tuple(m for m in (args.methods or ",".join(DEFAULT_METHODS)).split(",") if m)
+    try:
+        data = load_recordings(args.dataset)
+        evaluator = RecordingsEvaluator(
+            data,
+            known=args.known.split(",") if args.known else None,
+            methods=methods,
+            quick=args.quick,
+            random_state=args.seed,
+            progress=progress,
+            normalise=args.normalise,
+            pseudo_unknowns=args.pseudo_unknowns,
+            derived=tuple(d for d in args.derived.split(",") if d),
+            calibration=args.calibration,
+        )
+        result = evaluator.evaluate()
+    except (ValueError, ImportError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    result["runtime_s"] = round(time.perf_counter() - t0, 2)
+    if args.plots:
+        write_recordings_plots(evaluator, result, Path(args.plots))
+        progress(f"plots written to {args.plots}")
+    print(json.dumps(result, indent=1) if args.json else format_stream_table(result))
+    return 0
+
+
+def format_stream_table(result: dict) -> str:
+    cols = ("known_accuracy", "unknown_rejection", "open_set_accuracy", "macro_f1", "segment_f1", "tradeoff_auc")
+    lines = [f"{'method':15s} " + " ".join(f"{c:>18s}" for c in cols)]
+    for name, r in result["methods"].items():
+        cells = ["—".rjust(18) if r.get(c) is None else f"{r[c]:18.3f}" for c in cols]
+        lines.append(f"{name:15s} " + " ".join(cells))
+        if "agreement" in r:
+            lines.append(f"{'':15s} online/batch agreement {r['agreement']:.3f}")
+        if r.get("calibration_note"):
+            lines.append(f"{'':15s} note: {r['calibration_note']}")
+    return "\n".join(lines)
+
+
+def write_recordings_plots(ev: RecordingsEvaluator, result: dict, folder: Path) -> None:
+    from ..plots import plot_confusion, plot_label_ribbons, plot_tradeoff
+
+    names = ev.data.class_names
+    for fold in ev.folds_:
+        plot_label_ribbons(fold.truth, fold.labels, names, folder / f"ribbons_{fold.recording}.png", fold.recording)
+    truth = np.concatenate([f.truth for f in ev.folds_])
+    for method in result["methods"]:
+        pred = np.concatenate([f.labels[method] for f in ev.folds_])
+        plot_confusion(truth, pred, names, folder / f"confusion_{method}.png", method)
+    curves = {m: r["tradeoff"] for m, r in result["methods"].items() if r.get("tradeoff")}
+    if curves:
+        plot_tradeoff(curves, folder / "tradeoff.png", "rejection trade-off (pooled over folds)")
+
+
+def register_make_continuous(parser) -> None:
+    parser.description = (
+        "Write BasicMotions as continuous recordings: all train + test cases shuffled with --seed and "
+        "concatenated into --recordings recordings (docs/segmentation.md)."
+    )
+    parser.add_argument("source", help="UEA-style BasicMotions .npz (X_train, labels_train, X_test, labels_test)")
+    parser.add_argument("--out", required=True, help="continuous .npz to write")
+    parser.add_argument("--recordings", type=int, default=8)
+    parser.add_argument("--seed", type=int, default=0)
+    parser.set_defaults(func=run_make_continuous)
+
+
+def run_make_continuous(args) -> int:
+    try:
+        arrays = basicmotions_continuous(args.source, args.recordings, args.seed)
+    except (OSError, KeyError, ValueError) as exc:
+        print(f"error: {args.source}: {exc}", file=sys.stderr)
+        return 2
+    out = Path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    np.savez(out, **arrays)
+    print(f"wrote {args.recordings} recordings to {out}")
+    return 0
+
+
+def register_fit_scorer(parser) -> None:
+    parser.description = (
+        "Fit a frame scorer (MiniRocket or DTW 1-NN over the causal window) on every labelled segment of "
+        "continuous recordings and save it without pickle, for the segmenter.online_clm node (docs/segmentation.md)."
+    )
+    parser.add_argument("recordings", help="folder of labelled CSV recordings or a continuous .npz")
+    parser.add_argument("--source", choices=sorted(SCORERS), default="minirocket")
+    parser.add_argument("--out", required=True, help="scorer file to write (.npz)")
+    parser.add_argument("--window", type=int, default=32, help="frames of the causal window (MiniRocket: >= 9)")
+    parser.add_argument("--known", help="comma-separated classes to model (default: all)")
+    parser.add_argument("--seed", type=int, default=0, help="MiniRocket's random state")
+    parser.set_defaults(func=run_fit_scorer)
+
+
+def known_segments(path: str, known: str | None, option: str = "--known") -> dict[str, list[np.ndarray]]:
+    """Class name → labelled segments of the classes ``known`` (comma-separated; None = all) of
+    continuous recordings, or a ValueError that says what to change (naming the ``option``)."""
+    data = load_recordings(path)
+    names = known.split(",") if known else data.class_names
+    missing = sorted(set(names) - set(data.class_names))
+    if missing:
+        raise ValueError(f"{option} names classes {missing} that the data lacks; it has {data.class_names}")
+    segs = segments(data.recordings, [data.class_names.index(n) for n in names])
+    empty = [n for n in names if not segs[data.class_names.index(n)]]
+    if empty:
+        raise ValueError(f"classes {empty} have no labelled segment of 2+ frames")
+    return {n: segs[data.class_names.index(n)] for n in names}
+
+
+def run_train_recording_models(args, progress) -> int:
+    """``train-classes`` on continuous recordings: :func:`..models.fit_recording_models` on every
+    labelled segment (``--classes`` = the classes to model), channels z-scored with the models."""
+    t0 = time.perf_counter()
+    try:
+        by_class = known_segments(args.dataset, args.classes, "--classes")
+        if args.delay < 1:
+            raise ValueError(f"--delay must be >= 1 frame, got {args.delay}")
+        cands = fit_recording_models(
+            by_class,
+            delay=args.delay,
+            n_steps=args.steps,
+            random_state=args.seed,
+            scaling="standard",
+            progress=progress,
+            derived=args.derived,
+        )
+    except ValueError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    out = save_class_models(cands, args.out, provenance={"dataset": str(args.dataset), "steps": args.steps})
+    progress(
+        f"wrote {len(cands)} models (delay {args.delay}, derived {args.derived}) to {out} in {time.perf_counter() - t0:.1f}s"
+    )
+    return 0
+
+
+def run_fit_scorer(args) -> int:
+    t0 = time.perf_counter()
+    try:
+        segs = known_segments(args.recordings, args.known)
+        names = list(segs)
+        cls = SCORERS[args.source]
+        seeded = "random_state" in inspect.signature(cls).parameters
+        scorer = cls(window=args.window, **({"random_state": args.seed} if seeded else {}))
+        scorer.fit(segs)
+    except (ValueError, ImportError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    out = scorer.save(args.out)
+    print(
+        f"wrote {args.source} scorer ({len(names)} classes: {', '.join(names)}; window {args.window}) "
+        f"to {out} in {time.perf_counter() - t0:.1f}s"
+    )
+    return 0
+
+
+__getattr__ = renamed(
+    __name__, {"run_stream_evaluation": "run_recordings_evaluation", "write_stream_plots": "write_recordings_plots"}
+)  # the names before the recordings rename

@@ -1,0 +1,45 @@
+"""Labelled trajectories, continuous recordings and synthetic letters (docs/segmentation.md)."""
+
+from ._recordings import (
+    LABEL_COLUMN,
+    UNLABELLED,
+    Recording,
+    RecordingSet,
+    basicmotions_continuous,
+    is_continuous,
+    load_recordings,
+    segments,
+)
+from ._synthetic import (
+    LetterGenerator,
+)
+from ._trajectories import (
+    NPZ_HINT,
+    SPLITS,
+    TIME_COLUMNS,
+    DatasetError,
+    LabelledDataset,
+    Trajectory,
+    load_dataset,
+    split_counts,
+)
+
+__all__ = [
+    "DatasetError",
+    "LABEL_COLUMN",
+    "LabelledDataset",
+    "LetterGenerator",
+    "NPZ_HINT",
+    "Recording",
+    "RecordingSet",
+    "SPLITS",
+    "TIME_COLUMNS",
+    "Trajectory",
+    "UNLABELLED",
+    "basicmotions_continuous",
+    "is_continuous",
+    "load_dataset",
+    "load_recordings",
+    "segments",
+    "split_counts",
+]

@@ -1,0 +1,424 @@
+"""Leave-one-recording-out evaluation on continuous recordings (docs/segmentation.md).
+
+For each held-out recording: the other recordings are the training data.  Parameters of every
+method — its hyper-parameters (:meth:`grid`) and its rejection parameter — are chosen on inner
+splits of those only, by the mean of
+``known_accuracy`` and the rejection of pseudo-unknowns (each known class in turn removed from the
+model set, its frames then count as unknown; ``pseudo_unknowns="refit"`` refits a classifier
+fitted on all classes at once without the class, ``"drop"`` only drops its decision column),
+pooled over inner folds that each hold out one of
+the last ``INNER_FOLDS`` training recordings.  The method is refitted on all training recordings
+and labels the held-out one frame by frame.  Frames of labels outside ``known`` are never used for
+training or calibration; every figure is computed on frames pooled over the folds.
+
+Derived features (``derived``, :mod:`..features`) are appended to every recording before the
+scaling and chosen on the same inner splits, per method, as one more parameter.  When no operating
+point beats rejecting everything on validation by more than ``FALLBACK_MARGIN``,
+``calibration="fallback"`` switches rejection off for that method and fold and takes the
+parameters that label the most validation frames right; ``"strict"`` (the default) keeps the
+objective's choice whatever it is (docs/segmentation.md).
+
+Every recording is scaled with the fold's training frames, for every method alike
+(``normalise``): z-scored with their mean and standard deviation (``"training"``), or each
+recording standardised causally with its own running statistics and those as the prior
+(``"recording"``, :mod:`..features`).  ``ukr_clm_online`` feeds the normalised held-out
+recording sample by sample through :class:`OnlineCLMSegmenter` with the parameters selected for
+``ukr_clm`` and keeps each sample's final published label; its ``agreement`` is the share of
+frames equal to the batch ``ukr_clm``.
+"""
+
+from __future__ import annotations
+
+import functools
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from .._moved import renamed
+from ..datasets import Recording, RecordingSet, segments
+from ..features import DERIVED, ChannelScaling, RunningStandardizer, derive
+from ._methods import REGISTRY, Fitted
+from ._metrics import calibrate, frame_metrics, segment_f1, tradeoff_curve
+
+INNER_FOLDS = 3  # validation recordings of the inner split (each validated by a fit on the others)
+DEFAULT_METHODS = ("ukr_clm", "ukr_clm_online", "ukr_only", "dtw_1nn", "hmm", "minirocket", "clm_minirocket")
+NORMALISATIONS = ("training", "recording")
+PSEUDO_UNKNOWNS = ("refit", "drop")
+CALIBRATIONS = ("strict", "fallback")
+REJECT_ALL_OBJECTIVE = 0.5  # mean(known accuracy 0, pseudo-unknown rejection 1)
+FALLBACK_MARGIN = 0.05  # an operating point must beat rejecting everything by this much (documented choice)
+MIN_TRAINED_CLASSES = 2  # known classes with training segments every training split needs
+
+
+@dataclass
+class FoldResult:
+    recording: str
+    truth: np.ndarray
+    labels: dict[str, np.ndarray]
+    selected: dict[str, dict]
+    sweeps: dict[str, list[np.ndarray]]  # per method: labels at every rejection value of its sweep
+    strict: dict[str, np.ndarray]  # per method that fell back: the labels at the strict choice
+    untrained: list[str]  # known classes without a training segment in this fold
+
+
+@dataclass
+class Choice:
+    """One method's parameters and rejection value chosen on the inner folds."""
+
+    params: dict
+    reject: float
+    objective: float
+    fallback: bool = False  # rejection switched off: nothing beat rejecting everything
+    strict: Choice | None = None  # the objective's own choice, when it was overruled
+
+
+def _zscore(train: list[Recording], recs: list[Recording], normalise: str = "training") -> list[Recording]:
+    """``recs`` z-scored with the mean and standard deviation of the frames of ``train``
+    (``"training"``) or causally with running ones, each recording on its own, those frames being
+    the prior (``"recording"``, :class:`..features.RunningStandardizer`)."""
+    if normalise == "training":
+        scaler = ChannelScaling().fit([r.X for r in train])
+    else:
+        scaler = RunningStandardizer().fit(np.vstack([r.X for r in train]))
+    return [Recording(r.name, scaler.transform(r.X), r.y) for r in recs]
+
+
+def _degenerate_calibration(
+    truth: np.ndarray, pred: np.ndarray, known: list[int], selected: list[dict], no_rejection: dict | None
+) -> str | None:
+    """What a user needs to know when the calibration chose to reject (nearly) every known frame
+    because, on validation, nothing did better than rejecting everything; ``None`` otherwise."""
+    is_known = np.isin(truth, known)
+    rejected = float(np.mean(pred[is_known] == -1)) if is_known.any() else 0.0
+    best = max(s.get("validation_objective", 1.0) for s in selected)
+    if rejected < 0.9 or best > REJECT_ALL_OBJECTIVE + FALLBACK_MARGIN:
+        return None
+    return (
+        f"{rejected:.0%} of the known frames are rejected: on the inner folds no operating point kept "
+        f"known frames and rejected left-out classes better than rejecting everything (best validation "
+        f"objective {best:.3f}; rejecting everything scores {REJECT_ALL_OBJECTIVE}). The classes are not "
+        "separable enough here for open-set rejection"
+        + (
+            f"; without rejection {no_rejection['known_accuracy']:.3f} of the known frames are right ('no_rejection')"
+            if no_rejection and no_rejection.get("known_accuracy") is not None
+            else ""
+        )
+        + "; --calibration fallback switches rejection off in that case"
+    )
+
+
+def _fallback_note(folds: int, fell_back: int, strict: dict | None) -> str | None:
+    """What a user needs to know when the calibration switched rejection off in some folds;
+    ``None`` when it never did."""
+    if not fell_back:
+        return None
+    return (
+        f"rejection is off in {fell_back} of {folds} folds: on the inner folds no operating point kept known "
+        f"frames and rejected left-out classes better than rejecting everything (objective <= "
+        f"{REJECT_ALL_OBJECTIVE + FALLBACK_MARGIN:.2f}; rejecting everything scores {REJECT_ALL_OBJECTIVE}), so the "
+        "classes are not separable enough here for open-set rejection and every frame keeps its best label"
+        + (
+            f"; the objective's own choice would label {strict['open_set_accuracy']:.3f} of the frames right ('strict')"
+            if strict and strict.get("open_set_accuracy") is not None
+            else ""
+        )
+    )
+
+
+class RecordingsEvaluator:
+    """Runs the leave-one-recording-out protocol for the chosen methods."""
+
+    def __init__(
+        self,
+        data: RecordingSet,
+        known: list[str] | None = None,
+        methods: tuple[str, ...] = DEFAULT_METHODS,
+        quick: bool = False,
+        random_state: int = 0,
+        progress: Callable[[str], None] = lambda msg: None,
+        normalise: str = "training",
+        pseudo_unknowns: str = "refit",
+        derived: tuple[str, ...] = ("none",),
+        calibration: str = "strict",
+    ) -> None:
+        if normalise not in NORMALISATIONS:
+            raise ValueError(f"normalise must be one of {NORMALISATIONS}, got {normalise!r}")
+        if pseudo_unknowns not in PSEUDO_UNKNOWNS:
+            raise ValueError(f"pseudo_unknowns must be one of {PSEUDO_UNKNOWNS}, got {pseudo_unknowns!r}")
+        if calibration not in CALIBRATIONS:
+            raise ValueError(f"calibration must be one of {CALIBRATIONS}, got {calibration!r}")
+        if not derived or len(set(derived)) != len(derived) or not set(derived) <= set(DERIVED):
+            raise ValueError(f"derived features: name distinct choices among {DERIVED}, got {list(derived)}")
+        unknown_names = sorted(set(known or []) - set(data.class_names))
+        if unknown_names:
+            raise ValueError(f"--known names classes {unknown_names} that the data lacks; it has {data.class_names}")
+        bad = sorted(set(methods) - set(REGISTRY))
+        if bad:
+            raise ValueError(f"unknown methods {bad}; choose from {sorted(REGISTRY)}")
+        batches = [REGISTRY[m].batch.name for m in methods if REGISTRY[m].batch is not None]
+        methods = (*dict.fromkeys(b for b in batches if b not in methods), *methods)
+        if len(data.recordings) < 3:
+            raise ValueError("leave-one-recording-out needs at least 3 recordings (2 to train and validate, 1 to test)")
+        self.data = data
+        self.known = [data.class_names.index(k) for k in known] if known else list(range(len(data.class_names)))
+        self.methods = methods
+        self.quick = quick
+        self.random_state = random_state
+        self.progress = progress
+        self.normalise = normalise
+        self.pseudo_unknowns = pseudo_unknowns
+        self.derived = tuple(derived)
+        self.calibration = calibration
+        self._cache: dict[tuple, object] = {}
+
+    # -- one fold ---------------------------------------------------------------------------
+    def _segments(self, recs: list[Recording]) -> dict[int, list[np.ndarray]]:
+        """Training segments of the known classes that ``recs`` hold; a known class without one is
+        left out of the model (its frames elsewhere count as known and are wrong unless labelled
+        as it, which that model cannot do).  At least two classes are needed."""
+        segs = {c: s for c, s in segments(recs, self.known).items() if s}
+        if len(segs) < MIN_TRAINED_CLASSES:
+            raise ValueError(
+                f"the recordings {[r.name for r in recs]} hold training segments of "
+                f"{[self.data.class_names[c] for c in segs] or 'no'} known class(es); every training split of "
+                f"leave-one-recording-out needs at least {MIN_TRAINED_CLASSES}: add recordings that hold "
+                "more classes or name classes that more recordings hold with --known"
+            )
+        return segs
+
+    def _untrained(self, recs: list[Recording]) -> list[str]:
+        """Names of the known classes without a training segment in ``recs``."""
+        return [self.data.class_names[c] for c, segs in segments(recs, self.known).items() if not segs]
+
+    def _select(self, name: str, views: dict[str, list[Recording]]) -> Choice:
+        """Derived features, hyper-parameters and rejection value of one method, chosen on inner
+        splits of the training recordings (``views``: derived features → those recordings)."""
+        method = REGISTRY[name]
+        choices = []
+        for derived, train in views.items():
+            for params in method.grid(self.quick):
+                params = {**params, "derived": derived}
+                known_acc, pseudo_rej, grid = self.validation(method, train, params)
+                value, score = calibrate(known_acc, pseudo_rej, grid)
+                self.progress(f"    {name} {params}: reject={value:.4g} objective={score:.3f}")
+                choices.append((Choice(params, value, score), grid[0], known_acc))
+        best = max(choices, key=lambda c: c[0].objective)[0]  # ties: the first
+        if self.calibration == "strict" or best.objective > REJECT_ALL_OBJECTIVE + FALLBACK_MARGIN:
+            return best
+        keep_all = [(known_acc(first), Choice(c.params, first, c.objective)) for c, first, known_acc in choices]
+        accuracy, chosen = max(keep_all, key=lambda c: c[0])
+        self.progress(
+            f"    {name}: rejection off (best objective {best.objective:.3f}); {chosen.params} keeps {accuracy:.3f}"
+        )
+        return replace(chosen, fallback=True, strict=best)
+
+    def validation(self, method, train: list[Recording], params: dict) -> tuple[Callable, Callable, np.ndarray]:
+        """The calibration's view of ``method`` with ``params`` on the inner folds of ``train``
+        (recordings with ``params``' derived features, scaled): its known accuracy and its
+        pseudo-unknown rejection (mean over the known classes the folds hold) as functions of the
+        rejection value, and the method's sweep of that value."""
+        folds = [(r, [t for t in train if t is not r]) for r in train[-INNER_FOLDS:]]
+        truth = np.concatenate([np.where(np.isin(v.y, self.known), v.y, -1) for v, _ in folds])
+        present = [c for c in self.known if np.any(truth == c)]
+        fits = [(self._fit(method, rest, params), v) for v, rest in folds]
+        states = [(f, self._prepare(method, f, v)) for f, v in fits]
+        unseen = {c: self._without(method, fits, folds, params, c) for c in present}
+
+        def pred(r, drop=None):
+            if drop is not None and unseen[drop] is not None:  # a model that never saw the class
+                return np.concatenate([method.labels(f, s, r) for f, s in unseen[drop]])
+            return np.concatenate([method.labels(f, s, r, drop=drop) for f, s in states])
+
+        @functools.cache
+        def known_acc(r):
+            return frame_metrics(truth, pred(r), self.known)["known_accuracy"] or 0.0
+
+        def pseudo_rej(r):
+            return float(np.mean([np.mean(pred(r, drop=c)[truth == c] == -1) for c in present]))
+
+        return known_acc, pseudo_rej, method.reject_grid(fits[0][0], [s for _, s in states])
+
+    def _fit(self, method, train: list[Recording], params: dict) -> Fitted:
+        """``method.fit`` on ``train``, shared within a fold by the methods of one ``fit_key``
+        (minirocket and clm_minirocket fit the same classifier on the same data) and by the
+        parameter sets that differ only in a method's ``label_params`` (used after the fit)."""
+        key = self._fit_key(method, params, train)
+        if key not in self._cache:
+            self._cache[key] = method.fit(self._segments(train), params, self.random_state)
+        return replace(self._cache[key], params=params)
+
+    @staticmethod
+    def _fit_key(method, params: dict, train: list[Recording]) -> tuple:
+        fit_params = {k: v for k, v in params.items() if k not in getattr(method, "label_params", ())}
+        return (method.fit_key, repr(sorted(fit_params.items())), tuple(r.name for r in train))
+
+    def _without(self, method, fits, folds, params: dict, drop: int) -> list | None:
+        """Per inner fold the model and validation state of ``method`` fitted without class ``drop``
+        (:meth:`~._methods.ScoreMethod.without_class`), or None where dropping it is exact
+        or the evaluation drops classes (``pseudo_unknowns="drop"``)."""
+        if self.pseudo_unknowns == "drop":
+            return None
+        unseen = []
+        for (fitted, v), (_, rest) in zip(fits, folds):
+            if drop not in fitted.classes:  # this inner split never held the class: the model is one
+                unseen.append((fitted, self._prepare(method, fitted, v)))
+                continue
+            key = (*self._fit_key(method, params, rest), "without", drop)
+            if key not in self._cache:
+                self._cache[key] = method.without_class(fitted, self._segments(rest), drop, self.random_state)
+            if self._cache[key] is None:
+                return None
+            refit = replace(self._cache[key], params=params)
+            unseen.append((refit, self._prepare(method, refit, v)))
+        return unseen
+
+    def _prepare(self, method, fitted: Fitted, rec: Recording):
+        key = (method.fit_key, id(fitted.model), rec.name)
+        if key not in self._cache:
+            self._cache[key] = method.prepare(fitted, rec.X)
+        return self._cache[key]
+
+    def fold_views(self, held: str) -> dict[str, tuple[list[Recording], Recording]]:
+        """Per derived feature choice: the training recordings and the held-out one, with the
+        features appended and then scaled with the training frames.  Starts the fold: fitted
+        models and states of the previous one (another scaling) are dropped."""
+        self._cache.clear()
+        views = {}
+        for derived in self.derived:
+            recs = [Recording(r.name, derive(r.X, derived), r.y) for r in self.data.recordings]
+            scaled = _zscore([r for r in recs if r.name != held], recs, self.normalise)
+            views[derived] = ([r for r in scaled if r.name != held], next(r for r in scaled if r.name == held))
+        return views
+
+    def run_fold(self, held: str) -> FoldResult:
+        views = self.fold_views(held)
+        untrained = self._untrained(self.data.without(held))
+        if untrained:
+            self.progress(
+                f"  {held}: no training segment of {untrained} in the other recordings; models leave them out"
+            )
+        labels, selected, sweeps, strict = {}, {}, {}, {}
+        for name in self.methods:
+            if REGISTRY[name].batch is not None:
+                continue  # replayed with the models of its batch method, below
+            t0 = time.perf_counter()
+            choice = self._select(name, {d: train for d, (train, _) in views.items()})
+            method = REGISTRY[name]
+            fitted, state, test = self._final(method, choice.params, views)
+            labels[name] = method.labels(fitted, state, choice.reject)
+            sweeps[name] = [method.labels(fitted, state, r) for r in method.reject_grid(fitted, [state])]
+            selected[name] = {**choice.params, "reject": float(choice.reject), "validation_objective": choice.objective}
+            if choice.fallback:
+                selected[name]["rejection"] = "off"
+                selected[name]["strict"] = {**choice.strict.params, "reject": float(choice.strict.reject)}
+                strict_fit, strict_state, _ = self._final(method, choice.strict.params, views)
+                strict[name] = method.labels(strict_fit, strict_state, choice.strict.reject)
+            for online in (REGISTRY[m] for m in self.methods if REGISTRY[m].batch is method):
+                labels[online.name] = online.labels_online(fitted, choice.reject, test.X)
+                selected[online.name] = selected[name]
+            self.progress(f"  {held}: {name} {selected[name]} in {time.perf_counter() - t0:.1f}s")
+        return FoldResult(held, views[self.derived[0]][1].y, labels, selected, sweeps, strict, untrained)
+
+    def _final(self, method, params: dict, views) -> tuple:
+        """``method`` fitted with ``params`` on all training recordings, its state on the held-out
+        recording and that recording as the method sees it (with ``params``' derived features)."""
+        train, test = views[params["derived"]]
+        fitted = self._fit(method, train, params)
+        return fitted, self._prepare(method, fitted, test), test
+
+    # -- all folds --------------------------------------------------------------------------
+    def evaluate(self) -> dict:
+        folds, n, start = [], len(self.data.recordings), time.perf_counter()
+        for k, rec in enumerate(self.data.recordings):
+            self.progress(f"fold {k + 1}/{n}: holding out '{rec.name}'")
+            folds.append(self.run_fold(rec.name))
+            spent = time.perf_counter() - start
+            if k + 1 < n:  # folds differ in size; the mean so far is the estimate
+                self.progress(
+                    f"fold {k + 1}/{n} done; {spent / 60:.1f} min so far, about {spent / (k + 1) * (n - k - 1) / 60:.0f} min to go"
+                )
+        truth = np.concatenate([f.truth for f in folds])
+        out: dict = {"methods": {}, "parameters": self._parameters()}
+        for name in self.methods:
+            pred = np.concatenate([f.labels[name] for f in folds])
+            res = frame_metrics(truth, pred, self.known)
+            res["segment_f1"] = segment_f1([(f.truth, f.labels[name]) for f in folds], self.known)
+            res["tradeoff_auc"] = None
+            if name in folds[0].sweeps:  # the first value of every sweep keeps every frame
+                res["no_rejection"] = frame_metrics(
+                    truth, np.concatenate([f.sweeps[name][0] for f in folds]), self.known
+                )
+            fell_back = [f for f in folds if name in f.strict]
+            if fell_back:  # the objective's own choice, for the folds where it was overruled
+                strict = np.concatenate([f.strict.get(name, f.labels[name]) for f in folds])
+                res["strict"] = frame_metrics(truth, strict, self.known)
+            res["calibration_note"] = _fallback_note(len(folds), len(fell_back), res.get("strict")) or (
+                _degenerate_calibration(
+                    truth, pred, self.known, [f.selected[name] for f in folds], res.get("no_rejection")
+                )
+            )
+            if name in folds[0].sweeps and res["unknown_rejection"] is not None:
+                res["tradeoff"] = self._tradeoff(folds, name, truth)
+                res["tradeoff_auc"] = res["tradeoff"]["auc"]
+            res["folds"] = [
+                {
+                    "recording": f.recording,
+                    "untrained_classes": f.untrained,
+                    "selected": f.selected[name],
+                    **frame_metrics(f.truth, f.labels[name], self.known),
+                    "segment_f1": segment_f1([(f.truth, f.labels[name])], self.known),
+                }
+                for f in folds
+            ]
+            if REGISTRY[name].batch is not None:
+                batch = np.concatenate([f.labels[REGISTRY[name].batch.name] for f in folds])
+                res["agreement"] = float(np.mean(pred == batch))
+            out["methods"][name] = res
+        self.folds_ = folds
+        return out
+
+    def _tradeoff(self, folds: list[FoldResult], name: str, truth: np.ndarray) -> dict:
+        n = min(len(f.sweeps[name]) for f in folds)
+        acc, rej = [], []
+        for i in range(n):  # the i-th value of every fold's own sweep (sweeps run from keep-all to reject-all)
+            pred = np.concatenate([f.sweeps[name][round(i * (len(f.sweeps[name]) - 1) / max(n - 1, 1))] for f in folds])
+            m = frame_metrics(truth, pred, self.known)
+            acc.append(m["known_accuracy"] or 0.0)
+            rej.append(m["unknown_rejection"] or 0.0)
+        r, a, auc = tradeoff_curve(acc, rej)
+        return {"unknown_rejection": r, "known_accuracy": a, "auc": auc}
+
+    def _parameters(self) -> dict:
+        return {
+            "protocol": f"leave-one-recording-out; inner folds hold out each of the last {INNER_FOLDS} training recordings",
+            "known": [self.data.class_names[c] for c in self.known],
+            "classes": self.data.class_names,
+            "recordings": self.data.names(),
+            "dataset": self.data.source,
+            "normalisation": self._normalisation(),
+            "pseudo_unknowns": self.pseudo_unknowns,
+            "derived": list(self.derived),
+            "calibration": {
+                "mode": self.calibration,
+                "fallback_objective": REJECT_ALL_OBJECTIVE + FALLBACK_MARGIN,
+                "description": "rejection off where no operating point beats rejecting everything on validation"
+                if self.calibration == "fallback"
+                else "the operating point of the best validation objective, whatever it is",
+            },
+            "quick": self.quick,
+            "grids": {n: REGISTRY[n].grid(self.quick) for n in self.methods if REGISTRY[n].batch is None},
+        }
+
+    def _normalisation(self) -> dict:
+        if self.normalise == "training":
+            return {"mode": "training", "description": "z-score with the fold's training frames (every method)"}
+        return {
+            "mode": "recording",
+            "description": "each recording standardised causally, prior = the fold's training frames (every method)",
+            **RunningStandardizer().get_params(),
+        }
+
+
+__getattr__ = renamed(__name__, {"StreamEvaluator": "RecordingsEvaluator"})  # the names before the recordings rename

@@ -1,0 +1,337 @@
+"""The thesis evaluation protocol (docs/segmentation.md §D) for all four methods.
+
+Experiments (``EXPERIMENTS``), each built from the trajectories of one split:
+
+* ``single`` — every whole trajectory;
+* ``concatenated`` — pairs of whole trajectories of different classes, one after the other;
+* ``middle_halves`` — the same pairs, each cut to its middle half (``n//4 … n//4 + n//2``);
+* ``reversed_rejection`` — every trajectory reversed: every point must be rejected;
+* ``left_out_rejection`` — every trajectory with its own class removed from the model set:
+  every point must be rejected.
+
+Each case is run for every sub-sampling ``N^th`` and every history/neighbourhood ``H`` of the
+:class:`TrajectoryProtocol`; the metric is the share of correctly labelled points (rejection = −1).
+Pairs: trajectory ``i`` (sorted by label, then name) is followed by the next trajectory in that
+order with a different label (documented deterministic choice), at most ``max_pairs`` pairs.
+
+Parameter selection: every method has a small grid (:meth:`Evaluator.grid`); each grid point is
+scored on the validation split (the CLM with one run per case).  ``TrajectoryProtocol.selection``:
+``"open_set"`` (default) scores the mean of two figures, the mean share correct over the
+*recognition* experiments (``SELECTION_EXPERIMENTS``) and over the *rejection* experiments
+(``REJECTION_EXPERIMENTS``), so the selected operating point has to keep known motions and reject
+unknown ones; ``"recognition"`` scores the recognition experiments only, as in the thesis (the
+background / rejection threshold is tuned to keep the validation motions).  The best is evaluated on the test split
+(the CLM with ``runs`` runs per case: a case's share is the mean over runs, its ``std`` the
+standard deviation); the UKR/CLM rejection experiments are also reported with a *strong*
+background (``3 λ_bg`` with the thesis rule ``λ_bg = 1 − 10/N``, docs/segmentation.md) under
+``strong_background``.  Summary per
+experiment: ``share_ge_85`` (cases with ≥ 85 % correct), ``share_perfect`` (100 % correct),
+``mean_correct`` — all fractions in [0, 1].
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import numpy as np
+
+from ..clm import CLMSegmenter
+from ..datasets import LabelledDataset, Trajectory
+from ..models import CandidateSet, Projection
+from ..scorers import PerClassHMM, SlidingDTW1NN
+from ._methods import REGISTRY, TRAJECTORY_METHODS
+
+EXPERIMENTS = ("single", "concatenated", "middle_halves", "reversed_rejection", "left_out_rejection")
+METHODS = TRAJECTORY_METHODS  # the methods of this protocol (the registry's, in its order)
+SELECTION_EXPERIMENTS = ("single", "concatenated", "middle_halves")
+REJECTION_EXPERIMENTS = ("reversed_rejection", "left_out_rejection")
+SELECTIONS = ("open_set", "recognition")
+SEGMENT_RULES = ("min_progress", "max_fit_ratio")  # judged after the CLM: its labels are shared
+STRONG_BACKGROUND = 3.0  # docs/segmentation.md: a "strong" background is 3 λ_bg (λ_bg = 1 − 10/N)
+
+
+@dataclass
+class TrajectoryProtocol:
+    """Which sub-samplings, histories, CLM runs and pairs to evaluate."""
+
+    nths: tuple[int, ...] = (1, 2, 3, 4)
+    histories: tuple[int, ...] = (5, 10, 15, 20)
+    runs: int = 4
+    max_pairs: int | None = None
+    grid_size: int | None = None  # keep only the first grid points per method (quick runs)
+    selection: str = "open_set"  # or "recognition" (the thesis): see the module docstring
+
+    def __post_init__(self) -> None:
+        if self.selection not in SELECTIONS:
+            raise ValueError(f"selection must be one of {SELECTIONS}, got {self.selection!r}")
+
+    @classmethod
+    def quick(cls) -> TrajectoryProtocol:
+        """The reduced protocol for CI and tests."""
+        return cls(nths=(1, 2), histories=(10,), runs=2, max_pairs=6, grid_size=8)
+
+
+@dataclass
+class Case:
+    """One evaluation: ``parts`` = (trajectory index, row indices); ``truth`` per point (−1 = reject)."""
+
+    experiment: str
+    name: str
+    nth: int
+    history: int
+    parts: list[tuple[int, np.ndarray]]
+    truth: np.ndarray
+    left_out: str | None = None
+
+    @property
+    def key(self) -> tuple:
+        return tuple((i, idx.tobytes()) for i, idx in self.parts)
+
+
+def _pairs(trajs: list[Trajectory], max_pairs: int | None) -> list[tuple[int, int]]:
+    order = sorted(range(len(trajs)), key=lambda i: (trajs[i].label, trajs[i].name))
+    pairs = []
+    for pos, i in enumerate(order):
+        for step in range(1, len(order)):
+            j = order[(pos + step) % len(order)]
+            if trajs[j].label != trajs[i].label:
+                pairs.append((i, j))
+                break
+    return pairs[:max_pairs] if max_pairs else pairs
+
+
+def build_cases(trajs: list[Trajectory], classes: list[str], protocol: TrajectoryProtocol) -> list[Case]:
+    """All cases of the protocol over one split's trajectories."""
+    cls_index = {c: k for k, c in enumerate(classes)}
+    cases: list[Case] = []
+    pairs = _pairs(trajs, protocol.max_pairs)
+
+    def sub(i: int, nth: int, middle: bool = False) -> np.ndarray:
+        n = len(trajs[i].data)
+        lo, hi = (n // 4, n // 4 + n // 2) if middle else (0, n)
+        return np.arange(lo, hi, nth)
+
+    for nth in protocol.nths:
+        for H in protocol.histories:
+            for i, t in enumerate(trajs):
+                idx = sub(i, nth)
+                truth = np.full(len(idx), cls_index[t.label])
+                cases.append(Case("single", t.name, nth, H, [(i, idx)], truth))
+                cases.append(Case("reversed_rejection", t.name, nth, H, [(i, idx[::-1].copy())], np.full(len(idx), -1)))
+                if len(classes) > 1:
+                    cases.append(
+                        Case("left_out_rejection", t.name, nth, H, [(i, idx)], np.full(len(idx), -1), left_out=t.label)
+                    )
+            for experiment, middle in (("concatenated", False), ("middle_halves", True)):
+                for i, j in pairs:
+                    parts = [(i, sub(i, nth, middle)), (j, sub(j, nth, middle))]
+                    truth = np.concatenate(
+                        [
+                            np.full(len(parts[0][1]), cls_index[trajs[i].label]),
+                            np.full(len(parts[1][1]), cls_index[trajs[j].label]),
+                        ]
+                    )
+                    cases.append(Case(experiment, f"{trajs[i].name}+{trajs[j].name}", nth, H, parts, truth))
+    return cases
+
+
+def summarise(correct: list[float]) -> dict:
+    c = np.asarray(correct, dtype=float)
+    if c.size == 0:
+        return {"share_ge_85": None, "share_perfect": None, "mean_correct": None}
+    return {
+        "share_ge_85": float(np.mean(c >= 0.85)),
+        "share_perfect": float(np.mean(c >= 1.0)),
+        "mean_correct": float(np.mean(c)),
+    }
+
+
+@dataclass
+class Evaluator:
+    """Runs the protocol for the four methods on one dataset with trained candidates."""
+
+    dataset: LabelledDataset
+    candidates: CandidateSet
+    protocol: TrajectoryProtocol = field(default_factory=TrajectoryProtocol)
+    random_state: int = 0
+    progress: Callable[[str], None] = lambda msg: None
+
+    def __post_init__(self) -> None:
+        self.classes = self.candidates.classes
+        missing = sorted(set(self.dataset.classes) - set(self.classes))
+        if missing:
+            raise ValueError(f"no trained model for classes {missing}; retrain the models on this dataset")
+        self._projections: dict[tuple, Projection] = {}
+        self._scores: dict[tuple, np.ndarray] = {}
+        self._labels: dict[tuple, np.ndarray] = {}
+        self.cases = {
+            split: build_cases(self.dataset.split(split), self.classes, self.protocol)
+            for split in ("validation", "test")
+        }
+
+    @cached_property
+    def dtw(self) -> SlidingDTW1NN:
+        self.progress("fitting the DTW baseline's references")
+        return SlidingDTW1NN().fit(dict(self.dataset.by_class("train").items()))
+
+    @cached_property
+    def hmm(self) -> PerClassHMM:
+        self.progress("fitting the per-class HMMs")
+        return PerClassHMM(random_state=self.random_state).fit(dict(self.dataset.by_class("train").items()))
+
+    # -- data of a case ---------------------------------------------------------------------
+    def _projection(self, split: str, i: int, idx: np.ndarray) -> Projection:
+        """Projection of the observations ``idx`` of trajectory ``i``: rows of the whole trajectory's
+        for pointwise candidates, else (heading channels, delay embedding) of those observations
+        as a sequence of their own — sub-sampled, cut or reversed as a stream would bring them."""
+        data = self.dataset.split(split)[i].data
+        pointwise = not self.candidates.stateful
+        key = (split, i) if pointwise else (split, i, idx.tobytes())
+        if key not in self._projections:
+            self._projections[key] = self.candidates.project(data if pointwise else data[idx])
+        return self._projections[key].take(idx) if pointwise else self._projections[key]
+
+    def projection(self, split: str, case: Case) -> Projection:
+        proj = Projection.concatenate([self._projection(split, i, idx) for i, idx in case.parts])
+        return proj.without(case.left_out) if case.left_out else proj
+
+    def sequence(self, split: str, case: Case) -> np.ndarray:
+        trajs = self.dataset.split(split)
+        return np.vstack([trajs[i].data[idx] for i, idx in case.parts])
+
+    def case_candidates(self, case: Case) -> CandidateSet:
+        """The candidates a case is recognised with (without its left-out class)."""
+        return self.candidates.without(case.left_out) if case.left_out else self.candidates
+
+    def to_global(self, labels: np.ndarray, names: list[str]) -> np.ndarray:
+        lut = np.array([self.classes.index(n) for n in names] + [-1])
+        return lut[np.where(labels < 0, len(names), labels)]
+
+    # -- methods (the registry's, docs/segmentation.md) -------------------------------------
+    def grid(self, method: str, split: str = "validation") -> list[dict]:
+        """The parameter grid of a method (documented, small; thresholds are data-derived)."""
+        g = REGISTRY[method].trajectory_grid(self, split)
+        return g[: self.protocol.grid_size] if self.protocol.grid_size else g
+
+    def baseline_thresholds(self, method: str, split: str) -> list[float | None]:
+        """None plus the 5 % and 25 % quantiles of the winning score on the split's single cases."""
+        best = np.concatenate(
+            [self.baseline_scores(method, split, c).max(axis=1) for c in self.cases[split] if c.experiment == "single"]
+        )
+        return [None, float(np.quantile(best, 0.25)), float(np.quantile(best, 0.05))]
+
+    def baseline_scores(self, method: str, split: str, case: Case) -> np.ndarray:
+        key = (method, split, case.key, case.history)
+        if key not in self._scores:
+            model = REGISTRY[method].trajectory_model(self)
+            model.window = case.history
+            self._scores[key] = model.scores(self.sequence(split, case))
+        return self._scores[key]
+
+    def predict(self, method: str, params: dict, split: str, case: Case, seed: int = 0) -> np.ndarray:
+        """Global class index per point of a case (−1 = rejected)."""
+        return REGISTRY[method].predict_case(self, params, split, case, seed)
+
+    def clm_labels(
+        self, split: str, case: Case, seed: int, cands: CandidateSet, proj: Projection, params: dict
+    ) -> np.ndarray:
+        """The CLM's labels before the segment rules (:data:`SEGMENT_RULES`, which only reject after
+        the CLM): computed once per case, seed and the other parameters."""
+        clm = {k: v for k, v in params.items() if k not in SEGMENT_RULES}
+        key = (split, case.experiment, case.left_out, case.key, case.history, seed, tuple(sorted(clm.items())))
+        if key not in self._labels:
+            seg = CLMSegmenter(cands, history=case.history, random_state=seed, **clm)
+            self._labels[key] = seg.fit_predict_projected(proj)
+        return self._labels[key]
+
+    def run(
+        self, method: str, params: dict, split: str, runs: int = 1, experiments: tuple[str, ...] = EXPERIMENTS
+    ) -> dict:
+        """Per-experiment summaries and cases of one method and parameter set on one split."""
+        per_exp: dict[str, list[dict]] = {e: [] for e in experiments}
+        for n, case in enumerate(self.cases[split]):
+            if case.experiment not in per_exp:
+                continue
+            shares = [
+                float(
+                    np.mean(
+                        self.predict(method, params, split, case, seed=self.random_state * 100003 + n * 7 + r)
+                        == case.truth
+                    )
+                )
+                for r in range(runs)
+            ]
+            per_exp[case.experiment].append(
+                {
+                    "name": case.name,
+                    "nth": case.nth,
+                    "H": case.history,
+                    "n_points": int(case.truth.size),
+                    "correct": float(np.mean(shares)),
+                    "std": float(np.std(shares)),
+                }
+            )
+        return {e: dict(summarise([c["correct"] for c in cs]), cases=cs) for e, cs in per_exp.items()}
+
+    def objective(self, res: dict) -> float:
+        """The validation score of one grid point's results (``TrajectoryProtocol.selection``)."""
+
+        def mean_of(experiments: tuple[str, ...]) -> float | None:
+            shares = [res[e]["mean_correct"] for e in experiments if res.get(e, {}).get("mean_correct") is not None]
+            return float(np.mean(shares)) if shares else None
+
+        recognition, rejection = mean_of(SELECTION_EXPERIMENTS), mean_of(REJECTION_EXPERIMENTS)
+        if self.protocol.selection == "recognition" or rejection is None:
+            return recognition
+        return 0.5 * (recognition + rejection)
+
+    def select(self, method: str) -> tuple[dict, float]:
+        """Best grid point on validation: (params, objective)."""
+        best, best_score = None, -np.inf
+        for params in self.grid(method):
+            res = self.run(method, params, "validation", runs=1)
+            score = self.objective(res)
+            self.progress(f"  {method} validation {params}: {score:.3f}")
+            if score > best_score:
+                best, best_score = params, score
+        return best, best_score
+
+    def evaluate(self, methods: tuple[str, ...] = METHODS) -> dict:
+        """Select on validation, report on test: the JSON structure of ``evaluate segmentation``."""
+        out: dict = {
+            "methods": {},
+            "parameters": {
+                "protocol": {
+                    "nths": list(self.protocol.nths),
+                    "histories": list(self.protocol.histories),
+                    "runs": self.protocol.runs,
+                    "max_pairs": self.protocol.max_pairs,
+                    "selection": self.protocol.selection,
+                },
+                "classes": self.classes,
+                "dataset": self.dataset.source,
+                "selected": {},
+                "validation_score": {},
+            },
+        }
+        for method in methods:
+            t0 = time.perf_counter()
+            self.progress(f"{method}: selecting parameters on validation")
+            params, score = self.select(method)
+            entry = REGISTRY[method]
+            runs = self.protocol.runs if entry.repeated_runs else 1
+            self.progress(f"{method}: evaluating {params} on test ({runs} run(s) per case)")
+            out["methods"][method] = self.run(method, params, "test", runs=runs)
+            if entry.strong_background:
+                strong = dict(params, background_factor=STRONG_BACKGROUND)
+                self.progress(f"{method}: rejection experiments with a strong background {strong}")
+                for exp, res in self.run(method, strong, "test", runs=runs, experiments=REJECTION_EXPERIMENTS).items():
+                    out["methods"][method][exp]["strong_background"] = res
+                out["parameters"]["strong_background"] = strong
+            out["parameters"]["selected"][method] = params
+            out["parameters"]["validation_score"][method] = score
+            self.progress(f"{method}: done in {time.perf_counter() - t0:.1f} s")
+        return out

@@ -1,0 +1,44 @@
+"""Window scorers and the baselines: sliding DTW 1-NN, per-class HMM and MiniRocket, with the
+scorer files (docs/segmentation.md)."""
+
+from ._dtw import (
+    DTWScorer,
+    SlidingDTW1NN,
+)
+from ._files import (
+    SCORERS,
+    load_scorer,
+)
+from ._hmm import (
+    PerClassHMM,
+)
+from ._minirocket import (
+    WINDOWS_PER_SEGMENT,
+    MiniRocketScorer,
+)
+from ._scores import (
+    decide,
+)
+from ._window import (
+    FORMAT,
+    FORMAT_VERSION,
+    ScorerFileError,
+    WindowScorer,
+    causal_windows,
+)
+
+__all__ = [
+    "DTWScorer",
+    "FORMAT",
+    "FORMAT_VERSION",
+    "MiniRocketScorer",
+    "PerClassHMM",
+    "SCORERS",
+    "ScorerFileError",
+    "SlidingDTW1NN",
+    "WINDOWS_PER_SEGMENT",
+    "WindowScorer",
+    "causal_windows",
+    "decide",
+    "load_scorer",
+]

@@ -1,0 +1,143 @@
+"""Sliding-window subsequence DTW (docs/segmentation.md): the compiled kernel, shared by the 1-NN
+baseline (:class:`SlidingDTW1NN`) and the saved frame scorer (:class:`DTWScorer`)."""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+from sklearn.utils.validation import check_is_fitted
+
+from ._scores import _check_window, _Standardiser, decide
+from ._window import WindowScorer
+
+
+@numba.njit(cache=True)
+def _subsequence_dtw(Q, R):  # pragma: no cover - compiled
+    """Open-begin/open-end DTW of query Q (w, d) inside reference R (n, d): min accumulated cost."""
+    w, n = Q.shape[0], R.shape[0]
+    prev = np.empty(n)
+    cur = np.empty(n)
+    for j in range(n):
+        c = 0.0
+        for k in range(Q.shape[1]):
+            diff = Q[0, k] - R[j, k]
+            c += diff * diff
+        prev[j] = np.sqrt(c)
+    for i in range(1, w):
+        for j in range(n):
+            c = 0.0
+            for k in range(Q.shape[1]):
+                diff = Q[i, k] - R[j, k]
+                c += diff * diff
+            best = prev[j]
+            if j > 0:
+                if cur[j - 1] < best:
+                    best = cur[j - 1]
+                if prev[j - 1] < best:
+                    best = prev[j - 1]
+            cur[j] = np.sqrt(c) + best
+        prev, cur = cur, prev
+    return prev.min()
+
+
+@numba.njit(cache=True)
+def _sliding_dtw(Y, refs, offsets, window):  # pragma: no cover - compiled
+    """Distance (N, n_refs) of each causal window of Y to each reference, per query point."""
+    N = Y.shape[0]
+    out = np.empty((N, offsets.shape[0] - 1))
+    for t in range(N):
+        lo = max(0, t - window + 1)
+        Q = Y[lo : t + 1]
+        for r in range(offsets.shape[0] - 1):
+            out[t, r] = _subsequence_dtw(Q, refs[offsets[r] : offsets[r + 1]]) / Q.shape[0]
+    return out
+
+
+class SlidingDTW1NN(_Standardiser):
+    """1-nearest-neighbour over training sequences with open-begin/end subsequence DTW.
+
+    Score of class c at ``t`` = − min over c's training sequences of the DTW cost of the window
+    ``y_{t−w+1…t}`` divided by its length.  ``threshold`` (on that score) rejects.
+    """
+
+    def __init__(self, *, window: int = 10, threshold: float | None = None) -> None:
+        self.window = window
+        self.threshold = threshold
+
+    def fit(self, sequences_by_class: dict[str, list[np.ndarray]]) -> SlidingDTW1NN:
+        _check_window(self.window)
+        if not sequences_by_class:
+            raise ValueError("need at least one class with training sequences")
+        self.classes_ = list(sequences_by_class)
+        self.fit_from([s for seqs in sequences_by_class.values() for s in seqs])
+        refs, owner = [], []
+        for c, seqs in enumerate(sequences_by_class.values()):
+            refs += [self.standardise(s) for s in seqs]
+            owner += [c] * len(seqs)
+        self.refs_ = np.ascontiguousarray(np.vstack(refs))
+        self.offsets_ = np.r_[0, np.cumsum([len(r) for r in refs])].astype(np.int64)
+        self.owner_ = np.asarray(owner)
+        return self
+
+    def scores(self, Y: np.ndarray) -> np.ndarray:
+        """(N, M) class scores."""
+        check_is_fitted(self, "refs_")
+        _check_window(self.window)
+        d = _sliding_dtw(np.ascontiguousarray(self.standardise(Y)), self.refs_, self.offsets_, int(self.window))
+        out = np.full((d.shape[0], len(self.classes_)), -np.inf)
+        for c in range(len(self.classes_)):
+            out[:, c] = -d[:, self.owner_ == c].min(axis=1)
+        return out
+
+    def predict(self, Y: np.ndarray) -> np.ndarray:
+        return decide(self.scores(Y), self.threshold)
+
+
+class DTWScorer(WindowScorer):
+    """Sliding-window subsequence DTW 1-NN (:class:`SlidingDTW1NN`): score of class c =
+    − the smallest length-normalised DTW cost of the window inside one of c's training segments.
+    References are thinned to every ``thin``-th frame when at least 8 of them remain."""
+
+    kind = "dtw"
+
+    def __init__(self, *, window: int = 20, thin: int = 4) -> None:
+        self.window = window
+        self.thin = thin
+
+    def _fit(self, segments: dict) -> None:
+        k = int(self.thin)
+        refs = {c: [s[::k] if len(s) >= 8 * k else s for s in segs] for c, segs in segments.items()}
+        self.model_ = SlidingDTW1NN(window=int(self.window)).fit(refs)
+        return np.vstack([self.model_.scores(s) for segs in segments.values() for s in segs])
+
+    def scores(self, X: np.ndarray) -> np.ndarray:
+        return self.model_.scores(self.check_input(X))
+
+    def _arrays(self) -> dict[str, np.ndarray]:
+        m = self.model_
+        return {"mean": m.mean_, "std": m.std_, "refs": m.refs_, "offsets": m.offsets_, "owner": m.owner_}
+
+    def _restore(self, arrays: dict[str, np.ndarray]) -> None:
+        d, m = self.n_features_in_, len(self.classes_)
+        refs, offsets, owner = arrays["refs"], arrays["offsets"], arrays["owner"]
+        if (
+            arrays["mean"].shape != (d,)
+            or arrays["std"].shape != (d,)
+            or (arrays["std"] <= 0).any()
+            or refs.ndim != 2
+            or refs.shape[1] != d
+            or refs.dtype.kind != "f"
+            or offsets.ndim != 1
+            or offsets.dtype.kind != "i"
+            or offsets.size != owner.size + 1
+            or offsets[0] != 0
+            or offsets[-1] != len(refs)
+            or (np.diff(offsets) < 1).any()
+            or owner.dtype.kind != "i"
+            or set(owner.tolist()) != set(range(m))
+        ):
+            raise ValueError("DTW references are inconsistent with each other or with the input channels")
+        model = SlidingDTW1NN(window=int(self.window))
+        model.classes_, model.mean_, model.std_ = list(self.classes_), arrays["mean"], arrays["std"]
+        model.refs_, model.offsets_, model.owner_ = np.ascontiguousarray(refs), offsets.astype(np.int64), owner
+        self.model_ = model

@@ -1,0 +1,90 @@
+"""Per-class Gaussian HMMs scored over the causal window, a baseline of the evaluation
+(docs/segmentation.md)."""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.special import logsumexp
+from sklearn.utils.validation import check_is_fitted
+
+from ._scores import _check_window, _Standardiser, decide
+
+
+class PerClassHMM(_Standardiser):
+    """One Gaussian HMM (hmmlearn, diagonal covariances) per class; score = mean log-likelihood
+    per observation of the causal window ``y_{t−w+1…t}`` (windowed forward algorithm)."""
+
+    def __init__(
+        self,
+        *,
+        n_states: int = 4,
+        window: int = 10,
+        n_iter: int = 30,
+        min_covar: float = 1e-2,
+        threshold: float | None = None,
+        random_state: int | None = 0,
+    ) -> None:
+        self.n_states = n_states
+        self.window = window
+        self.n_iter = n_iter
+        self.min_covar = min_covar
+        self.threshold = threshold
+        self.random_state = random_state
+
+    def fit(self, sequences_by_class: dict[str, list[np.ndarray]]) -> PerClassHMM:
+        _check_window(self.window)
+        if int(self.n_states) < 1:
+            raise ValueError(f"n_states must be >= 1, got {self.n_states}")
+        if not sequences_by_class:
+            raise ValueError("need at least one class with training sequences")
+        try:
+            from hmmlearn.hmm import GaussianHMM
+        except ImportError:
+            raise ImportError("the HMM baseline needs hmmlearn: pip install 'handflow[hmm]'") from None
+        self.classes_ = list(sequences_by_class)
+        self.fit_from([s for seqs in sequences_by_class.values() for s in seqs])
+        self.models_ = []
+        for seqs in sequences_by_class.values():
+            Z = [self.standardise(s) for s in seqs]
+            m = GaussianHMM(
+                n_components=self.n_states,
+                covariance_type="diag",
+                n_iter=self.n_iter,
+                min_covar=self.min_covar,
+                random_state=self.random_state,
+            )
+            m.fit(np.vstack(Z), [len(z) for z in Z])
+            self.models_.append(m)
+        return self
+
+    @staticmethod
+    def _emission_logprob(m, Z: np.ndarray) -> np.ndarray:
+        var = np.diagonal(m.covars_, axis1=1, axis2=2)  # (K, d)
+        diff = Z[:, None, :] - m.means_[None]
+        return -0.5 * (np.sum(diff * diff / var, axis=2) + np.sum(np.log(2 * np.pi * var), axis=1))
+
+    def _window_loglik(self, m, Z: np.ndarray) -> np.ndarray:
+        logB = self._emission_logprob(m, Z)
+        logA = np.log(np.maximum(m.transmat_, 1e-300))
+        N = Z.shape[0]
+        t = np.arange(N)
+        start = np.maximum(0, t - self.window + 1)
+        length = t - start + 1
+        alpha = np.log(np.maximum(m.startprob_, 1e-300))[None] + logB[start]
+        for s in range(1, self.window):
+            active = s < length
+            if not active.any():
+                break
+            step = logsumexp(alpha[active][:, :, None] + logA[None], axis=1) + logB[start[active] + s]
+            alpha[active] = step
+        return logsumexp(alpha, axis=1) / length
+
+    def scores(self, Y: np.ndarray) -> np.ndarray:
+        """(N, M) class scores."""
+        check_is_fitted(self, "models_")
+        _check_window(self.window)
+        Z = self.standardise(Y)
+        return np.stack([self._window_loglik(m, Z) for m in self.models_], axis=1)
+
+    def predict(self, Y: np.ndarray) -> np.ndarray:
+        return decide(self.scores(Y), self.threshold)

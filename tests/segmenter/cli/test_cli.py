@@ -1,0 +1,63 @@
+import json
+
+import numpy as np
+import pytest
+
+from handflow.plugins.segmenter import EXPERIMENTS, METHODS, load_candidates
+from handflow.plugins.segmenter.cli import register_evaluate, register_train_classes
+from handflow.plugins.segmenter.models import ModelsMissingError
+from tests.conftest import run_command
+from tests.segmenter.datasets.test_trajectories import write_csv_dataset
+
+
+@pytest.fixture(scope="module")
+def csv_dataset(tmp_path_factory, synthetic):
+    return write_csv_dataset(tmp_path_factory.mktemp("ds") / "letters", synthetic)
+
+
+def test_train_classes_writes_loadable_models(tmp_path, csv_dataset, synthetic):
+    assert run_command(register_train_classes, [str(csv_dataset), "--out", str(tmp_path / "m"), "--steps", "30"]) == 0
+    index = json.loads((tmp_path / "m" / "classes.json").read_text())
+    assert sorted(index["classes"]) == ["A", "B", "C", "D"]
+    cands = load_candidates(tmp_path / "m")
+    assert cands.project(synthetic.test[0].data).latent_time.shape == (len(synthetic.test[0].data), 4)
+
+
+def test_missing_models_say_how_to_train(tmp_path):
+    with pytest.raises(ModelsMissingError, match="train-classes"):
+        load_candidates(tmp_path)
+
+
+def test_bad_dataset_exits_2(tmp_path, capsys):
+    assert run_command(register_evaluate, [str(tmp_path / "missing")]) == 2
+    assert "does not exist" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_quick_evaluation_json_and_plots(tmp_path, csv_dataset, capsys):
+    code = run_command(
+        register_evaluate, [str(csv_dataset), "--quick", "--json", "--steps", "50", "--plots", str(tmp_path / "plots")]
+    )
+    out = capsys.readouterr()
+    assert code == 0
+    result = json.loads(out.out)
+    assert set(result["methods"]) == set(METHODS)
+    for method in METHODS:
+        for exp in EXPERIMENTS:
+            r = result["methods"][method][exp]
+            assert 0.0 <= r["share_perfect"] <= r["share_ge_85"] <= 1.0
+            assert r["cases"] and all(0.0 <= c["correct"] <= 1.0 for c in r["cases"])
+    assert result["methods"]["ukr_clm"]["single"]["mean_correct"] > 0.8
+    assert set(result["parameters"]["selected"]) == set(METHODS)
+    strong = result["methods"]["ukr_clm"]["reversed_rejection"]["strong_background"]
+    assert strong["mean_correct"] >= result["methods"]["ukr_clm"]["reversed_rejection"]["mean_correct"]
+    assert "validation" in out.err  # progress on stderr
+    assert (tmp_path / "plots" / "summary.png").stat().st_size > 0
+    assert (tmp_path / "plots" / "concatenated_ukr_clm.png").exists()
+    assert np.isfinite(result["runtime_s"])
+
+
+def test_select_is_refused_for_continuous_recordings(tmp_path, capsys):
+    np.savez(tmp_path / "c.npz", class_names=np.array(["a"]), X_r=np.zeros((4, 2)), y_r=np.zeros(4, int))
+    assert run_command(register_evaluate, [str(tmp_path / "c.npz"), "--select", "recognition"]) == 2
+    assert "--select applies to labelled trajectories" in capsys.readouterr().err

@@ -1,0 +1,50 @@
+"""A candidate set holds the feature pipeline its models were trained on; model files written
+before it was held still load, with the pipeline their provenance records
+(plugins/segmenter/features/_pipeline.py, docs/segmentation.md)."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from handflow.plugins.segmenter.features import DelayEmbedding, Derived, FeaturePipeline, Headings
+from handflow.plugins.segmenter.models import CandidateSet, fit_recording_models, load_candidates
+
+SHIPPED = Path(__file__).resolve().parents[3] / "configs" / "models" / "gestures"
+
+
+def test_shipped_model_files_load_with_the_pipeline_they_record():
+    cands = load_candidates(SHIPPED)
+    assert isinstance(cands.pipeline, FeaturePipeline)
+    assert cands.pipeline == FeaturePipeline.from_provenances(
+        [m.model.provenance_ for m in cands.models.values()], cands.scaling
+    )
+    Y = np.random.default_rng(0).normal(size=(30, cands.n_channels))
+    rows, reversed_rows = cands.pipeline.transform_both(Y)
+    stream = cands.pipeline.stream()
+    pushed = [stream.push(y) for y in Y]
+    np.testing.assert_array_equal(np.vstack([r for r, _ in pushed]), rows)
+    assert (reversed_rows is None) == (not cands.headings.active)
+
+
+def test_trained_candidates_hold_the_pipeline_their_files_would_record():
+    rng = np.random.default_rng(1)
+    t = np.linspace(0, 6 * np.pi, 240)
+    by_class = {
+        "a": [np.c_[np.sin(t), np.cos(t)] + 0.01 * rng.normal(size=(240, 2))],
+        "b": [np.c_[np.sin(2 * t), np.cos(t)] + 0.01 * rng.normal(size=(240, 2))],
+    }
+    cands = fit_recording_models(
+        by_class, delay=4, n_steps=20, random_state=0, derived="velocities", scaling="standard"
+    )
+    assert (cands.delay, cands.derived, cands.headings) == (DelayEmbedding(4), Derived("velocities"), Headings())
+    reread = CandidateSet(cands.models)  # what a saved and loaded set reads from the provenance
+    assert reread.pipeline.delay == cands.delay and reread.pipeline.derived == cands.derived
+    assert reread.scaling.same_as(cands.scaling)
+    Y = np.c_[np.sin(t[:50]), np.cos(t[:50])]
+    np.testing.assert_array_equal(reread.project(Y).errors, cands.project(Y).errors)
+
+
+def test_models_of_different_pipelines_are_refused():
+    with pytest.raises(ValueError, match="different delay embeddings"):
+        FeaturePipeline.from_provenances([{"delay_window": 2}, {"delay_window": 3}])

@@ -17,6 +17,7 @@ next to the bare ``mcap`` writer with the same bytes and settings.
 
     python benchmarks/transport.py [--json] [--seconds 6] [--rates 100 1000] [--pairs 3]
     python benchmarks/transport.py --shm [--json] [--pairs 3] [--seconds 3] [--hd-seconds 20]
+    python benchmarks/transport.py --shm-soak 600
 
 ``--shm`` (docs/shared_memory.md): a payload sweep (4 KiB … 1920×1080×3 ``Image``) through three
 processes (publisher → relay → subscriber, 30 Hz) as back-to-back triples: handflow (the wire and
@@ -26,7 +27,10 @@ it), bare Zenoh with shared memory (a provider buffer, forwarded as is) and bare
 (TCP).  Latency: the publisher's ``publish`` to the subscriber's callback.  Keys ``shm.flat_ratio``
 (handflow p50 at 4 MiB / 4 KiB), ``shm.vs_bare_tcp``, ``shm.vs_bare_shm`` (at 4 MiB, medians of the
 pairs' ratios), ``shm.hd_lost`` and ``shm.hd_cpu_percent`` (1080p RGB at 30 fps through the three
-handflow processes, CPU of the three summed, in % of one core).
+handflow processes, CPU of the three summed, in % of one core).  ``--shm-soak SECONDS`` streams 1080p30
+through the three handflow processes and reports lost frames, payloads that fell back to the network
+because the pool ran short (``shm_fallbacks``) and each process's RSS growth from a quarter of the run
+to its end.
 
 ``overhead_ratio`` = median latency of the handflow chain / median of the bare-Zenoh chain with
 the same number of hops at the top rate, measured as ``--pairs`` back-to-back (handflow, bare)
@@ -40,11 +44,13 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 import statistics
 import struct
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from pathlib import Path
 
@@ -148,6 +154,8 @@ def _shm_role(args: argparse.Namespace) -> None:
     provider = _zshm.ShmProvider.default_backend(POOL_BYTES) if args.mode == "shm" else None
     rows: list[tuple[int, int]] = []
     cpu0 = time.process_time()
+    rss = []  # kB after a quarter of the run and at its end (--shm-soak)
+    threading.Timer(args.warmup + args.seconds / 4, lambda: rss.append(_rss_kb())).start()
     if args.role == "pub":
         pub = session.declare_publisher("bench/a")
         data = np.empty(args.size, np.uint8)  # stands for a ctx.allocate buffer the source filled in place
@@ -200,7 +208,9 @@ def _shm_role(args: argparse.Namespace) -> None:
 
         session.declare_subscriber("bench/b", on)
         time.sleep(args.seconds + args.warmup + 2)
-    Path(args.out).write_text(json.dumps({"rows": rows, "cpu_s": time.process_time() - cpu0, "shm": pool.sent}))
+    rss.append(_rss_kb())
+    out = {"rows": rows, "cpu_s": time.process_time() - cpu0, "shm": pool.sent, "fallbacks": pool.fallbacks}
+    Path(args.out).write_text(json.dumps({**out, "rss_kb": rss}))
     session.close()
 
 
@@ -223,7 +233,17 @@ def run_shm_chain(size: int, mode: str, rate: float, seconds: float) -> dict:
     rows = res["sub"]["rows"]
     stats = _stats([lat for _, lat in rows], [s for s, _ in rows], int(seconds * rate))
     busy = sum(r["cpu_s"] for r in res.values())
-    return {**stats, "cpu_percent": 100 * busy / seconds, "via_shm": res["pub"]["shm"] + res["relay"]["shm"]}
+    return {
+        **stats,
+        "cpu_percent": 100 * busy / seconds,
+        "via_shm": res["pub"]["shm"] + res["relay"]["shm"],
+        "shm_fallbacks": res["pub"]["fallbacks"] + res["relay"]["fallbacks"],
+        "rss_growth": {r: v["rss_kb"][-1] / v["rss_kb"][0] - 1 for r, v in res.items()},
+    }
+
+
+def _rss_kb() -> int:
+    return int(re.search(r"VmRSS:\s+(\d+)", Path("/proc/self/status").read_text()).group(1))
 
 
 def run_shm(pairs: int, seconds: float, hd_seconds: float) -> dict:
@@ -473,6 +493,7 @@ def main() -> None:
     ap.add_argument("--payload", default="joints"), ap.add_argument("--mode", default="raw")
     ap.add_argument("--shm", action="store_true", help="only the shared-memory payload sweep and the 1080p30 stream")
     ap.add_argument("--hd-seconds", type=float, default=20.0, help="length of the 1080p30 stream (--shm)")
+    ap.add_argument("--shm-soak", type=float, metavar="SECONDS", help="only the 1080p30 soak of that length")
     ap.add_argument("--_shm_role", action="store_true", help=argparse.SUPPRESS)
     ap.add_argument("--size", type=int, help=argparse.SUPPRESS)
     args = ap.parse_args()
@@ -481,6 +502,10 @@ def main() -> None:
         return
     if args._shm_role:
         _shm_role(args)
+        return
+    if args.shm_soak:  # 1080p30 through three processes: shared-memory fallbacks and RSS growth
+        res = run_shm_chain(SWEEP["1080p"], "handflow", IMAGE_RATE_HZ, args.shm_soak)
+        print(json.dumps({k: v for k, v in res.items() if k not in ("p99_us",)}))
         return
     if args.shm:
         res = run_shm(args.pairs, args.seconds, args.hd_seconds)

@@ -16,6 +16,21 @@ read without decoding.  ``image_codec_ms`` is encode + decode of one frame in-pr
 next to the bare ``mcap`` writer with the same bytes and settings.
 
     python benchmarks/transport.py [--json] [--seconds 6] [--rates 100 1000] [--pairs 3]
+    python benchmarks/transport.py --shm [--json] [--pairs 3] [--seconds 3] [--hd-seconds 20]
+    python benchmarks/transport.py --shm-soak 600
+
+``--shm`` (docs/shared_memory.md): a payload sweep (4 KiB … 1920×1080×3 ``Image``) through three
+processes (publisher → relay → subscriber, 30 Hz) as back-to-back triples: handflow (the wire and
+the node process's shared-memory pool: publish packs a frame whose pixels are already in a
+``ctx.allocate`` buffer, the relay decodes and forwards it, the subscriber decodes and validates
+it), bare Zenoh with shared memory (a provider buffer, forwarded as is) and bare Zenoh without it
+(TCP).  Latency: the publisher's ``publish`` to the subscriber's callback.  Keys ``shm.flat_ratio``
+(handflow p50 at 4 MiB / 4 KiB), ``shm.vs_bare_tcp``, ``shm.vs_bare_shm`` (at 4 MiB, medians of the
+pairs' ratios), ``shm.hd_lost`` and ``shm.hd_cpu_percent`` (1080p RGB at 30 fps through the three
+handflow processes, CPU of the three summed, in % of one core).  ``--shm-soak SECONDS`` streams 1080p30
+through the three handflow processes and reports lost frames, payloads that fell back to the network
+because the pool ran short (``shm_fallbacks``) and each process's RSS growth from a quarter of the run
+to its end.
 
 ``overhead_ratio`` = median latency of the handflow chain / median of the bare-Zenoh chain with
 the same number of hops at the top rate, measured as ``--pairs`` back-to-back (handflow, bare)
@@ -29,11 +44,13 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 import statistics
 import struct
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from pathlib import Path
 
@@ -116,6 +133,147 @@ def _role(args: argparse.Namespace) -> None:
         time.sleep(args.seconds + args.warmup + 2)
         Path(args.out).write_text(json.dumps(out_rows))
     session.close()
+
+
+SWEEP = {"4KiB": 4 << 10, "64KiB": 64 << 10, "1MiB": 1 << 20, "4MiB": 4 << 20, "1080p": 1920 * 1080 * 3}
+
+
+def _shm_role(args: argparse.Namespace) -> None:
+    """One process of the ``--shm`` chain: ``args.role`` pub/relay/sub, ``args.mode`` handflow/shm/tcp."""
+    import zenoh
+    import zenoh.shm as _zshm
+
+    from handflow.framework import wire
+    from handflow.framework.messages import Header, Image
+    from handflow.framework.network import sessions as transport
+    from handflow.framework.network.settings import ZenohSettings
+    from handflow.framework.network.shm import POOL_BYTES, SharedPayloads
+
+    session = transport.open_node_session(ZenohSettings(shared_memory=args.mode != "tcp"), args.hub)
+    pool = SharedPayloads(args.mode == "handflow")
+    provider = _zshm.ShmProvider.default_backend(POOL_BYTES) if args.mode == "shm" else None
+    rows: list[tuple[int, int]] = []
+    cpu0 = time.process_time()
+    rss = []  # kB after a quarter of the run and at its end (--shm-soak)
+    threading.Timer(args.warmup + args.seconds / 4, lambda: rss.append(_rss_kb())).start()
+    if args.role == "pub":
+        pub = session.declare_publisher("bench/a")
+        data = np.empty(args.size, np.uint8)  # stands for a ctx.allocate buffer the source filled in place
+        data[:] = np.arange(args.size) % 251
+        frame = Image(width=args.size, height=1, encoding="mono8", step=args.size, data=data)
+        body = bytearray(wire.pack(frame)[0])
+        time.sleep(args.warmup)
+        period, t_next = 1.0 / args.rate, time.perf_counter()
+        for seq in range(1, int(args.seconds * args.rate) + 1):
+            t_next += period
+            while (d := t_next - time.perf_counter()) > 0:
+                time.sleep(d if d > 2e-4 else 0)
+            now = time.time_ns()
+            if args.mode == "handflow":  # NodeContext.publish: header, check, pack, pool
+                frame.header = Header("pub", seq, now)
+                frame.check()
+                payload, att = wire.pack(frame)
+                pub.put(pool.wrap(payload), attachment=att)
+                continue
+            struct.pack_into("<iI", body, 4, now // 1_000_000_000, now % 1_000_000_000)
+            att = wire.attachment(Image.TYPE, "pub", seq)
+            if provider is None:
+                pub.put(bytes(body), attachment=att)
+            else:
+                buf = provider.alloc(len(body), _zshm.GarbageCollect(_zshm.JustAlloc(), _zshm.Defragment()))
+                buf[0 : len(body)] = body
+                pub.put(zenoh.ZBytes(buf), attachment=att)
+        time.sleep(1.0)
+    elif args.role == "relay":
+        pub = session.declare_publisher("bench/b")
+
+        def forward(sample):
+            if args.mode != "handflow":
+                pub.put(sample.payload, attachment=sample.attachment)
+                return
+            payload, att = wire.sample_parts(sample)
+            msg = wire.unpack(payload, att)  # the runner's forwarding of an unchanged message
+            payload, att = wire.repack(msg, payload) or wire.pack(msg)
+            pub.put(pool.wrap(payload), attachment=att)
+
+        session.declare_subscriber("bench/a", forward)
+        time.sleep(args.seconds + args.warmup + 2)
+    else:
+        read = wire.unpack if args.mode == "handflow" else wire.peek
+
+        def on(sample):
+            h = read(*wire.sample_parts(sample))
+            h = getattr(h, "header", h)
+            rows.append((h.seq, time.time_ns() - h.stamp_ns))
+
+        session.declare_subscriber("bench/b", on)
+        time.sleep(args.seconds + args.warmup + 2)
+    rss.append(_rss_kb())
+    out = {"rows": rows, "cpu_s": time.process_time() - cpu0, "shm": pool.sent, "fallbacks": pool.fallbacks}
+    Path(args.out).write_text(json.dumps({**out, "rss_kb": rss}))
+    session.close()
+
+
+def run_shm_chain(size: int, mode: str, rate: float, seconds: float) -> dict:
+    """Three processes of ``_shm_role`` on one hub; latency stats, CPU of the chain, frames through shared memory."""
+    from handflow.framework.network import sessions as transport
+    from handflow.framework.network.settings import ZenohSettings
+
+    hub_ep = transport.hub_endpoint_for()
+    hub = transport.open_hub(ZenohSettings(shared_memory=mode != "tcp"), hub_ep)
+    with tempfile.TemporaryDirectory() as tmp:
+        outs = {r: Path(tmp) / f"{r}.json" for r in ("sub", "relay", "pub")}
+        base = [sys.executable, __file__, "--_shm_role", "--hub", hub_ep, "--mode", mode, "--size", str(size)]
+        base += ["--rate", str(rate), "--seconds", str(seconds)]
+        procs = [subprocess.Popen([*base, "--role", r, "--out", str(o)]) for r, o in outs.items()]
+        for p in procs:
+            p.wait(timeout=seconds + 60)
+        res = {r: json.loads(o.read_text()) for r, o in outs.items()}
+    hub.close()
+    rows = res["sub"]["rows"]
+    stats = _stats([lat for _, lat in rows], [s for s, _ in rows], int(seconds * rate))
+    busy = sum(r["cpu_s"] for r in res.values())
+    return {
+        **stats,
+        "cpu_percent": 100 * busy / seconds,
+        "via_shm": res["pub"]["shm"] + res["relay"]["shm"],
+        "shm_fallbacks": res["pub"]["fallbacks"] + res["relay"]["fallbacks"],
+        "rss_growth": {r: v["rss_kb"][-1] / v["rss_kb"][0] - 1 for r, v in res.items()},
+    }
+
+
+def _rss_kb() -> int:
+    return int(re.search(r"VmRSS:\s+(\d+)", Path("/proc/self/status").read_text()).group(1))
+
+
+def run_shm(pairs: int, seconds: float, hd_seconds: float) -> dict:
+    """The ``--shm`` sweep and the 1080p30 stream (module docstring)."""
+    sweep: dict = {}
+    for name, size in SWEEP.items():
+        triples = [{m: run_shm_chain(size, m, IMAGE_RATE_HZ, seconds) for m in ("handflow", "shm", "tcp")}]
+        triples += [
+            {m: run_shm_chain(size, m, IMAGE_RATE_HZ, seconds) for m in ("handflow", "shm", "tcp")}
+            for _ in range(pairs - 1)
+        ]
+        sweep[name] = {
+            "runs": triples,
+            **{
+                f"{m}_p50_us": statistics.median(t[m]["median_us"] for t in triples) for m in ("handflow", "shm", "tcp")
+            },
+            "vs_bare_tcp": statistics.median(t["handflow"]["median_us"] / t["tcp"]["median_us"] for t in triples),
+            "vs_bare_shm": statistics.median(t["handflow"]["median_us"] / t["shm"]["median_us"] for t in triples),
+        }
+        print(f"{name}: " + json.dumps({k: v for k, v in sweep[name].items() if k != "runs"}), file=sys.stderr)
+    hd = run_shm_chain(SWEEP["1080p"], "handflow", IMAGE_RATE_HZ, hd_seconds)
+    return {
+        "sweep": sweep,
+        "hd": hd,
+        "shm.flat_ratio": sweep["4MiB"]["handflow_p50_us"] / sweep["4KiB"]["handflow_p50_us"],
+        "shm.vs_bare_tcp": sweep["4MiB"]["vs_bare_tcp"],
+        "shm.vs_bare_shm": sweep["4MiB"]["vs_bare_shm"],
+        "shm.hd_lost": hd["lost"],
+        "shm.hd_cpu_percent": hd["cpu_percent"],
+    }
 
 
 def run_raw(rate: float, seconds: float, hops: int, payload: str = "joints", mode: str = "handflow") -> dict:
@@ -333,9 +491,25 @@ def main() -> None:
     ap.add_argument("--role"), ap.add_argument("--hub"), ap.add_argument("--rate", type=float)
     ap.add_argument("--key"), ap.add_argument("--out"), ap.add_argument("--warmup", type=float, default=1.5)
     ap.add_argument("--payload", default="joints"), ap.add_argument("--mode", default="raw")
+    ap.add_argument("--shm", action="store_true", help="only the shared-memory payload sweep and the 1080p30 stream")
+    ap.add_argument("--hd-seconds", type=float, default=20.0, help="length of the 1080p30 stream (--shm)")
+    ap.add_argument("--shm-soak", type=float, metavar="SECONDS", help="only the 1080p30 soak of that length")
+    ap.add_argument("--_shm_role", action="store_true", help=argparse.SUPPRESS)
+    ap.add_argument("--size", type=int, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args._role:
         _role(args)
+        return
+    if args._shm_role:
+        _shm_role(args)
+        return
+    if args.shm_soak:  # 1080p30 through three processes: shared-memory fallbacks and RSS growth
+        res = run_shm_chain(SWEEP["1080p"], "handflow", IMAGE_RATE_HZ, args.shm_soak)
+        print(json.dumps({k: v for k, v in res.items() if k not in ("p99_us",)}))
+        return
+    if args.shm:
+        res = run_shm(args.pairs, args.seconds, args.hd_seconds)
+        print(json.dumps(res) if args.json else json.dumps({k: v for k, v in res.items() if k.startswith("shm.")}))
         return
     results: dict = {"payload_floats": WIDTH, "seconds_per_run": args.seconds, "by_rate": {}}
     for rate in args.rates:

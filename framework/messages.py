@@ -98,10 +98,10 @@ class Message:
             if f.name == "header":
                 continue
             value = getattr(self, f.name)
-            if isinstance(value, np.ndarray):
-                value = value.tolist()
-            elif isinstance(value, bytes):
+            if _annotation(f) == "bytes":  # bytes, or a uint8 buffer from ``Context.allocate``
                 value = base64.b64encode(value).decode("ascii")
+            elif isinstance(value, np.ndarray):
+                value = value.tolist()
             out[f.name] = value
         return out
 
@@ -379,7 +379,10 @@ IMAGE_ENCODINGS = {"mono8": 1, "rgb8": 3, "bgr8": 3, "rgba8": 4, "bgra8": 4, "mo
 
 @dataclass
 class Image(Message):
-    """Raw image, field names as Foxglove's ``foxglove.RawImage`` (data base64 in JSON)."""
+    """Raw image, field names as Foxglove's ``foxglove.RawImage`` (data base64 in JSON).
+
+    ``data`` is ``bytes``, or a flat ``uint8`` array from ``ctx.allocate`` filled in place (docs/shared_memory.md).
+    """
 
     TYPE: ClassVar[str] = "handflow.Image"
     width: int = 0

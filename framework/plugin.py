@@ -47,6 +47,10 @@ class Context(Protocol):
     def publish(self, port: str, msg: Message, stamp_ns: int | None = None) -> None:
         """Validate ``msg`` and publish it on output ``port``; header filled in (stamp defaults to now)."""
 
+    def allocate(self, port: str, nbytes: int) -> Any:
+        """A writable ``uint8`` array of ``nbytes`` to fill in place and publish on ``port`` as an image's
+        ``data`` (saves the copy of ``Image.from_array``); docs/shared_memory.md."""
+
     def now_ns(self) -> int:
         """Current time in ns: wall clock live, virtual time of the replayed stream in lock-step."""
 

@@ -20,6 +20,7 @@ import socket
 
 import zenoh
 
+from . import shm
 from .settings import ZenohSettings
 
 
@@ -29,8 +30,11 @@ def free_tcp_port(host: str = "127.0.0.1") -> int:
         return s.getsockname()[1]
 
 
-def _config(mode: str, listen: list[str], connect: list[str], multicast: bool) -> zenoh.Config:
+def _config(
+    mode: str, listen: list[str], connect: list[str], multicast: bool, shared_memory: bool = True
+) -> zenoh.Config:
     conf = zenoh.Config()
+    shm.configure(conf, shared_memory)
     conf.insert_json5("mode", json.dumps(mode))
     conf.insert_json5("scouting/multicast/enabled", json.dumps(multicast))
     conf.insert_json5("scouting/gossip/enabled", "true")
@@ -59,7 +63,13 @@ def open_hub(settings: ZenohSettings, hub_endpoint: str, secure: dict[str, objec
     """
     secure = secure or {}
     mode = "router" if secure else settings.mode
-    conf = _config(mode, [hub_endpoint, *settings.listen], list(settings.connect), settings.multicast_scouting)
+    conf = _config(
+        mode,
+        [hub_endpoint, *settings.listen],
+        list(settings.connect),
+        settings.multicast_scouting,
+        settings.shared_memory,
+    )
     _insert(conf, "transport/link/tls", secure.get("tls"))
     _insert(conf, "transport/auth/usrpwd", secure.get("usrpwd"))
     if "access_control" in secure:
@@ -88,7 +98,7 @@ def open_node_session(
     machine passes the hub's checks.
     """
     if settings.tls is not None or settings.usrpwd is not None:
-        conf = _config("client", [], [hub_endpoint], False)
+        conf = _config("client", [], [hub_endpoint], False, settings.shared_memory)
         _insert(conf, "transport/auth/usrpwd", usrpwd)
         return zenoh.open(conf)
     host = "127.0.0.1"
@@ -97,7 +107,9 @@ def open_node_session(
         if proto == "tcp" and addr:
             host = addr.rsplit(":", 1)[0]
             break
-    return zenoh.open(_config("peer", [f"tcp/{host}:0"], [hub_endpoint], settings.multicast_scouting))
+    return zenoh.open(
+        _config("peer", [f"tcp/{host}:0"], [hub_endpoint], settings.multicast_scouting, settings.shared_memory)
+    )
 
 
 def open_client(

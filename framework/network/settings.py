@@ -48,6 +48,9 @@ class ZenohSettings(StrictModel):
     tls: TlsSettings | None = Field(None, description="mutual TLS and generated access control (docs/security.md)")
     usrpwd: UsrPwdSettings | None = Field(None, description="user/password authentication (docs/security.md)")
     insecure: bool = Field(False, description="allow plain endpoints beyond loopback (anyone who reaches them joins)")
+    shared_memory: bool = Field(
+        True, description="large payloads between processes on this host through shared memory (docs/shared_memory.md)"
+    )
 
 
 def is_loopback_endpoint(endpoint: str) -> bool:

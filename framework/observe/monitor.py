@@ -25,6 +25,7 @@ import numpy as np
 
 from .. import keys, wire
 from ..messages import Array, Message, MessageError, RuntimeEvent, Status
+from ..network.shm import via_shm
 
 ALIVE_S = 2.0  # a node is alive if its last heartbeat is younger than this
 WINDOW_S = 5.0  # rate and latency are computed over this sliding window
@@ -39,6 +40,7 @@ class TopicStats:
     dropped: int = 0
     last_seq: int = 0
     last_data: tuple[bytes, bytes | None] | None = None  # payload and attachment
+    shm: bool = False  # the last payload arrived through shared memory (docs/shared_memory.md)
     arrivals: deque = field(default_factory=deque)  # (monotonic s, latency ns)
 
     def note(self, now_m: float, latency_ns: int | None, seq: int, window_s: float) -> None:
@@ -118,7 +120,7 @@ class Monitor:
         parts = keys.split_key(key)
         if parts is None or parts[2] == "_progress":
             return  # the lock-step clock and progress reports are runtime traffic, not data
-        data = wire.sample_parts(sample)
+        data, shm = wire.sample_parts(sample), via_shm(sample.payload)
         if parts[2] == "_health":
             self._on_health(parts[0], parts[1], data, now_m)
             return
@@ -135,6 +137,7 @@ class Monitor:
             latency = now_wall - hdr.stamp_ns if hdr.stamp_ns else None  # Text carries no stamp
             stats.note(now_m, latency, hdr.seq, self.window_s)
             stats.last_data = data
+            stats.shm = shm
 
     def _on_event(self, data: tuple[bytes, bytes | None]) -> None:
         try:
@@ -188,6 +191,7 @@ class Monitor:
                     "gaps": t.gaps,
                     "dropped": t.dropped,
                     "count": t.count,
+                    "shm": t.shm,
                     "last": last,
                 }
             )
@@ -228,6 +232,7 @@ def render(snapshot: dict[str, Any], title: str = "handflow monitor", graph: str
         ("latency ms", {"justify": "right"}),
         ("gaps/dropped", {"justify": "right"}),
         ("count", {"justify": "right"}),
+        ("shm", {}),
         ("last value", {"overflow": "ellipsis"}),
     ):
         topics.add_column(col, **kw)
@@ -237,7 +242,14 @@ def render(snapshot: dict[str, Any], title: str = "handflow monitor", graph: str
         lost = f"[red]{lost}[/red]" if t["gaps"] or t["dropped"] else lost
         name = t["topic"].removeprefix(f"{keys.PREFIX}/{graph}/") if graph else t["topic"]
         topics.add_row(
-            name, t["type"].removeprefix("handflow."), f"{t['rate_hz']:.1f}", lat, lost, str(t["count"]), t["last"]
+            name,
+            t["type"].removeprefix("handflow."),
+            f"{t['rate_hz']:.1f}",
+            lat,
+            lost,
+            str(t["count"]),
+            "yes" if t["shm"] else "-",
+            t["last"],
         )
     nodes = Table(title="nodes", expand=True)
     for col in ("graph", "node", "alive", "pid", "restarts seen", "dropped", "input gaps", "handled", "published"):

@@ -41,9 +41,10 @@ from .. import keys, wire
 from ..graphs.model import Graph, ResolvedNode, load_graph
 from ..messages import Header, Message, MessageError, Status
 from ..network import sessions as transport
+from ..network.shm import SharedPayloads
 from ..plugin import Node
 from ..security.credentials import read_credentials, usrpwd_settings
-from ..testkit.harness import check_publish
+from ..testkit.harness import allocate_output, check_publish
 from . import forwarding
 from .drops import DropLedger
 from .wakeup import wakeup_queue
@@ -109,6 +110,7 @@ class NodeContext:
             for port in self._outputs
         }
         self.published = dict.fromkeys(self._outputs, 0)
+        self.shared = dict.fromkeys(self._outputs, 0)  # published from shared memory
         self._received: tuple[Message, bytes, tuple] | None = None  # being handled: message, CDR body, snapshot
 
     def receiving(self, msg: Message | None, body: bytes | None = None) -> None:
@@ -124,8 +126,13 @@ class NodeContext:
         self._state.set("out:" + port, seq)
         msg.header = Header(self.node_id, seq, self.now_ns() if stamp_ns is None else int(stamp_ns))
         payload, att = (forwarded and wire.repack(msg, received[1])) or wire.pack(msg)
-        self._pubs[port].put(payload, attachment=att)
+        sent = self._rt.shared.wrap(payload)
+        self._pubs[port].put(sent, attachment=att)
         self.published[port] += 1
+        self.shared[port] += sent is not payload
+
+    def allocate(self, port: str, nbytes: int) -> np.ndarray:
+        return allocate_output(self.node_id, self._outputs, port, nbytes)
 
     def now_ns(self) -> int:
         return self._rt.now_ns()
@@ -176,6 +183,7 @@ class _NodeSlot:
         counters.update({f"gaps.{p}": n for p, n in self.gaps.items()})
         counters.update({f"dropped.{p}": n for p, n in self.drops.counts().items()})
         counters.update({f"published.{p}": n for p, n in self.ctx.published.items()})
+        counters.update({f"shm.{p}": n for p, n in self.ctx.shared.items()})
         counters.update({f"seq.{k.replace(':', '.')}": self.state.get(k) for k in self.state.index})
         return Status(state=state, counters=counters, text=f"pid {os.getpid()}")
 
@@ -206,6 +214,7 @@ class GroupRuntime:
         self.virtual_ns = 0
         self.stop_requested = False
         self.session = transport.open_node_session(graph.spec.zenoh, hub, _login(graph, user))
+        self.shared = SharedPayloads(graph.spec.zenoh.shared_memory)
         self.inbox = wakeup_queue()  # lock-step clock events; None wakes the loop
         self._lock = threading.Lock()
         self.failure: str | None = None

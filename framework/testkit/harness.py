@@ -12,6 +12,8 @@ from collections import defaultdict
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from ..messages import Header, Message, MessageError
 from ..plugin import Node
 
@@ -35,6 +37,9 @@ class HarnessContext:
         self._seq[port] += 1
         msg.header = Header(self.node_id, self._seq[port], self.clock_ns if stamp_ns is None else stamp_ns)
         self.published[port].append(msg)
+
+    def allocate(self, port: str, nbytes: int) -> np.ndarray:
+        return allocate_output(self.node_id, self._outputs, port, nbytes)
 
     def now_ns(self) -> int:
         return self.clock_ns
@@ -65,6 +70,13 @@ def check_publish(
         msg.check()
     except MessageError as exc:
         raise MessageError(f"node '{node_id}' port '{port}': {exc}") from None
+
+
+def allocate_output(node_id: str, outputs: dict[str, type[Message]], port: str, nbytes: int) -> np.ndarray:
+    """:meth:`handflow.framework.plugin.Context.allocate`, shared by the runtime and the harness."""
+    if port not in outputs:
+        raise MessageError(f"node '{node_id}' has no output port '{port}' (it has: {', '.join(outputs) or 'none'})")
+    return np.empty(int(nbytes), dtype=np.uint8)
 
 
 class NodeHarness:

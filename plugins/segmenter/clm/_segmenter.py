@@ -326,6 +326,11 @@ class CLMSegmenter(BaseEstimator):
         self.converged_ = result.converged
         self.activities_ = result.activities
 
+    def fit(self, sequence: np.ndarray, y=None) -> CLMSegmenter:
+        """Segment a (N, d) sequence and keep the results (``labels_`` …); returns self."""
+        self.fit_predict(sequence)
+        return self
+
     def fit_predict(self, sequence: np.ndarray) -> np.ndarray:
         """Segment a (N, d) sequence: class index per observation, −1 = background/unknown."""
         return self.fit_predict_projected(self.candidates.project(sequence))

@@ -61,6 +61,11 @@ class UKROnlyRecognizer(BaseEstimator):
         history_weights(self.history, self.gamma)
         overall_compatibility(0.0, 0.0, self.lam)
 
+    def fit(self, X=None, y=None) -> UKROnlyRecognizer:
+        """Check the hyper-parameters; nothing is learned (the candidates are fitted); returns self."""
+        self._check()
+        return self
+
     @property
     def classes_(self) -> list[str]:
         return self.candidates.classes

@@ -68,7 +68,7 @@ class RunningStandardizer(BaseEstimator):
             value = getattr(self, name)
             if not (isinstance(value, (int, float, np.number)) and np.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be a positive number, got {value!r}")
-        prior = ChannelScaling(mean, scale)
+        prior = ChannelScaling.fitted(mean, scale)
         if not np.isfinite(prior.offset_).all() or not np.isfinite(prior.scale_).all():
             raise ValueError("the prior mean and scale must be finite")
         self.mean_, self.scale_ = prior.offset_, prior.scale_

@@ -111,7 +111,8 @@ class DTWScorer(WindowScorer):
         return np.vstack([self.model_.scores(s) for segs in segments.values() for s in segs])
 
     def scores(self, X: np.ndarray) -> np.ndarray:
-        return self.model_.scores(self.check_input(X))
+        X = self.check_input(X)
+        return self.model_.scores(X)
 
     def _arrays(self) -> dict[str, np.ndarray]:
         m = self.model_

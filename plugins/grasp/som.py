@@ -69,10 +69,46 @@ def _check_postures(X, n_features: int | None = None) -> np.ndarray:
 class SOM(BaseEstimator):
     """Self-organising map on a 2D rectangular lattice.
 
-    Attributes after ``fit``: ``nodes_`` (rows, cols, d) reference postures, ``grid_`` (rows·cols, 2)
-    lattice coordinates (row, col) of the flat node index, ``n_features_in_``, ``qe_history_``
-    (quantisation error after each epoch, index 0 = after init), ``n_updates_`` (training rounds so
-    far: fit + partial_fit calls).
+    Parameters
+    ----------
+    rows, cols : int, default 25
+        Lattice size.
+    lr : (float, float), default (0.95, 0.05)
+        Learning rate at the start and the end of training.
+    sigma : (float, float), default (6.0, 0.7)
+        Neighbourhood width (lattice units) at the start and the end of training.
+    epochs : int, default 300
+        Passes over the postures.
+    mode : {'online', 'batch'}, default 'online'
+        Update after every posture or once per epoch.
+    schedule : {'exponential', 'linear'}, default 'exponential'
+        How ``lr`` and ``sigma`` decay from start to end.
+    init : 'pca', 'random' or array (rows, cols, d), default 'pca'
+        Initial reference postures.
+    random_state : int, numpy.random.Generator or None, default None
+        Seed of the random init and the posture order.
+
+    Attributes
+    ----------
+    nodes_ : ndarray of shape (rows, cols, d)
+        Reference postures.
+    grid_ : ndarray of shape (rows·cols, 2)
+        Lattice coordinates (row, col) of the flat node index.
+    n_features_in_ : int
+        Joints per posture.
+    qe_history_ : list of float
+        Quantisation error after each epoch, index 0 = after init.
+    n_updates_ : int
+        Training rounds so far (fit + partial_fit calls).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from handflow.plugins.grasp.som import SOM
+    >>> X = np.random.default_rng(0).normal(size=(30, 3))
+    >>> som = SOM(rows=3, cols=4, epochs=3, init="random", random_state=0).fit(X)
+    >>> som.nodes_.shape, som.transform(X).shape
+    ((3, 4, 3), (30, 2))
     """
 
     def __init__(

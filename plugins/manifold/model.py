@@ -55,6 +55,17 @@ class StructuredUKR(BaseEstimator):
     initial), objective_ (best value), train_variance_ (d,), time_dim_ (int or None),
     periodic_ (q,) bool, sparse_ (bool), init_info_, interrupted_, n_evaluations_, n_features_in_,
     provenance_ (dict saved with the model).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from handflow.plugins.manifold import StructuredUKR
+    >>> phase = 2 * np.pi * np.arange(40) / 40
+    >>> circles = [np.c_[np.cos(phase), np.sin(phase), 0.1 * k + 0 * phase] for k in range(2)]
+    >>> latent = [{"kernel": "periodic", "beta": 12, "time": True}]
+    >>> ukr = StructuredUKR(latent=latent, n_steps=5, init="equidistant", random_state=0).fit(circles)
+    >>> ukr.latents_.shape, ukr.transform(circles[0]).shape
+    ((80, 1), (40, 1))
     """
 
     def __init__(

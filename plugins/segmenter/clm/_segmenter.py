@@ -66,26 +66,38 @@ class CLMSegmenter(BaseEstimator):
 
     Parameters
     ----------
-    candidates : trained models, one per class (one CLM layer each).
-    history : H, the temporal neighbourhood ``0 < j − i ≤ H`` of the compatibilities.
-    order_rating : latent-order rating of ``c_loc`` (spec: ``"sign"``; ``"cos"`` also allowed).
-    order_path : ``"unwrapped"`` (default, documented choice) rates the net latent progress
+    candidates : CandidateSet or None, default None
+        The trained models, one per class (one CLM layer each); its fitted part.  ``None``
+        segments given layer bands only (:meth:`fit_predict_bands`).
+    history : int, default 10
+        H, the temporal neighbourhood ``0 < j − i ≤ H`` of the compatibilities.
+    order_rating : {'sign', 'cos'}, default 'sign'
+        Latent-order rating of ``c_loc`` (spec: ``"sign"``; ``"cos"`` also allowed).
+    order_path : {'unwrapped', 'direct'}, default 'unwrapped'
+        ``"unwrapped"`` (documented choice) rates the net latent progress
         between i and j, ``"direct"`` the spec's ``x̂_j − x̂_i`` (:func:`..compatibility.candidate_band`).
-    min_span : the candidate layers' neighbourhood covers at least this many observations
+    min_span : int, default 0
+        The candidate layers' neighbourhood covers at least this many observations
         (``max(H, min_span)``; 0 = exactly H as in the spec).  Documented choice: at a high
         sampling rate H observations cover too little of a motion for the order ratings to rise
         above the projection noise (real letters at 200 Hz, H = 5: 5 % of a letter).
-    pair_error : ``ē_ij`` of ``c_sre`` (``"mean"`` over ``i…j``, the documented choice, or
+    pair_error : {'mean', 'endpoints'}, default 'mean'
+        ``ē_ij`` of ``c_sre`` (``"mean"`` over ``i…j``, the documented choice, or
         ``"endpoints"``).
-    background : λ_bg; ``None`` = thesis rule ``1 − 10/N`` (:func:`thesis_background_strength`).
-    background_factor : multiplies λ_bg (1 = weak, 3 = the spec's "strong" background).
-    background_radius : K_bg; ``None`` = H.
-    error_scale : multiplies the normalised errors ``e_t`` before ``c_sre`` (1 = the spec).
+    background : float or None, default None
+        λ_bg; ``None`` = thesis rule ``1 − 10/N`` (:func:`thesis_background_strength`).
+    background_factor : float, default 1.0
+        Multiplies λ_bg (1 = weak, 3 = the spec's "strong" background).
+    background_radius : int or None, default None
+        K_bg; ``None`` = H.
+    error_scale : float, default 1.0
+        Multiplies the normalised errors ``e_t`` before ``c_sre`` (1 = the spec).
         Documented deviation, selected on validation by the evaluation: with Σ = the training-data
         variance, ``e_t`` of noisy multi-channel data is ~1 even on the right manifold (BasicMotions:
         median 0.97), so ``c_sre ≈ −0.5…−1`` for every candidate, every candidate layer is
         repulsive and the background takes everything; a scale of 0.1 restores the contrast.
-    reconstruction : how the projection errors enter the layers.  ``"absolute"`` (the spec):
+    reconstruction : {'absolute', 'relative'}, default 'absolute'
+        How the projection errors enter the layers.  ``"absolute"`` (the spec):
         ``f^m_ij = ½ (c_loc_ij + c_sre_ij)`` with ``c_sre = −1 + 2 exp(−ē_ij)`` and the thesis'
         background layer.  ``"relative"`` (documented choice for real recordings,
         docs/segmentation.md): per frame the scaled errors of all candidates and of a *null
@@ -98,33 +110,67 @@ class CLMSegmenter(BaseEstimator):
         background where even the best-fitting manifold explains a frame worse than
         ``1 / background_factor`` times its own typical error on its training frames
         (:attr:`.candidates.CandidateSet.own_errors`; factor 0 = no background).
-    min_progress : a segment that moves less than this many periods forward along its
+    min_progress : float, default 0.0
+        A segment that moves less than this many periods forward along its
         candidate's latent time is rejected after the CLM (0 = off, the spec;
         :func:`..compatibility.reject_small_progress`, documented choice); applied by
         :meth:`fit_predict_projected` to the whole sequence, by the online segmenter to each
         block run's window.
-    max_fit_ratio : a segment whose candidate fits it worse (mean error) than this many times the
+    max_fit_ratio : float or None, default None
+        A segment whose candidate fits it worse (mean error) than this many times the
         best-fitting candidate is rejected after the CLM (``None`` = off, the spec;
         :func:`..compatibility.reject_poor_fit`, documented choice); applied with ``min_progress``.
-    solver : the :class:`CompetitiveLayerModel` that runs the CLM (its ``J``, ``eta``, ``tol``,
+    solver : CompetitiveLayerModel or None, default None
+        The :class:`CompetitiveLayerModel` that runs the CLM (its ``J``, ``eta``, ``tol``,
         ``max_sweeps``, ``inhibition_margin``, ``spectral``); ``None`` = :func:`default_solver`: η =
         0.98, or 0.998 for candidates with heading channels (documented choice, docs/segmentation.md:
         their energy has near-equal minima that faster annealing picks at random, so the online
         labels could not equal the batch's).  A copy seeded with ``random_state`` runs.
-    restarts : independent cold runs per sequence; the lowest-energy solution is kept
+    restarts : int, default 1
+        Independent cold runs per sequence; the lowest-energy solution is kept
         (documented choice: the annealed Gauss–Seidel dynamics end in a local minimum of the
         CLM energy — on real letter pairs the true segmentation often has lower energy than a
         single run's result; keeping the best of 3 minimises the same energy better).
-    random_state : seed of the stochastic solver.
-    J, eta, tol, max_sweeps, inhibition_margin, spectral : deprecated keywords, set on the solver
+    random_state : int, numpy.random.Generator or None, default None
+        Seed of the stochastic solver.
+    J, eta, tol, max_sweeps, inhibition_margin, spectral : optional
+        Deprecated keywords, set on the solver
         (with a ``DeprecationWarning``): pass ``solver=default_solver(candidates, ...)`` instead.
 
     The constructor only stores the parameters (scikit-learn convention: ``get_params``,
     ``set_params`` and ``clone`` work); they are checked, and the solver ``solver_`` with its
     generator seeded from ``random_state`` is made, by the first segmentation.
 
-    After :meth:`fit_predict`: ``labels_``, ``n_sweeps_``, ``energy_``, ``converged_``,
-    ``activities_`` (L+1, N) and ``result_``.
+    Attributes
+    ----------
+    labels_ : ndarray of shape (N,)
+        Class index per observation of the last segmented sequence, −1 = background/unknown.
+    n_sweeps_ : int
+        Sweeps of the kept CLM run.
+    energy_ : float
+        CLM energy of the kept run.
+    converged_ : bool
+        Whether the kept run converged within the solver's ``max_sweeps``.
+    activities_ : ndarray of shape (L + 1, N)
+        Final activities of the candidate layers and the background layer.
+    result_ : CLMResult
+        The kept run.
+    solver_ : CompetitiveLayerModel
+        The solver that ran, seeded with ``random_state``.
+
+    Reading a result before :meth:`fit` / :meth:`fit_predict` raises ``NotFittedError``
+    (docs/segmentation.md §B; docs/architecture.md, "Estimator style").
+
+    Examples
+    --------
+    >>> from handflow.plugins.segmenter import LetterGenerator, candidate_set, train_class_models
+    >>> ds = LetterGenerator(n_classes=2, random_state=1).dataset((2, 1, 1))
+    >>> candidates = candidate_set(train_class_models(ds, n_steps=20, random_state=0))
+    >>> Y = ds.test[0].data
+    >>> from handflow.plugins.segmenter import CLMSegmenter
+    >>> seg = CLMSegmenter(candidates, history=5, random_state=0).fit(Y)
+    >>> seg.labels_.shape == (len(Y),), set(seg.labels_.tolist()) <= {-1, 0, 1}
+    (True, True)
     """
 
     SPECTRAL = "eigen"  # how the default solver bounds λ_max (the CLM's exact eigenvalue)
@@ -325,6 +371,11 @@ class CLMSegmenter(BaseEstimator):
         self.energy_ = result.energy
         self.converged_ = result.converged
         self.activities_ = result.activities
+
+    def fit(self, sequence: np.ndarray, y=None) -> CLMSegmenter:
+        """Segment a (N, d) sequence and keep the results (``labels_`` …); returns self."""
+        self.fit_predict(sequence)
+        return self
 
     def fit_predict(self, sequence: np.ndarray) -> np.ndarray:
         """Segment a (N, d) sequence: class index per observation, −1 = background/unknown."""

@@ -163,26 +163,55 @@ class CompetitiveLayerModel(BaseEstimator):
 
     Parameters
     ----------
-    J : input weight (input significance ``h_r = 1``).  Thesis: 2.
-    inhibition : columnar inhibition ``I``; ``None`` = documented choice
+    J : float, default 2.0
+        Input weight (input significance ``h_r = 1``).  Thesis: 2.
+    inhibition : float or None, default None
+        Columnar inhibition ``I``; ``None`` = documented choice
         ``I = inhibition_margin · max(λ_max, J/2)`` with λ_max the largest eigenvalue over all
         layers, which puts ``I`` above every layer's largest eigenvalue (columnar
         winner-take-all) and keeps ``I − f_rr > 0``.
-    inhibition_margin : factor of the automatic inhibition (> 1).  1.5: within a winning group
+    inhibition_margin : float, default 1.5
+        Factor of the automatic inhibition (> 1).  1.5: within a winning group
         Gauss–Seidel contracts roughly by ``λ_max / I`` per sweep, so a margin of 1.1 needed
         ~100 sweeps to settle where 1.5 needs ~25–40 with the same labels on our letter data.
-    eta : annealing factor per sweep, ``T ← η T``.
-    temperature : start temperature; ``None`` = largest eigenvalue (docs/segmentation.md step 1).
-    tol : relative activity-change tolerance of the convergence test.
-    max_sweeps : cap on sweeps (the result reports ``converged=False`` when hit).
-    init_scale : initial activities are uniform in ``(0, init_scale)``.
-    spectral : how λ_max is obtained: ``"eigen"`` (exact, LAPACK banded solver) or
+    eta : float, default 0.9
+        Annealing factor per sweep, ``T ← η T``.
+    temperature : float or None, default None
+        Start temperature; ``None`` = largest eigenvalue (docs/segmentation.md step 1).
+    tol : float, default 1e-3
+        Relative activity-change tolerance of the convergence test.
+    max_sweeps : int, default 1000
+        Cap on sweeps (the result reports ``converged=False`` when hit).
+    init_scale : float, default 0.01
+        Initial activities are uniform in ``(0, init_scale)``.
+    spectral : {'eigen', 'gershgorin'}, default 'eigen'
+        How λ_max is obtained: ``"eigen"`` (exact, LAPACK banded solver) or
         ``"gershgorin"`` (the max absolute row sum, an upper bound that is ~10× cheaper; used by
         the online segmenter, where the exact value costs more than the sweeps).
-    random_state : seed or ``numpy.random.Generator``; the run is deterministic given a seed.
+    random_state : int, numpy.random.Generator or None, default None
+        Seed or generator; the run is deterministic given a seed.
         The constructor only stores it (scikit-learn convention); the generator ``rng_`` is made
         from it at the first :meth:`solve` and advances over later runs (new ``random_state`` via
         ``set_params`` starts a new one).
+
+    Attributes
+    ----------
+    rng_ : numpy.random.Generator
+        The generator of the initial activities, made from ``random_state`` at the first run.
+
+    It learns nothing, so it has no ``fit``: :meth:`solve` runs it on the layer compatibilities
+    (docs/segmentation.md §B; the estimator test waives the fit checks, docs/architecture.md).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from handflow.plugins.segmenter.clm import CompetitiveLayerModel
+    >>> band = np.zeros((2, 6, 2))  # 2 layers, 6 columns, compatibility with the next column
+    >>> band[0, :2, 1] = band[1, 3:5, 1] = 1.0  # layer 0 binds columns 0-2, layer 1 columns 3-5
+    >>> band[0, 3:5, 1] = band[1, :2, 1] = -1.0
+    >>> result = CompetitiveLayerModel(random_state=1).solve(band, np.zeros(2))
+    >>> result.winners.tolist()
+    [0, 0, 0, 1, 1, 1]
     """
 
     def __init__(

@@ -31,12 +31,37 @@ class UKROnlyRecognizer(BaseEstimator):
 
     Parameters
     ----------
-    candidates : the trained models, one per class.
-    lam : λ, weight of the reconstruction compatibility (thesis 0.3).
-    gamma : γ, history discount (thesis 0.9).
-    history : H, history length (thesis 5, 10, 15, 20).
-    order_rating : ``"cos"`` or ``"sign"`` (docs/segmentation.md).
-    threshold : optional rejection threshold; observations with ``max C < threshold`` get −1.
+    candidates : CandidateSet
+        The trained models, one per class.
+    lam : float, default 0.3
+        λ, weight of the reconstruction compatibility (thesis 0.3).
+    gamma : float, default 0.9
+        γ, history discount (thesis 0.9).
+    history : int, default 10
+        H, history length (thesis 5, 10, 15, 20).
+    order_rating : {'cos', 'sign'}, default 'cos'
+        Latent-order rating (docs/segmentation.md).
+    threshold : float or None, default None
+        Rejection threshold; observations with ``max C < threshold`` get −1.
+
+    Attributes
+    ----------
+    classes_ : list of str
+        The candidates' class names (column order of C).
+
+    :meth:`fit` only checks the hyper-parameters (nothing is learned); :meth:`predict` and
+    :meth:`push` check them at first use too.
+
+    Examples
+    --------
+    >>> from handflow.plugins.segmenter import LetterGenerator, candidate_set, train_class_models
+    >>> ds = LetterGenerator(n_classes=2, random_state=1).dataset((2, 1, 1))
+    >>> candidates = candidate_set(train_class_models(ds, n_steps=20, random_state=0))
+    >>> Y = ds.test[0].data
+    >>> from handflow.plugins.segmenter import UKROnlyRecognizer
+    >>> labels = UKROnlyRecognizer(candidates, history=5).fit().predict(Y)
+    >>> labels.shape == (len(Y),), set(labels.tolist()) <= {0, 1}
+    (True, True)
     """
 
     def __init__(
@@ -60,6 +85,11 @@ class UKROnlyRecognizer(BaseEstimator):
         order_rating(self.order_rating)
         history_weights(self.history, self.gamma)
         overall_compatibility(0.0, 0.0, self.lam)
+
+    def fit(self, X=None, y=None) -> UKROnlyRecognizer:
+        """Check the hyper-parameters; nothing is learned (the candidates are fitted); returns self."""
+        self._check()
+        return self
 
     @property
     def classes_(self) -> list[str]:

@@ -48,6 +48,31 @@ class RunningStandardizer(BaseEstimator):
     shortest of those recordings (1073 frames); ``variance_floor=0.01`` — a channel that stops
     moving is amplified at most 10× beyond the training scaling.  The sums are accumulated in prior
     units (``(x − mean_) / scale_``), so the variance ``E[u²] − m²`` cancels no large offset.
+
+    Parameters
+    ----------
+    prior_frames : float, default 200
+        n0, pseudo-frames of the prior.
+    variance_floor : float, default 0.01
+        Smallest variance, as a share of the prior's ``scale_²``.
+
+    Attributes
+    ----------
+    mean_, scale_ : ndarray of shape (n_channels,)
+        The prior: per-channel mean and standard deviation of the training frames.
+    n_features_in_ : int
+        Channels.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from handflow.plugins.segmenter.features import RunningStandardizer
+    >>> scaler = RunningStandardizer(prior_frames=1).fit(np.array([[0.0], [2.0]]))
+    >>> scaler.mean_, scaler.scale_
+    (array([1.]), array([1.]))
+    >>> scaler.transform(np.array([[1.0], [3.0]]))
+    array([[0.        ],
+           [1.20604538]])
     """
 
     def __init__(self, *, prior_frames: float = 200, variance_floor: float = 0.01) -> None:
@@ -68,7 +93,7 @@ class RunningStandardizer(BaseEstimator):
             value = getattr(self, name)
             if not (isinstance(value, (int, float, np.number)) and np.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be a positive number, got {value!r}")
-        prior = ChannelScaling(mean, scale)
+        prior = ChannelScaling.fitted(mean, scale)
         if not np.isfinite(prior.offset_).all() or not np.isfinite(prior.scale_).all():
             raise ValueError("the prior mean and scale must be finite")
         self.mean_, self.scale_ = prior.offset_, prior.scale_

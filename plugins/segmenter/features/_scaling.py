@@ -12,21 +12,49 @@ candidate projects in the same metric.  The scaling is written into each model's
 from __future__ import annotations
 
 import numpy as np
+from sklearn.base import BaseEstimator
+from sklearn.utils.validation import check_is_fitted
 
 MIN_SCALE = 1e-8
 
 
-class ChannelScaling:
-    """``(y − offset_) / scale_`` per channel (sklearn conventions: ``fit`` learns the ``_`` attributes)."""
+class ChannelScaling(BaseEstimator):
+    """Per-channel z-scoring ``(y − offset_) / scale_`` learned on training sequences.
 
-    def __init__(self, offset=None, scale=None) -> None:
-        if offset is not None:
-            self.offset_ = np.asarray(offset, dtype=float).reshape(-1)
-            self.scale_ = np.asarray(scale, dtype=float).reshape(-1)
-            if self.offset_.shape != self.scale_.shape or not (self.scale_ > 0).all():
-                raise ValueError("channel scaling needs one offset and one positive scale per channel")
+    An estimator in the project's style (docs/architecture.md, "Estimator style"): it has no
+    hyper-parameters; :meth:`fit` learns the ``_`` attributes, and a scaling stored with class
+    models comes back through :meth:`fitted` (:meth:`from_model`).
 
-    def fit(self, sequences: list[np.ndarray]) -> ChannelScaling:
+    Attributes
+    ----------
+    offset_ : ndarray of shape (n_channels,)
+        Mean of every channel over all training observations.
+    scale_ : ndarray of shape (n_channels,)
+        Standard deviation of every channel (1 where it is below :data:`MIN_SCALE`).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from handflow.plugins.segmenter.features import ChannelScaling
+    >>> s = ChannelScaling().fit([np.array([[0.0, 10.0], [2.0, 30.0]])])
+    >>> s.offset_, s.scale_
+    (array([ 1., 20.]), array([ 1., 10.]))
+    >>> s.transform(np.array([[3.0, 20.0]]))
+    array([[2., 0.]])
+    """
+
+    @classmethod
+    def fitted(cls, offset, scale) -> ChannelScaling:
+        """A scaling with given ``offset_`` and ``scale_`` (one positive scale per channel)."""
+        scaling = cls()
+        scaling.offset_ = np.asarray(offset, dtype=float).reshape(-1)
+        scaling.scale_ = np.asarray(scale, dtype=float).reshape(-1)
+        if scaling.offset_.shape != scaling.scale_.shape or not (scaling.scale_ > 0).all():
+            raise ValueError("channel scaling needs one offset and one positive scale per channel")
+        return scaling
+
+    def fit(self, sequences: list[np.ndarray], y=None) -> ChannelScaling:
+        """Learn ``offset_`` and ``scale_`` from (T, d) training ``sequences``; returns self."""
         Y = np.vstack([np.asarray(s, dtype=float) for s in sequences])
         if not np.isfinite(Y).all():
             raise ValueError("training data hold NaN/inf; repair them before training")
@@ -36,6 +64,8 @@ class ChannelScaling:
         return self
 
     def transform(self, Y: np.ndarray) -> np.ndarray:
+        """Observations (..., d) scaled per channel."""
+        check_is_fitted(self, "offset_")
         Y = np.asarray(Y, dtype=float)
         if Y.shape[-1] != self.offset_.size:
             raise ValueError(
@@ -49,6 +79,7 @@ class ChannelScaling:
 
     def inverse_transform(self, Z: np.ndarray) -> np.ndarray:
         """Scaled observations back in the raw channel units."""
+        check_is_fitted(self, "offset_")
         return self.offset_ + self.scale_ * np.asarray(Z, dtype=float)
 
     def to_provenance(self) -> dict:
@@ -60,7 +91,7 @@ class ChannelScaling:
         prov = getattr(model, "provenance_", None) or {}
         if "channel_scale" not in prov:
             return None
-        return cls(prov["channel_offset"], prov["channel_scale"])
+        return cls.fitted(prov["channel_offset"], prov["channel_scale"])
 
     def same_as(self, other: ChannelScaling | None) -> bool:
         return (

@@ -58,6 +58,35 @@ class SlidingDTW1NN(_Standardiser):
 
     Score of class c at ``t`` = − min over c's training sequences of the DTW cost of the window
     ``y_{t−w+1…t}`` divided by its length.  ``threshold`` (on that score) rejects.
+
+    Parameters
+    ----------
+    window : int, default 10
+        w, frames of the causal window.
+    threshold : float or None, default None
+        Frames whose best score is below it are rejected (−1) by :meth:`predict`.
+
+    Attributes
+    ----------
+    classes_ : list of str
+        Class names, the score columns' order.
+    mean_, std_ : ndarray of shape (d,)
+        Standardisation of the training frames.
+    refs_ : ndarray of shape (n_frames, d)
+        The standardised training sequences, one after another.
+    offsets_ : ndarray of shape (n_sequences + 1,)
+        Where each training sequence starts in ``refs_``.
+    owner_ : ndarray of shape (n_sequences,)
+        Class index of each training sequence.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> t = np.linspace(0, 4 * np.pi, 40)
+    >>> train = {"circle": [np.c_[np.sin(t), np.cos(t)]], "line": [np.c_[t, t]]}
+    >>> from handflow.plugins.segmenter.scorers import SlidingDTW1NN
+    >>> SlidingDTW1NN(window=5).fit(train).predict(train["line"][0][:8]).tolist()
+    [1, 1, 1, 1, 1, 1, 1, 1]
     """
 
     def __init__(self, *, window: int = 10, threshold: float | None = None) -> None:
@@ -96,7 +125,35 @@ class SlidingDTW1NN(_Standardiser):
 class DTWScorer(WindowScorer):
     """Sliding-window subsequence DTW 1-NN (:class:`SlidingDTW1NN`): score of class c =
     − the smallest length-normalised DTW cost of the window inside one of c's training segments.
-    References are thinned to every ``thin``-th frame when at least 8 of them remain."""
+    References are thinned to every ``thin``-th frame when at least 8 of them remain.
+
+    Parameters
+    ----------
+    window : int, default 20
+        Frames of the causal window.
+    thin : int, default 4
+        Keep every ``thin``-th frame of a training segment as reference.
+
+    Attributes
+    ----------
+    classes_ : list of str
+        Class names, the score columns' order.
+    n_features_in_ : int
+        Channels of the training segments.
+    temperature_ : float
+        Evidence temperature of :meth:`evidence`.
+    model_ : SlidingDTW1NN
+        The fitted 1-NN on the thinned references.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> t = np.linspace(0, 4 * np.pi, 40)
+    >>> train = {"circle": [np.c_[np.sin(t), np.cos(t)]], "line": [np.c_[t, t]]}
+    >>> from handflow.plugins.segmenter.scorers import DTWScorer
+    >>> DTWScorer(window=5).fit(train).scores(train["line"][0]).argmax(axis=1)[-1]
+    np.int64(1)
+    """
 
     kind = "dtw"
 
@@ -111,7 +168,8 @@ class DTWScorer(WindowScorer):
         return np.vstack([self.model_.scores(s) for segs in segments.values() for s in segs])
 
     def scores(self, X: np.ndarray) -> np.ndarray:
-        return self.model_.scores(self.check_input(X))
+        X = self.check_input(X)
+        return self.model_.scores(X)
 
     def _arrays(self) -> dict[str, np.ndarray]:
         m = self.model_

@@ -12,7 +12,42 @@ from ._scores import _check_window, _Standardiser, decide
 
 class PerClassHMM(_Standardiser):
     """One Gaussian HMM (hmmlearn, diagonal covariances) per class; score = mean log-likelihood
-    per observation of the causal window ``y_{t−w+1…t}`` (windowed forward algorithm)."""
+    per observation of the causal window ``y_{t−w+1…t}`` (windowed forward algorithm).
+
+    Parameters
+    ----------
+    n_states : int, default 4
+        Hidden states per class.
+    window : int, default 10
+        w, frames of the causal window.
+    n_iter : int, default 30
+        EM iterations of each HMM.
+    min_covar : float, default 1e-2
+        Floor of the diagonal covariances (standardised units).
+    threshold : float or None, default None
+        Frames whose best score is below it are rejected (−1) by :meth:`predict`.
+    random_state : int or None, default 0
+        Seed of the HMMs' initialisation.
+
+    Attributes
+    ----------
+    classes_ : list of str
+        Class names, the score columns' order.
+    mean_, std_ : ndarray of shape (d,)
+        Standardisation of the training frames.
+    models_ : list of hmmlearn.hmm.GaussianHMM
+        One fitted HMM per class.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> t = np.linspace(0, 4 * np.pi, 40)
+    >>> train = {"circle": [np.c_[np.sin(t), np.cos(t)]], "line": [np.c_[t, t]]}
+    >>> from handflow.plugins.segmenter.scorers import PerClassHMM
+    >>> hmm = PerClassHMM(n_states=2, n_iter=5, window=5, random_state=0).fit(train)
+    >>> hmm.scores(train["circle"][0]).shape
+    (40, 2)
+    """
 
     def __init__(
         self,

@@ -23,6 +23,40 @@ class MiniRocketScorer(WindowScorer):
     ``intercept_`` (M,), ``novelty_`` (:class:`..novelty.FeatureNovelty` of the training
     windows' features; None with ``feature_novelty=False``, which skips its fit — a third of the
     fit's time — for users of the scores alone; such a scorer cannot be saved).
+
+    Parameters
+    ----------
+    window : int, default 32
+        Frames of the causal window.
+    n_kernels : int, default 10000
+        MiniRocket features (rounded down to a multiple of 84 by aeon).
+    random_state : int or None, default 0
+        Seed of the MiniRocket biases.
+    feature_novelty : bool, default True
+        Fit the feature novelty of the training windows.
+
+    Attributes
+    ----------
+    classes_ : list of str
+        Class names, the score columns' order.
+    n_features_in_ : int
+        Channels of the training segments.
+    temperature_ : float
+        Evidence temperature of :meth:`evidence`.
+    mean_, std_ : ndarray of shape (d,)
+        Standardisation of the training frames.
+    parameters_, coef_, intercept_, novelty_
+        The MiniRocket transform, the ridge classifier and the feature novelty (above).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> t = np.linspace(0, 4 * np.pi, 40)
+    >>> train = {"circle": [np.c_[np.sin(t), np.cos(t)]], "line": [np.c_[t, t]]}
+    >>> from handflow.plugins.segmenter.scorers import MiniRocketScorer
+    >>> scorer = MiniRocketScorer(window=12, n_kernels=84).fit(train)
+    >>> scorer.scores(train["circle"][0]).shape
+    (40, 2)
     """
 
     kind = "minirocket"

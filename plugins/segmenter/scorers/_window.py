@@ -24,6 +24,7 @@ from typing import ClassVar
 
 import numpy as np
 from sklearn.base import BaseEstimator
+from sklearn.utils.validation import check_is_fitted
 
 from handflow.framework.files.npz import NpzFileError
 
@@ -94,6 +95,8 @@ class WindowScorer(BaseEstimator, ABC):
         return score_evidence(np.atleast_2d(scores), self.temperature_)
 
     def check_input(self, X: np.ndarray) -> np.ndarray:
+        """X as a finite (N, n_features_in_) array; ``NotFittedError`` before :meth:`fit`."""
+        check_is_fitted(self, "temperature_")
         X = np.atleast_2d(np.asarray(X, dtype=float))
         if X.shape[1] != self.n_features_in_:
             raise ValueError(f"observations must have {self.n_features_in_} channels, got {X.shape[1]}")

@@ -69,7 +69,7 @@ def test_a_long_recording_loses_its_constant_offset():
     X = np.random.default_rng(2).normal(
         s.mean_ + 5.0 * s.scale_, s.scale_, size=(20_000, 2)
     )  # another person: 5 sd off
-    assert np.all(ChannelScaling(s.mean_, s.scale_).transform(X)[-1000:].mean(axis=0) > 4.5)
+    assert np.all(ChannelScaling.fitted(s.mean_, s.scale_).transform(X)[-1000:].mean(axis=0) > 4.5)
     tail = s.transform(X)[-1000:]
     assert np.all(np.abs(tail.mean(axis=0)) < 0.15) and np.all(np.abs(tail.std(axis=0) - 1.0) < 0.15)
 

@@ -17,7 +17,7 @@ def test_scaling_standardises_and_refuses_bad_input():
     with pytest.raises(ValueError, match="channels"):
         s.transform(np.zeros((3, 3)))
     with pytest.raises(ValueError, match="positive scale"):
-        ChannelScaling([0.0, 0.0], [1.0, 0.0])
+        ChannelScaling.fitted([0.0, 0.0], [1.0, 0.0])
 
 
 def test_scaling_survives_save_and_load(synthetic, tmp_path):

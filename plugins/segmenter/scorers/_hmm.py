@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+from typing import ClassVar
+
 import numpy as np
 from scipy.special import logsumexp
 from sklearn.utils.validation import check_is_fitted
@@ -13,6 +15,8 @@ from ._scores import _check_window, _Standardiser, decide
 class PerClassHMM(_Standardiser):
     """One Gaussian HMM (hmmlearn, diagonal covariances) per class; score = mean log-likelihood
     per observation of the causal window ``y_{t−w+1…t}`` (windowed forward algorithm)."""
+
+    requires: ClassVar[dict[str, str]] = {"hmmlearn": "hmm"}  # module → the extra that installs it
 
     def __init__(
         self,

@@ -26,6 +26,7 @@ class MiniRocketScorer(WindowScorer):
     """
 
     kind = "minirocket"
+    requires = {"aeon": "minirocket"}
     PARAMETER_NAMES = ("n_channels_per_combination", "channel_indices", "dilations", "features_per_dilation", "biases")
 
     def __init__(

@@ -21,6 +21,7 @@ from ..evaluation import (
     Evaluator,
     TrajectoryProtocol,
     UKROnlyMethod,
+    methods_to_run,
 )
 from ..features import DERIVED, RunningStandardizer
 from ..models import (
@@ -188,7 +189,10 @@ def register_evaluate(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--quick", action="store_true", help="reduced protocol (N^th 1,2; H 10; 2 CLM runs; 6 pairs)")
     parser.add_argument(
         "--methods",
-        help=f"subset of {','.join(METHODS)} (continuous recordings: also ukr_clm_online, minirocket, clm_minirocket, clm_dtw, clm_minirocket_novelty, clm_dtw_novelty; default all but clm_dtw and the *_novelty methods)",
+        help=f"subset of {','.join(METHODS)} (continuous recordings: also ukr_clm_online, minirocket, clm_minirocket, "
+        "clm_dtw, clm_minirocket_novelty, clm_dtw_novelty; default all but clm_dtw and the *_novelty methods, "
+        "less those whose extra is not installed: hmm needs handflow[hmm], the minirocket ones handflow[minirocket]; "
+        "a method named here without its extra is an error)",
     )
     parser.add_argument(
         "--cv",
@@ -269,10 +273,7 @@ def run_evaluate(args) -> int:
                 "--normalise, --pseudo-unknowns, --derived and --calibration apply to continuous recordings "
                 "(docs/segmentation.md)"
             )
-        methods = tuple(m for m in (args.methods or ",".join(METHODS)).split(",") if m)
-        unknown = sorted(set(methods) - set(METHODS))
-        if unknown:
-            raise DatasetError(f"unknown method(s) {unknown}; choose from {list(METHODS)}")
+        methods, skipped = methods_to_run(args.methods, METHODS, METHODS, _progress)
         ds = _dataset(args)
         if args.models:
             if args.headings:
@@ -292,6 +293,7 @@ def run_evaluate(args) -> int:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     result = evaluator.evaluate(methods)
+    result["skipped_methods"] = skipped
     result["parameters"].update(
         steps=args.steps,
         beta=str(args.beta),

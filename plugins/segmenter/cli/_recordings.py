@@ -11,9 +11,11 @@ from pathlib import Path
 
 import numpy as np
 
+from handflow.framework.files.inputs import missing_modules
+
 from .._moved import renamed
 from ..datasets import basicmotions_continuous, load_recordings, segments
-from ..evaluation import DEFAULT_METHODS, RecordingsEvaluator
+from ..evaluation import DEFAULT_METHODS, REGISTRY, RecordingsEvaluator, methods_to_run
 from ..models import fit_recording_models, save_class_models
 from ..scorers import SCORERS
 
@@ -24,8 +26,8 @@ def run_recordings_evaluation(args, progress) -> int:
     if args.cv != "leave-one-recording-out":
         print(f"error: continuous recordings support --cv leave-one-recording-out, got {args.cv!r}", file=sys.stderr)
         return 2
-    methods = tuple(m for m in (args.methods or ",".join(DEFAULT_METHODS)).split(",") if m)
     try:
+        methods, skipped = methods_to_run(args.methods, DEFAULT_METHODS, REGISTRY, progress)
         data = load_recordings(args.dataset)
         evaluator = RecordingsEvaluator(
             data,
@@ -43,6 +45,7 @@ def run_recordings_evaluation(args, progress) -> int:
     except (ValueError, ImportError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
+    result["skipped_methods"] = skipped
     result["runtime_s"] = round(time.perf_counter() - t0, 2)
     if args.plots:
         write_recordings_plots(evaluator, result, Path(args.plots))
@@ -163,9 +166,11 @@ def run_train_recording_models(args, progress) -> int:
 def run_fit_scorer(args) -> int:
     t0 = time.perf_counter()
     try:
+        cls = SCORERS[args.source]
+        if missing := missing_modules(cls.requires):
+            raise ImportError(f"--source {args.source} {'; '.join(missing)} (or choose another --source)")
         segs = known_segments(args.recordings, args.known)
         names = list(segs)
-        cls = SCORERS[args.source]
         seeded = "random_state" in inspect.signature(cls).parameters
         scorer = cls(window=args.window, **({"random_state": args.seed} if seeded else {}))
         scorer.fit(segs)

@@ -22,6 +22,8 @@ from ._methods import (
     UKRCLMOnlineMethod,
     UKRMethod,
     UKROnlyMethod,
+    methods_to_run,
+    missing_extras,
 )
 from ._metrics import (
     calibrate,
@@ -103,6 +105,8 @@ __all__ = [
     "build_cases",
     "calibrate",
     "frame_metrics",
+    "methods_to_run",
+    "missing_extras",
     "score_thresholds",
     "segment_counts",
     "segment_f1",

@@ -8,14 +8,20 @@ then labels a recording in two stages: :meth:`~FrameMethod.prepare` does the exp
 value of the method's *rejection parameter* — a score threshold for the classifiers, the
 background strength for the UKR/CLM — optionally with one class removed from the model set (the
 pseudo-unknown of the calibration).  Labels are global class indices, ``−1`` = rejected.
+
+Each method declares the modules it needs beyond the core (``requires``, as a node does);
+:func:`methods_to_run` checks them before an evaluation computes anything.
 """
 
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from collections.abc import Callable, Collection, Iterable
 from dataclasses import dataclass
 
 import numpy as np
+
+from handflow.framework.files.inputs import missing_modules
 
 from ..base import REJECTED
 from ..clm import CLMSegmenter, UKROnlyRecognizer, default_solver
@@ -56,7 +62,8 @@ class Method:
     :meth:`predict_case`, given the protocol's ``Evaluator``); ``repeated_runs``: its test cases
     run ``runs`` times (a stochastic solver); ``strong_background``: it is also judged on the
     rejection experiments with a strong background; ``batch``: the method whose fitted models an
-    online method replays sample by sample (None: it is fitted itself).
+    online method replays sample by sample (None: it is fitted itself); ``requires``: modules
+    beyond the core → the extra that installs them (as ``Node.requires``).
     """
 
     name = ""
@@ -65,6 +72,7 @@ class Method:
     repeated_runs = False
     strong_background = False
     batch: Method | None = None
+    requires: dict[str, str] = {}
 
 
 class ThresholdOnTrajectories:
@@ -148,6 +156,7 @@ class HMMMethod(ThresholdOnTrajectories, ScoreMethod):
     """Per-class Gaussian HMMs, windowed log-likelihood (:class:`PerClassHMM`); states and window."""
 
     name = "hmm"
+    requires = PerClassHMM.requires
 
     def grid(self, quick: bool) -> list[dict]:
         return [{"n_states": s, "window": w} for s in ((4,) if quick else (3, 6)) for w in (20,)]
@@ -171,6 +180,7 @@ class MiniRocketMethod(ScoreMethod):
     refitted without the class (:meth:`without_class`)."""
 
     name = "minirocket"
+    requires = MiniRocketScorer.requires
 
     def __init__(self, feature_novelty: bool = False) -> None:
         self.has_features = feature_novelty  # fit the scorer's feature novelty (only the novelty method uses it)
@@ -343,6 +353,7 @@ class ScoreCLMMethod(Method):
     def __init__(self, scorer: ScoreMethod) -> None:
         self.scorer = scorer
         self.name = f"clm_{scorer.name.removesuffix('_1nn')}"
+        self.requires = scorer.requires
 
     def grid(self, quick: bool) -> list[dict]:
         return self.scorer.grid(quick)
@@ -454,6 +465,7 @@ class UKRCLMOnlineMethod(Method):
 
     def __init__(self, batch: UKRCLMMethod) -> None:
         self.batch = batch
+        self.requires = batch.requires
 
     def labels_online(self, fitted: Fitted, reject: float, X: np.ndarray) -> np.ndarray:
         seg = self.batch.segmenter(fitted.model, reject, fitted.params["history"], kind=OnlineCLMSegmenter)
@@ -489,3 +501,32 @@ REGISTRY: dict[str, Method] = {
 }
 METHODS = REGISTRY  # the name of the flat layout
 TRAJECTORY_METHODS = tuple(name for name, m in REGISTRY.items() if m.on_trajectories)
+
+
+def missing_extras(names: Iterable[str]) -> dict[str, str]:
+    """Method → what to install, for the registry methods of ``names`` whose extra is missing."""
+    return {name: "; ".join(why) for name in names if (why := missing_modules(REGISTRY[name].requires))}
+
+
+def methods_to_run(
+    option: str | None, default: tuple[str, ...], allowed: Collection[str], progress: Callable[[str], None]
+) -> tuple[tuple[str, ...], dict[str, str]]:
+    """The methods an evaluation runs and those it skips (method → what to install), before it
+    computes anything (docs/segmentation.md, "Methods and their extras"): the comma-separated
+    ``option`` (``--methods``) as given — a ValueError when a name is unknown or its extra is
+    missing — or, without it, those of ``default`` whose extras are installed."""
+    if not option:
+        skipped = missing_extras(default)
+        for name, why in skipped.items():
+            progress(f"skipping {name}: it {why}")
+        return tuple(m for m in default if m not in skipped), skipped
+    names = tuple(m for m in option.split(",") if m)
+    unknown = sorted(set(names) - set(allowed))
+    if unknown:
+        raise ValueError(f"unknown method(s) {unknown}; choose from {list(allowed)}")
+    missing = missing_extras(names)
+    if missing:
+        raise ValueError(
+            "; ".join(f"method {name} {why}" for name, why in missing.items()) + " (or leave it out of --methods)"
+        )
+    return names, {}

@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+from typing import ClassVar
+
 import numpy as np
 from scipy.special import logsumexp
 from sklearn.utils.validation import check_is_fitted
@@ -48,6 +50,8 @@ class PerClassHMM(_Standardiser):
     >>> hmm.scores(train["circle"][0]).shape
     (40, 2)
     """
+
+    requires: ClassVar[dict[str, str]] = {"hmmlearn": "hmm"}  # module → the extra that installs it
 
     def __init__(
         self,

@@ -60,6 +60,7 @@ class MiniRocketScorer(WindowScorer):
     """
 
     kind = "minirocket"
+    requires = {"aeon": "minirocket"}
     PARAMETER_NAMES = ("n_channels_per_combination", "channel_indices", "dilations", "features_per_dilation", "biases")
 
     def __init__(

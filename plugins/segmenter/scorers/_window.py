@@ -53,6 +53,7 @@ class WindowScorer(BaseEstimator, ABC):
 
     kind: ClassVar[str] = ""
     has_features: ClassVar[bool] = False  # whether :meth:`scores_and_novelty` gives a feature novelty
+    requires: ClassVar[dict[str, str]] = {}  # modules beyond the core → the extra that installs them
 
     def fit(self, segments: dict) -> WindowScorer:
         """Fit on ``{class: [segment (T, D), ...]}``; returns self."""

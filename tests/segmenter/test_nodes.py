@@ -1,5 +1,6 @@
 import numpy as np
 import pytest
+import sklearn.base
 
 from handflow.framework.messages import Array, JointState
 from handflow.framework.testkit.harness import NodeHarness
@@ -32,7 +33,7 @@ def test_online_clm_node_labels_as_a_fresh_segmenter_after_its_warm_up(model_dir
     """The warm-up in setup (one update, then reset) leaves no trace: window and generator start afresh."""
     Y, _ = two_letters
     h = NodeHarness(OnlineCLMNode, {"models": str(model_dir), "window": 100, "history": 10, "seed": 3}).setup()
-    fresh = type(h.node.segmenter)(**h.node.segmenter.get_params())
+    fresh = sklearn.base.clone(h.node.segmenter)
     for i, y in enumerate(Y):
         h.send("array", Array(data=y), stamp_ns=i)
         up = fresh.update(y)

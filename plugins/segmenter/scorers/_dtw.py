@@ -151,8 +151,8 @@ class DTWScorer(WindowScorer):
     >>> t = np.linspace(0, 4 * np.pi, 40)
     >>> train = {"circle": [np.c_[np.sin(t), np.cos(t)]], "line": [np.c_[t, t]]}
     >>> from handflow.plugins.segmenter.scorers import DTWScorer
-    >>> DTWScorer(window=5).fit(train).scores(train["line"][0]).argmax(axis=1)[-1]
-    np.int64(1)
+    >>> DTWScorer(window=5).fit(train).scores(train["line"][0]).argmax(axis=1)[-1].item()
+    1
     """
 
     kind = "dtw"

@@ -218,7 +218,7 @@ def test_fit_scorer_command_writes_a_loadable_scorer(tmp_path, capsys):
     assert "2 classes" in capsys.readouterr().out
     assert load_scorer(out).classes_ == ["circle", "wave"]
     assert zipfile.is_zipfile(out)
-    assert run_command(register_fit_scorer, [str(DEMO), "--known", "jump", "--out", str(out)]) == 2
+    assert run_command(register_fit_scorer, [str(DEMO), "--source", "dtw", "--known", "jump", "--out", str(out)]) == 2
     assert "lacks" in capsys.readouterr().err
 
 

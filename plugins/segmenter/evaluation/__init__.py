@@ -44,6 +44,8 @@ from ._recordings import (
     Choice,
     FoldResult,
     RecordingsEvaluator,
+    calibrate_background,
+    half_window,
 )
 from ._trajectories import (
     EXPERIMENTS,
@@ -102,7 +104,9 @@ __all__ = [
     "UKROnlyMethod",
     "build_cases",
     "calibrate",
+    "calibrate_background",
     "frame_metrics",
+    "half_window",
     "score_thresholds",
     "segment_counts",
     "segment_f1",

@@ -60,10 +60,10 @@ def format_stream_table(result: dict) -> str:
         lines.append(f"{name:15s} " + " ".join(cells))
         if "agreement" in r:
             lines.append(f"{'':15s} online/batch agreement {r['agreement']:.3f}")
-        lags = r["open_set_accuracy_at_lag"]
+        at = {k: "—" if v is None else f"{v:.3f}" for k, v in r["open_set_accuracy_at_lag"].items()}
         lines.append(
-            f"{'':15s} open-set accuracy at lag 0 {lags['0']:.3f}, at half the window "
-            f"({'/'.join(str(f['half_window']) for f in r['folds'])} frames per fold) {lags['half_window']:.3f}"
+            f"{'':15s} open-set accuracy at lag 0 {at['0']}, at half the window "
+            f"({'/'.join(str(f['half_window']) for f in r['folds'])} frames per fold) {at['half_window']}"
         )
         if r.get("calibration_note"):
             lines.append(f"{'':15s} note: {r['calibration_note']}")

@@ -489,8 +489,9 @@ def calibrate_background(
 ) -> Choice:
     """The background factor of UKR/CLM models trained on all of ``data`` (``train-classes``,
     for the online node), chosen by the evaluation's inner folds and calibration rule with the
-    models' delay window, history H, derived features and training steps: ``fallback`` is set (and ``reject`` is
-    0, no background) when no background level beats rejecting everything (docs/segmentation.md)."""
+    models' delay window, history H, derived features and training steps: ``fallback`` is set
+    (and ``reject`` is 0, no background) when no background level beats rejecting everything
+    (docs/segmentation.md)."""
     ev = RecordingsEvaluator(
         data,
         known,

@@ -10,6 +10,7 @@ evidence changes an earlier label).  Output stamps are the observation's stamp.
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import replace
 from typing import Annotated, Literal
 
 import numpy as np
@@ -141,7 +142,12 @@ class OnlineCLMNode(_RecognizerNode):
             "robust z-score from every training window (docs/segmentation.md, feature novelty; null = off)",
         )
         window: int = Field(200, ge=2, description="observations in the sliding window")
-        background_factor: float = Field(1.0, ge=0, description="multiplies λ_bg (3 = strong background; 0 = none)")
+        background_factor: float | None = Field(
+            None,
+            ge=0,
+            description="multiplies λ_bg (3 = strong background; 0 = none); null = the level `train-classes` "
+            "calibrated for the models (source ukr), else 1",
+        )
         background: float | None = Field(None, description="λ_bg; null = 1 − 10/N")
         error_scale: float = Field(1.0, gt=0, description="multiplies e_t before c_sre (1 = spec)")
         reconstruction: Literal["auto", "absolute", "relative"] = Field(
@@ -182,6 +188,12 @@ class OnlineCLMNode(_RecognizerNode):
             description="source ukr: standardise every observation causally with the stream's running mean/std, "
             "this many pseudo-frames at the models' channel scaling as the prior (docs/segmentation.md); 0 = off",
         )
+        lag: int = Field(
+            0,
+            ge=0,
+            description="publish each observation's label from the evidence of the window ending this many "
+            "observations later (index = newest − lag; docs/segmentation.md, labels with a lag)",
+        )
         seed: int | None = 0
 
         @model_validator(mode="after")
@@ -208,7 +220,6 @@ class OnlineCLMNode(_RecognizerNode):
             window=p.window,
             history=p.history,
             background=p.background,
-            background_factor=p.background_factor,
             error_scale=p.error_scale,
             order_rating=p.order_rating,
             tail=p.tail,
@@ -226,6 +237,7 @@ class OnlineCLMNode(_RecognizerNode):
             reconstruction = models.reconstruction if p.reconstruction == "auto" else p.reconstruction
             self.segmenter = OnlineCLMSegmenter(
                 models,
+                background_factor=_first_set(p.background_factor, models.background_factor, 1.0),
                 reconstruction=reconstruction,
                 min_span=p.min_span,
                 min_progress=p.min_progress,
@@ -249,7 +261,12 @@ class OnlineCLMNode(_RecognizerNode):
                     f"on {scorer.n_features_in_}; train both on the same recordings"
                 )
             self.segmenter = OnlineScoreCLMSegmenter(
-                scorer, novelty_models=novelty_models, novelty=p.novelty, distance_z=p.distance_z, **common
+                scorer,
+                background_factor=_first_set(p.background_factor, 1.0),
+                novelty_models=novelty_models,
+                novelty=p.novelty,
+                distance_z=p.distance_z,
+                **common,
             )
         self.classes = self.segmenter.classes_
         self.warm_up(channels)
@@ -273,13 +290,23 @@ class OnlineCLMNode(_RecognizerNode):
         return scorer
 
     def recognise(self, y: np.ndarray, stamp: int) -> None:
+        """Push ``y`` and publish the label of observation ``newest − lag`` from it: the newest
+        evidence is that of the window ending ``lag`` observations after the labelled one (events
+        move by the lag too; nothing is published for the first ``lag`` observations)."""
         up = self.segmenter.push(y if self.running is None else self.running(y))
-        self.ctx.publish(
-            "labels",
-            Label(label=self.name(up.label), index=up.index, classes=self.classes, scores=up.scores),
-            stamp_ns=stamp,
-        )
-        self.publish_events(up.events, stamp)
+        lag = self.params.lag
+        if up.index >= lag:
+            self.ctx.publish(
+                "labels",
+                Label(label=self.name(up.label), index=up.index - lag, classes=self.classes, scores=up.scores),
+                stamp_ns=stamp,
+            )
+        moved = [replace(ev, start=max(ev.start - lag, 0), end=ev.end - lag) for ev in up.events if ev.end >= lag]
+        self.publish_events(moved, stamp)
+
+
+def _first_set(*values: float | None) -> float:
+    return next(v for v in values if v is not None)
 
 
 class UKROnlyNode(_RecognizerNode):

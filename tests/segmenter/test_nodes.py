@@ -5,8 +5,11 @@ import sklearn.base
 from handflow.framework.messages import Array, JointState
 from handflow.framework.testkit.harness import NodeHarness
 from handflow.plugins.segmenter import save_class_models
-from handflow.plugins.segmenter.models import ModelsMissingError
+from handflow.plugins.segmenter.base import lagged
+from handflow.plugins.segmenter.datasets import basicmotions_continuous, load_recordings, segments
+from handflow.plugins.segmenter.models import ModelsMissingError, fit_recording_models
 from handflow.plugins.segmenter.nodes import UNKNOWN, OnlineCLMNode, UKROnlyNode
+from tests.segmenter.conftest import SHARED
 
 
 @pytest.fixture(scope="module")
@@ -111,3 +114,37 @@ def test_published_messages_survive_the_json_codec(model_dir, two_letters):
     for msgs in h.published.values():
         for m in msgs:
             assert encode(decode(encode(m))) == encode(m)
+
+
+def _final_labels(h: NodeHarness, n: int) -> np.ndarray:
+    """Each index's label as the node last published it: on arrival, then by revisions."""
+    final = np.full(n, "", dtype=object)
+    for msg in h.published["labels"]:
+        final[msg.index] = msg.label
+    for ev in h.published["events"]:
+        if ev.kind == "revision":
+            final[ev.start_index : ev.end_index + 1] = ev.label
+    return final
+
+
+@pytest.mark.skipif(not (SHARED / "basicmotions.npz").exists(), reason="shared BasicMotions data absent")
+def test_online_clm_node_with_a_lag_publishes_the_labels_shifted_by_it(tmp_path):
+    """A real recording (BasicMotions made continuous) replayed through the node: with ``lag`` L the
+    label of observation t is the one the node without a lag gives observation t + L."""
+    np.savez(tmp_path / "bm.npz", **basicmotions_continuous(SHARED / "basicmotions.npz"))
+    data = load_recordings(tmp_path / "bm.npz")
+    segs = segments(data.recordings[:2], list(range(len(data.class_names))))
+    by_class = {data.class_names[c]: s for c, s in segs.items()}
+    models = save_class_models(fit_recording_models(by_class, delay=8, n_steps=30, scaling="standard"), tmp_path / "m")
+    X = data.recordings[2].X[:300]
+    published = {}
+    for lag in (0, 4):
+        params = {"models": str(models), "window": 60, "history": 10, "background_factor": 0.25, "lag": lag}
+        h = NodeHarness(OnlineCLMNode, params).setup()
+        for i, y in enumerate(X):
+            h.send("array", Array(data=y), stamp_ns=i)
+        assert [m.index for m in h.published["labels"]] == list(range(len(X) - lag))
+        assert h.published["labels"][0].header.stamp_ns == lag  # published when the later window is complete
+        published[lag] = _final_labels(h, len(X) - lag)
+    assert len(set(published[0])) > 1  # the recording changes class: there are boundaries to move
+    assert np.array_equal(published[4], lagged(published[0], 4)[: len(X) - 4])

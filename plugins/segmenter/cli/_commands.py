@@ -125,6 +125,13 @@ def register_train_classes(parser: argparse.ArgumentParser) -> None:
         help="continuous recordings: 'velocities' appends each channel's step from the frame before; the models "
         "derive it from raw streams themselves (choose it with `evaluate segmentation --derived none,velocities`)",
     )
+    parser.add_argument(
+        "--history",
+        type=int,
+        default=10,
+        help="continuous recordings: the CLM neighbourhood H at which the background level is calibrated on inner "
+        "folds for the online node (default 10, the node's default history; docs/segmentation.md)",
+    )
     parser.set_defaults(func=run_train_classes)
 
 
@@ -239,11 +246,18 @@ def register_evaluate(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--calibration",
         choices=CALIBRATIONS,
-        default="strict",
-        help="continuous recordings: 'strict' (default) takes the operating point of the best validation "
-        "objective, whatever it is; 'fallback' switches rejection off for a method and fold when no operating "
-        "point beats rejecting everything on the inner folds (the result says so) — for data whose classes are "
-        "not separable enough for open-set rejection (docs/segmentation.md)",
+        default=CALIBRATIONS[0],
+        help="continuous recordings: 'fallback' (default) switches rejection off for a method and fold when no "
+        "operating point beats rejecting everything on the inner folds (the result says so, per fold); 'strict' "
+        "takes the operating point of the best validation objective, whatever it is (docs/segmentation.md)",
+    )
+    parser.add_argument(
+        "--lag",
+        type=int,
+        default=0,
+        help="continuous recordings: label each frame from the evidence of the window ending this many frames "
+        "later (latency for accuracy); every method is also reported at lag 0 and at half its window "
+        "(docs/segmentation.md)",
     )
     parser.set_defaults(func=run_evaluate)
 
@@ -263,14 +277,15 @@ def run_evaluate(args) -> int:
         return run_recordings_evaluation(args, _progress)
     t0 = time.perf_counter()
     try:
-        if (args.normalise, args.pseudo_unknowns, args.derived, args.calibration) != (
+        if (args.normalise, args.pseudo_unknowns, args.derived, args.calibration, args.lag) != (
             "training",
             "refit",
             "none",
-            "strict",
+            CALIBRATIONS[0],
+            0,
         ):
             raise DatasetError(
-                "--normalise, --pseudo-unknowns, --derived and --calibration apply to continuous recordings "
+                "--normalise, --pseudo-unknowns, --derived, --calibration and --lag apply to continuous recordings "
                 "(docs/segmentation.md)"
             )
         methods, skipped = methods_to_run(args.methods, METHODS, METHODS, _progress)

@@ -15,7 +15,7 @@ from handflow.framework.files.inputs import missing_modules
 
 from .._moved import renamed
 from ..datasets import basicmotions_continuous, load_recordings, segments
-from ..evaluation import DEFAULT_METHODS, REGISTRY, RecordingsEvaluator, methods_to_run
+from ..evaluation import DEFAULT_METHODS, REGISTRY, RecordingsEvaluator, calibrate_background, methods_to_run
 from ..models import fit_recording_models, save_class_models
 from ..scorers import SCORERS
 
@@ -40,6 +40,7 @@ def run_recordings_evaluation(args, progress) -> int:
             pseudo_unknowns=args.pseudo_unknowns,
             derived=tuple(d for d in args.derived.split(",") if d),
             calibration=args.calibration,
+            lag=args.lag,
         )
         result = evaluator.evaluate()
     except (ValueError, ImportError) as exc:
@@ -62,6 +63,11 @@ def format_stream_table(result: dict) -> str:
         lines.append(f"{name:15s} " + " ".join(cells))
         if "agreement" in r:
             lines.append(f"{'':15s} online/batch agreement {r['agreement']:.3f}")
+        at = {k: "—" if v is None else f"{v:.3f}" for k, v in r["open_set_accuracy_at_lag"].items()}
+        lines.append(
+            f"{'':15s} open-set accuracy at lag 0 {at['0']}, at half the window "
+            f"({'/'.join(str(f['half_window']) for f in r['folds'])} frames per fold) {at['half_window']}"
+        )
         if r.get("calibration_note"):
             lines.append(f"{'':15s} note: {r['calibration_note']}")
     return "\n".join(lines)
@@ -138,12 +144,16 @@ def known_segments(path: str, known: str | None, option: str = "--known") -> dic
 
 def run_train_recording_models(args, progress) -> int:
     """``train-classes`` on continuous recordings: :func:`..models.fit_recording_models` on every
-    labelled segment (``--classes`` = the classes to model), channels z-scored with the models."""
+    labelled segment (``--classes`` = the classes to model), channels z-scored with the models, and
+    the background level for the online node calibrated on inner folds
+    (:func:`..evaluation.calibrate_background`), reported and stored with the models."""
     t0 = time.perf_counter()
     try:
         by_class = known_segments(args.dataset, args.classes, "--classes")
         if args.delay < 1:
             raise ValueError(f"--delay must be >= 1 frame, got {args.delay}")
+        if args.history < 1:
+            raise ValueError(f"--history must be >= 1 observation, got {args.history}")
         cands = fit_recording_models(
             by_class,
             delay=args.delay,
@@ -156,11 +166,40 @@ def run_train_recording_models(args, progress) -> int:
     except ValueError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    out = save_class_models(cands, args.out, provenance={"dataset": str(args.dataset), "steps": args.steps})
+    background = _calibrated_background(args, list(by_class), progress)
+    provenance = {"dataset": str(args.dataset), "steps": args.steps, **background}
+    out = save_class_models(cands, args.out, provenance=provenance)
     progress(
         f"wrote {len(cands)} models (delay {args.delay}, derived {args.derived}) to {out} in {time.perf_counter() - t0:.1f}s"
     )
     return 0
+
+
+def _calibrated_background(args, classes: list[str], progress) -> dict:
+    """The background level of the models, chosen on inner folds of the recordings by the
+    evaluation's rule, as model provenance (``background_factor``, the online node's default,
+    and ``background_calibration``); ``{}`` with a message when the recordings cannot be
+    calibrated at all (too few recordings or classes: the node keeps its own default)."""
+    try:
+        choice = calibrate_background(
+            load_recordings(args.dataset), args.delay, args.history, args.derived, classes, args.seed, args.steps
+        )
+    except ValueError as exc:
+        progress(f"background level not calibrated ({exc}); the online node uses its background_factor parameter")
+        return {}
+    report = {"history": args.history, "validation_objective": round(choice.objective, 4)}
+    report["rejection"] = "off" if choice.fallback else "calibrated"
+    if choice.fallback:
+        progress(
+            f"background level: rejection cannot be calibrated on this data (best inner-fold objective "
+            f"{choice.objective:.3f}, rejecting everything scores 0.5): background_factor 0, rejection off"
+        )
+    else:
+        progress(
+            f"background level: background_factor {choice.reject:g} at history {args.history} "
+            f"(inner-fold objective {choice.objective:.3f}); the online node uses it by default"
+        )
+    return {"background_factor": float(choice.reject), "background_calibration": report}
 
 
 def run_fit_scorer(args) -> int:

@@ -46,6 +46,8 @@ from ._recordings import (
     Choice,
     FoldResult,
     RecordingsEvaluator,
+    calibrate_background,
+    half_window,
 )
 from ._trajectories import (
     EXPERIMENTS,
@@ -104,7 +106,9 @@ __all__ = [
     "UKROnlyMethod",
     "build_cases",
     "calibrate",
+    "calibrate_background",
     "frame_metrics",
+    "half_window",
     "methods_to_run",
     "missing_extras",
     "score_thresholds",

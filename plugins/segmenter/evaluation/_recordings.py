@@ -14,9 +14,14 @@ training or calibration; every figure is computed on frames pooled over the fold
 Derived features (``derived``, :mod:`..features`) are appended to every recording before the
 scaling and chosen on the same inner splits, per method, as one more parameter.  When no operating
 point beats rejecting everything on validation by more than ``FALLBACK_MARGIN``,
-``calibration="fallback"`` switches rejection off for that method and fold and takes the
-parameters that label the most validation frames right; ``"strict"`` (the default) keeps the
-objective's choice whatever it is (docs/segmentation.md).
+``calibration="fallback"`` (the default) switches rejection off for that method and fold and takes
+the parameters that label the most validation frames right; ``"strict"`` keeps the objective's
+choice whatever it is (docs/segmentation.md).  :func:`calibrate_background` applies the same rule
+to the models ``train-classes`` writes for the online node.
+
+``lag`` labels each frame from the evidence of the window ending ``lag`` frames later
+(:func:`..base.lagged`), in the calibration as in the figures; every method is also reported at
+lag 0 and at half its causal window (``open_set_accuracy_at_lag``).
 
 Every recording is scaled with the fold's training frames, for every method alike
 (``normalise``): z-scored with their mean and standard deviation (``"training"``), or each
@@ -37,16 +42,17 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .._moved import renamed
+from ..base import lagged
 from ..datasets import Recording, RecordingSet, segments
 from ..features import DERIVED, ChannelScaling, RunningStandardizer, derive
-from ._methods import REGISTRY, Fitted
+from ._methods import REGISTRY, Fitted, UKRCLMMethod
 from ._metrics import calibrate, frame_metrics, segment_f1, tradeoff_curve
 
 INNER_FOLDS = 3  # validation recordings of the inner split (each validated by a fit on the others)
 DEFAULT_METHODS = ("ukr_clm", "ukr_clm_online", "ukr_only", "dtw_1nn", "hmm", "minirocket", "clm_minirocket")
 NORMALISATIONS = ("training", "recording")
 PSEUDO_UNKNOWNS = ("refit", "drop")
-CALIBRATIONS = ("strict", "fallback")
+CALIBRATIONS = ("fallback", "strict")  # the first is the default
 REJECT_ALL_OBJECTIVE = 0.5  # mean(known accuracy 0, pseudo-unknown rejection 1)
 FALLBACK_MARGIN = 0.05  # an operating point must beat rejecting everything by this much (documented choice)
 MIN_TRAINED_CLASSES = 2  # known classes with training segments every training split needs
@@ -61,6 +67,7 @@ class FoldResult:
     sweeps: dict[str, list[np.ndarray]]  # per method: labels at every rejection value of its sweep
     strict: dict[str, np.ndarray]  # per method that fell back: the labels at the strict choice
     untrained: list[str]  # known classes without a training segment in this fold
+    unlagged: dict[str, np.ndarray]  # per method: the labels at lag 0 (``labels`` are at the evaluation's lag)
 
 
 @dataclass
@@ -105,7 +112,7 @@ def _degenerate_calibration(
             if no_rejection and no_rejection.get("known_accuracy") is not None
             else ""
         )
-        + "; --calibration fallback switches rejection off in that case"
+        + "; the default calibration (fallback) switches rejection off in that case"
     )
 
 
@@ -127,6 +134,13 @@ def _fallback_note(folds: int, fell_back: int, strict: dict | None) -> str | Non
     )
 
 
+def half_window(selected: dict) -> int:
+    """Half the causal window behind a method's labels, in frames: the ``window`` of a scorer
+    (MiniRocket, DTW, HMM; the scorer's for the CLM over it) or the ``delay`` window of the
+    manifold methods (docs/segmentation.md, "Labels with a lag")."""
+    return int(selected.get("window", selected.get("delay", 0))) // 2
+
+
 class RecordingsEvaluator:
     """Runs the leave-one-recording-out protocol for the chosen methods."""
 
@@ -141,7 +155,8 @@ class RecordingsEvaluator:
         normalise: str = "training",
         pseudo_unknowns: str = "refit",
         derived: tuple[str, ...] = ("none",),
-        calibration: str = "strict",
+        calibration: str = CALIBRATIONS[0],
+        lag: int = 0,
     ) -> None:
         if normalise not in NORMALISATIONS:
             raise ValueError(f"normalise must be one of {NORMALISATIONS}, got {normalise!r}")
@@ -149,6 +164,8 @@ class RecordingsEvaluator:
             raise ValueError(f"pseudo_unknowns must be one of {PSEUDO_UNKNOWNS}, got {pseudo_unknowns!r}")
         if calibration not in CALIBRATIONS:
             raise ValueError(f"calibration must be one of {CALIBRATIONS}, got {calibration!r}")
+        if lag < 0:
+            raise ValueError(f"lag must be >= 0 frames, got {lag}")
         if not derived or len(set(derived)) != len(derived) or not set(derived) <= set(DERIVED):
             raise ValueError(f"derived features: name distinct choices among {DERIVED}, got {list(derived)}")
         unknown_names = sorted(set(known or []) - set(data.class_names))
@@ -171,6 +188,7 @@ class RecordingsEvaluator:
         self.pseudo_unknowns = pseudo_unknowns
         self.derived = tuple(derived)
         self.calibration = calibration
+        self.lag = lag
         self._cache: dict[tuple, object] = {}
 
     # -- one fold ---------------------------------------------------------------------------
@@ -196,14 +214,25 @@ class RecordingsEvaluator:
         """Derived features, hyper-parameters and rejection value of one method, chosen on inner
         splits of the training recordings (``views``: derived features → those recordings)."""
         method = REGISTRY[name]
-        choices = []
-        for derived, train in views.items():
-            for params in method.grid(self.quick):
-                params = {**params, "derived": derived}
-                known_acc, pseudo_rej, grid = self.validation(method, train, params)
-                value, score = calibrate(known_acc, pseudo_rej, grid)
-                self.progress(f"    {name} {params}: reject={value:.4g} objective={score:.3f}")
-                choices.append((Choice(params, value, score), grid[0], known_acc))
+        choices = [
+            self._calibrated(method, train, {**params, "derived": derived})
+            for derived, train in views.items()
+            for params in method.grid(self.quick)
+        ]
+        return self._rule(name, choices)
+
+    def _calibrated(self, method, train: list[Recording], params: dict) -> tuple[Choice, float, Callable]:
+        """``params``' best rejection value on the inner folds of ``train``, the sweep's keep-all
+        value and the known accuracy as a function of the rejection value."""
+        known_acc, pseudo_rej, grid = self.validation(method, train, params)
+        value, score = calibrate(known_acc, pseudo_rej, grid)
+        self.progress(f"    {method.name} {params}: reject={value:.4g} objective={score:.3f}")
+        return Choice(params, value, score), grid[0], known_acc
+
+    def _rule(self, name: str, choices: list[tuple[Choice, float, Callable]]) -> Choice:
+        """The calibration rule over a method's calibrated parameter sets: the best objective,
+        or — ``"fallback"``, when it does not beat rejecting everything by ``FALLBACK_MARGIN`` —
+        rejection off, with the parameters that label the most inner-fold frames right."""
         best = max(choices, key=lambda c: c[0].objective)[0]  # ties: the first
         if self.calibration == "strict" or best.objective > REJECT_ALL_OBJECTIVE + FALLBACK_MARGIN:
             return best
@@ -228,8 +257,8 @@ class RecordingsEvaluator:
 
         def pred(r, drop=None):
             if drop is not None and unseen[drop] is not None:  # a model that never saw the class
-                return np.concatenate([method.labels(f, s, r) for f, s in unseen[drop]])
-            return np.concatenate([method.labels(f, s, r, drop=drop) for f, s in states])
+                return np.concatenate([lagged(method.labels(f, s, r), self.lag) for f, s in unseen[drop]])
+            return np.concatenate([lagged(method.labels(f, s, r, drop=drop), self.lag) for f, s in states])
 
         @functools.cache
         def known_acc(r):
@@ -280,16 +309,16 @@ class RecordingsEvaluator:
             self._cache[key] = method.prepare(fitted, rec.X)
         return self._cache[key]
 
-    def fold_views(self, held: str) -> dict[str, tuple[list[Recording], Recording]]:
-        """Per derived feature choice: the training recordings and the held-out one, with the
-        features appended and then scaled with the training frames.  Starts the fold: fitted
-        models and states of the previous one (another scaling) are dropped."""
+    def fold_views(self, held: str | None) -> dict[str, tuple[list[Recording], Recording | None]]:
+        """Per derived feature choice: the training recordings and the held-out one (None: all
+        recordings train), with the features appended and then scaled with the training frames.
+        Starts the fold: fitted models and states of the previous one (another scaling) are dropped."""
         self._cache.clear()
         views = {}
         for derived in self.derived:
             recs = [Recording(r.name, derive(r.X, derived), r.y) for r in self.data.recordings]
             scaled = _zscore([r for r in recs if r.name != held], recs, self.normalise)
-            views[derived] = ([r for r in scaled if r.name != held], next(r for r in scaled if r.name == held))
+            views[derived] = ([r for r in scaled if r.name != held], next((r for r in scaled if r.name == held), None))
         return views
 
     def run_fold(self, held: str) -> FoldResult:
@@ -300,6 +329,10 @@ class RecordingsEvaluator:
                 f"  {held}: no training segment of {untrained} in the other recordings; models leave them out"
             )
         labels, selected, sweeps, strict = {}, {}, {}, {}
+
+        def lag(x: np.ndarray) -> np.ndarray:
+            return lagged(x, self.lag)
+
         for name in self.methods:
             if REGISTRY[name].batch is not None:
                 continue  # replayed with the models of its batch method, below
@@ -308,18 +341,24 @@ class RecordingsEvaluator:
             method = REGISTRY[name]
             fitted, state, test = self._final(method, choice.params, views)
             labels[name] = method.labels(fitted, state, choice.reject)
-            sweeps[name] = [method.labels(fitted, state, r) for r in method.reject_grid(fitted, [state])]
-            selected[name] = {**choice.params, "reject": float(choice.reject), "validation_objective": choice.objective}
+            sweeps[name] = [lag(method.labels(fitted, state, r)) for r in method.reject_grid(fitted, [state])]
+            selected[name] = {
+                **choice.params,
+                "reject": float(choice.reject),
+                "validation_objective": choice.objective,
+                "rejection": "off" if choice.fallback else "calibrated",
+            }
             if choice.fallback:
-                selected[name]["rejection"] = "off"
                 selected[name]["strict"] = {**choice.strict.params, "reject": float(choice.strict.reject)}
                 strict_fit, strict_state, _ = self._final(method, choice.strict.params, views)
-                strict[name] = method.labels(strict_fit, strict_state, choice.strict.reject)
+                strict[name] = lag(method.labels(strict_fit, strict_state, choice.strict.reject))
             for online in (REGISTRY[m] for m in self.methods if REGISTRY[m].batch is method):
                 labels[online.name] = online.labels_online(fitted, choice.reject, test.X)
                 selected[online.name] = selected[name]
             self.progress(f"  {held}: {name} {selected[name]} in {time.perf_counter() - t0:.1f}s")
-        return FoldResult(held, views[self.derived[0]][1].y, labels, selected, sweeps, strict, untrained)
+        lagged_labels = {name: lag(x) for name, x in labels.items()}
+        truth = views[self.derived[0]][1].y
+        return FoldResult(held, truth, lagged_labels, selected, sweeps, strict, untrained, labels)
 
     def _final(self, method, params: dict, views) -> tuple:
         """``method`` fitted with ``params`` on all training recordings, its state on the held-out
@@ -345,12 +384,14 @@ class RecordingsEvaluator:
             pred = np.concatenate([f.labels[name] for f in folds])
             res = frame_metrics(truth, pred, self.known)
             res["segment_f1"] = segment_f1([(f.truth, f.labels[name]) for f in folds], self.known)
+            res.update(self._at_lags(folds, name, truth))
             res["tradeoff_auc"] = None
             if name in folds[0].sweeps:  # the first value of every sweep keeps every frame
                 res["no_rejection"] = frame_metrics(
                     truth, np.concatenate([f.sweeps[name][0] for f in folds]), self.known
                 )
             fell_back = [f for f in folds if name in f.strict]
+            res["rejection_off_folds"] = len(fell_back)
             if fell_back:  # the objective's own choice, for the folds where it was overruled
                 strict = np.concatenate([f.strict.get(name, f.labels[name]) for f in folds])
                 res["strict"] = frame_metrics(truth, strict, self.known)
@@ -369,6 +410,7 @@ class RecordingsEvaluator:
                     "selected": f.selected[name],
                     **frame_metrics(f.truth, f.labels[name], self.known),
                     "segment_f1": segment_f1([(f.truth, f.labels[name])], self.known),
+                    "half_window": half_window(f.selected[name]),
                 }
                 for f in folds
             ]
@@ -377,6 +419,18 @@ class RecordingsEvaluator:
                 res["agreement"] = float(np.mean(pred == batch))
             out["methods"][name] = res
         self.folds_ = folds
+        return out
+
+    def _at_lags(self, folds: list[FoldResult], name: str, truth: np.ndarray) -> dict:
+        """Open-set frame accuracy and segment F1 at lag 0 and at half the method's causal window
+        (per fold, :func:`half_window`): the latency/accuracy trade of :func:`..base.lagged`."""
+        out: dict = {"open_set_accuracy_at_lag": {}, "segment_f1_at_lag": {}}
+        for key, lag_of in (("0", lambda f: 0), ("half_window", lambda f: half_window(f.selected[name]))):
+            pairs = [(f.truth, lagged(f.unlagged[name], lag_of(f))) for f in folds]
+            out["open_set_accuracy_at_lag"][key] = frame_metrics(
+                truth, np.concatenate([p for _, p in pairs]), self.known
+            )["open_set_accuracy"]
+            out["segment_f1_at_lag"][key] = segment_f1(pairs, self.known)
         return out
 
     def _tradeoff(self, folds: list[FoldResult], name: str, truth: np.ndarray) -> dict:
@@ -400,6 +454,7 @@ class RecordingsEvaluator:
             "normalisation": self._normalisation(),
             "pseudo_unknowns": self.pseudo_unknowns,
             "derived": list(self.derived),
+            "lag": self.lag,
             "calibration": {
                 "mode": self.calibration,
                 "fallback_objective": REJECT_ALL_OBJECTIVE + FALLBACK_MARGIN,
@@ -419,6 +474,38 @@ class RecordingsEvaluator:
             "description": "each recording standardised causally, prior = the fold's training frames (every method)",
             **RunningStandardizer().get_params(),
         }
+
+
+def calibrate_background(
+    data: RecordingSet,
+    delay: int,
+    history: int,
+    derived: str = "none",
+    known: list[str] | None = None,
+    random_state: int = 0,
+    steps: int = UKRCLMMethod.steps,
+    calibration: str = CALIBRATIONS[0],
+    progress: Callable[[str], None] = lambda msg: None,
+) -> Choice:
+    """The background factor of UKR/CLM models trained on all of ``data`` (``train-classes``,
+    for the online node), chosen by the evaluation's inner folds and calibration rule with the
+    models' delay window, history H, derived features and training steps: ``fallback`` is set
+    (and ``reject`` is 0, no background) when no background level beats rejecting everything
+    (docs/segmentation.md)."""
+    ev = RecordingsEvaluator(
+        data,
+        known,
+        ("ukr_clm",),
+        random_state=random_state,
+        progress=progress,
+        derived=(derived,),
+        calibration=calibration,
+    )
+    train, _ = ev.fold_views(None)[derived]
+    method = UKRCLMMethod()
+    method.steps = steps
+    params = {"delay": delay, "history": history, "derived": derived}
+    return ev._rule(method.name, [ev._calibrated(method, train, params)])
 
 
 __getattr__ = renamed(__name__, {"StreamEvaluator": "RecordingsEvaluator"})  # the names before the recordings rename

@@ -194,6 +194,8 @@ class CandidateSet:
         self.own_errors = np.array([float(p.get("own_error", 1.0)) for p in provenances])
         self.intensity = IntensityRanges.from_provenances(provenances)  # None for models without ranges
         self.reconstruction = str(provenances[0].get("reconstruction", "absolute"))  # what the models were made for
+        calibrated = provenances[0].get("background_factor")  # chosen by `train-classes` on recordings
+        self.background_factor = None if calibrated is None else float(calibrated)
 
     def _batched_projector(self):
         """The batched projector over all candidates, or None when some are not 1D periodic UKR."""

@@ -1,12 +1,16 @@
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
 
+from handflow.framework.testkit.harness import NodeHarness
 from handflow.plugins.segmenter import EXPERIMENTS, METHODS, load_candidates
 from handflow.plugins.segmenter.cli import register_evaluate, register_train_classes
 from handflow.plugins.segmenter.models import ModelsMissingError
+from handflow.plugins.segmenter.nodes import OnlineCLMNode
 from tests.conftest import run_command
+from tests.segmenter.datasets.test_recordings import _indistinguishable_recordings
 from tests.segmenter.datasets.test_trajectories import write_csv_dataset
 
 
@@ -61,3 +65,29 @@ def test_select_is_refused_for_continuous_recordings(tmp_path, capsys):
     np.savez(tmp_path / "c.npz", class_names=np.array(["a"]), X_r=np.zeros((4, 2)), y_r=np.zeros(4, int))
     assert run_command(register_evaluate, [str(tmp_path / "c.npz"), "--select", "recognition"]) == 2
     assert "--select applies to labelled trajectories" in capsys.readouterr().err
+
+
+DEMO = Path(__file__).resolve().parents[3] / "recordings" / "segmenter_demo"
+
+
+def test_train_classes_on_recordings_calibrates_the_background_of_the_online_node(tmp_path, capsys):
+    out = tmp_path / "m"
+    assert run_command(register_train_classes, [str(DEMO), "--delay", "4", "--steps", "30", "--out", str(out)]) == 0
+    provenance = json.loads((out / "classes.json").read_text())["provenance"]
+    factor = provenance["background_factor"]
+    assert provenance["background_calibration"]["rejection"] == "calibrated" and factor > 0
+    assert provenance["background_calibration"]["validation_objective"] > 0.55
+    assert f"background_factor {factor:g} at history 10" in capsys.readouterr().err
+    assert NodeHarness(OnlineCLMNode, {"models": str(out)}).setup().node.segmenter.background_factor == factor
+    given = NodeHarness(OnlineCLMNode, {"models": str(out), "background_factor": 3.0}).setup()
+    assert given.node.segmenter.background_factor == 3.0  # the parameter overrides the calibrated level
+
+
+def test_train_classes_says_when_rejection_cannot_be_calibrated(tmp_path, capsys):
+    data = _indistinguishable_recordings(tmp_path)  # three 'classes' of one and the same noise
+    out = tmp_path / "m"
+    assert run_command(register_train_classes, [data.source, "--delay", "2", "--steps", "20", "--out", str(out)]) == 0
+    assert "rejection cannot be calibrated on this data" in capsys.readouterr().err
+    provenance = json.loads((out / "classes.json").read_text())["provenance"]
+    assert provenance["background_factor"] == 0 and provenance["background_calibration"]["rejection"] == "off"
+    assert NodeHarness(OnlineCLMNode, {"models": str(out)}).setup().node.segmenter.background_factor == 0

@@ -287,16 +287,23 @@ def _indistinguishable_recordings(tmp_path):
 
 def test_rejection_is_switched_off_when_nothing_beats_rejecting_everything(tmp_path):
     data = _indistinguishable_recordings(tmp_path)
-    ev = RecordingsEvaluator(data, methods=("dtw_1nn",), quick=True, calibration="fallback")
-    res = ev.evaluate()["methods"]["dtw_1nn"]
+    said = []
+    ev = RecordingsEvaluator(data, methods=("dtw_1nn",), quick=True, progress=said.append)  # the default: fallback
+    result = ev.evaluate()
+    res = result["methods"]["dtw_1nn"]
+    assert result["parameters"]["calibration"]["mode"] == "fallback"
     assert all(
         f["selected"]["rejection"] == "off" and f["selected"]["validation_objective"] <= 0.55 for f in res["folds"]
     )
+    assert res["rejection_off_folds"] == 4 and sum("dtw_1nn: rejection off" in s for s in said) == 4  # per fold
     assert res["known_accuracy"] == res["no_rejection"]["known_accuracy"]  # every frame keeps its best label
     assert "rejection is off in 4 of 4 folds" in res["calibration_note"]
-    strict = RecordingsEvaluator(data, methods=("dtw_1nn",), quick=True).evaluate()  # the default
+    strict = RecordingsEvaluator(data, methods=("dtw_1nn",), quick=True, calibration="strict").evaluate()
     strict = strict["methods"]["dtw_1nn"]
-    assert "strict" not in strict and "--calibration fallback switches rejection off" in strict["calibration_note"]
+    assert "strict" not in strict and "the default calibration (fallback) switches" in strict["calibration_note"]
+    assert {f["selected"]["rejection"] for f in strict["folds"]} == {"calibrated"} and strict[
+        "rejection_off_folds"
+    ] == 0
     assert res["strict"] == {k: strict[k] for k in res["strict"]}  # what the objective alone would give
     assert strict["known_accuracy"] < res["known_accuracy"]
 

@@ -88,12 +88,13 @@ def register_make_continuous(parser) -> None:
     parser.add_argument("--out", required=True, help="continuous .npz to write")
     parser.add_argument("--recordings", type=int, default=8)
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--cases", type=int, help="draw this many cases with replacement (seeded) instead of all once")
     parser.set_defaults(func=run_make_continuous)
 
 
 def run_make_continuous(args) -> int:
     try:
-        arrays = basicmotions_continuous(args.source, args.recordings, args.seed)
+        arrays = basicmotions_continuous(args.source, args.recordings, args.seed, args.cases)
     except (OSError, KeyError, ValueError) as exc:
         print(f"error: {args.source}: {exc}", file=sys.stderr)
         return 2

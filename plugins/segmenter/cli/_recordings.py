@@ -13,7 +13,7 @@ import numpy as np
 
 from .._moved import renamed
 from ..datasets import basicmotions_continuous, load_recordings, segments
-from ..evaluation import DEFAULT_METHODS, RecordingsEvaluator
+from ..evaluation import DEFAULT_METHODS, RecordingsEvaluator, default_jobs
 from ..models import fit_recording_models, save_class_models
 from ..scorers import SCORERS
 
@@ -38,6 +38,7 @@ def run_recordings_evaluation(args, progress) -> int:
             pseudo_unknowns=args.pseudo_unknowns,
             derived=tuple(d for d in args.derived.split(",") if d),
             calibration=args.calibration,
+            jobs=args.jobs or default_jobs(),
         )
         result = evaluator.evaluate()
     except (ValueError, ImportError) as exc:

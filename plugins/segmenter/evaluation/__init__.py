@@ -44,6 +44,7 @@ from ._recordings import (
     Choice,
     FoldResult,
     RecordingsEvaluator,
+    default_jobs,
 )
 from ._trajectories import (
     EXPERIMENTS,
@@ -102,6 +103,7 @@ __all__ = [
     "UKROnlyMethod",
     "build_cases",
     "calibrate",
+    "default_jobs",
     "frame_metrics",
     "score_thresholds",
     "segment_counts",

@@ -7,6 +7,7 @@ from handflow.plugins.segmenter import EXPERIMENTS, METHODS, load_candidates
 from handflow.plugins.segmenter.cli import register_evaluate, register_train_classes
 from handflow.plugins.segmenter.models import ModelsMissingError
 from tests.conftest import run_command
+from tests.segmenter.datasets.test_recordings import _synthetic_recordings
 from tests.segmenter.datasets.test_trajectories import write_csv_dataset
 
 
@@ -61,3 +62,21 @@ def test_select_is_refused_for_continuous_recordings(tmp_path, capsys):
     np.savez(tmp_path / "c.npz", class_names=np.array(["a"]), X_r=np.zeros((4, 2)), y_r=np.zeros(4, int))
     assert run_command(register_evaluate, [str(tmp_path / "c.npz"), "--select", "recognition"]) == 2
     assert "--select applies to labelled trajectories" in capsys.readouterr().err
+
+
+def test_folds_over_processes_give_the_same_json_as_one_after_the_other(tmp_path, capsys):
+    """``--jobs 2`` forks the folds over two processes (one BLAS thread each): every figure, label
+    and selected parameter of the JSON equals that of ``--jobs 1`` (docs/segmentation.md)."""
+    arrays = {"class_names": np.array(["a", "b", "c"])}
+    for k in range(4):
+        arrays[f"X_r{k}"], arrays[f"y_r{k}"] = _synthetic_recordings(k)
+    np.savez(tmp_path / "s.npz", **arrays)
+    results = []
+    for jobs in ("1", "2"):
+        args = [str(tmp_path / "s.npz"), "--quick", "--json", "--methods", "ukr_clm,dtw_1nn", "--jobs", jobs]
+        assert run_command(register_evaluate, args) == 0
+        result = json.loads(capsys.readouterr().out)
+        assert result.pop("runtime_s") > 0
+        results.append(result)
+    assert results[0] == results[1]
+    assert [f["recording"] for f in results[1]["methods"]["ukr_clm"]["folds"]] == ["r0", "r1", "r2", "r3"]

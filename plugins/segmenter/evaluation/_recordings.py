@@ -28,7 +28,7 @@ frames equal to the batch ``ukr_clm``.
 
 Folds are independent (each starts its own model cache and every fit takes ``random_state``), so
 ``jobs`` > 1 runs them over that many forked processes with one BLAS thread each, with the same
-figures as one after the other (docs/segmentation.md, "Evaluation speed").
+figures as one after the other (docs/segmentation.md, ``--jobs``).
 """
 
 from __future__ import annotations

@@ -27,8 +27,9 @@ recording sample by sample through :class:`OnlineCLMSegmenter` with the paramete
 frames equal to the batch ``ukr_clm``.
 
 Folds are independent (each starts its own model cache and every fit takes ``random_state``), so
-``jobs`` > 1 runs them over that many forked processes with one BLAS thread each, with the same
-figures as one after the other (docs/segmentation.md, ``--jobs``).
+``jobs`` > 1 runs them over that many forked processes, with the same figures as one after the
+other; BLAS runs one thread either way, as the sums of a multi-threaded BLAS (the HMMs') can
+differ in the last bits (docs/segmentation.md, ``--jobs``).
 """
 
 from __future__ import annotations
@@ -379,8 +380,9 @@ class RecordingsEvaluator:
 
         jobs = min(self.jobs, len(names))
         if jobs == 1:
-            for k, held in enumerate(names):
-                finished(held, self._announced_fold(k, held))
+            with threadpool_limits(1):  # as in a worker: BLAS sums in the same order whatever ``jobs``
+                for k, held in enumerate(names):
+                    finished(held, self._announced_fold(k, held))
             return [done[h] for h in names]
         _FORKED = self
         try:

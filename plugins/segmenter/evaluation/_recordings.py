@@ -389,8 +389,11 @@ class RecordingsEvaluator:
             context = multiprocessing.get_context("fork")
             with ProcessPoolExecutor(jobs, mp_context=context, initializer=_one_thread) as pool:
                 futures = {pool.submit(_forked_fold, k, held): held for k, held in enumerate(names)}
-                for future in as_completed(futures):
-                    finished(futures[future], future.result())
+                try:
+                    for future in as_completed(futures):
+                        finished(futures[future], future.result())
+                finally:  # a fold failed: the folds not yet started are not run
+                    pool.shutdown(cancel_futures=True)
         finally:
             _FORKED = None
         return [done[h] for h in names]

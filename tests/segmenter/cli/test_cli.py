@@ -82,3 +82,14 @@ def test_folds_over_processes_give_the_same_json_as_one_after_the_other(tmp_path
         results.append(result)
     assert results[0] == results[1]
     assert [f["recording"] for f in results[1]["methods"]["ukr_only"]["folds"]] == ["r0", "r1", "r2"]
+
+
+def test_a_fold_that_fails_in_a_worker_stops_the_evaluation_with_its_error(tmp_path, capsys):
+    arrays = {"class_names": np.array(["a", "b"])}
+    for k in range(3):
+        X, y = _synthetic_recordings(k)
+        arrays[f"X_r{k}"], arrays[f"y_r{k}"] = X, np.where(k == 0, y % 2, np.where(y == 0, 0, -1))
+    np.savez(tmp_path / "one.npz", **arrays)  # b only in r0: holding r0 out leaves one class to train
+    args = [str(tmp_path / "one.npz"), "--quick", "--methods", "dtw_1nn", "--jobs", "2"]
+    assert run_command(register_evaluate, args) == 2
+    assert "needs at least 2: add recordings" in capsys.readouterr().err

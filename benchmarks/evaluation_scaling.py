@@ -82,7 +82,9 @@ def scaling_figure(args) -> dict:
             for m in methods:
                 seconds[m].append(took[m])
             print(f"{n} cases: " + ", ".join(f"{m} {took[m]:.1f} s" for m in methods), file=sys.stderr, flush=True)
-    exponents = {m: float(np.polyfit(np.log(cases), np.log(s), 1)[0]) for m, s in seconds.items()}
+    exponents = {
+        m: float(np.polyfit(np.log(cases), np.log(s), 1)[0]) if len(cases) > 1 else None for m, s in seconds.items()
+    }
     return {"cases": cases, "seconds": seconds, "exponent": exponents}
 
 
@@ -107,7 +109,7 @@ def main(argv=None) -> int:
         text = "\n".join(
             f"{m}: "
             + ", ".join(f"{n} cases {s:.1f} s" for n, s in zip(result["cases"], result["seconds"][m]))
-            + f"; exponent {result['exponent'][m]:.2f}"
+            + (f"; exponent {result['exponent'][m]:.2f}" if result["exponent"][m] is not None else "")
             for m in result["seconds"]
         )
     else:

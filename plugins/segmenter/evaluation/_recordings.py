@@ -28,8 +28,8 @@ frames equal to the batch ``ukr_clm``.
 
 Folds are independent (each starts its own model cache and every fit takes ``random_state``), so
 ``jobs`` > 1 runs them over that many forked processes, with the same figures as one after the
-other; BLAS runs one thread either way, as the sums of a multi-threaded BLAS (the HMMs') can
-differ in the last bits (docs/segmentation.md, ``--jobs``).
+other; BLAS runs one thread either way, as the sums of a multi-threaded BLAS (the HMMs',
+MiniRocket's) can differ in the last bits (docs/segmentation.md, ``--jobs``).
 """
 
 from __future__ import annotations

@@ -5,7 +5,9 @@ the same fold run with the code before a speed-up (the baseline, run in the same
   the methods that do not use it fitted it too);
 - ``--baseline einsum``: the batched UKR projection (:mod:`handflow.plugins.segmenter.models`)
   with its kernel-weighted sums and grid distances as plain ``np.einsum`` contractions, not
-  matrix products.
+  matrix products;
+- ``--baseline allocating-kernel``: the projection's kernel and its derivative as one numpy
+  expression each (a new (B, M, N) array per operation), not three arrays updated in place.
 
 The two runs must select the same parameters, rejection values up to rounding (exit code 1
 otherwise); the script prints each method's wall time, the ratio and the share of frames
@@ -62,7 +64,35 @@ def einsum_projection():
         BatchedPeriodicProjector._weighted, BatchedPeriodicProjector._grid_products = weighted, grid
 
 
-BASELINES = {"feature-novelty": feature_novelty_everywhere, "einsum": einsum_projection}
+@contextmanager
+def allocating_kernel():
+    """The batched projector's kernel as the expressions it was (padding masked out of the minimum)."""
+
+    def f(self, x, jacobian=False):
+        delta = x[:, :, None] - self.X[None]
+        s = np.sin(delta)
+        u = self.half_beta2[None, :, None] * s * s
+        u -= np.min(np.where(self.mask[None] > 0, u, np.inf), axis=2, keepdims=True)
+        k = np.exp(-u) * self.mask[None]
+        S = k.sum(axis=2)
+        F = self._weighted(k) / S[:, :, None]
+        if not jacobian:
+            return F, None
+        dk = -k * self.half_beta2[None, :, None] * np.sin(2.0 * delta)
+        return F, (self._weighted(dk) - F * dk.sum(axis=2)[:, :, None]) / S[:, :, None]
+
+    in_place, BatchedPeriodicProjector._f = BatchedPeriodicProjector._f, f
+    try:
+        yield
+    finally:
+        BatchedPeriodicProjector._f = in_place
+
+
+BASELINES = {
+    "feature-novelty": feature_novelty_everywhere,
+    "einsum": einsum_projection,
+    "allocating-kernel": allocating_kernel,
+}
 
 
 def timed_fold(data, held: str, methods: tuple[str, ...], quick: bool) -> tuple[dict, object]:

@@ -195,6 +195,12 @@ def register_evaluate(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--plots", help="folder for figures (labelled trajectories, compatibilities, summary)")
     parser.add_argument("--quick", action="store_true", help="reduced protocol (N^th 1,2; H 10; 2 CLM runs; 6 pairs)")
     parser.add_argument(
+        "--jobs",
+        type=int,
+        help="continuous recordings: folds run over this many processes, one BLAS thread each (default: the "
+        "cores; 1 = one after the other, the same figures either way; docs/segmentation.md)",
+    )
+    parser.add_argument(
         "--methods",
         help=f"subset of {','.join(METHODS)} (continuous recordings: also ukr_clm_online, minirocket, clm_minirocket, "
         "clm_dtw, clm_minirocket_novelty, clm_dtw_novelty; default all but clm_dtw and the *_novelty methods, "

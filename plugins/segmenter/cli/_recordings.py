@@ -15,7 +15,14 @@ from handflow.framework.files.inputs import missing_modules
 
 from .._moved import renamed
 from ..datasets import basicmotions_continuous, load_recordings, segments
-from ..evaluation import DEFAULT_METHODS, REGISTRY, RecordingsEvaluator, calibrate_background, methods_to_run
+from ..evaluation import (
+    DEFAULT_METHODS,
+    REGISTRY,
+    RecordingsEvaluator,
+    calibrate_background,
+    default_jobs,
+    methods_to_run,
+)
 from ..models import fit_recording_models, save_class_models
 from ..scorers import SCORERS
 
@@ -41,6 +48,7 @@ def run_recordings_evaluation(args, progress) -> int:
             derived=tuple(d for d in args.derived.split(",") if d),
             calibration=args.calibration,
             lag=args.lag,
+            jobs=args.jobs or default_jobs(),
         )
         result = evaluator.evaluate()
     except (ValueError, ImportError) as exc:
@@ -97,12 +105,13 @@ def register_make_continuous(parser) -> None:
     parser.add_argument("--out", required=True, help="continuous .npz to write")
     parser.add_argument("--recordings", type=int, default=8)
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--cases", type=int, help="draw this many cases with replacement (seeded) instead of all once")
     parser.set_defaults(func=run_make_continuous)
 
 
 def run_make_continuous(args) -> int:
     try:
-        arrays = basicmotions_continuous(args.source, args.recordings, args.seed)
+        arrays = basicmotions_continuous(args.source, args.recordings, args.seed, args.cases)
     except (OSError, KeyError, ValueError) as exc:
         print(f"error: {args.source}: {exc}", file=sys.stderr)
         return 2

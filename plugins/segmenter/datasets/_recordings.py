@@ -182,9 +182,13 @@ def _check(rs: RecordingSet) -> None:
         raise DatasetError("recording names must be unique")
 
 
-def basicmotions_continuous(path: str | Path, n_recordings: int = 8, seed: int = 0) -> dict[str, np.ndarray]:
+def basicmotions_continuous(
+    path: str | Path, n_recordings: int = 8, seed: int = 0, cases: int | None = None
+) -> dict[str, np.ndarray]:
     """BasicMotions as continuous recordings: all train + test cases shuffled with ``seed`` and
-    concatenated into ``n_recordings`` recordings (80 cases → 8 × 10); arrays in the .npz layout."""
+    concatenated into ``n_recordings`` recordings (80 cases → 8 × 10); arrays in the .npz layout.
+    ``cases``: that many cases drawn with replacement instead (seeded; the cost's growth with the
+    recordings' length, docs/benchmarks.md)."""
     path = Path(path).expanduser()
     d = read_npz(path, "UEA dataset", "pass ../shared/data/basicmotions.npz or the same layout", DatasetError)
     with building(
@@ -195,9 +199,10 @@ def basicmotions_continuous(path: str | Path, n_recordings: int = 8, seed: int =
         names = [str(c) for c in d["class_names"]]
         if X.ndim != 3 or len(y) != len(X) or not 0 <= y.min() <= y.max() < len(names):
             raise ValueError(f"cases {X.shape}, labels {y.shape} and {len(names)} class names disagree")
-        if len(X) < n_recordings:
-            raise ValueError(f"{len(X)} cases cannot fill {n_recordings} recordings")
-    order = np.random.default_rng(seed).permutation(len(X))
+        if (cases or len(X)) < n_recordings:
+            raise ValueError(f"{cases or len(X)} cases cannot fill {n_recordings} recordings")
+    rng = np.random.default_rng(seed)
+    order = rng.permutation(len(X)) if cases is None else rng.integers(0, len(X), cases)
     out: dict[str, np.ndarray] = {"class_names": np.array(names)}
     for k, part in enumerate(np.array_split(order, n_recordings)):
         out[f"X_rec{k}"] = np.concatenate([X[i].T for i in part])

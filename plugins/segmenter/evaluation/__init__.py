@@ -47,6 +47,7 @@ from ._recordings import (
     FoldResult,
     RecordingsEvaluator,
     calibrate_background,
+    default_jobs,
     half_window,
 )
 from ._trajectories import (
@@ -107,6 +108,7 @@ __all__ = [
     "build_cases",
     "calibrate",
     "calibrate_background",
+    "default_jobs",
     "frame_metrics",
     "half_window",
     "methods_to_run",

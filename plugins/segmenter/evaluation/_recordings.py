@@ -30,16 +30,25 @@ recording standardised causally with its own running statistics and those as the
 recording sample by sample through :class:`OnlineCLMSegmenter` with the parameters selected for
 ``ukr_clm`` and keeps each sample's final published label; its ``agreement`` is the share of
 frames equal to the batch ``ukr_clm``.
+
+Folds are independent (each starts its own model cache and every fit takes ``random_state``), so
+``jobs`` > 1 runs them over that many forked processes, with the same figures as one after the
+other; BLAS runs one thread either way, as the sums of a multi-threaded BLAS (the HMMs',
+MiniRocket's) can differ in the last bits (docs/segmentation.md, ``--jobs``).
 """
 
 from __future__ import annotations
 
 import functools
+import multiprocessing
+import os
 import time
 from collections.abc import Callable
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, replace
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from .._moved import renamed
 from ..base import lagged
@@ -56,6 +65,23 @@ CALIBRATIONS = ("fallback", "strict")  # the first is the default
 REJECT_ALL_OBJECTIVE = 0.5  # mean(known accuracy 0, pseudo-unknown rejection 1)
 FALLBACK_MARGIN = 0.05  # an operating point must beat rejecting everything by this much (documented choice)
 MIN_TRAINED_CLASSES = 2  # known classes with training segments every training split needs
+
+
+def default_jobs() -> int:
+    """The number of cores this process may run on (the default of ``--jobs``)."""
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+
+
+_FORKED: RecordingsEvaluator | None = None  # the evaluator whose folds the forked workers run
+
+
+def _one_thread() -> None:
+    """A worker's start: its BLAS/OpenMP pools get one thread, so ``jobs`` workers use ``jobs`` cores."""
+    threadpool_limits(1)
+
+
+def _forked_fold(k: int, held: str) -> FoldResult:
+    return _FORKED._announced_fold(k, held)
 
 
 @dataclass
@@ -157,7 +183,10 @@ class RecordingsEvaluator:
         derived: tuple[str, ...] = ("none",),
         calibration: str = CALIBRATIONS[0],
         lag: int = 0,
+        jobs: int = 1,
     ) -> None:
+        if jobs < 1:
+            raise ValueError(f"jobs must be at least 1, got {jobs}")
         if normalise not in NORMALISATIONS:
             raise ValueError(f"normalise must be one of {NORMALISATIONS}, got {normalise!r}")
         if pseudo_unknowns not in PSEUDO_UNKNOWNS:
@@ -189,6 +218,7 @@ class RecordingsEvaluator:
         self.derived = tuple(derived)
         self.calibration = calibration
         self.lag = lag
+        self.jobs = jobs
         self._cache: dict[tuple, object] = {}
 
     # -- one fold ---------------------------------------------------------------------------
@@ -368,16 +398,47 @@ class RecordingsEvaluator:
         return fitted, self._prepare(method, fitted, test), test
 
     # -- all folds --------------------------------------------------------------------------
-    def evaluate(self) -> dict:
-        folds, n, start = [], len(self.data.recordings), time.perf_counter()
-        for k, rec in enumerate(self.data.recordings):
-            self.progress(f"fold {k + 1}/{n}: holding out '{rec.name}'")
-            folds.append(self.run_fold(rec.name))
-            spent = time.perf_counter() - start
-            if k + 1 < n:  # folds differ in size; the mean so far is the estimate
+    def _announced_fold(self, k: int, held: str) -> FoldResult:
+        self.progress(f"fold {k + 1}/{len(self.data.recordings)}: holding out '{held}'")
+        return self.run_fold(held)
+
+    def _run_folds(self) -> list[FoldResult]:
+        """Every fold's result in recording order: one after the other, or over ``jobs`` forked
+        processes (module docstring); progress per fold either way."""
+        global _FORKED
+        names, start, done = self.data.names(), time.perf_counter(), {}
+
+        def finished(held: str, fold: FoldResult) -> None:
+            done[held] = fold
+            spent, n = time.perf_counter() - start, len(names)
+            if len(done) < n:  # folds differ in size; the mean so far is the estimate
                 self.progress(
-                    f"fold {k + 1}/{n} done; {spent / 60:.1f} min so far, about {spent / (k + 1) * (n - k - 1) / 60:.0f} min to go"
+                    f"fold '{held}' done ({len(done)}/{n}); {spent / 60:.1f} min so far, "
+                    f"about {spent / len(done) * (n - len(done)) / 60:.0f} min to go"
                 )
+
+        jobs = min(self.jobs, len(names))
+        if jobs == 1:
+            with threadpool_limits(1):  # as in a worker: BLAS sums in the same order whatever ``jobs``
+                for k, held in enumerate(names):
+                    finished(held, self._announced_fold(k, held))
+            return [done[h] for h in names]
+        _FORKED = self
+        try:
+            context = multiprocessing.get_context("fork")
+            with ProcessPoolExecutor(jobs, mp_context=context, initializer=_one_thread) as pool:
+                futures = {pool.submit(_forked_fold, k, held): held for k, held in enumerate(names)}
+                try:
+                    for future in as_completed(futures):
+                        finished(futures[future], future.result())
+                finally:  # a fold failed: the folds not yet started are not run
+                    pool.shutdown(cancel_futures=True)
+        finally:
+            _FORKED = None
+        return [done[h] for h in names]
+
+    def evaluate(self) -> dict:
+        folds = self._run_folds()
         truth = np.concatenate([f.truth for f in folds])
         out: dict = {"methods": {}, "parameters": self._parameters()}
         for name in self.methods:

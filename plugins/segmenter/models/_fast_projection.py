@@ -49,6 +49,7 @@ class BatchedPeriodicProjector:
         self.mask = np.zeros((m, n_max))
         for k, (x, y) in enumerate(zip(latents, data)):
             self.X[k, : len(x)] = np.asarray(x, dtype=float).reshape(-1)
+            self.X[k, len(x) :] = self.X[k, 0]  # padding repeats a real latent: a row's kernel minimum is a real one's
             self.Y[k, : len(x)] = y
             self.mask[k, : len(x)] = 1.0
         self.half_beta2 = 0.5 * np.asarray(betas, dtype=float) ** 2  # (M,)
@@ -60,17 +61,26 @@ class BatchedPeriodicProjector:
         self._grid_columns = np.ascontiguousarray(self.grid_images.reshape(g * m, d).T)  # (d, G·M), for BLAS
 
     def _f(self, x: np.ndarray, jacobian: bool = False):
-        """f (B, M, d) and, if asked, ∂f/∂x (B, M, d) at latents x (B, M)."""
+        """f (B, M, d) and, if asked, ∂f/∂x (B, M, d) at latents x (B, M).  Three (B, M, N) arrays,
+        updated in place in the order of operations of ``k = exp(−(β²/2 · s · s − min)) · mask``,
+        ``∂k = −k · β²/2 · sin 2δ`` (the same rounding as one expression; docs/segmentation.md)."""
+        half_beta2 = self.half_beta2[:, None]
         delta = x[:, :, None] - self.X[None]  # (B, M, N)
         s = np.sin(delta)
-        u = self.half_beta2[None, :, None] * s * s
-        u -= np.min(np.where(self.mask[None] > 0, u, np.inf), axis=2, keepdims=True)
-        k = np.exp(-u) * self.mask[None]
+        k = s * half_beta2
+        k *= s
+        k -= k.min(axis=2, keepdims=True)
+        np.negative(k, out=k)
+        np.exp(k, out=k)
+        k *= self.mask
         S = k.sum(axis=2)  # (B, M)
         F = self._weighted(k) / S[:, :, None]
         if not jacobian:
             return F, None
-        dk = -k * self.half_beta2[None, :, None] * np.sin(2.0 * delta)
+        dk = np.negative(k, out=s)
+        dk *= half_beta2
+        delta *= 2.0
+        dk *= np.sin(delta, out=delta)
         J = (self._weighted(dk) - F * dk.sum(axis=2)[:, :, None]) / S[:, :, None]
         return F, J
 

@@ -236,7 +236,9 @@ def fit_recording_models(
             own_error=float(np.median(own[c])) / reference,
             **intensity.class_provenance(row),
         )
-    return candidate_set(models, pipeline)
+    final = candidate_set(models, pipeline)  # reads the provenance just written
+    final._batched = cands._batched  # the same manifolds: the batched projector is built once per fit
+    return final
 
 
 def candidate_set(models: dict, pipeline: FeaturePipeline | None = None) -> CandidateSet:

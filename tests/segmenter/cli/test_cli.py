@@ -7,10 +7,11 @@ import pytest
 from handflow.framework.testkit.harness import NodeHarness
 from handflow.plugins.segmenter import EXPERIMENTS, METHODS, load_candidates
 from handflow.plugins.segmenter.cli import register_evaluate, register_train_classes
+from handflow.plugins.segmenter.evaluation import REGISTRY
 from handflow.plugins.segmenter.models import ModelsMissingError
 from handflow.plugins.segmenter.nodes import OnlineCLMNode
 from tests.conftest import run_command
-from tests.segmenter.datasets.test_recordings import _indistinguishable_recordings
+from tests.segmenter.datasets.test_recordings import _indistinguishable_recordings, _synthetic_recordings
 from tests.segmenter.datasets.test_trajectories import write_csv_dataset
 
 
@@ -91,3 +92,33 @@ def test_train_classes_says_when_rejection_cannot_be_calibrated(tmp_path, capsys
     provenance = json.loads((out / "classes.json").read_text())["provenance"]
     assert provenance["background_factor"] == 0 and provenance["background_calibration"]["rejection"] == "off"
     assert NodeHarness(OnlineCLMNode, {"models": str(out)}).setup().node.segmenter.background_factor == 0
+
+
+def test_folds_over_processes_give_the_same_json_as_one_after_the_other(tmp_path, capsys, monkeypatch):
+    """``--jobs 3`` forks the folds over three processes (one BLAS thread each): every figure, label
+    and selected parameter of the JSON equals that of ``--jobs 1`` (docs/segmentation.md)."""
+    monkeypatch.setattr(REGISTRY["ukr_only"], "steps", 20)  # short UKR fits: the projections' BLAS stays
+    arrays = {"class_names": np.array(["a", "b", "c"])}
+    for k in range(3):
+        arrays[f"X_r{k}"], arrays[f"y_r{k}"] = _synthetic_recordings(k)
+    np.savez(tmp_path / "s.npz", **arrays)
+    results = []
+    for jobs in ("1", "3"):
+        args = [str(tmp_path / "s.npz"), "--quick", "--json", "--methods", "ukr_only,hmm", "--jobs", jobs]
+        assert run_command(register_evaluate, args) == 0
+        result = json.loads(capsys.readouterr().out)
+        assert result.pop("runtime_s") > 0
+        results.append(result)
+    assert results[0] == results[1]
+    assert [f["recording"] for f in results[1]["methods"]["ukr_only"]["folds"]] == ["r0", "r1", "r2"]
+
+
+def test_a_fold_that_fails_in_a_worker_stops_the_evaluation_with_its_error(tmp_path, capsys):
+    arrays = {"class_names": np.array(["a", "b"])}
+    for k in range(3):
+        X, y = _synthetic_recordings(k)
+        arrays[f"X_r{k}"], arrays[f"y_r{k}"] = X, np.where(k == 0, y % 2, np.where(y == 0, 0, -1))
+    np.savez(tmp_path / "one.npz", **arrays)  # b only in r0: holding r0 out leaves one class to train
+    args = [str(tmp_path / "one.npz"), "--quick", "--methods", "dtw_1nn", "--jobs", "2"]
+    assert run_command(register_evaluate, args) == 2
+    assert "needs at least 2: add recordings" in capsys.readouterr().err

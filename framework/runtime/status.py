@@ -35,6 +35,8 @@ class StatusLine:
             value = getattr(wire.unpack(*wire.sample_parts(sample)), self.spec.field)
         except MessageError:
             return  # the publishing node's runtime reports bad payloads (docs/robustness.md)
+        except AttributeError:
+            return  # a valid message of another type on that key (a stray publisher): not the status
         self.show(value, time.monotonic())
 
     def show(self, value: Any, now: float) -> None:

@@ -5,9 +5,11 @@ from __future__ import annotations
 import logging
 import time
 
+import numpy as np
+
 from handflow.framework import keys, wire
 from handflow.framework.graphs.model import StatusSpec
-from handflow.framework.messages import Label
+from handflow.framework.messages import Array, Label
 from handflow.framework.network import sessions as transport
 from handflow.framework.network.settings import ZenohSettings
 from handflow.framework.runtime.status import StatusLine
@@ -50,6 +52,8 @@ def test_labels_published_on_zenoh_reach_the_status_line(caplog):
                 _put(pub, "unknown")
                 time.sleep(0.05)
             for label in ["grasp", "grasp", "wave"]:
+                stray, att = wire.pack(Array(data=np.zeros(3)))  # another type on the key is passed over
+                pub.put(stray, attachment=att)
                 _put(pub, label)
             while len(_shown(caplog)) < 3 and time.monotonic() < deadline:
                 time.sleep(0.05)
@@ -58,6 +62,7 @@ def test_labels_published_on_zenoh_reach_the_status_line(caplog):
         peer.close()
         hub.close()
     assert _shown(caplog) == ["seg/labels: unknown", "seg/labels: grasp", "seg/labels: wave"]
+    assert not [r.getMessage() for r in caplog.records if r.levelno >= logging.ERROR]  # no callback error
 
 
 def _put(pub, label: str) -> None:

@@ -226,7 +226,7 @@ def render(snapshot: dict[str, Any], title: str = "handflow monitor", graph: str
 
     topics = Table(title=title, expand=True)
     for col, kw in (
-        ("topic", {}),
+        ("topic", {"no_wrap": True, "min_width": 12}),  # the name must stay readable; "last value" gives way
         ("type", {}),
         ("rate Hz", {"justify": "right"}),
         ("latency ms", {"justify": "right"}),

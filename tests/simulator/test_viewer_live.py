@@ -30,10 +30,10 @@ nodes:
     inputs: {image: sim/image}
 """
 WANTED = {
-    "handflow/fx3d/sim/tf": "tf2_msgs/msg/TFMessage",
-    "handflow/fx3d/sim/markers": "visualization_msgs/msg/MarkerArray",
-    "handflow/fx3d/sim/description": "std_msgs/msg/String",
-    "handflow/fx3d/camera/compressed": "sensor_msgs/msg/CompressedImage",
+    "/handflow/fx3d/sim/tf": "tf2_msgs/msg/TFMessage",
+    "/handflow/fx3d/sim/markers": "visualization_msgs/msg/MarkerArray",
+    "/handflow/fx3d/sim/description": "std_msgs/msg/String",
+    "/handflow/fx3d/camera/compressed": "sensor_msgs/msg/CompressedImage",
 }
 
 
@@ -111,10 +111,10 @@ def test_live_bridge_serves_the_hand_description_tf_markers_and_jpeg(tmp_path):
     assert set(received) == set(WANTED), (sorted(received), err[-2000:])
     for topic, schema in WANTED.items():
         assert (channels[topic]["schemaName"], channels[topic]["encoding"]) == (schema, "cdr")
-    tf = decode_cdr(received["handflow/fx3d/sim/tf"], WANTED["handflow/fx3d/sim/tf"])
-    urdf = decode_cdr(received["handflow/fx3d/sim/description"], WANTED["handflow/fx3d/sim/description"]).data
+    tf = decode_cdr(received["/handflow/fx3d/sim/tf"], WANTED["/handflow/fx3d/sim/tf"])
+    urdf = decode_cdr(received["/handflow/fx3d/sim/description"], WANTED["/handflow/fx3d/sim/description"]).data
     assert_tree_matches_urdf(tf, urdf)
-    markers = decode_cdr(received["handflow/fx3d/sim/markers"], WANTED["handflow/fx3d/sim/markers"])
+    markers = decode_cdr(received["/handflow/fx3d/sim/markers"], WANTED["/handflow/fx3d/sim/markers"])
     assert markers.kinds == ["cylinder", "cylinder"]
-    jpeg = decode_cdr(received["handflow/fx3d/camera/compressed"], WANTED["handflow/fx3d/camera/compressed"])
+    jpeg = decode_cdr(received["/handflow/fx3d/camera/compressed"], WANTED["/handflow/fx3d/camera/compressed"])
     assert jpeg.format == "jpeg" and jpeg.data[:2] == b"\xff\xd8"

@@ -102,12 +102,14 @@ def test_unreadable_file_and_missing_camera_say_what_to_do(tmp_path):
     [
         ("broken.avi", "OpenCV cannot read it"),
         ("nowhere.avi", "camera or video file nowhere.avi: no such file or folder"),
-        (37, "camera or video file /dev/video37: no such file or folder"),
+        pytest.param(
+            37,
+            "camera or video file /dev/video37: no such file or folder",
+            marks=pytest.mark.skipif(not sys.platform.startswith("linux"), reason="/dev/videoN exists on Linux only"),
+        ),
     ],
 )
 def test_preflight_names_the_bad_source_and_what_to_do(tmp_path, source, expected):
-    if isinstance(source, int) and not sys.platform.startswith("linux"):
-        pytest.skip("device indices are checked as /dev/videoN on Linux only")
     (tmp_path / "broken.avi").write_bytes(b"not a video")
     path = graph_file(tmp_path, "cam", [{"id": "cam", "plugin": "camera.opencv", "params": {"source": source}}])
     with pytest.raises(GraphError, match=expected) as err:

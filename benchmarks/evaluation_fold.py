@@ -25,14 +25,13 @@ import one_core  # noqa: F401  (one thread for BLAS and numba, set before numpy 
 # isort: split
 import argparse
 import json
-import sys
 import time
 from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
+from recording_set import open_recordings
 
-from handflow.plugins.segmenter.datasets import load_recordings
 from handflow.plugins.segmenter.evaluation import REGISTRY, MiniRocketMethod, RecordingsEvaluator
 from handflow.plugins.segmenter.models import BatchedPeriodicProjector
 
@@ -130,10 +129,9 @@ def main(argv=None) -> int:
     ap.add_argument("--quick", action="store_true", help="the evaluation's --quick grids")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args(argv)
-    if not args.recordings.exists():
-        print(f"{args.recordings} not found; pass a continuous recording set (docs/segmentation.md)", file=sys.stderr)
+    data = open_recordings(args.recordings)
+    if data is None:
         return 2
-    data = load_recordings(args.recordings)
     held = args.held_out or data.names()[0]
     methods = tuple(args.methods.split(","))
     now, fold = timed_fold(data, held, methods, args.quick)

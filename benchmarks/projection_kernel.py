@@ -14,15 +14,15 @@ import one_core  # noqa: F401  (one thread for BLAS and numba, set before numpy 
 # isort: split
 import argparse
 import json
-import sys
 import time
 from contextlib import nullcontext
 from pathlib import Path
 
 import numpy as np
 from evaluation_fold import allocating_kernel
+from recording_set import open_recordings
 
-from handflow.plugins.segmenter.datasets import load_recordings, segments
+from handflow.plugins.segmenter.datasets import segments
 from handflow.plugins.segmenter.models import fit_recording_models
 
 
@@ -33,10 +33,9 @@ def main(argv=None) -> int:
     ap.add_argument("--repeats", type=int, default=7)
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args(argv)
-    if not args.recordings.exists():
-        print(f"{args.recordings} not found; pass a continuous recording set (docs/segmentation.md)", file=sys.stderr)
+    data = open_recordings(args.recordings)
+    if data is None:
         return 2
-    data = load_recordings(args.recordings)
     held = args.held_out or data.names()[0]
     train = [r for r in data.recordings if r.name != held]
     by_class = {str(c): s for c, s in segments(train, range(len(data.class_names))).items() if s}

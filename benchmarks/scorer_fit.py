@@ -19,14 +19,14 @@ import one_core  # noqa: F401  (one thread for BLAS and numba, set before numpy 
 # isort: split
 import argparse
 import json
-import sys
 import time
 from pathlib import Path
 from unittest import mock
 
 import numpy as np
+from recording_set import open_recordings
 
-from handflow.plugins.segmenter.datasets import load_recordings, segments
+from handflow.plugins.segmenter.datasets import segments
 from handflow.plugins.segmenter.novelty import FeatureNovelty
 from handflow.plugins.segmenter.novelty import _feature_novelty as feature_novelty
 from handflow.plugins.segmenter.scorers import MiniRocketScorer
@@ -75,10 +75,10 @@ def main(argv=None) -> int:
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args(argv)
-    if not args.recordings.exists():
-        print(f"{args.recordings} not found; pass a continuous recording set (docs/segmentation.md)", file=sys.stderr)
+    data = open_recordings(args.recordings)
+    if data is None:
         return 2
-    recs = load_recordings(args.recordings).recordings
+    recs = data.recordings
     train = recs[1:]
     classes = sorted({int(c) for r in train for c in np.unique(r.y) if c >= 0})
     segs = segments(train, classes)

@@ -104,7 +104,7 @@ def test_folds_over_processes_give_the_same_json_as_one_after_the_other(tmp_path
     np.savez(tmp_path / "s.npz", **arrays)
     results = []
     for jobs in ("1", "3"):
-        args = [str(tmp_path / "s.npz"), "--quick", "--json", "--methods", "ukr_only,hmm", "--jobs", jobs]
+        args = [str(tmp_path / "s.npz"), "--quick", "--json", "--methods", "ukr_only,dtw_1nn", "--jobs", jobs]
         assert run_command(register_evaluate, args) == 0
         result = json.loads(capsys.readouterr().out)
         assert result.pop("runtime_s") > 0

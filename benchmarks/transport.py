@@ -30,7 +30,8 @@ pairs' ratios), ``shm.hd_lost`` and ``shm.hd_cpu_percent`` (1080p RGB at 30 fps 
 handflow processes, CPU of the three summed, in % of one core).  ``--shm-soak SECONDS`` streams 1080p30
 through the three handflow processes and reports lost frames, payloads that fell back to the network
 because the pool ran short (``shm_fallbacks``) and each process's RSS growth from a quarter of the run
-to its end.
+to its end, whole (``VmRSS``) and split into private memory (``RssAnon``) and touched pages of the mapped
+shared-memory pools (``RssShmem``).
 
 ``overhead_ratio`` = median latency of the handflow chain / median of the bare-Zenoh chain with
 the same number of hops at the top rate, measured as ``--pairs`` back-to-back (handflow, bare)
@@ -238,12 +239,23 @@ def run_shm_chain(size: int, mode: str, rate: float, seconds: float) -> dict:
         "cpu_percent": 100 * busy / seconds,
         "via_shm": res["pub"]["shm"] + res["relay"]["shm"],
         "shm_fallbacks": res["pub"]["fallbacks"] + res["relay"]["fallbacks"],
-        "rss_growth": {r: v["rss_kb"][-1] / v["rss_kb"][0] - 1 for r, v in res.items()},
+        "rss_growth": {r: _growth(v["rss_kb"]) for r, v in res.items()},
+        "rss_kb": {r: v["rss_kb"][-1] for r, v in res.items()},
     }
 
 
-def _rss_kb() -> int:
-    return int(re.search(r"VmRSS:\s+(\d+)", Path("/proc/self/status").read_text()).group(1))
+_RSS_PARTS = ("VmRSS", "RssAnon", "RssShmem")
+"""The whole resident set, and its private (heap) and shared-memory (mapped pool pages) parts."""
+
+
+def _rss_kb() -> dict[str, int]:
+    status = Path("/proc/self/status").read_text()
+    return {k: int(re.search(rf"{k}:\s+(\d+)", status).group(1)) for k in _RSS_PARTS}
+
+
+def _growth(samples: list[dict[str, int]]) -> dict[str, float]:
+    """Each RSS part's growth from the first sample (a quarter into the run) to the last."""
+    return {k: samples[-1][k] / max(samples[0][k], 1) - 1 for k in _RSS_PARTS}
 
 
 def run_shm(pairs: int, seconds: float, hd_seconds: float) -> dict:

@@ -115,7 +115,8 @@ def test_reader_recovers_from_fault(fault):
     _, counters = reader.snapshot()
     if fault.kind in ("garbage", "drop_bytes", "truncate", "zero_value"):
         assert counters["corrupt"] >= 1
-        assert counters["reconnects"] == 0
+        # corrupt bytes never cost the link; only silence does (a starved machine can stall the emulator)
+        assert counters["reconnects"] == counters["stalls"]
     else:
         assert counters["reconnects"] >= 1
     if fault.kind == "stall":

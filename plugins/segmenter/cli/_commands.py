@@ -21,6 +21,7 @@ from ..evaluation import (
     Evaluator,
     TrajectoryProtocol,
     UKROnlyMethod,
+    heading_choices,
     methods_to_run,
 )
 from ..features import DERIVED, RunningStandardizer
@@ -67,17 +68,19 @@ def _add_dataset_args(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--headings",
-        default="",
         help="comma-separated channels (names or 0-based indices, e.g. 0,1 for a pen's x,y) whose direction "
-        "of motion is appended to every observation (docs/segmentation.md, heading channels)",
+        "of motion is appended to every observation, or 'none'; default: none for train-classes, chosen by "
+        "evaluate segmentation's validation split between none and 0,1 (docs/segmentation.md, heading channels)",
     )
     parser.add_argument("--seed", type=int, default=0)
 
 
-def heading_channels(spec: str, columns: list[str]) -> tuple[int, ...]:
-    """Column indices of a ``--headings`` value (names or 0-based indices)."""
+def heading_channels(spec: str | None, columns: list[str]) -> tuple[int, ...]:
+    """Column indices of a ``--headings`` value (names or 0-based indices; ``none`` or unset: none)."""
     out = []
-    for item in filter(None, (part.strip() for part in spec.split(","))):
+    for item in filter(None, (part.strip() for part in (spec or "").split(","))):
+        if item == "none" and "none" not in columns:
+            continue
         if item in columns:
             out.append(columns.index(item))
         elif item.isdigit() and int(item) < len(columns):
@@ -135,8 +138,8 @@ def register_train_classes(parser: argparse.ArgumentParser) -> None:
     parser.set_defaults(func=run_train_classes)
 
 
-def _train(ds, args):
-    """One manifold per class of ``ds`` with the command's training options."""
+def _train(ds, args, headings: tuple[int, ...] | None = None):
+    """One manifold per class of ``ds`` with the command's training options (``headings``: instead of ``--headings``)."""
     return train_class_models(
         ds,
         beta=_beta(args),
@@ -145,7 +148,7 @@ def _train(ds, args):
         random_state=args.seed,
         progress=_progress,
         kernel=args.kernel,
-        headings=heading_channels(args.headings, ds.columns),
+        headings=heading_channels(args.headings, ds.columns) if headings is None else headings,
     )
 
 
@@ -175,7 +178,7 @@ def run_train_classes(args) -> int:
             "steps": args.steps,
             "beta": str(args.beta),
             "init": args.init,
-            "headings": args.headings,
+            "headings": args.headings or "",
         },
     )
     _progress(f"wrote {len(models)} models to {out}")
@@ -301,15 +304,22 @@ def run_evaluate(args) -> int:
                 raise DatasetError(
                     f"drop --headings: the models in {args.models} keep the heading channels they were trained with"
                 )
-            candidates = load_candidates(args.models)
+            candidates, alternatives = load_candidates(args.models), ()
         else:
-            _progress(f"training one manifold per class ({len(ds.classes)} classes)")
-            candidates = candidate_set(_train(ds, args))
+            choices = heading_choices(len(ds.columns)) if args.headings is None else (None,)
+            sets = []
+            for headings in choices:
+                named = "" if headings is None else f", heading channels {list(headings) or 'none'}"
+                _progress(f"training one manifold per class ({len(ds.classes)} classes{named})")
+                sets.append(candidate_set(_train(ds, args, headings)))
+            candidates, alternatives = sets[0], tuple(sets[1:])
         protocol = replace(
             TrajectoryProtocol.quick() if args.quick else TrajectoryProtocol(),
             selection=(args.select or "open-set").replace("-", "_"),
         )
-        evaluator = Evaluator(ds, candidates, protocol, random_state=args.seed, progress=_progress)
+        evaluator = Evaluator(
+            ds, candidates, protocol, random_state=args.seed, progress=_progress, alternatives=alternatives
+        )
     except (DatasetError, ModelsMissingError, ValueError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
@@ -321,7 +331,7 @@ def run_evaluate(args) -> int:
         init=args.init,
         quick=bool(args.quick),
         seed=args.seed,
-        headings=args.headings,
+        headings="validation" if args.headings is None and not args.models else args.headings or "",
     )
     result["runtime_s"] = round(time.perf_counter() - t0, 2)
     if args.plots:
@@ -367,7 +377,7 @@ def write_plots(ev: Evaluator, result: dict, folder: Path) -> None:
             params = result["parameters"]["selected"].get(method)
             if params is None:
                 continue
-            labels = ev.predict(method, params, "test", case)
+            labels = ev.chosen[method].predict(method, params, "test", case)
             plot_labelled_trajectory(
                 Y,
                 labels,
@@ -377,9 +387,10 @@ def write_plots(ev: Evaluator, result: dict, folder: Path) -> None:
                 truth=case.truth,
             )
         if UKROnlyMethod.name in result["parameters"]["selected"]:
-            proj = ev.projection("test", case)
+            chosen = ev.chosen[UKROnlyMethod.name]
+            proj = chosen.projection("test", case)
             rec = UKROnlyRecognizer(
-                ev.candidates.without(case.left_out) if case.left_out else ev.candidates,
+                chosen.case_candidates(case),
                 history=H,
                 **result["parameters"]["selected"][UKROnlyMethod.name],
             )

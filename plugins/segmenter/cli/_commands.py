@@ -228,12 +228,12 @@ def register_evaluate(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--normalise",
-        choices=NORMALISATIONS,
-        default="training",
-        help="continuous recordings, every method alike: 'training' (default) z-scores every recording with the "
-        "fold's training frames; 'recording' standardises each recording causally, frame by frame, with its "
-        f"running mean/std and those training statistics as a prior of {RunningStandardizer().prior_frames} "
-        "frames — for recordings of different people or sensor placements (docs/segmentation.md)",
+        help="continuous recordings, every method alike: comma-separated normalisations to choose among on the inner "
+        f"folds, per method and fold — default all of {','.join(NORMALISATIONS)}; 'training' z-scores every "
+        "recording with the fold's training frames; 'recording' standardises each recording causally, frame by "
+        f"frame, with its running mean/std and those training statistics as a prior of "
+        f"{RunningStandardizer().prior_frames} frames — for recordings of different people or sensor placements "
+        "(docs/segmentation.md)",
     )
     parser.add_argument(
         "--pseudo-unknowns",
@@ -247,10 +247,9 @@ def register_evaluate(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--derived",
-        default="none",
         help="continuous recordings, every method alike: comma-separated derived features to choose among on "
-        "the inner folds, per method — 'none' (default) and/or 'velocities' (each channel's step from the "
-        "frame before, appended before the scaling); 'none,velocities' doubles every grid (docs/segmentation.md)",
+        f"the inner folds, per method and fold — default all of {','.join(DERIVED)}: 'none' keeps the channels, "
+        "'velocities' appends each channel's step from the frame before, before the scaling (docs/segmentation.md)",
     )
     parser.add_argument(
         "--calibration",
@@ -287,9 +286,9 @@ def run_evaluate(args) -> int:
     t0 = time.perf_counter()
     try:
         if (args.normalise, args.pseudo_unknowns, args.derived, args.calibration, args.lag) != (
-            "training",
+            None,
             "refit",
-            "none",
+            None,
             CALIBRATIONS[0],
             0,
         ):

@@ -77,10 +77,10 @@ def _add_dataset_args(parser: argparse.ArgumentParser) -> None:
 
 def heading_channels(spec: str | None, columns: list[str]) -> tuple[int, ...]:
     """Column indices of a ``--headings`` value (names or 0-based indices; ``none`` or unset: none)."""
+    if spec is None or spec.strip() == "none":
+        return ()
     out = []
-    for item in filter(None, (part.strip() for part in (spec or "").split(","))):
-        if item == "none" and "none" not in columns:
-            continue
+    for item in filter(None, (part.strip() for part in spec.split(","))):
         if item in columns:
             out.append(columns.index(item))
         elif item.isdigit() and int(item) < len(columns):
@@ -138,8 +138,8 @@ def register_train_classes(parser: argparse.ArgumentParser) -> None:
     parser.set_defaults(func=run_train_classes)
 
 
-def _train(ds, args, headings: tuple[int, ...] | None = None):
-    """One manifold per class of ``ds`` with the command's training options (``headings``: instead of ``--headings``)."""
+def _train(ds, args, headings: tuple[int, ...]):
+    """One manifold per class of ``ds`` with the command's training options and those heading channels."""
     return train_class_models(
         ds,
         beta=_beta(args),
@@ -148,7 +148,7 @@ def _train(ds, args, headings: tuple[int, ...] | None = None):
         random_state=args.seed,
         progress=_progress,
         kernel=args.kernel,
-        headings=heading_channels(args.headings, ds.columns) if headings is None else headings,
+        headings=headings,
     )
 
 
@@ -165,7 +165,7 @@ def run_train_classes(args) -> int:
         if args.derived != "none":
             raise DatasetError("--derived applies to continuous recordings (docs/segmentation.md)")
         ds = _dataset(args)
-        models = _train(ds, args)
+        models = _train(ds, args, heading_channels(args.headings, ds.columns))
     except (DatasetError, ValueError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
@@ -305,19 +305,19 @@ def run_evaluate(args) -> int:
                 )
             candidates, alternatives = load_candidates(args.models), ()
         else:
-            choices = heading_choices(len(ds.columns)) if args.headings is None else (None,)
-            sets = []
-            for headings in choices:
-                named = "" if headings is None else f", heading channels {list(headings) or 'none'}"
-                _progress(f"training one manifold per class ({len(ds.classes)} classes{named})")
-                sets.append(candidate_set(_train(ds, args, headings)))
-            candidates, alternatives = sets[0], tuple(sets[1:])
+            choices = (
+                heading_choices(len(ds.columns))
+                if args.headings is None
+                else (heading_channels(args.headings, ds.columns),)
+            )
+            _progress(f"training one manifold per class ({len(ds.classes)} classes) per heading channels {choices}")
+            candidates, *alternatives = [candidate_set(_train(ds, args, headings)) for headings in choices]
         protocol = replace(
             TrajectoryProtocol.quick() if args.quick else TrajectoryProtocol(),
             selection=(args.select or "open-set").replace("-", "_"),
         )
         evaluator = Evaluator(
-            ds, candidates, protocol, random_state=args.seed, progress=_progress, alternatives=alternatives
+            ds, candidates, protocol, random_state=args.seed, progress=_progress, alternatives=tuple(alternatives)
         )
     except (DatasetError, ModelsMissingError, ValueError) as exc:
         print(f"error: {exc}", file=sys.stderr)

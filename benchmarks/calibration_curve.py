@@ -31,12 +31,12 @@ FINE = 2.0 ** np.arange(-5, 6.01, 0.25)  # background factors 1/32 … 64
 
 
 def curve(ev: RecordingsEvaluator, method_name: str, held: str, fine: bool) -> list[dict]:
-    """One row per (derived, params, rejection value) on the inner folds of fold ``held``."""
+    """One row per (normalisation, derived, params, rejection value) on the inner folds of fold ``held``."""
     method = REGISTRY[method_name]
     rows = []
-    for derived, (train, _) in ev.fold_views(held).items():
+    for (normalise, derived), (train, _) in ev.fold_views(held).items():
         for params in method.grid(ev.quick):
-            params = {**params, "derived": derived}
+            params = {**params, "derived": derived, "normalise": normalise}
             known_acc, pseudo_rej, sweep = ev.validation(method, train, params)
             for r in np.r_[0.0, FINE] if fine else sweep:
                 known, rejection = known_acc(r), pseudo_rej(r)
@@ -50,7 +50,7 @@ def curve(ev: RecordingsEvaluator, method_name: str, held: str, fine: bool) -> l
                     }
                 )
                 print(
-                    f"{derived:>10} {params} r={r:9.4g} known={known:.3f} pseudo-rejection={rejection:.3f} "
+                    f"{normalise:>9} {derived:>10} {params} r={r:9.4g} known={known:.3f} pseudo-rejection={rejection:.3f} "
                     f"objective={rows[-1]['objective']:.4f}",
                     file=sys.stderr,
                     flush=True,
@@ -64,7 +64,9 @@ def main(argv=None) -> int:
     ap.add_argument("--held-out", default=None, help="outer fold whose inner folds are swept (default: the first)")
     ap.add_argument("--method", default="ukr_clm", choices=sorted(n for n, m in REGISTRY.items() if m.batch is None))
     ap.add_argument("--known", default=None, help="comma-separated classes to model (default all)")
-    ap.add_argument("--normalise", default="training", choices=("training", "recording"))
+    ap.add_argument(
+        "--normalise", default="training", help="comma-separated normalisation choices, as in the evaluation"
+    )
     ap.add_argument("--derived", default="none", help="comma-separated derived-feature choices, as in the evaluation")
     ap.add_argument("--fine", action="store_true", help="a geometric background sweep instead of the method's own")
     ap.add_argument("--full", action="store_true", help="the full grid instead of the evaluation's --quick one")
@@ -79,7 +81,7 @@ def main(argv=None) -> int:
         known=args.known.split(",") if args.known else None,
         methods=(args.method,),
         quick=not args.full,
-        normalise=args.normalise,
+        normalise=tuple(args.normalise.split(",")),
         derived=tuple(args.derived.split(",")),
     )
     rows = curve(ev, args.method, held, args.fine)

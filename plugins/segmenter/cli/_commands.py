@@ -21,6 +21,7 @@ from ..evaluation import (
     Evaluator,
     TrajectoryProtocol,
     UKROnlyMethod,
+    heading_choices,
     methods_to_run,
 )
 from ..features import DERIVED, RunningStandardizer
@@ -67,15 +68,17 @@ def _add_dataset_args(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--headings",
-        default="",
         help="comma-separated channels (names or 0-based indices, e.g. 0,1 for a pen's x,y) whose direction "
-        "of motion is appended to every observation (docs/segmentation.md, heading channels)",
+        "of motion is appended to every observation, or 'none'; default: none for train-classes, chosen by "
+        "evaluate segmentation's validation split between none and 0,1 (docs/segmentation.md, heading channels)",
     )
     parser.add_argument("--seed", type=int, default=0)
 
 
-def heading_channels(spec: str, columns: list[str]) -> tuple[int, ...]:
-    """Column indices of a ``--headings`` value (names or 0-based indices)."""
+def heading_channels(spec: str | None, columns: list[str]) -> tuple[int, ...]:
+    """Column indices of a ``--headings`` value (names or 0-based indices; ``none`` or unset: none)."""
+    if spec is None or spec.strip() == "none":
+        return ()
     out = []
     for item in filter(None, (part.strip() for part in spec.split(","))):
         if item in columns:
@@ -135,8 +138,8 @@ def register_train_classes(parser: argparse.ArgumentParser) -> None:
     parser.set_defaults(func=run_train_classes)
 
 
-def _train(ds, args):
-    """One manifold per class of ``ds`` with the command's training options."""
+def _train(ds, args, headings: tuple[int, ...]):
+    """One manifold per class of ``ds`` with the command's training options and those heading channels."""
     return train_class_models(
         ds,
         beta=_beta(args),
@@ -145,7 +148,7 @@ def _train(ds, args):
         random_state=args.seed,
         progress=_progress,
         kernel=args.kernel,
-        headings=heading_channels(args.headings, ds.columns),
+        headings=headings,
     )
 
 
@@ -162,7 +165,7 @@ def run_train_classes(args) -> int:
         if args.derived != "none":
             raise DatasetError("--derived applies to continuous recordings (docs/segmentation.md)")
         ds = _dataset(args)
-        models = _train(ds, args)
+        models = _train(ds, args, heading_channels(args.headings, ds.columns))
     except (DatasetError, ValueError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
@@ -175,7 +178,7 @@ def run_train_classes(args) -> int:
             "steps": args.steps,
             "beta": str(args.beta),
             "init": args.init,
-            "headings": args.headings,
+            "headings": args.headings or "",
         },
     )
     _progress(f"wrote {len(models)} models to {out}")
@@ -225,12 +228,12 @@ def register_evaluate(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--normalise",
-        choices=NORMALISATIONS,
-        default="training",
-        help="continuous recordings, every method alike: 'training' (default) z-scores every recording with the "
-        "fold's training frames; 'recording' standardises each recording causally, frame by frame, with its "
-        f"running mean/std and those training statistics as a prior of {RunningStandardizer().prior_frames} "
-        "frames — for recordings of different people or sensor placements (docs/segmentation.md)",
+        help="continuous recordings, every method alike: comma-separated normalisations to choose among on the inner "
+        f"folds, per method and fold — default all of {','.join(NORMALISATIONS)}; 'training' z-scores every "
+        "recording with the fold's training frames; 'recording' standardises each recording causally, frame by "
+        f"frame, with its running mean/std and those training statistics as a prior of "
+        f"{RunningStandardizer().prior_frames} frames — for recordings of different people or sensor placements "
+        "(docs/segmentation.md)",
     )
     parser.add_argument(
         "--pseudo-unknowns",
@@ -244,10 +247,9 @@ def register_evaluate(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--derived",
-        default="none",
         help="continuous recordings, every method alike: comma-separated derived features to choose among on "
-        "the inner folds, per method — 'none' (default) and/or 'velocities' (each channel's step from the "
-        "frame before, appended before the scaling); 'none,velocities' doubles every grid (docs/segmentation.md)",
+        f"the inner folds, per method and fold — default all of {','.join(DERIVED)}: 'none' keeps the channels, "
+        "'velocities' appends each channel's step from the frame before, before the scaling (docs/segmentation.md)",
     )
     parser.add_argument(
         "--calibration",
@@ -284,9 +286,9 @@ def run_evaluate(args) -> int:
     t0 = time.perf_counter()
     try:
         if (args.normalise, args.pseudo_unknowns, args.derived, args.calibration, args.lag) != (
-            "training",
+            None,
             "refit",
-            "none",
+            None,
             CALIBRATIONS[0],
             0,
         ):
@@ -301,15 +303,22 @@ def run_evaluate(args) -> int:
                 raise DatasetError(
                     f"drop --headings: the models in {args.models} keep the heading channels they were trained with"
                 )
-            candidates = load_candidates(args.models)
+            candidates, alternatives = load_candidates(args.models), ()
         else:
-            _progress(f"training one manifold per class ({len(ds.classes)} classes)")
-            candidates = candidate_set(_train(ds, args))
+            choices = (
+                heading_choices(len(ds.columns))
+                if args.headings is None
+                else (heading_channels(args.headings, ds.columns),)
+            )
+            _progress(f"training one manifold per class ({len(ds.classes)} classes) per heading channels {choices}")
+            candidates, *alternatives = [candidate_set(_train(ds, args, headings)) for headings in choices]
         protocol = replace(
             TrajectoryProtocol.quick() if args.quick else TrajectoryProtocol(),
             selection=(args.select or "open-set").replace("-", "_"),
         )
-        evaluator = Evaluator(ds, candidates, protocol, random_state=args.seed, progress=_progress)
+        evaluator = Evaluator(
+            ds, candidates, protocol, random_state=args.seed, progress=_progress, alternatives=tuple(alternatives)
+        )
     except (DatasetError, ModelsMissingError, ValueError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
@@ -321,7 +330,7 @@ def run_evaluate(args) -> int:
         init=args.init,
         quick=bool(args.quick),
         seed=args.seed,
-        headings=args.headings,
+        headings="validation" if args.headings is None and not args.models else args.headings or "",
     )
     result["runtime_s"] = round(time.perf_counter() - t0, 2)
     if args.plots:
@@ -367,7 +376,7 @@ def write_plots(ev: Evaluator, result: dict, folder: Path) -> None:
             params = result["parameters"]["selected"].get(method)
             if params is None:
                 continue
-            labels = ev.predict(method, params, "test", case)
+            labels = ev.chosen[method].predict(method, params, "test", case)
             plot_labelled_trajectory(
                 Y,
                 labels,
@@ -377,9 +386,10 @@ def write_plots(ev: Evaluator, result: dict, folder: Path) -> None:
                 truth=case.truth,
             )
         if UKROnlyMethod.name in result["parameters"]["selected"]:
-            proj = ev.projection("test", case)
+            chosen = ev.chosen[UKROnlyMethod.name]
+            proj = chosen.projection("test", case)
             rec = UKROnlyRecognizer(
-                ev.candidates.without(case.left_out) if case.left_out else ev.candidates,
+                chosen.case_candidates(case),
                 history=H,
                 **result["parameters"]["selected"][UKROnlyMethod.name],
             )

@@ -17,12 +17,14 @@ from .._moved import renamed
 from ..datasets import basicmotions_continuous, load_recordings, segments
 from ..evaluation import (
     DEFAULT_METHODS,
+    NORMALISATIONS,
     REGISTRY,
     RecordingsEvaluator,
     calibrate_background,
     default_jobs,
     methods_to_run,
 )
+from ..features import DERIVED
 from ..models import fit_recording_models, save_class_models
 from ..scorers import SCORERS
 
@@ -43,9 +45,9 @@ def run_recordings_evaluation(args, progress) -> int:
             quick=args.quick,
             random_state=args.seed,
             progress=progress,
-            normalise=args.normalise,
+            normalise=_choices(args.normalise, NORMALISATIONS),
             pseudo_unknowns=args.pseudo_unknowns,
-            derived=tuple(d for d in args.derived.split(",") if d),
+            derived=_choices(args.derived, DERIVED),
             calibration=args.calibration,
             lag=args.lag,
             jobs=args.jobs or default_jobs(),
@@ -61,6 +63,11 @@ def run_recordings_evaluation(args, progress) -> int:
         progress(f"plots written to {args.plots}")
     print(json.dumps(result, indent=1) if args.json else format_stream_table(result))
     return 0
+
+
+def _choices(option: str | None, every: tuple[str, ...]) -> tuple[str, ...]:
+    """The comma-separated values of ``--normalise`` / ``--derived``; unset: ``every`` (chosen on the inner folds)."""
+    return tuple(v for v in option.split(",") if v) if option else every
 
 
 def format_stream_table(result: dict) -> str:

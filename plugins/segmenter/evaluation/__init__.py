@@ -62,6 +62,7 @@ from ._trajectories import (
     Evaluator,
     TrajectoryProtocol,
     build_cases,
+    heading_choices,
     summarise,
 )
 
@@ -106,6 +107,7 @@ __all__ = [
     "UKRMethod",
     "UKROnlyMethod",
     "build_cases",
+    "heading_choices",
     "calibrate",
     "calibrate_background",
     "default_jobs",

@@ -23,10 +23,11 @@ to the models ``train-classes`` writes for the online node.
 (:func:`..base.lagged`), in the calibration as in the figures; every method is also reported at
 lag 0 and at half its causal window (``open_set_accuracy_at_lag``).
 
-Every recording is scaled with the fold's training frames, for every method alike
-(``normalise``): z-scored with their mean and standard deviation (``"training"``), or each
-recording standardised causally with its own running statistics and those as the prior
-(``"recording"``, :mod:`..features`).  ``ukr_clm_online`` feeds the normalised held-out
+Every recording is scaled with the fold's training frames (``normalise``): z-scored with their
+mean and standard deviation (``"training"``), or each recording standardised causally with its
+own running statistics and those as the prior (``"recording"``, :mod:`..features`); given several,
+the normalisation is chosen like the derived features, per method and fold, on the inner splits
+(every method alike gets the same choices; ties keep the first).  ``ukr_clm_online`` feeds the normalised held-out
 recording sample by sample through :class:`OnlineCLMSegmenter` with the parameters selected for
 ``ukr_clm`` and keeps each sample's final published label; its ``agreement`` is the share of
 frames equal to the batch ``ukr_clm``.
@@ -60,6 +61,10 @@ from ._metrics import calibrate, frame_metrics, segment_f1, tradeoff_curve
 INNER_FOLDS = 3  # validation recordings of the inner split (each validated by a fit on the others)
 DEFAULT_METHODS = ("ukr_clm", "ukr_clm_online", "ukr_only", "dtw_1nn", "hmm", "minirocket", "clm_minirocket")
 NORMALISATIONS = ("training", "recording")
+NORMALISATION_DESCRIPTIONS = {
+    "training": "z-score with the fold's training frames (every method)",
+    "recording": "each recording standardised causally, prior = the fold's training frames (every method)",
+}
 PSEUDO_UNKNOWNS = ("refit", "drop")
 CALIBRATIONS = ("fallback", "strict")  # the first is the default
 REJECT_ALL_OBJECTIVE = 0.5  # mean(known accuracy 0, pseudo-unknown rejection 1)
@@ -178,7 +183,7 @@ class RecordingsEvaluator:
         quick: bool = False,
         random_state: int = 0,
         progress: Callable[[str], None] = lambda msg: None,
-        normalise: str = "training",
+        normalise: str | tuple[str, ...] = "training",
         pseudo_unknowns: str = "refit",
         derived: tuple[str, ...] = ("none",),
         calibration: str = CALIBRATIONS[0],
@@ -187,8 +192,9 @@ class RecordingsEvaluator:
     ) -> None:
         if jobs < 1:
             raise ValueError(f"jobs must be at least 1, got {jobs}")
-        if normalise not in NORMALISATIONS:
-            raise ValueError(f"normalise must be one of {NORMALISATIONS}, got {normalise!r}")
+        normalise = (normalise,) if isinstance(normalise, str) else tuple(normalise)
+        if not normalise or len(set(normalise)) != len(normalise) or not set(normalise) <= set(NORMALISATIONS):
+            raise ValueError(f"normalise must be one of {NORMALISATIONS} (or distinct ones), got {list(normalise)}")
         if pseudo_unknowns not in PSEUDO_UNKNOWNS:
             raise ValueError(f"pseudo_unknowns must be one of {PSEUDO_UNKNOWNS}, got {pseudo_unknowns!r}")
         if calibration not in CALIBRATIONS:
@@ -240,13 +246,13 @@ class RecordingsEvaluator:
         """Names of the known classes without a training segment in ``recs``."""
         return [self.data.class_names[c] for c, segs in segments(recs, self.known).items() if not segs]
 
-    def _select(self, name: str, views: dict[str, list[Recording]]) -> Choice:
-        """Derived features, hyper-parameters and rejection value of one method, chosen on inner
-        splits of the training recordings (``views``: derived features → those recordings)."""
+    def _select(self, name: str, views: dict[tuple[str, str], list[Recording]]) -> Choice:
+        """Normalisation, derived features, hyper-parameters and rejection value of one method, chosen
+        on inner splits of the training recordings (``views``: (normalisation, derived) → those recordings)."""
         method = REGISTRY[name]
         choices = [
-            self._calibrated(method, train, {**params, "derived": derived})
-            for derived, train in views.items()
+            self._calibrated(method, train, {**params, "derived": derived, "normalise": normalise})
+            for (normalise, derived), train in views.items()
             for params in method.grid(self.quick)
         ]
         return self._rule(name, choices)
@@ -339,16 +345,20 @@ class RecordingsEvaluator:
             self._cache[key] = method.prepare(fitted, rec.X)
         return self._cache[key]
 
-    def fold_views(self, held: str | None) -> dict[str, tuple[list[Recording], Recording | None]]:
-        """Per derived feature choice: the training recordings and the held-out one (None: all
-        recordings train), with the features appended and then scaled with the training frames.
-        Starts the fold: fitted models and states of the previous one (another scaling) are dropped."""
+    def fold_views(self, held: str | None) -> dict[tuple[str, str], tuple[list[Recording], Recording | None]]:
+        """Per (normalisation, derived features) choice: the training recordings and the held-out one
+        (None: all recordings train), with the features appended and then scaled with the training
+        frames.  Starts the fold: fitted models and states of the previous one are dropped."""
         self._cache.clear()
         views = {}
         for derived in self.derived:
             recs = [Recording(r.name, derive(r.X, derived), r.y) for r in self.data.recordings]
-            scaled = _zscore([r for r in recs if r.name != held], recs, self.normalise)
-            views[derived] = ([r for r in scaled if r.name != held], next((r for r in scaled if r.name == held), None))
+            for normalise in self.normalise:
+                scaled = _zscore([r for r in recs if r.name != held], recs, normalise)
+                views[normalise, derived] = (
+                    [r for r in scaled if r.name != held],
+                    next((r for r in scaled if r.name == held), None),
+                )
         return views
 
     def run_fold(self, held: str) -> FoldResult:
@@ -367,7 +377,7 @@ class RecordingsEvaluator:
             if REGISTRY[name].batch is not None:
                 continue  # replayed with the models of its batch method, below
             t0 = time.perf_counter()
-            choice = self._select(name, {d: train for d, (train, _) in views.items()})
+            choice = self._select(name, {key: train for key, (train, _) in views.items()})
             method = REGISTRY[name]
             fitted, state, test = self._final(method, choice.params, views)
             labels[name] = method.labels(fitted, state, choice.reject)
@@ -387,13 +397,14 @@ class RecordingsEvaluator:
                 selected[online.name] = selected[name]
             self.progress(f"  {held}: {name} {selected[name]} in {time.perf_counter() - t0:.1f}s")
         lagged_labels = {name: lag(x) for name, x in labels.items()}
-        truth = views[self.derived[0]][1].y
+        truth = next(iter(views.values()))[1].y
         return FoldResult(held, truth, lagged_labels, selected, sweeps, strict, untrained, labels)
 
     def _final(self, method, params: dict, views) -> tuple:
         """``method`` fitted with ``params`` on all training recordings, its state on the held-out
-        recording and that recording as the method sees it (with ``params``' derived features)."""
-        train, test = views[params["derived"]]
+        recording and that recording as the method sees it (with ``params``' normalisation and
+        derived features)."""
+        train, test = views[params["normalise"], params["derived"]]
         fitted = self._fit(method, train, params)
         return fitted, self._prepare(method, fitted, test), test
 
@@ -528,13 +539,11 @@ class RecordingsEvaluator:
         }
 
     def _normalisation(self) -> dict:
-        if self.normalise == "training":
-            return {"mode": "training", "description": "z-score with the fold's training frames (every method)"}
-        return {
-            "mode": "recording",
-            "description": "each recording standardised causally, prior = the fold's training frames (every method)",
-            **RunningStandardizer().get_params(),
-        }
+        """The normalisation, or the choices the inner folds choose among (``selected.normalise`` per fold)."""
+        one = len(self.normalise) == 1
+        out = {"mode": self.normalise[0]} if one else {"mode": "inner folds", "choices": list(self.normalise)}
+        out["description"] = "; ".join(NORMALISATION_DESCRIPTIONS[n] for n in self.normalise)
+        return {**out, **(RunningStandardizer().get_params() if "recording" in self.normalise else {})}
 
 
 def calibrate_background(
@@ -562,10 +571,10 @@ def calibrate_background(
         derived=(derived,),
         calibration=calibration,
     )
-    train, _ = ev.fold_views(None)[derived]
+    train, _ = ev.fold_views(None)["training", derived]
     method = UKRCLMMethod()
     method.steps = steps
-    params = {"delay": delay, "history": history, "derived": derived}
+    params = {"delay": delay, "history": history, "derived": derived, "normalise": "training"}
     return ev._rule(method.name, [ev._calibrated(method, train, params)])
 
 

@@ -20,7 +20,9 @@ scored on the validation split (the CLM with one run per case).  ``TrajectoryPro
 *recognition* experiments (``SELECTION_EXPERIMENTS``) and over the *rejection* experiments
 (``REJECTION_EXPERIMENTS``), so the selected operating point has to keep known motions and reject
 unknown ones; ``"recognition"`` scores the recognition experiments only, as in the thesis (the
-background / rejection threshold is tuned to keep the validation motions).  The best is evaluated on the test split
+background / rejection threshold is tuned to keep the validation motions).  The manifold methods
+also choose, by the same objective, among the ``alternatives`` — candidate sets trained with other
+heading channels (:func:`heading_choices`); ties keep the first.  The best is evaluated on the test split
 (the CLM with ``runs`` runs per case: a case's share is the mean over runs, its ``std`` the
 standard deviation); the UKR/CLM rejection experiments are also reported with a *strong*
 background (``3 λ_bg`` with the thesis rule ``λ_bg = 1 − 10/N``, docs/segmentation.md) under
@@ -33,7 +35,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 
 import numpy as np
@@ -72,6 +74,13 @@ class TrajectoryProtocol:
     def quick(cls) -> TrajectoryProtocol:
         """The reduced protocol for CI and tests."""
         return cls(nths=(1, 2), histories=(10,), runs=2, max_pairs=6, grid_size=8)
+
+
+def heading_choices(n_channels: int) -> tuple[tuple[int, ...], ...]:
+    """The heading channels validation chooses among when ``--headings`` is not given
+    (docs/segmentation.md, heading channels): none, and the first two channels — a pen's
+    position x, y in the layouts of docs/segmentation.md — when there are at least two."""
+    return ((), (0, 1)) if n_channels >= 2 else ((),)
 
 
 @dataclass
@@ -151,13 +160,16 @@ def summarise(correct: list[float]) -> dict:
 
 @dataclass
 class Evaluator:
-    """Runs the protocol for the four methods on one dataset with trained candidates."""
+    """Runs the protocol for the four methods on one dataset with trained candidates; the manifold
+    methods choose on validation among ``candidates`` and the ``alternatives`` (other heading
+    channels, :func:`heading_choices`)."""
 
     dataset: LabelledDataset
     candidates: CandidateSet
     protocol: TrajectoryProtocol = field(default_factory=TrajectoryProtocol)
     random_state: int = 0
     progress: Callable[[str], None] = lambda msg: None
+    alternatives: tuple[CandidateSet, ...] = ()
 
     def __post_init__(self) -> None:
         self.classes = self.candidates.classes
@@ -171,6 +183,13 @@ class Evaluator:
             split: build_cases(self.dataset.split(split), self.classes, self.protocol)
             for split in ("validation", "test")
         }
+        self.chosen: dict[str, Evaluator] = {}  # method → the evaluator of its chosen candidates
+        self._others = [replace(self, candidates=c, alternatives=()) for c in self.alternatives]
+
+    @property
+    def headings(self) -> list[int]:
+        """The heading channels of this evaluator's candidates."""
+        return list(self.candidates.headings.channels)
 
     @cached_property
     def dtw(self) -> SlidingDTW1NN:
@@ -299,6 +318,22 @@ class Evaluator:
                 best, best_score = params, score
         return best, best_score
 
+    def choose(self, method: str) -> tuple[Evaluator, dict, float]:
+        """:meth:`select` over the candidate sets a method chooses among (the alternatives for
+        the manifold methods): (evaluator of the best, params, objective); ties keep the first."""
+        evaluators = [self, *self._others] if REGISTRY[method].manifolds else [self]
+        best: tuple[Evaluator, dict, float] | None = None
+        for ev in evaluators:
+            if len(evaluators) > 1:
+                self.progress(f"{method}: heading channels {ev.headings or 'none'}")
+            params, score = ev.select(method)
+            if best is None or score > best[2]:
+                best = (ev, params, score)
+        if len(evaluators) > 1:
+            self.progress(f"{method}: validation chose heading channels {best[0].headings or 'none'} ({best[2]:.3f})")
+        self.chosen[method] = best[0]
+        return best
+
     def evaluate(self, methods: tuple[str, ...] = METHODS) -> dict:
         """Select on validation, report on test: the JSON structure of ``evaluate segmentation``."""
         out: dict = {
@@ -315,23 +350,27 @@ class Evaluator:
                 "dataset": self.dataset.source,
                 "selected": {},
                 "validation_score": {},
+                "heading_candidates": [self.headings] + [ev.headings for ev in self._others],
+                "heading_channels": {},
             },
         }
         for method in methods:
             t0 = time.perf_counter()
             self.progress(f"{method}: selecting parameters on validation")
-            params, score = self.select(method)
+            ev, params, score = self.choose(method)
             entry = REGISTRY[method]
             runs = self.protocol.runs if entry.repeated_runs else 1
             self.progress(f"{method}: evaluating {params} on test ({runs} run(s) per case)")
-            out["methods"][method] = self.run(method, params, "test", runs=runs)
+            out["methods"][method] = ev.run(method, params, "test", runs=runs)
             if entry.strong_background:
                 strong = dict(params, background_factor=STRONG_BACKGROUND)
                 self.progress(f"{method}: rejection experiments with a strong background {strong}")
-                for exp, res in self.run(method, strong, "test", runs=runs, experiments=REJECTION_EXPERIMENTS).items():
+                for exp, res in ev.run(method, strong, "test", runs=runs, experiments=REJECTION_EXPERIMENTS).items():
                     out["methods"][method][exp]["strong_background"] = res
                 out["parameters"]["strong_background"] = strong
             out["parameters"]["selected"][method] = params
             out["parameters"]["validation_score"][method] = score
+            if entry.manifolds:
+                out["parameters"]["heading_channels"][method] = ev.headings
             self.progress(f"{method}: done in {time.perf_counter() - t0:.1f} s")
         return out

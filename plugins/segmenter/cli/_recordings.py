@@ -49,6 +49,7 @@ def run_recordings_evaluation(args, progress) -> int:
             calibration=args.calibration,
             lag=args.lag,
             jobs=args.jobs or default_jobs(),
+            enroll=args.enroll,
         )
         result = evaluator.evaluate()
     except (ValueError, ImportError) as exc:
@@ -76,6 +77,12 @@ def format_stream_table(result: dict) -> str:
             f"{'':15s} open-set accuracy at lag 0 {at['0']}, at half the window "
             f"({'/'.join(str(f['half_window']) for f in r['folds'])} frames per fold) {at['half_window']}"
         )
+        if "enrolment" in r:
+            e = {k: "—" if v is None else f"{v:.3f}" for k, v in r["enrolment"].items() if not isinstance(v, dict)}
+            lines.append(
+                f"{'':15s} after the enrolment: open-set accuracy {e['open_set_accuracy']} with it, "
+                f"{e['open_set_accuracy_without_enrolment']} without (gain {e['gain']})"
+            )
         if r.get("calibration_note"):
             lines.append(f"{'':15s} note: {r['calibration_note']}")
     return "\n".join(lines)

@@ -1,5 +1,10 @@
 """Labelled trajectories, continuous recordings and synthetic letters (docs/segmentation.md)."""
 
+from ._enrolment import (
+    EnrolmentError,
+    enrolment_recording,
+    enrolment_split,
+)
 from ._recordings import (
     LABEL_COLUMN,
     UNLABELLED,
@@ -26,6 +31,7 @@ from ._trajectories import (
 
 __all__ = [
     "DatasetError",
+    "EnrolmentError",
     "LABEL_COLUMN",
     "LabelledDataset",
     "LetterGenerator",
@@ -37,6 +43,8 @@ __all__ = [
     "Trajectory",
     "UNLABELLED",
     "basicmotions_continuous",
+    "enrolment_recording",
+    "enrolment_split",
     "is_continuous",
     "load_dataset",
     "load_recordings",

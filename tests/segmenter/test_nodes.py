@@ -6,10 +6,11 @@ from handflow.framework.messages import Array, JointState
 from handflow.framework.testkit.harness import NodeHarness
 from handflow.plugins.segmenter import save_class_models
 from handflow.plugins.segmenter.base import lagged
-from handflow.plugins.segmenter.datasets import basicmotions_continuous, load_recordings, segments
+from handflow.plugins.segmenter.datasets import Recording, basicmotions_continuous, load_recordings, segments
 from handflow.plugins.segmenter.models import ModelsMissingError, fit_recording_models
 from handflow.plugins.segmenter.nodes import UNKNOWN, OnlineCLMNode, UKROnlyNode
 from tests.segmenter.conftest import SHARED
+from tests.segmenter.datasets.test_recordings import _synthetic_recordings
 
 
 @pytest.fixture(scope="module")
@@ -148,3 +149,31 @@ def test_online_clm_node_with_a_lag_publishes_the_labels_shifted_by_it(tmp_path)
         published[lag] = _final_labels(h, len(X) - lag)
     assert len(set(published[0])) > 1  # the recording changes class: there are boundaries to move
     assert np.array_equal(published[4], lagged(published[0], 4)[: len(X) - 4])
+
+
+def test_online_clm_node_refits_its_models_with_the_segments_of_an_enrolment_recording(tmp_path):
+    """A session whose class 'a' lies off the training recordings (shifted): with ``enroll`` the
+    node's models are refitted with that session's segments and explain its 'a' frames better."""
+    train = {"class_names": np.array(["a", "b", "c"])}
+    for k in range(2):
+        train[f"X_r{k}"], train[f"y_r{k}"] = _synthetic_recordings(k)
+    np.savez(tmp_path / "train.npz", **train)
+    X, y = _synthetic_recordings(5)
+    X = X + 1.5 * (y == 0)[:, None]  # this session's 'a' is shifted
+    np.savez(tmp_path / "session.npz", class_names=np.array(["a", "b", "c", "d"]), X_s=X, y_s=y)
+    by_class = dict(zip("abc", segments(load_recordings(tmp_path / "train.npz").recordings, [0, 1, 2]).values()))
+    models = fit_recording_models(by_class, delay=4, n_steps=20, scaling="standard")
+    folder = save_class_models(
+        models,
+        tmp_path / "m",
+        provenance={"dataset": str(tmp_path / "train.npz"), "steps": 20, "background_factor": 0.5},
+    )
+    params = {"models": str(folder), "window": 60, "history": 10}
+    plain = NodeHarness(OnlineCLMNode, params).setup().node.segmenter
+    enrolled = NodeHarness(OnlineCLMNode, dict(params, enroll=str(tmp_path / "session.npz"))).setup().node.segmenter
+    a = segments([Recording("s", X, y)], [0])[0][0]  # the session's first 'a'
+    own = [np.median(s.candidates.project(a).errors[:, 0]) for s in (plain, enrolled)]
+    assert own[1] < 0.5 * own[0]
+    assert enrolled.classes_ == ["a", "b", "c"] and enrolled.background_factor == 0.5  # 'd' is not enrolled
+    with pytest.raises(ValueError, match="enroll needs source 'ukr'"):
+        NodeHarness(OnlineCLMNode, {"source": "dtw", "scorer": "s.npz", "enroll": "e.npz"})

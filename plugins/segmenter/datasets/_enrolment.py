@@ -39,7 +39,7 @@ def enrolment_split(
     np.add.at(edges, ends[enrolled], -1)
     end = int(ends[enrolled].max(initial=0))
     if end >= len(y):
-        raise EnrolmentError("no frame follows the enrolment segments")
+        raise EnrolmentError("no frame after its enrolment segments")
     return np.cumsum(edges[:-1]) > 0, end
 
 

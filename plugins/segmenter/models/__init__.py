@@ -22,6 +22,10 @@ from ._cycles import (
     phase_direction,
     split_cycles,
 )
+from ._enrolment import (
+    class_segments,
+    enrolled_models,
+)
 from ._fast_projection import (
     BatchedPeriodicProjector,
 )
@@ -64,7 +68,9 @@ __all__ = [
     "auto_beta",
     "candidate_set",
     "class_pieces",
+    "class_segments",
     "detect_period",
+    "enrolled_models",
     "fit_class_models",
     "fit_recording_models",
     "load_candidates",

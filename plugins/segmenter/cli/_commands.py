@@ -273,6 +273,13 @@ def register_evaluate(parser: argparse.ArgumentParser) -> None:
         "held-out recording (as a user enrols at the start of a session) and is scored with and without them on "
         "the frames after them (default 0 = off; docs/segmentation.md, Enrolment)",
     )
+    parser.add_argument(
+        "--enroll-adaptation",
+        default="align",
+        help="with --enroll: comma-separated ways to adapt, each reported, the first at the top — 'align' (default): "
+        "every recording is also standardised with the mean and spread of its own enrolment segments; 'refit': "
+        "the segments are extra training data only (docs/segmentation.md, Enrolment)",
+    )
     parser.set_defaults(func=run_evaluate)
 
 

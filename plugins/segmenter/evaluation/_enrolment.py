@@ -3,25 +3,31 @@
 With ``enroll`` = K ≥ 1, every fold's held-out recording starts with the first K segments of
 each known class (:func:`..datasets.enrolment_split`).  Every method is fitted once more with
 those segments as one more training recording, put first (its other frames unlabelled), with the
-parameters and rejection value chosen without them on the inner folds; the UKR class models are
-thereby refitted with the enrolment segments (documented choice).  Both fits label the whole
-held-out recording, scaled with the other recordings' frames only, and both are scored on the
-same frames: those after the enrolment.
+parameters and rejection value chosen without them on the inner folds.  Adaptations
+(:data:`ADAPTATIONS`): ``"align"`` also standardises every recording of the fold with the
+class-balanced mean and spread of its own enrolment frames (a per-session alignment of scale and
+offset); ``"refit"`` adds the segments only.  Both fits label the whole held-out recording and
+are scored on the same frames: those after the enrolment.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from ..datasets import EnrolmentError, RecordingSet, enrolment_split
+from ..datasets import EnrolmentError, Recording, RecordingSet, enrolment_recording, enrolment_split
 from ._metrics import frame_metrics
 
+ADAPTATIONS = ("align", "refit")  # the first is the default
+MIN_SPREAD = 0.1  # floor of an aligned channel's spread, in units of the training frames' (documented choice)
 
-def check_enrolment(data: RecordingSet, known: list[int], k: int) -> None:
+
+def check_enrolment(data: RecordingSet, known: list[int], k: int, adaptations: tuple[str, ...]) -> None:
     """A ValueError that says what to change when some recording cannot be a held-out one with
     ``k`` enrolment segments of every known class (the evaluation then stops before any fold)."""
     if k < 0:
         raise ValueError(f"--enroll must be >= 0 segments per class, got {k}")
+    if not adaptations or len(set(adaptations)) != len(adaptations) or not set(adaptations) <= set(ADAPTATIONS):
+        raise ValueError(f"enrolment adaptations: name distinct choices among {ADAPTATIONS}, got {list(adaptations)}")
     for rec in data.recordings:
         try:
             enrolment_split(rec.y, known, k, data.class_names)
@@ -32,9 +38,33 @@ def check_enrolment(data: RecordingSet, known: list[int], k: int) -> None:
             ) from None
 
 
-def enrolment_report(folds: list, name: str, known: list[int]) -> dict:
-    """Frame metrics of ``name`` with and without enrolment on the same frames (each fold's frames
-    after its enrolment, pooled), the gain in open-set accuracy and the scored frames per fold."""
+def session_aligned(rec: Recording, known: list[int], k: int) -> Recording:
+    """``rec`` standardised per channel with the class-balanced mean and spread of its enrolment
+    frames (each known class weighs alike, whatever its frames), the spread at least
+    :data:`MIN_SPREAD`."""
+    mask, _ = enrolment_split(rec.y, known, k)
+    frames = [rec.X[mask & (rec.y == c)] for c in known]
+    means = np.stack([f.mean(axis=0) for f in frames])
+    spread = np.sqrt(np.mean([f.var(axis=0) for f in frames], axis=0) + means.var(axis=0))
+    return Recording(f"{rec.name} (aligned)", (rec.X - means.mean(axis=0)) / np.maximum(spread, MIN_SPREAD), rec.y)
+
+
+def enrolled_views(views: dict, known: list[int], k: int, adaptation: str) -> dict:
+    """Per derived feature choice (``views``: → training recordings, held-out recording): the
+    training recordings with the held-out recording's enrolment first, and the held-out
+    recording; every recording aligned by its own enrolment for ``"align"``."""
+    out = {}
+    for derived, (train, test) in views.items():
+        if adaptation == "align":
+            train, test = [session_aligned(r, known, k) for r in train], session_aligned(test, known, k)
+        out[derived] = ([enrolment_recording(test, known, k)[0], *train], test)
+    return out
+
+
+def enrolment_report(folds: list, name: str, known: list[int], adaptations: tuple[str, ...]) -> dict:
+    """Frame metrics of ``name`` with (per adaptation; the first one's at the top) and without
+    enrolment on the same frames (each fold's frames after its enrolment, pooled), the gains in
+    open-set accuracy and the first scored frame per fold."""
 
     def pooled(labels_of) -> dict:
         return frame_metrics(
@@ -43,13 +73,21 @@ def enrolment_report(folds: list, name: str, known: list[int]) -> dict:
             known,
         )
 
-    with_, without = pooled(lambda f: f.enrolled[name]), pooled(lambda f: f.labels[name])
-    a, b = with_["open_set_accuracy"], without["open_set_accuracy"]
+    without = pooled(lambda f: f.labels[name])
+    by = {}
+    for a in adaptations:
+        with_ = pooled(lambda f, a=a: f.enrolled[a][name])
+        gain = (
+            None
+            if None in (with_["open_set_accuracy"], without["open_set_accuracy"])
+            else (with_["open_set_accuracy"] - without["open_set_accuracy"])
+        )
+        by[a] = {"open_set_accuracy": with_["open_set_accuracy"], "gain": gain, "with_enrolment": with_}
     return {
-        "open_set_accuracy": a,
-        "open_set_accuracy_without_enrolment": b,
-        "gain": None if a is None or b is None else a - b,
-        "with_enrolment": with_,
+        "adaptation": adaptations[0],
+        **by[adaptations[0]],
+        "open_set_accuracy_without_enrolment": without["open_set_accuracy"],
         "without_enrolment": without,
+        "adaptations": by,
         "scored_from": {f.recording: f.scored_from for f in folds},
     }

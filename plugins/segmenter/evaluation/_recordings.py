@@ -37,7 +37,8 @@ other; BLAS runs one thread either way, as the sums of a multi-threaded BLAS (th
 MiniRocket's) can differ in the last bits (docs/segmentation.md, ``--jobs``).
 
 ``enroll`` = K ≥ 1 refits every method with the first K segments per known class of the
-held-out recording and scores both fits on the frames after them (:mod:`._enrolment`).
+held-out recording (``enrol_adaptations``: aligning every recording by its own enrolment, or not)
+and scores both fits on the frames after them (:mod:`._enrolment`).
 """
 
 from __future__ import annotations
@@ -55,9 +56,9 @@ from threadpoolctl import threadpool_limits
 
 from .._moved import renamed
 from ..base import lagged
-from ..datasets import Recording, RecordingSet, enrolment_recording, segments
+from ..datasets import Recording, RecordingSet, enrolment_split, segments
 from ..features import DERIVED, ChannelScaling, RunningStandardizer, derive
-from ._enrolment import check_enrolment, enrolment_report
+from ._enrolment import ADAPTATIONS, check_enrolment, enrolled_views, enrolment_report
 from ._methods import REGISTRY, Fitted, UKRCLMMethod
 from ._metrics import calibrate, frame_metrics, segment_f1, tradeoff_curve
 
@@ -98,7 +99,7 @@ class FoldResult:
     strict: dict[str, np.ndarray]  # per method that fell back: the labels at the strict choice
     untrained: list[str]  # known classes without a training segment in this fold
     unlagged: dict[str, np.ndarray]  # per method: the labels at lag 0 (``labels`` are at the evaluation's lag)
-    enrolled: dict[str, np.ndarray] = field(default_factory=dict)  # per method: the labels with enrolment
+    enrolled: dict[str, dict[str, np.ndarray]] = field(default_factory=dict)  # per adaptation, method: labels
     scored_from: int = 0  # the first frame after the enrolment
 
 
@@ -191,6 +192,7 @@ class RecordingsEvaluator:
         lag: int = 0,
         jobs: int = 1,
         enroll: int = 0,
+        enrol_adaptations: tuple[str, ...] = ADAPTATIONS[:1],
     ) -> None:
         if jobs < 1:
             raise ValueError(f"jobs must be at least 1, got {jobs}")
@@ -216,8 +218,9 @@ class RecordingsEvaluator:
             raise ValueError("leave-one-recording-out needs at least 3 recordings (2 to train and validate, 1 to test)")
         self.data = data
         self.known = [data.class_names.index(k) for k in known] if known else list(range(len(data.class_names)))
-        check_enrolment(data, self.known, enroll)
+        check_enrolment(data, self.known, enroll, enrol_adaptations)
         self.enroll = enroll
+        self.enrol_adaptations = tuple(enrol_adaptations)
         self.methods = methods
         self.quick = quick
         self.random_state = random_state
@@ -367,8 +370,9 @@ class RecordingsEvaluator:
             self.progress(
                 f"  {held}: no training segment of {untrained} in the other recordings; models leave them out"
             )
-        labels, selected, sweeps, strict, enrolled = {}, {}, {}, {}, {}
-        enrolment = {d: enrolment_recording(t, self.known, self.enroll) for d, (_, t) in views.items() if self.enroll}
+        labels, selected, sweeps, strict = {}, {}, {}, {}
+        sessions = {a: enrolled_views(views, self.known, self.enroll, a) for a in self.enrol_adaptations if self.enroll}
+        enrolled = {a: {} for a in sessions}
 
         def lag(x: np.ndarray) -> np.ndarray:
             return lagged(x, self.lag)
@@ -392,19 +396,19 @@ class RecordingsEvaluator:
                 selected[name]["strict"] = {**choice.strict.params, "reject": float(choice.strict.reject)}
                 strict_fit, strict_state, _ = self._final(method, choice.strict.params, views)
                 strict[name] = lag(method.labels(strict_fit, strict_state, choice.strict.reject))
-            if self.enroll:
-                train, _ = views[choice.params["derived"]]
-                fitted_e = self._fit(method, [enrolment[choice.params["derived"]][0], *train], choice.params)
-                enrolled[name] = lag(method.labels(fitted_e, self._prepare(method, fitted_e, test), choice.reject))
-            for online in (REGISTRY[m] for m in self.methods if REGISTRY[m].batch is method):
-                labels[online.name] = online.labels_online(fitted, choice.reject, test.X)
-                selected[online.name] = selected[name]
-                if self.enroll:
-                    enrolled[online.name] = lag(online.labels_online(fitted_e, choice.reject, test.X))
+            online = [REGISTRY[m] for m in self.methods if REGISTRY[m].batch is method]
+            for o in online:
+                labels[o.name] = o.labels_online(fitted, choice.reject, test.X)
+                selected[o.name] = selected[name]
+            for adaptation, session in sessions.items():
+                fitted_e, state_e, test_e = self._final(method, choice.params, session)
+                enrolled[adaptation][name] = lag(method.labels(fitted_e, state_e, choice.reject))
+                for o in online:
+                    enrolled[adaptation][o.name] = lag(o.labels_online(fitted_e, choice.reject, test_e.X))
             self.progress(f"  {held}: {name} {selected[name]} in {time.perf_counter() - t0:.1f}s")
         lagged_labels = {name: lag(x) for name, x in labels.items()}
         truth = views[self.derived[0]][1].y
-        scored_from = enrolment[self.derived[0]][1] if self.enroll else 0
+        scored_from = enrolment_split(truth, self.known, self.enroll)[1] if self.enroll else 0
         return FoldResult(
             held, truth, lagged_labels, selected, sweeps, strict, untrained, labels, enrolled, scored_from
         )
@@ -498,7 +502,7 @@ class RecordingsEvaluator:
                 batch = np.concatenate([f.labels[REGISTRY[name].batch.name] for f in folds])
                 res["agreement"] = float(np.mean(pred == batch))
             if self.enroll:
-                res["enrolment"] = enrolment_report(folds, name, self.known)
+                res["enrolment"] = enrolment_report(folds, name, self.known, self.enrol_adaptations)
             out["methods"][name] = res
         self.folds_ = folds
         return out
@@ -546,7 +550,7 @@ class RecordingsEvaluator:
             },
             "quick": self.quick,
             "grids": {n: REGISTRY[n].grid(self.quick) for n in self.methods if REGISTRY[n].batch is None},
-            **({"enroll": self.enroll} if self.enroll else {}),
+            **({"enroll": self.enroll, "enrol_adaptations": list(self.enrol_adaptations)} if self.enroll else {}),
         }
 
     def _normalisation(self) -> dict:

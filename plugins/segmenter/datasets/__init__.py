@@ -1,9 +1,12 @@
 """Labelled trajectories, continuous recordings and synthetic letters (docs/segmentation.md)."""
 
 from ._enrolment import (
+    MIN_SPREAD,
     EnrolmentError,
     enrolment_recording,
     enrolment_split,
+    session_aligned,
+    session_alignment,
 )
 from ._recordings import (
     LABEL_COLUMN,
@@ -35,6 +38,7 @@ __all__ = [
     "LABEL_COLUMN",
     "LabelledDataset",
     "LetterGenerator",
+    "MIN_SPREAD",
     "NPZ_HINT",
     "Recording",
     "RecordingSet",
@@ -49,5 +53,7 @@ __all__ = [
     "load_dataset",
     "load_recordings",
     "segments",
+    "session_aligned",
+    "session_alignment",
     "split_counts",
 ]

@@ -3,7 +3,8 @@
 
 A segment is a maximal run of one label of 2+ frames, as :func:`._recordings.segments` takes them.
 The enrolment frames are the first ``k`` segments of each known class; the session's scored
-frames are those after the last of them ends.
+frames are those after the last of them ends.  :func:`session_alignment` learns a session's
+offset and scale from its enrolment frames (the ``align`` adaptation).
 """
 
 from __future__ import annotations
@@ -12,6 +13,8 @@ import numpy as np
 
 from ..base import runs
 from ._recordings import UNLABELLED, Recording
+
+MIN_SPREAD = 0.1  # floor of an aligned channel's spread, in units of the training frames' (documented choice)
 
 
 class EnrolmentError(ValueError):
@@ -50,3 +53,24 @@ def enrolment_recording(rec: Recording, classes: list[int], k: int) -> tuple[Rec
     mask, end = enrolment_split(rec.y, classes, k)
     y = np.where(mask, rec.y, UNLABELLED)[:end]
     return Recording(f"{rec.name} (enrolment)", rec.X[:end], y), end
+
+
+def session_alignment(
+    rec: Recording, classes: list[int], k: int, min_spread: float | np.ndarray = MIN_SPREAD
+) -> tuple[np.ndarray, np.ndarray]:
+    """Per channel the class-balanced mean and spread of the enrolment frames of ``rec`` (each
+    class of ``classes`` weighs alike, whatever its frames; the spread at least ``min_spread``):
+    ``(rec.X − offset) / spread`` is the session aligned (docs/segmentation.md, "Enrolment")."""
+    mask, _ = enrolment_split(rec.y, classes, k)
+    frames = [rec.X[mask & (rec.y == c)] for c in classes]
+    means = np.stack([f.mean(axis=0) for f in frames])
+    spread = np.sqrt(np.mean([f.var(axis=0) for f in frames], axis=0) + means.var(axis=0))
+    return means.mean(axis=0), np.maximum(spread, min_spread)
+
+
+def session_aligned(
+    rec: Recording, classes: list[int], k: int, min_spread: float | np.ndarray = MIN_SPREAD
+) -> Recording:
+    """``rec`` aligned by its own enrolment frames (:func:`session_alignment`)."""
+    offset, spread = session_alignment(rec, classes, k, min_spread)
+    return Recording(f"{rec.name} (aligned)", (rec.X - offset) / spread, rec.y)

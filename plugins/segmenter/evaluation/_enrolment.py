@@ -6,7 +6,8 @@ those segments as one more training recording, put first (its other frames unlab
 parameters and rejection value chosen without them on the inner folds.  Adaptations
 (:data:`ADAPTATIONS`): ``"align"`` also standardises every recording of the fold with the
 class-balanced mean and spread of its own enrolment frames (a per-session alignment of scale and
-offset); ``"refit"`` adds the segments only.  Both fits label the whole held-out recording and
+offset, :func:`..datasets.session_alignment`; the recordings are scaled with the training frames
+already, so the spread's floor is a tenth of theirs); ``"refit"`` adds the segments only.  Both fits label the whole held-out recording and
 are scored on the same frames: those after the enrolment.
 """
 
@@ -14,11 +15,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..datasets import EnrolmentError, Recording, RecordingSet, enrolment_recording, enrolment_split
+from ..datasets import EnrolmentError, RecordingSet, enrolment_recording, enrolment_split, session_aligned
 from ._metrics import frame_metrics
 
 ADAPTATIONS = ("align", "refit")  # the first is the default
-MIN_SPREAD = 0.1  # floor of an aligned channel's spread, in units of the training frames' (documented choice)
 
 
 def check_enrolment(data: RecordingSet, known: list[int], k: int, adaptations: tuple[str, ...]) -> None:
@@ -36,17 +36,6 @@ def check_enrolment(data: RecordingSet, known: list[int], k: int, adaptations: t
                 f"--enroll {k}: recording '{rec.name}' has {exc}; lower --enroll, or leave such classes "
                 "out with --known (docs/segmentation.md, Enrolment)"
             ) from None
-
-
-def session_aligned(rec: Recording, known: list[int], k: int) -> Recording:
-    """``rec`` standardised per channel with the class-balanced mean and spread of its enrolment
-    frames (each known class weighs alike, whatever its frames), the spread at least
-    :data:`MIN_SPREAD`."""
-    mask, _ = enrolment_split(rec.y, known, k)
-    frames = [rec.X[mask & (rec.y == c)] for c in known]
-    means = np.stack([f.mean(axis=0) for f in frames])
-    spread = np.sqrt(np.mean([f.var(axis=0) for f in frames], axis=0) + means.var(axis=0))
-    return Recording(f"{rec.name} (aligned)", (rec.X - means.mean(axis=0)) / np.maximum(spread, MIN_SPREAD), rec.y)
 
 
 def enrolled_views(views: dict, known: list[int], k: int, adaptation: str) -> dict:

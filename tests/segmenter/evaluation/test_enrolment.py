@@ -12,6 +12,7 @@ from handflow.plugins.segmenter.datasets import (
     enrolment_recording,
     enrolment_split,
     load_recordings,
+    session_aligned,
 )
 from handflow.plugins.segmenter.evaluation import RecordingsEvaluator, frame_metrics
 from tests.conftest import run_command
@@ -54,21 +55,34 @@ def test_without_enrolment_the_evaluation_is_unchanged(sessions):
 def test_with_and_without_enrolment_are_scored_on_the_same_frames_after_it(sessions):
     plain = RecordingsEvaluator(sessions, methods=("dtw_1nn",), quick=True)
     plain.evaluate()
-    ev = RecordingsEvaluator(sessions, methods=("dtw_1nn",), quick=True, enroll=1)
+    ev = RecordingsEvaluator(sessions, methods=("dtw_1nn",), quick=True, enroll=1, enrol_adaptations=("refit", "align"))
     res = ev.evaluate()
     report = res["methods"]["dtw_1nn"]["enrolment"]
-    assert res["parameters"]["enroll"] == 1
+    assert res["parameters"]["enroll"] == 1 and report["adaptation"] == "refit"
     for f, p in zip(ev.folds_, plain.folds_):
         assert f.scored_from == enrolment_split(f.truth, ev.known, 1)[1] == report["scored_from"][f.recording]
         assert np.array_equal(f.labels["dtw_1nn"], p.labels["dtw_1nn"])  # the fit without enrolment
     truth = np.concatenate([f.truth[f.scored_from :] for f in ev.folds_])
     without = np.concatenate([p.labels["dtw_1nn"][f.scored_from :] for f, p in zip(ev.folds_, plain.folds_)])
-    enrolled = np.concatenate([f.enrolled["dtw_1nn"][f.scored_from :] for f in ev.folds_])
     assert report["without_enrolment"] == frame_metrics(truth, without, ev.known)
-    assert report["with_enrolment"] == frame_metrics(truth, enrolled, ev.known)
+    for adaptation in ("refit", "align"):
+        enrolled = np.concatenate([f.enrolled[adaptation]["dtw_1nn"][f.scored_from :] for f in ev.folds_])
+        assert report["adaptations"][adaptation]["with_enrolment"] == frame_metrics(truth, enrolled, ev.known)
+        assert any(not np.array_equal(f.enrolled[adaptation]["dtw_1nn"], f.labels["dtw_1nn"]) for f in ev.folds_)
+    assert report["with_enrolment"] == report["adaptations"]["refit"]["with_enrolment"]
     assert report["gain"] == report["open_set_accuracy"] - report["open_set_accuracy_without_enrolment"]
-    assert any(not np.array_equal(f.enrolled["dtw_1nn"], f.labels["dtw_1nn"]) for f in ev.folds_)  # refitted
     assert "after the enrolment: open-set accuracy" in format_stream_table(res)
+
+
+def test_the_session_alignment_learns_offset_and_scale_from_the_enrolment_frames_only():
+    rng = np.random.default_rng(0)
+    X = rng.normal(size=(15, 2))
+    aligned = session_aligned(Recording("r", 3.0 + 2.0 * X, LABELS), [0, 1], 1)
+    enrolled = [aligned.X[:2], aligned.X[2:5]]  # the first a and the first b
+    assert np.allclose(np.mean([e.mean(axis=0) for e in enrolled], axis=0), 0)  # each class weighs alike
+    assert np.allclose(session_aligned(Recording("r", X, LABELS), [0, 1], 1).X, aligned.X)  # offset and scale gone
+    later = np.r_[X[:5], 10 * X[5:]]
+    assert np.allclose(session_aligned(Recording("r", later, LABELS), [0, 1], 1).X[:5], aligned.X[:5])
 
 
 def test_a_recording_without_k_segments_of_a_known_class_stops_the_evaluation_saying_what_to_change(tmp_path, capsys):

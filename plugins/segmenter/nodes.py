@@ -197,8 +197,14 @@ class OnlineCLMNode(_RecognizerNode):
         enroll: str | None = Field(
             None,
             description="source ukr: a short labelled recording of the session (CSV folder or continuous .npz) whose "
-            "segments of the models' classes adapt the models at setup: they are refitted with them, as "
-            "`evaluate segmentation --enroll` does (docs/segmentation.md, Enrolment)",
+            "first enroll_segments segments per class of the models adapt them at setup, as `evaluate segmentation "
+            "--enroll` does (docs/segmentation.md, Enrolment)",
+        )
+        enroll_segments: int = Field(1, ge=1, description="with enroll: segments per class that enrol (K)")
+        enroll_adaptation: Literal["align", "refit"] = Field(
+            "align",
+            description="with enroll: 'align' refits the models on recordings standardised with their own enrolment "
+            "frames and standardises the stream with the session's; 'refit' adds the segments only",
         )
         enroll_training: str | None = Field(
             None,
@@ -223,6 +229,11 @@ class OnlineCLMNode(_RecognizerNode):
                 raise ValueError("max_fit_ratio needs source 'ukr' (a scorer's evidence has no model errors)")
             if self.source != "ukr" and self.enroll:
                 raise ValueError("enroll needs source 'ukr' (refit the scorer with `handflow fit-scorer` instead)")
+            if self.enroll and self.enroll_adaptation == "align" and self.running_normalisation_frames:
+                raise ValueError(
+                    "enroll_adaptation 'align' standardises the stream with the session's enrolment; "
+                    "set running_normalisation_frames 0 or enroll_adaptation refit"
+                )
             if self.source != "ukr" and self.running_normalisation_frames:
                 raise ValueError("running_normalisation_frames needs source 'ukr' (its prior is the models' scaling)")
             return self
@@ -296,13 +307,19 @@ class OnlineCLMNode(_RecognizerNode):
         self.segmenter.reset()
 
     def enrolled(self, models: CandidateSet) -> CandidateSet:
-        """``models`` refitted with the segments of the ``enroll`` recording (:func:`..models.enrolled_models`)."""
+        """``models`` adapted by the ``enroll`` recording (:func:`..models.enrolled_models`); with
+        ``align`` every observation is standardised with the session's enrolment frames first."""
         p = self.params
         provenance = next(iter(models.models.values())).model.provenance_
         training = p.enroll_training or provenance.get("dataset")
         if training is None:
             raise ValueError("enroll: the models do not name their training recordings; set enroll_training")
-        return enrolled_models(models, self.ctx.resolve_path(training), self.ctx.resolve_path(p.enroll), p.seed)
+        paths = self.ctx.resolve_path(training), self.ctx.resolve_path(p.enroll)
+        models, alignment = enrolled_models(models, *paths, p.enroll_segments, p.enroll_adaptation, p.seed)
+        if alignment is not None:
+            offset, spread = alignment
+            self.running = lambda y: (y - offset) / spread
+        return models
 
     def load_scorer(self) -> WindowScorer:
         scorer = load_scorer(self.ctx.resolve_path(self.params.scorer))

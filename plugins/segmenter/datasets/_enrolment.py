@@ -27,7 +27,7 @@ def enrolment_split(
     """Mask of the enrolment frames of labels ``y`` — the first ``k`` segments of every class
     in ``classes`` — and the first frame after them (the first scored frame).  Classes not in
     ``classes`` are never enrolled.  :class:`EnrolmentError` (naming classes by ``names``) when a
-    class has fewer than ``k`` segments or no frame follows the enrolment."""
+    class has fewer than ``k`` segments."""
     labels, starts, ends = np.array(runs(y), dtype=int).reshape(-1, 3).T
     long = ends - starts >= 2
     picked = [np.flatnonzero(long & (labels == c))[:k] for c in classes]
@@ -40,10 +40,7 @@ def enrolment_split(
     edges = np.zeros(len(y) + 1, dtype=int)
     np.add.at(edges, starts[enrolled], 1)
     np.add.at(edges, ends[enrolled], -1)
-    end = int(ends[enrolled].max(initial=0))
-    if end >= len(y):
-        raise EnrolmentError("no frame after its enrolment segments")
-    return np.cumsum(edges[:-1]) > 0, end
+    return np.cumsum(edges[:-1]) > 0, int(ends[enrolled].max(initial=0))
 
 
 def enrolment_recording(rec: Recording, classes: list[int], k: int) -> tuple[Recording, int]:

@@ -30,7 +30,8 @@ def check_enrolment(data: RecordingSet, known: list[int], k: int, adaptations: t
         raise ValueError(f"enrolment adaptations: name distinct choices among {ADAPTATIONS}, got {list(adaptations)}")
     for rec in data.recordings:
         try:
-            enrolment_split(rec.y, known, k, data.class_names)
+            if enrolment_split(rec.y, known, k, data.class_names)[1] == len(rec.y):
+                raise EnrolmentError("no frame after its enrolment segments")
         except EnrolmentError as exc:
             raise ValueError(
                 f"--enroll {k}: recording '{rec.name}' has {exc}; lower --enroll, or leave such classes "

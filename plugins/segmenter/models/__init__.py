@@ -23,7 +23,7 @@ from ._cycles import (
     split_cycles,
 )
 from ._enrolment import (
-    class_segments,
+    ADAPTATIONS,
     enrolled_models,
 )
 from ._fast_projection import (
@@ -48,6 +48,7 @@ from ._training import (
 )
 
 __all__ = [
+    "ADAPTATIONS",
     "BatchedPeriodicProjector",
     "CYCLES",
     "CandidateModel",
@@ -68,7 +69,6 @@ __all__ = [
     "auto_beta",
     "candidate_set",
     "class_pieces",
-    "class_segments",
     "detect_period",
     "enrolled_models",
     "fit_class_models",

@@ -1,6 +1,9 @@
 """Recording models adapted to a session by its enrolment segments (docs/segmentation.md,
-"Enrolment"): refitted as :func:`._training.fit_recording_models` fitted them, on the enrolment
-segments first and then the training segments — the same rule as the evaluation's ``--enroll``.
+"Enrolment"), as the evaluation's ``--enroll`` adapts them: refitted as
+:func:`._training.fit_recording_models` fitted them, on the session's first K segments per class
+first and then the training recordings' segments; ``"align"`` standardises every recording
+(training ones and the session) with its own enrolment frames first
+(:func:`..datasets.session_alignment`), and the stream with the session's.
 """
 
 from __future__ import annotations
@@ -9,39 +12,70 @@ from pathlib import Path
 
 import numpy as np
 
-from ..datasets import DatasetError, load_recordings, segments
+from ..datasets import (
+    MIN_SPREAD,
+    DatasetError,
+    EnrolmentError,
+    Recording,
+    enrolment_recording,
+    load_recordings,
+    segments,
+    session_aligned,
+    session_alignment,
+)
 from ._candidates import CandidateSet
 from ._training import fit_recording_models
 
+ADAPTATIONS = ("align", "refit")  # as the evaluation's; the first is the default
 
-def class_segments(path: str | Path, classes: list[str]) -> dict[str, list[np.ndarray]]:
-    """Class name → the labelled segments (2+ frames) of ``classes`` in the recordings at ``path``
-    (a folder of labelled CSVs or a continuous .npz); classes the recordings lack get none."""
+
+def _recordings(path: str | Path, classes: list[str]) -> list[Recording]:
+    """The recordings at ``path`` labelled with indices into ``classes`` (other labels: unlabelled)."""
     data = load_recordings(path)
-    held = [c for c in classes if c in data.class_names]
-    segs = segments(data.recordings, [data.class_names.index(c) for c in held])
-    return {c: segs.get(data.class_names.index(c), []) if c in held else [] for c in classes}
+    lut = np.array([classes.index(c) if c in classes else -1 for c in data.class_names] + [-1])
+    return [Recording(r.name, r.X, lut[r.y]) for r in data.recordings]
 
 
 def enrolled_models(
-    models: CandidateSet, training: str | Path, enrolment: str | Path, random_state: int | None = 0
-) -> CandidateSet:
-    """``models`` refitted on the segments of their classes in the recordings ``enrolment`` (a
-    short labelled recording of the session; only the models' classes are enrolled) and in their
-    training recordings ``training``, with the delay, derived features, scaling and training steps
-    their provenance records; the background level stays the one calibrated for ``models``."""
-    classes = models.classes
-    enrolled, trained = class_segments(enrolment, classes), class_segments(training, classes)
-    if not any(enrolled.values()):
-        raise DatasetError(f"{enrolment} holds no labelled segment of the models' classes {classes}")
-    untrained = [c for c in classes if not trained[c]]
+    models: CandidateSet,
+    training: str | Path,
+    enrolment: str | Path,
+    k: int = 1,
+    adaptation: str = ADAPTATIONS[0],
+    random_state: int | None = 0,
+) -> tuple[CandidateSet, tuple[np.ndarray, np.ndarray] | None]:
+    """``models`` refitted with the first ``k`` segments per class of the one recording at
+    ``enrolment`` and the segments of their training recordings ``training`` (only the models'
+    classes; the delay, derived features, scaling and training steps their provenance records; the
+    calibrated background level kept), and the session's ``(offset, spread)`` that aligns the
+    stream for ``"align"`` (None for ``"refit"``).  A DatasetError says what to change."""
+    if adaptation not in ADAPTATIONS:
+        raise ValueError(f"enroll_adaptation must be one of {ADAPTATIONS}, got {adaptation!r}")
+    classes, known = models.classes, list(range(len(models.classes)))
+    session, trained = _recordings(enrolment, classes), _recordings(training, classes)
+    if len(session) != 1:
+        raise DatasetError(f"{enrolment} holds {len(session)} recordings; enroll needs one recording of the session")
+    alignment = None
+    try:
+        if adaptation == "align":
+            floor = MIN_SPREAD * np.vstack([r.X for r in trained]).std(axis=0)
+            alignment = session_alignment(session[0], known, k, floor)
+            trained = [session_aligned(r, known, k, floor) for r in trained]
+            session = [session_aligned(session[0], known, k, floor)]
+        enrolled = enrolment_recording(session[0], known, k)[0]
+    except EnrolmentError as exc:
+        raise DatasetError(
+            f"enroll: a recording has {exc}; record them, lower enroll_segments or set enroll_adaptation: refit"
+        ) from None
+    by_class = segments([enrolled, *trained], known)
+    untrained = [classes[c] for c in known if not by_class[c]]
     if untrained:
         raise DatasetError(
             f"{training} holds no segment of {untrained}: name the recordings the models were trained on"
         )
     provenance = next(iter(models.models.values())).model.provenance_
     refit = fit_recording_models(
-        {c: enrolled[c] + trained[c] for c in classes},
+        {classes[c]: segs for c, segs in by_class.items()},
         delay=models.delay.window,
         n_steps=int(provenance.get("steps", 150)),
         random_state=random_state,
@@ -49,4 +83,4 @@ def enrolled_models(
         derived=models.derived.kind,
     )
     refit.background_factor = models.background_factor
-    return refit
+    return refit, alignment

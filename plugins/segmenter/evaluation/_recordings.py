@@ -396,15 +396,11 @@ class RecordingsEvaluator:
                 selected[name]["strict"] = {**choice.strict.params, "reject": float(choice.strict.reject)}
                 strict_fit, strict_state, _ = self._final(method, choice.strict.params, views)
                 strict[name] = lag(method.labels(strict_fit, strict_state, choice.strict.reject))
-            online = [REGISTRY[m] for m in self.methods if REGISTRY[m].batch is method]
-            for o in online:
-                labels[o.name] = o.labels_online(fitted, choice.reject, test.X)
-                selected[o.name] = selected[name]
+            for online in (REGISTRY[m] for m in self.methods if REGISTRY[m].batch is method):
+                labels[online.name] = online.labels_online(fitted, choice.reject, test.X)
+                selected[online.name] = selected[name]
             for adaptation, session in sessions.items():
-                fitted_e, state_e, test_e = self._final(method, choice.params, session)
-                enrolled[adaptation][name] = lag(method.labels(fitted_e, state_e, choice.reject))
-                for o in online:
-                    enrolled[adaptation][o.name] = lag(o.labels_online(fitted_e, choice.reject, test_e.X))
+                enrolled[adaptation].update(self._enrolled(method, choice, session))
             self.progress(f"  {held}: {name} {selected[name]} in {time.perf_counter() - t0:.1f}s")
         lagged_labels = {name: lag(x) for name, x in labels.items()}
         truth = views[self.derived[0]][1].y
@@ -412,6 +408,16 @@ class RecordingsEvaluator:
         return FoldResult(
             held, truth, lagged_labels, selected, sweeps, strict, untrained, labels, enrolled, scored_from
         )
+
+    def _enrolled(self, method, choice: Choice, session: dict) -> dict[str, np.ndarray]:
+        """The lagged labels of the held-out recording by ``method`` (and the online methods that
+        replay its models) with ``choice``, fitted with the enrolment (``session``:
+        :func:`._enrolment.enrolled_views`)."""
+        fitted, state, test = self._final(method, choice.params, session)
+        out = {method.name: method.labels(fitted, state, choice.reject)}
+        for online in (REGISTRY[m] for m in self.methods if REGISTRY[m].batch is method):
+            out[online.name] = online.labels_online(fitted, choice.reject, test.X)
+        return {name: lagged(x, self.lag) for name, x in out.items()}
 
     def _final(self, method, params: dict, views) -> tuple:
         """``method`` fitted with ``params`` on all training recordings, its state on the held-out

@@ -81,3 +81,19 @@ def enrolment_report(folds: list, name: str, known: list[int], adaptations: tupl
         "adaptations": by,
         "scored_from": {f.recording: f.scored_from for f in folds},
     }
+
+
+def fold_note(fold, known: list[int]) -> str:
+    """One fold's open-set accuracy per method on its frames after the enrolment, with enrolment
+    (per adaptation) and without, for the progress log."""
+
+    def accuracy(labels: np.ndarray) -> str:
+        value = frame_metrics(fold.truth[fold.scored_from :], labels[fold.scored_from :], known)["open_set_accuracy"]
+        return "—" if value is None else f"{value:.3f}"
+
+    figures = "; ".join(
+        f"{name} {', '.join(f'{accuracy(by[name])} ({a})' for a, by in fold.enrolled.items())}, "
+        f"{accuracy(fold.labels[name])} without"
+        for name in fold.labels
+    )
+    return f"{fold.recording}: after the enrolment (from frame {fold.scored_from}): {figures}"

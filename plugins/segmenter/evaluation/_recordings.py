@@ -58,7 +58,7 @@ from .._moved import renamed
 from ..base import lagged
 from ..datasets import Recording, RecordingSet, enrolment_split, segments
 from ..features import DERIVED, ChannelScaling, RunningStandardizer, derive
-from ._enrolment import ADAPTATIONS, check_enrolment, enrolled_views, enrolment_report
+from ._enrolment import ADAPTATIONS, check_enrolment, enrolled_views, enrolment_report, fold_note
 from ._methods import REGISTRY, Fitted, UKRCLMMethod
 from ._metrics import calibrate, frame_metrics, segment_f1, tradeoff_curve
 
@@ -429,7 +429,10 @@ class RecordingsEvaluator:
     # -- all folds --------------------------------------------------------------------------
     def _announced_fold(self, k: int, held: str) -> FoldResult:
         self.progress(f"fold {k + 1}/{len(self.data.recordings)}: holding out '{held}'")
-        return self.run_fold(held)
+        fold = self.run_fold(held)
+        if self.enroll:
+            self.progress(f"  {fold_note(fold, self.known)}")
+        return fold
 
     def _run_folds(self) -> list[FoldResult]:
         """Every fold's result in recording order: one after the other, or over ``jobs`` forked

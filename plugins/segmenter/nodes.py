@@ -26,7 +26,7 @@ from handflow.plugins.manifold.io import FORMAT_VERSION as UKR_VERSION
 
 from .clm import UKROnlyRecognizer
 from .features import ChannelScaling, RunningStandardizer
-from .models import CandidateSet, load_candidates
+from .models import CandidateSet, enrolled_models, load_candidates
 from .online import OnlineCLMSegmenter, OnlineScoreCLMSegmenter, SegmentChange, SegmentTracker
 from .scorers import FORMAT, FORMAT_VERSION, MiniRocketScorer, ScorerFileError, WindowScorer, load_scorer
 
@@ -194,6 +194,23 @@ class OnlineCLMNode(_RecognizerNode):
             description="publish each observation's label from the evidence of the window ending this many "
             "observations later (index = newest − lag; docs/segmentation.md, labels with a lag)",
         )
+        enroll: str | None = Field(
+            None,
+            description="source ukr: a short labelled recording of the session (CSV folder or continuous .npz) whose "
+            "first enroll_segments segments per class of the models adapt them at setup, as `evaluate segmentation "
+            "--enroll` does (docs/segmentation.md, Enrolment)",
+        )
+        enroll_segments: int = Field(1, ge=1, description="with enroll: segments per class that enrol (K)")
+        enroll_adaptation: Literal["align", "refit"] = Field(
+            "align",
+            description="with enroll: 'align' refits the models on recordings standardised with their own enrolment "
+            "frames and standardises the stream with the session's; 'refit' adds the segments only",
+        )
+        enroll_training: str | None = Field(
+            None,
+            description="with enroll: the recordings the models were trained on (null = the dataset their "
+            "provenance names)",
+        )
         seed: int | None = 0
 
         @model_validator(mode="after")
@@ -210,6 +227,13 @@ class OnlineCLMNode(_RecognizerNode):
                 raise ValueError("min_progress needs source 'ukr' (a scorer's evidence has no latent time)")
             if self.source != "ukr" and self.max_fit_ratio is not None:
                 raise ValueError("max_fit_ratio needs source 'ukr' (a scorer's evidence has no model errors)")
+            if self.source != "ukr" and self.enroll:
+                raise ValueError("enroll needs source 'ukr' (refit the scorer with `handflow fit-scorer` instead)")
+            if self.enroll and self.enroll_adaptation == "align" and self.running_normalisation_frames:
+                raise ValueError(
+                    "enroll_adaptation 'align' standardises the stream with the session's enrolment; "
+                    "set running_normalisation_frames 0 or enroll_adaptation refit"
+                )
             if self.source != "ukr" and self.running_normalisation_frames:
                 raise ValueError("running_normalisation_frames needs source 'ukr' (its prior is the models' scaling)")
             return self
@@ -233,6 +257,8 @@ class OnlineCLMNode(_RecognizerNode):
         self.running = None
         if p.source == "ukr":
             models = self.load_models()
+            if p.enroll:
+                models = self.enrolled(models)
             channels = models.n_channels
             reconstruction = models.reconstruction if p.reconstruction == "auto" else p.reconstruction
             self.segmenter = OnlineCLMSegmenter(
@@ -279,6 +305,21 @@ class OnlineCLMNode(_RecognizerNode):
         self.segmenter.update(np.zeros(channels))
         self.segmenter.set_params(random_state=self.params.seed)
         self.segmenter.reset()
+
+    def enrolled(self, models: CandidateSet) -> CandidateSet:
+        """``models`` adapted by the ``enroll`` recording (:func:`..models.enrolled_models`); with
+        ``align`` every observation is standardised with the session's enrolment frames first."""
+        p = self.params
+        provenance = next(iter(models.models.values())).model.provenance_
+        training = p.enroll_training or provenance.get("dataset")
+        if training is None:
+            raise ValueError("enroll: the models do not name their training recordings; set enroll_training")
+        paths = self.ctx.resolve_path(training), self.ctx.resolve_path(p.enroll)
+        models, alignment = enrolled_models(models, *paths, p.enroll_segments, p.enroll_adaptation, p.seed)
+        if alignment is not None:
+            offset, spread = alignment
+            self.running = lambda y: (y - offset) / spread
+        return models
 
     def load_scorer(self) -> WindowScorer:
         scorer = load_scorer(self.ctx.resolve_path(self.params.scorer))

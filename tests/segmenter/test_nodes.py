@@ -6,10 +6,11 @@ from handflow.framework.messages import Array, JointState
 from handflow.framework.testkit.harness import NodeHarness
 from handflow.plugins.segmenter import save_class_models
 from handflow.plugins.segmenter.base import lagged
-from handflow.plugins.segmenter.datasets import basicmotions_continuous, load_recordings, segments
+from handflow.plugins.segmenter.datasets import Recording, basicmotions_continuous, load_recordings, segments
 from handflow.plugins.segmenter.models import ModelsMissingError, fit_recording_models
 from handflow.plugins.segmenter.nodes import UNKNOWN, OnlineCLMNode, UKROnlyNode
 from tests.segmenter.conftest import SHARED
+from tests.segmenter.datasets.test_recordings import _synthetic_recordings
 
 
 @pytest.fixture(scope="module")
@@ -148,3 +149,36 @@ def test_online_clm_node_with_a_lag_publishes_the_labels_shifted_by_it(tmp_path)
         published[lag] = _final_labels(h, len(X) - lag)
     assert len(set(published[0])) > 1  # the recording changes class: there are boundaries to move
     assert np.array_equal(published[4], lagged(published[0], 4)[: len(X) - 4])
+
+
+def test_online_clm_node_adapts_its_models_to_the_session_of_an_enrolment_recording(tmp_path):
+    """A session recorded elsewhere (every channel scaled and shifted): with ``enroll`` the node's
+    models are refitted with its first segment per class and — ``align`` — the stream is aligned by
+    the session's enrolment, so the models explain the session's frames far better."""
+    train = {"class_names": np.array(["a", "b", "c"])}
+    for k in range(2):
+        train[f"X_r{k}"], train[f"y_r{k}"] = _synthetic_recordings(k)
+    np.savez(tmp_path / "train.npz", **train)
+    X, y = _synthetic_recordings(5)
+    X = 2.0 * X + 1.5
+    np.savez(tmp_path / "session.npz", class_names=np.array(["a", "b", "c", "d"]), X_s=X, y_s=y)
+    by_class = dict(zip("abc", segments(load_recordings(tmp_path / "train.npz").recordings, [0, 1, 2]).values()))
+    models = fit_recording_models(by_class, delay=4, n_steps=20, scaling="standard")
+    provenance = {"dataset": str(tmp_path / "train.npz"), "steps": 20, "background_factor": 0.5}
+    params = {"models": str(save_class_models(models, tmp_path / "m", provenance=provenance)), "window": 60}
+    a = segments([Recording("s", X, y)], [0])[0][-1]  # the session's last 'a' (not enrolled)
+
+    def own_error(extra: dict) -> float:
+        node = NodeHarness(OnlineCLMNode, dict(params, **extra)).setup().node
+        assert node.segmenter.classes_ == ["a", "b", "c"] and node.segmenter.background_factor == 0.5
+        seen = a if node.running is None else node.running(a)
+        return float(np.median(node.segmenter.candidates.project(seen).errors[:, 0]))
+
+    plain = own_error({})
+    session = str(tmp_path / "session.npz")
+    assert own_error({"enroll": session}) < 0.3 * plain
+    assert own_error({"enroll": session, "enroll_adaptation": "refit"}) < plain
+    with pytest.raises(ValueError, match="lower enroll_segments"):
+        own_error({"enroll": session, "enroll_segments": 3})
+    with pytest.raises(ValueError, match="enroll needs source 'ukr'"):
+        NodeHarness(OnlineCLMNode, {"source": "dtw", "scorer": "s.npz", "enroll": "e.npz"})

@@ -267,6 +267,21 @@ def register_evaluate(parser: argparse.ArgumentParser) -> None:
         "later (latency for accuracy); every method is also reported at lag 0 and at half its window "
         "(docs/segmentation.md)",
     )
+    parser.add_argument(
+        "--enroll",
+        type=int,
+        default=0,
+        help="continuous recordings: every method also gets the first K labelled segments per known class of the "
+        "held-out recording (as a user enrols at the start of a session) and is scored with and without them on "
+        "the frames after them (default 0 = off; docs/segmentation.md, Enrolment)",
+    )
+    parser.add_argument(
+        "--enroll-adaptation",
+        default="align",
+        help="with --enroll: comma-separated ways to adapt, each reported, the first at the top — 'align' (default): "
+        "every recording is also standardised with the mean and spread of its own enrolment segments; 'refit': "
+        "the segments are extra training data only (docs/segmentation.md, Enrolment)",
+    )
     parser.set_defaults(func=run_evaluate)
 
 
@@ -285,6 +300,8 @@ def run_evaluate(args) -> int:
         return run_recordings_evaluation(args, _progress)
     t0 = time.perf_counter()
     try:
+        if args.enroll:
+            raise DatasetError("--enroll applies to continuous recordings (docs/segmentation.md, Enrolment)")
         if (args.normalise, args.pseudo_unknowns, args.derived, args.calibration, args.lag) != (
             None,
             "refit",

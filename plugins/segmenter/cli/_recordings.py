@@ -51,6 +51,8 @@ def run_recordings_evaluation(args, progress) -> int:
             calibration=args.calibration,
             lag=args.lag,
             jobs=args.jobs or default_jobs(),
+            enroll=args.enroll,
+            enrol_adaptations=tuple(a for a in args.enroll_adaptation.split(",") if a),
         )
         result = evaluator.evaluate()
     except (ValueError, ImportError) as exc:
@@ -83,9 +85,22 @@ def format_stream_table(result: dict) -> str:
             f"{'':15s} open-set accuracy at lag 0 {at['0']}, at half the window "
             f"({'/'.join(str(f['half_window']) for f in r['folds'])} frames per fold) {at['half_window']}"
         )
+        if "enrolment" in r:
+            lines.append(f"{'':15s} after the enrolment: {_enrolment_line(r['enrolment'])}")
         if r.get("calibration_note"):
             lines.append(f"{'':15s} note: {r['calibration_note']}")
     return "\n".join(lines)
+
+
+def _enrolment_line(report: dict) -> str:
+    def fig(x: float | None) -> str:
+        return "—" if x is None else f"{x:.3f}"
+
+    adapted = ", ".join(
+        f"{fig(a['open_set_accuracy'])} with it ({name}; gain {fig(a['gain'])})"
+        for name, a in report["adaptations"].items()
+    )
+    return f"open-set accuracy {adapted}, {fig(report['open_set_accuracy_without_enrolment'])} without"
 
 
 def write_recordings_plots(ev: RecordingsEvaluator, result: dict, folder: Path) -> None:

@@ -1,5 +1,13 @@
 """Labelled trajectories, continuous recordings and synthetic letters (docs/segmentation.md)."""
 
+from ._enrolment import (
+    MIN_SPREAD,
+    EnrolmentError,
+    enrolment_recording,
+    enrolment_split,
+    session_aligned,
+    session_alignment,
+)
 from ._recordings import (
     LABEL_COLUMN,
     UNLABELLED,
@@ -26,9 +34,11 @@ from ._trajectories import (
 
 __all__ = [
     "DatasetError",
+    "EnrolmentError",
     "LABEL_COLUMN",
     "LabelledDataset",
     "LetterGenerator",
+    "MIN_SPREAD",
     "NPZ_HINT",
     "Recording",
     "RecordingSet",
@@ -37,9 +47,13 @@ __all__ = [
     "Trajectory",
     "UNLABELLED",
     "basicmotions_continuous",
+    "enrolment_recording",
+    "enrolment_split",
     "is_continuous",
     "load_dataset",
     "load_recordings",
     "segments",
+    "session_aligned",
+    "session_alignment",
     "split_counts",
 ]

@@ -36,6 +36,10 @@ Folds are independent (each starts its own model cache and every fit takes ``ran
 ``jobs`` > 1 runs them over that many forked processes, with the same figures as one after the
 other; BLAS runs one thread either way, as the sums of a multi-threaded BLAS (the HMMs',
 MiniRocket's) can differ in the last bits (docs/segmentation.md, ``--jobs``).
+
+``enroll`` = K ≥ 1 refits every method with the first K segments per known class of the
+held-out recording (``enrol_adaptations``: aligning every recording by its own enrolment, or not)
+and scores both fits on the frames after them (:mod:`._enrolment`).
 """
 
 from __future__ import annotations
@@ -46,15 +50,16 @@ import os
 import time
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor, as_completed
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from threadpoolctl import threadpool_limits
 
 from .._moved import renamed
 from ..base import lagged
-from ..datasets import Recording, RecordingSet, segments
+from ..datasets import Recording, RecordingSet, enrolment_split, segments
 from ..features import DERIVED, ChannelScaling, RunningStandardizer, derive
+from ._enrolment import ADAPTATIONS, check_enrolment, enrolled_views, enrolment_report, fold_note
 from ._methods import REGISTRY, Fitted, UKRCLMMethod
 from ._metrics import calibrate, frame_metrics, segment_f1, tradeoff_curve
 
@@ -99,6 +104,8 @@ class FoldResult:
     strict: dict[str, np.ndarray]  # per method that fell back: the labels at the strict choice
     untrained: list[str]  # known classes without a training segment in this fold
     unlagged: dict[str, np.ndarray]  # per method: the labels at lag 0 (``labels`` are at the evaluation's lag)
+    enrolled: dict[str, dict[str, np.ndarray]] = field(default_factory=dict)  # per adaptation, method: labels
+    scored_from: int = 0  # the first frame after the enrolment
 
 
 @dataclass
@@ -189,6 +196,8 @@ class RecordingsEvaluator:
         calibration: str = CALIBRATIONS[0],
         lag: int = 0,
         jobs: int = 1,
+        enroll: int = 0,
+        enrol_adaptations: tuple[str, ...] = ADAPTATIONS[:1],
     ) -> None:
         if jobs < 1:
             raise ValueError(f"jobs must be at least 1, got {jobs}")
@@ -215,6 +224,9 @@ class RecordingsEvaluator:
             raise ValueError("leave-one-recording-out needs at least 3 recordings (2 to train and validate, 1 to test)")
         self.data = data
         self.known = [data.class_names.index(k) for k in known] if known else list(range(len(data.class_names)))
+        check_enrolment(data, self.known, enroll, enrol_adaptations)
+        self.enroll = enroll
+        self.enrol_adaptations = tuple(enrol_adaptations)
         self.methods = methods
         self.quick = quick
         self.random_state = random_state
@@ -369,6 +381,8 @@ class RecordingsEvaluator:
                 f"  {held}: no training segment of {untrained} in the other recordings; models leave them out"
             )
         labels, selected, sweeps, strict = {}, {}, {}, {}
+        sessions = {a: enrolled_views(views, self.known, self.enroll, a) for a in self.enrol_adaptations if self.enroll}
+        enrolled = {a: {} for a in sessions}
 
         def lag(x: np.ndarray) -> np.ndarray:
             return lagged(x, self.lag)
@@ -395,10 +409,25 @@ class RecordingsEvaluator:
             for online in (REGISTRY[m] for m in self.methods if REGISTRY[m].batch is method):
                 labels[online.name] = online.labels_online(fitted, choice.reject, test.X)
                 selected[online.name] = selected[name]
+            for adaptation, session in sessions.items():
+                enrolled[adaptation].update(self._enrolled(method, choice, session))
             self.progress(f"  {held}: {name} {selected[name]} in {time.perf_counter() - t0:.1f}s")
         lagged_labels = {name: lag(x) for name, x in labels.items()}
         truth = next(iter(views.values()))[1].y
-        return FoldResult(held, truth, lagged_labels, selected, sweeps, strict, untrained, labels)
+        scored_from = enrolment_split(truth, self.known, self.enroll)[1] if self.enroll else 0
+        return FoldResult(
+            held, truth, lagged_labels, selected, sweeps, strict, untrained, labels, enrolled, scored_from
+        )
+
+    def _enrolled(self, method, choice: Choice, session: dict) -> dict[str, np.ndarray]:
+        """The lagged labels of the held-out recording by ``method`` (and the online methods that
+        replay its models) with ``choice``, fitted with the enrolment (``session``:
+        :func:`._enrolment.enrolled_views`)."""
+        fitted, state, test = self._final(method, choice.params, session)
+        out = {method.name: method.labels(fitted, state, choice.reject)}
+        for online in (REGISTRY[m] for m in self.methods if REGISTRY[m].batch is method):
+            out[online.name] = online.labels_online(fitted, choice.reject, test.X)
+        return {name: lagged(x, self.lag) for name, x in out.items()}
 
     def _final(self, method, params: dict, views) -> tuple:
         """``method`` fitted with ``params`` on all training recordings, its state on the held-out
@@ -411,7 +440,10 @@ class RecordingsEvaluator:
     # -- all folds --------------------------------------------------------------------------
     def _announced_fold(self, k: int, held: str) -> FoldResult:
         self.progress(f"fold {k + 1}/{len(self.data.recordings)}: holding out '{held}'")
-        return self.run_fold(held)
+        fold = self.run_fold(held)
+        if self.enroll:
+            self.progress(f"  {fold_note(fold, self.known)}")
+        return fold
 
     def _run_folds(self) -> list[FoldResult]:
         """Every fold's result in recording order: one after the other, or over ``jobs`` forked
@@ -489,6 +521,8 @@ class RecordingsEvaluator:
             if REGISTRY[name].batch is not None:
                 batch = np.concatenate([f.labels[REGISTRY[name].batch.name] for f in folds])
                 res["agreement"] = float(np.mean(pred == batch))
+            if self.enroll:
+                res["enrolment"] = enrolment_report(folds, name, self.known, self.enrol_adaptations)
             out["methods"][name] = res
         self.folds_ = folds
         return out
@@ -536,6 +570,7 @@ class RecordingsEvaluator:
             },
             "quick": self.quick,
             "grids": {n: REGISTRY[n].grid(self.quick) for n in self.methods if REGISTRY[n].batch is None},
+            **({"enroll": self.enroll, "enrol_adaptations": list(self.enrol_adaptations)} if self.enroll else {}),
         }
 
     def _normalisation(self) -> dict:

@@ -22,6 +22,10 @@ from ._cycles import (
     phase_direction,
     split_cycles,
 )
+from ._enrolment import (
+    ADAPTATIONS,
+    enrolled_models,
+)
 from ._fast_projection import (
     BatchedPeriodicProjector,
 )
@@ -44,6 +48,7 @@ from ._training import (
 )
 
 __all__ = [
+    "ADAPTATIONS",
     "BatchedPeriodicProjector",
     "CYCLES",
     "CandidateModel",
@@ -65,6 +70,7 @@ __all__ = [
     "candidate_set",
     "class_pieces",
     "detect_period",
+    "enrolled_models",
     "fit_class_models",
     "fit_recording_models",
     "load_candidates",

@@ -1,0 +1,99 @@
+"""Enrolment in the leave-one-recording-out protocol (docs/segmentation.md, "Enrolment").
+
+With ``enroll`` = K ≥ 1, every fold's held-out recording starts with the first K segments of
+each known class (:func:`..datasets.enrolment_split`).  Every method is fitted once more with
+those segments as one more training recording, put first (its other frames unlabelled), with the
+parameters and rejection value chosen without them on the inner folds.  Adaptations
+(:data:`ADAPTATIONS`): ``"align"`` also standardises every recording of the fold with the
+class-balanced mean and spread of its own enrolment frames (a per-session alignment of scale and
+offset, :func:`..datasets.session_alignment`; the recordings are scaled with the training frames
+already, so the spread's floor is a tenth of theirs); ``"refit"`` adds the segments only.  Both fits label the whole held-out recording and
+are scored on the same frames: those after the enrolment.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..datasets import EnrolmentError, RecordingSet, enrolment_recording, enrolment_split, session_aligned
+from ._metrics import frame_metrics
+
+ADAPTATIONS = ("align", "refit")  # the first is the default
+
+
+def check_enrolment(data: RecordingSet, known: list[int], k: int, adaptations: tuple[str, ...]) -> None:
+    """A ValueError that says what to change when some recording cannot be a held-out one with
+    ``k`` enrolment segments of every known class (the evaluation then stops before any fold)."""
+    if k < 0:
+        raise ValueError(f"--enroll must be >= 0 segments per class, got {k}")
+    if not adaptations or len(set(adaptations)) != len(adaptations) or not set(adaptations) <= set(ADAPTATIONS):
+        raise ValueError(f"enrolment adaptations: name distinct choices among {ADAPTATIONS}, got {list(adaptations)}")
+    for rec in data.recordings:
+        try:
+            if enrolment_split(rec.y, known, k, data.class_names)[1] == len(rec.y):
+                raise EnrolmentError("no frame after its enrolment segments")
+        except EnrolmentError as exc:
+            raise ValueError(
+                f"--enroll {k}: recording '{rec.name}' has {exc}; lower --enroll, or leave such classes "
+                "out with --known (docs/segmentation.md, Enrolment)"
+            ) from None
+
+
+def enrolled_views(views: dict, known: list[int], k: int, adaptation: str) -> dict:
+    """Per normalisation and derived feature choice (``views``: → training recordings, held-out recording): the
+    training recordings with the held-out recording's enrolment first, and the held-out
+    recording; every recording aligned by its own enrolment for ``"align"``."""
+    out = {}
+    for key, (train, test) in views.items():
+        if adaptation == "align":
+            train, test = [session_aligned(r, known, k) for r in train], session_aligned(test, known, k)
+        out[key] = ([enrolment_recording(test, known, k)[0], *train], test)
+    return out
+
+
+def enrolment_report(folds: list, name: str, known: list[int], adaptations: tuple[str, ...]) -> dict:
+    """Frame metrics of ``name`` with (per adaptation; the first one's at the top) and without
+    enrolment on the same frames (each fold's frames after its enrolment, pooled), the gains in
+    open-set accuracy and the first scored frame per fold."""
+
+    def pooled(labels_of) -> dict:
+        return frame_metrics(
+            np.concatenate([f.truth[f.scored_from :] for f in folds]),
+            np.concatenate([labels_of(f)[f.scored_from :] for f in folds]),
+            known,
+        )
+
+    without = pooled(lambda f: f.labels[name])
+    by = {}
+    for a in adaptations:
+        with_ = pooled(lambda f, a=a: f.enrolled[a][name])
+        gain = (
+            None
+            if None in (with_["open_set_accuracy"], without["open_set_accuracy"])
+            else (with_["open_set_accuracy"] - without["open_set_accuracy"])
+        )
+        by[a] = {"open_set_accuracy": with_["open_set_accuracy"], "gain": gain, "with_enrolment": with_}
+    return {
+        "adaptation": adaptations[0],
+        **by[adaptations[0]],
+        "open_set_accuracy_without_enrolment": without["open_set_accuracy"],
+        "without_enrolment": without,
+        "adaptations": by,
+        "scored_from": {f.recording: f.scored_from for f in folds},
+    }
+
+
+def fold_note(fold, known: list[int]) -> str:
+    """One fold's open-set accuracy per method on its frames after the enrolment, with enrolment
+    (per adaptation) and without, for the progress log."""
+
+    def accuracy(labels: np.ndarray) -> str:
+        value = frame_metrics(fold.truth[fold.scored_from :], labels[fold.scored_from :], known)["open_set_accuracy"]
+        return "—" if value is None else f"{value:.3f}"
+
+    figures = "; ".join(
+        f"{name} {', '.join(f'{accuracy(by[name])} ({a})' for a, by in fold.enrolled.items())}, "
+        f"{accuracy(fold.labels[name])} without"
+        for name in fold.labels
+    )
+    return f"{fold.recording}: after the enrolment (from frame {fold.scored_from}): {figures}"

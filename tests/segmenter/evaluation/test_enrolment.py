@@ -1,0 +1,98 @@
+"""Enrolment (docs/segmentation.md, "Enrolment")."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from handflow.plugins.segmenter.cli import format_stream_table, register_evaluate
+from handflow.plugins.segmenter.datasets import (
+    EnrolmentError,
+    Recording,
+    enrolment_recording,
+    enrolment_split,
+    load_recordings,
+    session_aligned,
+)
+from handflow.plugins.segmenter.evaluation import RecordingsEvaluator, frame_metrics
+from tests.conftest import run_command
+from tests.segmenter.datasets.test_recordings import _synthetic_recordings
+
+#            a a b b b a a c c - b b c c a   (c unknown below; '-' unlabelled; the lone b is too short)
+LABELS = np.array([0, 0, 1, 1, 1, 0, 0, 2, 2, -1, 1, 1, 2, 2, 0])
+
+
+def test_enrolment_takes_the_first_k_segments_of_each_known_class_and_scores_the_frames_after_them():
+    mask, end = enrolment_split(LABELS, [0, 1], 1)
+    assert np.flatnonzero(mask).tolist() == [0, 1, 2, 3, 4] and end == 5
+    mask, end = enrolment_split(LABELS, [0, 1], 2)  # the second a and b; c, not known, is never enrolled
+    assert np.flatnonzero(mask).tolist() == [0, 1, 2, 3, 4, 5, 6, 10, 11] and end == 12
+    rec, start = enrolment_recording(Recording("r", np.arange(15.0)[:, None], LABELS), [0, 1], 2)
+    assert start == 12 and rec.name == "r (enrolment)" and len(rec.X) == 12
+    assert rec.y.tolist() == [0, 0, 1, 1, 1, 0, 0, -1, -1, -1, 1, 1]  # c between the enrolment segments: unlabelled
+    with pytest.raises(EnrolmentError, match="class 'b' has 2"):
+        enrolment_split(LABELS, [0, 1], 3, ["a", "b", "c"])
+
+
+@pytest.fixture(scope="module")
+def sessions(tmp_path_factory):
+    """Four synthetic recordings of three motion classes, each class twice in either half."""
+    arrays = {"class_names": np.array(["a", "b", "c"])}
+    for k in range(4):
+        halves = [_synthetic_recordings(k), _synthetic_recordings(k + 10)]
+        arrays[f"X_r{k}"], arrays[f"y_r{k}"] = (np.concatenate(part) for part in zip(*halves))
+    path = tmp_path_factory.mktemp("enrol") / "s.npz"
+    np.savez(path, **arrays)
+    return load_recordings(path)
+
+
+def test_without_enrolment_the_evaluation_is_unchanged(sessions):
+    default = RecordingsEvaluator(sessions, methods=("dtw_1nn",), quick=True).evaluate()
+    assert RecordingsEvaluator(sessions, methods=("dtw_1nn",), quick=True, enroll=0).evaluate() == default
+    assert "enrolment" not in default["methods"]["dtw_1nn"] and "enroll" not in default["parameters"]
+
+
+def test_with_and_without_enrolment_are_scored_on_the_same_frames_after_it(sessions):
+    plain = RecordingsEvaluator(sessions, methods=("dtw_1nn",), quick=True)
+    plain.evaluate()
+    ev = RecordingsEvaluator(sessions, methods=("dtw_1nn",), quick=True, enroll=1, enrol_adaptations=("refit", "align"))
+    res = ev.evaluate()
+    report = res["methods"]["dtw_1nn"]["enrolment"]
+    assert res["parameters"]["enroll"] == 1 and report["adaptation"] == "refit"
+    for f, p in zip(ev.folds_, plain.folds_):
+        assert f.scored_from == enrolment_split(f.truth, ev.known, 1)[1] == report["scored_from"][f.recording]
+        assert np.array_equal(f.labels["dtw_1nn"], p.labels["dtw_1nn"])  # the fit without enrolment
+    truth = np.concatenate([f.truth[f.scored_from :] for f in ev.folds_])
+    without = np.concatenate([p.labels["dtw_1nn"][f.scored_from :] for f, p in zip(ev.folds_, plain.folds_)])
+    assert report["without_enrolment"] == frame_metrics(truth, without, ev.known)
+    for adaptation in ("refit", "align"):
+        enrolled = np.concatenate([f.enrolled[adaptation]["dtw_1nn"][f.scored_from :] for f in ev.folds_])
+        assert report["adaptations"][adaptation]["with_enrolment"] == frame_metrics(truth, enrolled, ev.known)
+        assert any(not np.array_equal(f.enrolled[adaptation]["dtw_1nn"], f.labels["dtw_1nn"]) for f in ev.folds_)
+    assert report["with_enrolment"] == report["adaptations"]["refit"]["with_enrolment"]
+    assert report["gain"] == report["open_set_accuracy"] - report["open_set_accuracy_without_enrolment"]
+    assert "after the enrolment: open-set accuracy" in format_stream_table(res)
+
+
+def test_the_session_alignment_learns_offset_and_scale_from_the_enrolment_frames_only():
+    rng = np.random.default_rng(0)
+    X = rng.normal(size=(15, 2))
+    aligned = session_aligned(Recording("r", 3.0 + 2.0 * X, LABELS), [0, 1], 1)
+    enrolled = [aligned.X[:2], aligned.X[2:5]]  # the first a and the first b
+    assert np.allclose(np.mean([e.mean(axis=0) for e in enrolled], axis=0), 0)  # each class weighs alike
+    assert np.allclose(session_aligned(Recording("r", X, LABELS), [0, 1], 1).X, aligned.X)  # offset and scale gone
+    later = np.r_[X[:5], 10 * X[5:]]
+    assert np.allclose(session_aligned(Recording("r", later, LABELS), [0, 1], 1).X[:5], aligned.X[:5])
+
+
+def test_a_recording_without_k_segments_of_a_known_class_stops_the_evaluation_saying_what_to_change(tmp_path, capsys):
+    arrays = {"class_names": np.array(["a", "b"])}
+    for k in range(3):
+        arrays[f"X_r{k}"] = np.random.default_rng(k).normal(size=(40, 2))
+        arrays[f"y_r{k}"] = np.repeat([0, 1, 0, 1], 10) if k else np.repeat([0, 1, 0, 0], 10)
+    np.savez(tmp_path / "s.npz", **arrays)
+    args = [str(tmp_path / "s.npz"), "--quick", "--methods", "dtw_1nn", "--jobs", "1", "--enroll", "2"]
+    assert run_command(register_evaluate, args) == 2
+    err = capsys.readouterr().err
+    assert "--enroll 2: recording 'r0' has fewer segments than the 2 to enrol: class 'b' has 1" in err
+    assert "lower --enroll, or leave such classes out with --known" in err

@@ -25,7 +25,15 @@ from handflow.framework.files.inputs import missing_modules
 
 from ..base import REJECTED
 from ..clm import CLMSegmenter, UKROnlyRecognizer, default_solver
-from ..compatibility import evidence_band, history_compatibility, novelty_weight, reject_segments, score_evidence
+from ..compatibility import (
+    evidence_band,
+    evidence_temperature,
+    history_compatibility,
+    novelty_weight,
+    null_class_evidence,
+    reject_segments,
+    score_evidence,
+)
 from ..models import CandidateSet, Projection, fit_recording_models
 from ..novelty import distance_weight
 from ..online import OnlineCLMSegmenter
@@ -377,16 +385,30 @@ class ScoreCLMMethod(Method):
         return evidence / evidence.sum(axis=1, keepdims=True)
 
     def labels(self, fitted, state, reject, drop=None):
+        """The CLM over the classes' evidence and a null class scoring ``reject`` on the scorer's
+        scale (:func:`..compatibility.null_class_evidence`), the background being its layer."""
+        cols = _columns(fitted, drop)
+        evidence = null_class_evidence(state[:, cols], reject, evidence_temperature(state))
+        return self._segmented(evidence, [fitted.classes[k] for k in cols], "relative", reject)
+
+    def _segmented(self, evidence: np.ndarray, classes: list[int], reconstruction: str, factor: float) -> np.ndarray:
+        """The CLM's labels (global) of ``evidence`` within H: with ``"relative"`` its last column
+        is the background's, with ``"absolute"`` the thesis background of ``factor`` is added."""
         seg = CLMSegmenter(
-            None, history=self.history, background_factor=reject, solver=default_solver(max_sweeps=300), random_state=0
+            None,
+            history=self.history,
+            background_factor=factor,
+            reconstruction=reconstruction,
+            solver=default_solver(max_sweeps=300),
+            random_state=0,
         )
         _, _, width = seg.widths()
-        band = evidence_band(self.evidence(fitted, state, drop), width, self.history)
-        local = seg.fit_predict_bands(*seg.with_background(band))
-        return _to_global(local, [fitted.classes[k] for k in _columns(fitted, drop)])
+        local = seg.fit_predict_bands(*seg.with_background(evidence_band(evidence, width, self.history)))
+        return _to_global(local, classes)
 
     def reject_grid(self, fitted, states) -> np.ndarray:
-        return np.array([0.0, 0.05, 0.1, 0.25, 0.5, 1.0, 2.0, 4.0, 8.0])
+        """The scorer's own threshold sweep: the null class's score is calibrated by its rule."""
+        return self.scorer.reject_grid(fitted, states)
 
 
 class NoveltyCLMMethod(ScoreCLMMethod):
@@ -454,6 +476,15 @@ class NoveltyCLMMethod(ScoreCLMMethod):
         if novelty is not None:
             known = known * distance_weight(novelty, fitted.params["distance_z"])[:, None]
         return super().evidence(fitted, scores, drop) * history_compatibility(known, self.history, 1.0)
+
+    def labels(self, fitted, state, reject, drop=None):
+        """The CLM over the novelty-weighted evidence with the thesis background of factor ``reject``."""
+        evidence = self.evidence(fitted, state, drop)
+        return self._segmented(evidence, [fitted.classes[k] for k in _columns(fitted, drop)], "absolute", reject)
+
+    def reject_grid(self, fitted, states) -> np.ndarray:
+        """Background factors: the novelty weights, not the scores, decide what falls below chance."""
+        return np.array([0.0, 0.05, 0.1, 0.25, 0.5, 1.0, 2.0, 4.0, 8.0])
 
 
 class UKRCLMOnlineMethod(Method):

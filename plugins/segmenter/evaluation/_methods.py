@@ -129,8 +129,9 @@ class ScoreMethod(Method, ABC):
         cols = _columns(fitted, drop)
         return _to_global(threshold_labels(state[:, cols], reject), [fitted.classes[k] for k in cols])
 
-    def reject_grid(self, fitted: Fitted, states: list[np.ndarray]) -> np.ndarray:
-        return score_thresholds(np.concatenate([s.max(axis=1) for s in states]))
+    def reject_grid(self, fitted: Fitted, states: list[np.ndarray], n: int = 41) -> np.ndarray:
+        """Thresholds at ``n`` quantiles of the winning score (:func:`._metrics.score_thresholds`)."""
+        return score_thresholds(np.concatenate([s.max(axis=1) for s in states]), n)
 
     def without_class(self, fitted: Fitted, segments: dict[int, list[np.ndarray]], drop: int, seed: int):
         """A model that never saw class ``drop`` (the calibration's pseudo-unknown), or None when
@@ -357,6 +358,7 @@ class ScoreCLMMethod(Method):
     rejection = the background factor, calibrated like every method's (docs/segmentation.md)."""
 
     history = 10
+    thresholds = 11  # quantiles of the null class's score sweep (documented choice: each costs CLM runs)
 
     def __init__(self, scorer: ScoreMethod) -> None:
         self.scorer = scorer
@@ -407,8 +409,9 @@ class ScoreCLMMethod(Method):
         return _to_global(local, classes)
 
     def reject_grid(self, fitted, states) -> np.ndarray:
-        """The scorer's own threshold sweep: the null class's score is calibrated by its rule."""
-        return self.scorer.reject_grid(fitted, states)
+        """The scorer's own threshold sweep at ``thresholds`` quantiles: the null class's score is
+        calibrated by the scorer's rule."""
+        return self.scorer.reject_grid(fitted, states, self.thresholds)
 
 
 class NoveltyCLMMethod(ScoreCLMMethod):

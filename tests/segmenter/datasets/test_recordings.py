@@ -235,11 +235,28 @@ def test_clm_over_classifier_scores_groups_frames_and_rejects_with_its_backgroun
     method = REGISTRY["clm_dtw"]
     fitted = method.fit({c: [X[y == c]] for c in (0, 1, 2)}, {"window": 20}, seed=0)
     state = method.prepare(fitted, X)
-    kept = method.labels(fitted, state, reject=0.0)
+    kept = method.labels(fitted, state, reject=-np.inf)
     assert np.mean(kept == y) > 0.8  # the CLM groups the classifier's evidence into the right segments
-    assert np.all(method.labels(fitted, state, reject=8.0) == -1)  # a strong background takes everything
-    dropped = method.labels(fitted, state, reject=0.0, drop=2)
+    assert np.all(method.labels(fitted, state, reject=np.inf) == -1)  # a null class above every score takes all
+    dropped = method.labels(fitted, state, reject=-np.inf, drop=2)
     assert not np.any(dropped == 2)  # pseudo-unknown: class 2's layer is gone
+
+
+def test_clm_over_scores_rejects_on_its_scorers_scale_and_sweep():
+    """The rejection of clm_<scorer> is the scorer's threshold (a null class scoring it), swept over
+    the scorer's own quantiles: at each threshold the CLM rejects about the frames the scorer does,
+    grouped, not far more (the coarse background band rejected half the known frames in one step,
+    docs/segmentation.md)."""
+    X, y = _synthetic_recordings(0)
+    method = REGISTRY["clm_dtw"]
+    fitted = method.fit({c: [X[y == c]] for c in (0, 1, 2)}, {"window": 20}, seed=0)
+    state = method.prepare(fitted, X)
+    grid = method.reject_grid(fitted, [state])
+    assert np.array_equal(grid, method.scorer.reject_grid(fitted, [state], method.thresholds))
+    assert grid[0] == -np.inf and grid[-1] == np.inf and len(grid) == method.thresholds + 2
+    for threshold in grid[1:-1]:
+        clm, scorer = method.labels(fitted, state, threshold), method.scorer.labels(fitted, state, threshold)
+        assert abs(np.mean(clm == -1) - np.mean(scorer == -1)) < 0.15, threshold
 
 
 def test_novelty_from_the_class_manifolds_rejects_what_the_classifier_labels_confidently():

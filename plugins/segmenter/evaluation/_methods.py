@@ -70,8 +70,10 @@ class Method:
     :meth:`predict_case`, given the protocol's ``Evaluator``); ``repeated_runs``: its test cases
     run ``runs`` times (a stochastic solver); ``strong_background``: it is also judged on the
     rejection experiments with a strong background; ``batch``: the method whose fitted models an
-    online method replays sample by sample (None: it is fitted itself); ``requires``: modules
-    beyond the core → the extra that installs them (as ``Node.requires``).
+    online method replays sample by sample (None: it is fitted itself); ``rejects_with``: the
+    scorer on whose scale it rejects, whose calibration also decides whether it may reject at all
+    (docs/segmentation.md); ``requires``: modules beyond the core → the extra that installs them
+    (as ``Node.requires``).
     """
 
     name = ""
@@ -80,6 +82,7 @@ class Method:
     repeated_runs = False
     strong_background = False
     batch: Method | None = None
+    rejects_with: Method | None = None
     requires: dict[str, str] = {}
 
 
@@ -362,6 +365,7 @@ class ScoreCLMMethod(Method):
 
     def __init__(self, scorer: ScoreMethod) -> None:
         self.scorer = scorer
+        self.rejects_with = scorer
         self.name = f"clm_{scorer.name.removesuffix('_1nn')}"
         self.requires = scorer.requires
 
@@ -439,6 +443,7 @@ class NoveltyCLMMethod(ScoreCLMMethod):
     def __init__(self, scorer: ScoreMethod) -> None:
         super().__init__(scorer)
         self.name = f"{self.name}_novelty"
+        self.rejects_with = None  # its novelty weights reject, beyond what the scores separate
 
     def grid(self, quick: bool) -> list[dict]:
         return [

@@ -5,8 +5,8 @@ it, as a labeller of the trajectory cases (:data:`REGISTRY`).
 A method is fitted on training segments per known class (global class indices),
 then labels a recording in two stages: :meth:`~FrameMethod.prepare` does the expensive part once
 (projection onto the class manifolds, window scores), :meth:`~FrameMethod.labels` applies one
-value of the method's *rejection parameter* — a score threshold for the classifiers, the
-background strength for the UKR/CLM — optionally with one class removed from the model set (the
+value of the method's *rejection parameter* — a score threshold for the classifiers and the CLM
+over their scores, the background strength for the UKR/CLM — optionally with one class removed from the model set (the
 pseudo-unknown of the calibration).  Labels are global class indices, ``−1`` = rejected.
 
 Each method declares the modules it needs beyond the core (``requires``, as a node does);
@@ -357,8 +357,10 @@ class UKROnlyMethod(UKRMethod):
 class ScoreCLMMethod(Method):
     """The CLM as a segmentation layer over a classifier's per-frame scores: evidence
     (:func:`..compatibility.score_evidence`) → banded compatibilities within the history H
-    (:func:`..compatibility.evidence_band`) → one CLM layer per class plus the background;
-    rejection = the background factor, calibrated like every method's (docs/segmentation.md)."""
+    (:func:`..compatibility.evidence_band`) → one CLM layer per class plus the background, the
+    layer of a null class; rejection = the null class's score, a threshold on the scorer's scale
+    swept at the scorer's deciles and calibrated like every method's, and off wherever the
+    scorer's is (``rejects_with``; docs/segmentation.md)."""
 
     history = 10
     thresholds = 11  # quantiles of the null class's score sweep (documented choice: each costs CLM runs)
@@ -430,8 +432,8 @@ class NoveltyCLMMethod(ScoreCLMMethod):
     (:func:`..novelty.distance_weight` beyond the z-score ``distance_z``, 1 when it is None).  A frame that no
     class model explains falls below chance in every class layer and goes to the background,
     however confident the classifier is;
-    ``novelty`` and ``distance_z`` are chosen on validation without refitting.  Rejection = the background factor, as
-    for :class:`ScoreCLMMethod`; a pseudo-unknown of the calibration has the scorer refitted
+    ``novelty`` and ``distance_z`` are chosen on validation without refitting.  Rejection = the thesis background's
+    factor (the novelty weights, not the scores, decide what falls below chance); a pseudo-unknown of the calibration has the scorer refitted
     without its class (:meth:`without_class`) and its manifold left out (docs/segmentation.md)."""
 
     ukr = UKRMethod()

@@ -167,6 +167,22 @@ def score_evidence(scores: np.ndarray, temperature: float | None = None) -> np.n
     return e / e.sum(axis=1, keepdims=True)
 
 
+def null_class_evidence(scores: np.ndarray, threshold: float, temperature: float | None = None) -> np.ndarray:
+    """:func:`score_evidence` (N, M + 1) of the classes and a *null class*, the background, that
+    scores ``threshold`` on every frame (last column; τ is that of the class scores unless given).
+    The null class has the most evidence exactly where the best class scores below ``threshold``,
+    so the per-frame winner is the classifier's own decision with rejection at that threshold
+    (documented choice, docs/segmentation.md: the CLM over a scorer rejects on the scorer's scale).
+    ``−inf``: the null column is 0 (no rejection); ``+inf``: it is 1 (everything rejected)."""
+    S = np.asarray(scores, dtype=float)
+    tau = evidence_temperature(S) if temperature is None else float(temperature)
+    t = float(threshold)
+    if np.isinf(t):
+        classes = np.zeros_like(S) if t > 0 else score_evidence(S, tau)
+        return np.hstack([classes, np.full((len(S), 1), float(t > 0))])
+    return score_evidence(np.hstack([S, np.full((len(S), 1), t)]), tau)
+
+
 def evidence_band(evidence: np.ndarray, width: int, history: int) -> np.ndarray:
     """Banded CLM compatibilities of classifier evidence over M classes: ``f^m_ij = e_im + e_jm − 2/M``
     for ``0 < j − i ≤ history`` (0 beyond, and past the end), laid out as :func:`candidate_band`.

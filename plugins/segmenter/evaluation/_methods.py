@@ -5,8 +5,8 @@ it, as a labeller of the trajectory cases (:data:`REGISTRY`).
 A method is fitted on training segments per known class (global class indices),
 then labels a recording in two stages: :meth:`~FrameMethod.prepare` does the expensive part once
 (projection onto the class manifolds, window scores), :meth:`~FrameMethod.labels` applies one
-value of the method's *rejection parameter* — a score threshold for the classifiers, the
-background strength for the UKR/CLM — optionally with one class removed from the model set (the
+value of the method's *rejection parameter* — a score threshold for the classifiers and the CLM
+over their scores, the background strength for the UKR/CLM — optionally with one class removed from the model set (the
 pseudo-unknown of the calibration).  Labels are global class indices, ``−1`` = rejected.
 
 Each method declares the modules it needs beyond the core (``requires``, as a node does);
@@ -25,7 +25,15 @@ from handflow.framework.files.inputs import missing_modules
 
 from ..base import REJECTED
 from ..clm import CLMSegmenter, UKROnlyRecognizer, default_solver
-from ..compatibility import evidence_band, history_compatibility, novelty_weight, reject_segments, score_evidence
+from ..compatibility import (
+    evidence_band,
+    evidence_temperature,
+    history_compatibility,
+    novelty_weight,
+    null_class_evidence,
+    reject_segments,
+    score_evidence,
+)
 from ..models import CandidateSet, Projection, fit_recording_models
 from ..novelty import distance_weight
 from ..online import OnlineCLMSegmenter
@@ -62,8 +70,10 @@ class Method:
     :meth:`predict_case`, given the protocol's ``Evaluator``); ``repeated_runs``: its test cases
     run ``runs`` times (a stochastic solver); ``strong_background``: it is also judged on the
     rejection experiments with a strong background; ``batch``: the method whose fitted models an
-    online method replays sample by sample (None: it is fitted itself); ``requires``: modules
-    beyond the core → the extra that installs them (as ``Node.requires``).
+    online method replays sample by sample (None: it is fitted itself); ``rejects_with``: the
+    scorer on whose scale it rejects, whose calibration also decides whether it may reject at all
+    (docs/segmentation.md); ``requires``: modules beyond the core → the extra that installs them
+    (as ``Node.requires``).
     """
 
     name = ""
@@ -72,6 +82,7 @@ class Method:
     repeated_runs = False
     strong_background = False
     batch: Method | None = None
+    rejects_with: Method | None = None
     requires: dict[str, str] = {}
 
 
@@ -121,8 +132,9 @@ class ScoreMethod(Method, ABC):
         cols = _columns(fitted, drop)
         return _to_global(threshold_labels(state[:, cols], reject), [fitted.classes[k] for k in cols])
 
-    def reject_grid(self, fitted: Fitted, states: list[np.ndarray]) -> np.ndarray:
-        return score_thresholds(np.concatenate([s.max(axis=1) for s in states]))
+    def reject_grid(self, fitted: Fitted, states: list[np.ndarray], n: int = 41) -> np.ndarray:
+        """Thresholds at ``n`` quantiles of the winning score (:func:`._metrics.score_thresholds`)."""
+        return score_thresholds(np.concatenate([s.max(axis=1) for s in states]), n)
 
     def without_class(self, fitted: Fitted, segments: dict[int, list[np.ndarray]], drop: int, seed: int):
         """A model that never saw class ``drop`` (the calibration's pseudo-unknown), or None when
@@ -345,13 +357,17 @@ class UKROnlyMethod(UKRMethod):
 class ScoreCLMMethod(Method):
     """The CLM as a segmentation layer over a classifier's per-frame scores: evidence
     (:func:`..compatibility.score_evidence`) → banded compatibilities within the history H
-    (:func:`..compatibility.evidence_band`) → one CLM layer per class plus the background;
-    rejection = the background factor, calibrated like every method's (docs/segmentation.md)."""
+    (:func:`..compatibility.evidence_band`) → one CLM layer per class plus the background, the
+    layer of a null class; rejection = the null class's score, a threshold on the scorer's scale
+    swept at the scorer's deciles and calibrated like every method's, and off wherever the
+    scorer's is (``rejects_with``; docs/segmentation.md)."""
 
     history = 10
+    thresholds = 11  # quantiles of the null class's score sweep (documented choice: each costs CLM runs)
 
     def __init__(self, scorer: ScoreMethod) -> None:
         self.scorer = scorer
+        self.rejects_with = scorer
         self.name = f"clm_{scorer.name.removesuffix('_1nn')}"
         self.requires = scorer.requires
 
@@ -377,16 +393,31 @@ class ScoreCLMMethod(Method):
         return evidence / evidence.sum(axis=1, keepdims=True)
 
     def labels(self, fitted, state, reject, drop=None):
+        """The CLM over the classes' evidence and a null class scoring ``reject`` on the scorer's
+        scale (:func:`..compatibility.null_class_evidence`), the background being its layer."""
+        cols = _columns(fitted, drop)
+        evidence = null_class_evidence(state[:, cols], reject, evidence_temperature(state))
+        return self._segmented(evidence, [fitted.classes[k] for k in cols], "relative", reject)
+
+    def _segmented(self, evidence: np.ndarray, classes: list[int], reconstruction: str, factor: float) -> np.ndarray:
+        """The CLM's labels (global) of ``evidence`` within H: with ``"relative"`` its last column
+        is the background's, with ``"absolute"`` the thesis background of ``factor`` is added."""
         seg = CLMSegmenter(
-            None, history=self.history, background_factor=reject, solver=default_solver(max_sweeps=300), random_state=0
+            None,
+            history=self.history,
+            background_factor=factor,
+            reconstruction=reconstruction,
+            solver=default_solver(max_sweeps=300),
+            random_state=0,
         )
         _, _, width = seg.widths()
-        band = evidence_band(self.evidence(fitted, state, drop), width, self.history)
-        local = seg.fit_predict_bands(*seg.with_background(band))
-        return _to_global(local, [fitted.classes[k] for k in _columns(fitted, drop)])
+        local = seg.fit_predict_bands(*seg.with_background(evidence_band(evidence, width, self.history)))
+        return _to_global(local, classes)
 
     def reject_grid(self, fitted, states) -> np.ndarray:
-        return np.array([0.0, 0.05, 0.1, 0.25, 0.5, 1.0, 2.0, 4.0, 8.0])
+        """The scorer's own threshold sweep at ``thresholds`` quantiles: the null class's score is
+        calibrated by the scorer's rule."""
+        return self.scorer.reject_grid(fitted, states, self.thresholds)
 
 
 class NoveltyCLMMethod(ScoreCLMMethod):
@@ -401,8 +432,8 @@ class NoveltyCLMMethod(ScoreCLMMethod):
     (:func:`..novelty.distance_weight` beyond the z-score ``distance_z``, 1 when it is None).  A frame that no
     class model explains falls below chance in every class layer and goes to the background,
     however confident the classifier is;
-    ``novelty`` and ``distance_z`` are chosen on validation without refitting.  Rejection = the background factor, as
-    for :class:`ScoreCLMMethod`; a pseudo-unknown of the calibration has the scorer refitted
+    ``novelty`` and ``distance_z`` are chosen on validation without refitting.  Rejection = the thesis background's
+    factor (the novelty weights, not the scores, decide what falls below chance); a pseudo-unknown of the calibration has the scorer refitted
     without its class (:meth:`without_class`) and its manifold left out (docs/segmentation.md)."""
 
     ukr = UKRMethod()
@@ -414,6 +445,7 @@ class NoveltyCLMMethod(ScoreCLMMethod):
     def __init__(self, scorer: ScoreMethod) -> None:
         super().__init__(scorer)
         self.name = f"{self.name}_novelty"
+        self.rejects_with = None  # its novelty weights reject, beyond what the scores separate
 
     def grid(self, quick: bool) -> list[dict]:
         return [
@@ -454,6 +486,15 @@ class NoveltyCLMMethod(ScoreCLMMethod):
         if novelty is not None:
             known = known * distance_weight(novelty, fitted.params["distance_z"])[:, None]
         return super().evidence(fitted, scores, drop) * history_compatibility(known, self.history, 1.0)
+
+    def labels(self, fitted, state, reject, drop=None):
+        """The CLM over the novelty-weighted evidence with the thesis background of factor ``reject``."""
+        evidence = self.evidence(fitted, state, drop)
+        return self._segmented(evidence, [fitted.classes[k] for k in _columns(fitted, drop)], "absolute", reject)
+
+    def reject_grid(self, fitted, states) -> np.ndarray:
+        """Background factors: the novelty weights, not the scores, decide what falls below chance."""
+        return np.array([0.0, 0.05, 0.1, 0.25, 0.5, 1.0, 2.0, 4.0, 8.0])
 
 
 class UKRCLMOnlineMethod(Method):

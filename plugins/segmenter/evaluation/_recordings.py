@@ -262,12 +262,21 @@ class RecordingsEvaluator:
         """Normalisation, derived features, hyper-parameters and rejection value of one method, chosen
         on inner splits of the training recordings (``views``: (normalisation, derived) → those recordings)."""
         method = REGISTRY[name]
-        choices = [
+        gate = (
+            None
+            if method.rejects_with is None
+            else max(c.objective for c, *_ in self._choices(method.rejects_with, views))
+        )
+        return self._rule(name, self._choices(method, views), gate)
+
+    def _choices(self, method, views: dict[tuple[str, str], list[Recording]]) -> list[tuple[Choice, float, Callable]]:
+        """Every parameter set of ``method`` (normalisation and derived features included), calibrated
+        on the inner folds."""
+        return [
             self._calibrated(method, train, {**params, "derived": derived, "normalise": normalise})
             for (normalise, derived), train in views.items()
             for params in method.grid(self.quick)
         ]
-        return self._rule(name, choices)
 
     def _calibrated(self, method, train: list[Recording], params: dict) -> tuple[Choice, float, Callable]:
         """``params``' best rejection value on the inner folds of ``train``, the sweep's keep-all
@@ -277,17 +286,22 @@ class RecordingsEvaluator:
         self.progress(f"    {method.name} {params}: reject={value:.4g} objective={score:.3f}")
         return Choice(params, value, score), grid[0], known_acc
 
-    def _rule(self, name: str, choices: list[tuple[Choice, float, Callable]]) -> Choice:
+    def _rule(self, name: str, choices: list[tuple[Choice, float, Callable]], gate: float | None = None) -> Choice:
         """The calibration rule over a method's calibrated parameter sets: the best objective,
         or — ``"fallback"``, when it does not beat rejecting everything by ``FALLBACK_MARGIN`` —
-        rejection off, with the parameters that label the most inner-fold frames right."""
+        rejection off, with the parameters that label the most inner-fold frames right.  ``gate``:
+        the best objective of the scorer the method rejects with (``rejects_with``), which must
+        beat it too: the method's rejection is off wherever its scorer's is."""
         best = max(choices, key=lambda c: c[0].objective)[0]  # ties: the first
-        if self.calibration == "strict" or best.objective > REJECT_ALL_OBJECTIVE + FALLBACK_MARGIN:
+        separable = min(best.objective, np.inf if gate is None else gate) > REJECT_ALL_OBJECTIVE + FALLBACK_MARGIN
+        if self.calibration == "strict" or separable:
             return best
         keep_all = [(known_acc(first), Choice(c.params, first, c.objective)) for c, first, known_acc in choices]
         accuracy, chosen = max(keep_all, key=lambda c: c[0])
         self.progress(
-            f"    {name}: rejection off (best objective {best.objective:.3f}); {chosen.params} keeps {accuracy:.3f}"
+            f"    {name}: rejection off (best objective {best.objective:.3f}"
+            + ("" if gate is None else f", its scorer's {gate:.3f}")
+            + f"); {chosen.params} keeps {accuracy:.3f}"
         )
         return replace(chosen, fallback=True, strict=best)
 

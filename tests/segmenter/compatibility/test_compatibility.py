@@ -6,6 +6,7 @@ from handflow.plugins.segmenter.compatibility import (
     bridged_latent,
     candidate_band,
     history_compatibility,
+    null_class_evidence,
     order_rating_cos,
     order_rating_sign,
     pair_error_max,
@@ -17,6 +18,7 @@ from handflow.plugins.segmenter.compatibility import (
     thesis_background_strength,
     unwrapped_latent,
 )
+from handflow.plugins.segmenter.evaluation._metrics import score_thresholds, threshold_labels
 
 
 def test_forward_step_is_plus_one_backward_minus_one():
@@ -167,3 +169,16 @@ def test_segments_at_an_open_end_are_not_judged():
     assert reject_segments(labels, lt, errors, 0.0, 2.0).tolist() == [-1, -1, 0, 0, -1, -1]
     assert reject_segments(labels, lt, errors, 0.0, 2.0, open_ends=(True, False)).tolist() == [1, 1, 0, 0, -1, -1]
     assert reject_segments(labels, lt, errors, 0.0, 2.0, open_ends=(False, True)).tolist() == [-1, -1, 0, 0, 1, 1]
+
+
+def test_the_null_class_wins_exactly_where_the_classifier_rejects_at_its_threshold():
+    """Per frame, the argmax of the evidence with a null class scoring the threshold is the
+    classifier's own decision with rejection at that threshold (docs/segmentation.md)."""
+    scores = np.random.default_rng(0).normal(size=(200, 4))
+    for threshold in score_thresholds(scores.max(axis=1), 11):
+        evidence = null_class_evidence(scores, threshold)
+        assert evidence.shape == (200, 5) and np.allclose(evidence.sum(axis=1), 1)
+        decision = np.where(evidence.argmax(axis=1) == 4, -1, evidence.argmax(axis=1))
+        assert np.array_equal(decision, threshold_labels(scores, threshold))
+    assert np.all(null_class_evidence(scores, -np.inf)[:, 4] == 0)  # no null class: no rejection
+    assert np.all(null_class_evidence(scores, np.inf)[:, 4] == 1)  # everything rejected

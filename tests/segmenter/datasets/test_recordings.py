@@ -235,11 +235,28 @@ def test_clm_over_classifier_scores_groups_frames_and_rejects_with_its_backgroun
     method = REGISTRY["clm_dtw"]
     fitted = method.fit({c: [X[y == c]] for c in (0, 1, 2)}, {"window": 20}, seed=0)
     state = method.prepare(fitted, X)
-    kept = method.labels(fitted, state, reject=0.0)
+    kept = method.labels(fitted, state, reject=-np.inf)
     assert np.mean(kept == y) > 0.8  # the CLM groups the classifier's evidence into the right segments
-    assert np.all(method.labels(fitted, state, reject=8.0) == -1)  # a strong background takes everything
-    dropped = method.labels(fitted, state, reject=0.0, drop=2)
+    assert np.all(method.labels(fitted, state, reject=np.inf) == -1)  # a null class above every score takes all
+    dropped = method.labels(fitted, state, reject=-np.inf, drop=2)
     assert not np.any(dropped == 2)  # pseudo-unknown: class 2's layer is gone
+
+
+def test_clm_over_scores_rejects_on_its_scorers_scale_and_sweep():
+    """The rejection of clm_<scorer> is the scorer's threshold (a null class scoring it), swept over
+    the scorer's own quantiles: at each threshold the CLM rejects about the frames the scorer does,
+    grouped, not far more (the coarse background band rejected half the known frames in one step,
+    docs/segmentation.md)."""
+    X, y = _synthetic_recordings(0)
+    method = REGISTRY["clm_dtw"]
+    fitted = method.fit({c: [X[y == c]] for c in (0, 1, 2)}, {"window": 20}, seed=0)
+    state = method.prepare(fitted, X)
+    grid = method.reject_grid(fitted, [state])
+    assert np.array_equal(grid, method.scorer.reject_grid(fitted, [state], method.thresholds))
+    assert grid[0] == -np.inf and grid[-1] == np.inf and len(grid) == method.thresholds + 2
+    for threshold in grid[1:-1]:
+        clm, scorer = method.labels(fitted, state, threshold), method.scorer.labels(fitted, state, threshold)
+        assert abs(np.mean(clm == -1) - np.mean(scorer == -1)) < 0.15, threshold
 
 
 def test_novelty_from_the_class_manifolds_rejects_what_the_classifier_labels_confidently():
@@ -247,7 +264,7 @@ def test_novelty_from_the_class_manifolds_rejects_what_the_classifier_labels_con
     manifolds' null model (the novelty term) sends them to the background, keeping the known frames."""
     X, y = _synthetic_recordings(0)
     segments = {c: [X[y == c]] for c in (0, 1)}
-    plain, novelty = REGISTRY["clm_dtw"], NoveltyCLMMethod(DTWMethod())
+    novelty = NoveltyCLMMethod(DTWMethod())
     assert novelty.name == "clm_dtw_novelty" and all("delay" in p for p in novelty.grid(quick=True))
     assert {p["distance_z"] for p in novelty.grid(quick=True)} == {None}  # DTW has no features to measure
     assert {p["distance_z"] for p in REGISTRY["clm_minirocket_novelty"].grid(quick=True)} == {1.0, 2.0}
@@ -258,14 +275,12 @@ def test_novelty_from_the_class_manifolds_rejects_what_the_classifier_labels_con
     labels = novelty.labels(fitted, state, reject=0.1)
     assert np.mean(labels[unknown] == -1) > 0.9
     assert np.mean(labels[known] == y[known]) > 0.85
-    plain_fit = plain.fit(segments, {"window": 20}, seed=0)
-    plain_labels = plain.labels(plain_fit, plain.prepare(plain_fit, X), reject=0.1)
-    assert np.mean(plain_labels[unknown] == -1) < 0.2  # the same background without the novelty term
     tolerant = replace(fitted, params={**fitted.params, "novelty": 1e-6})
     scores, feature_novelty, proj, intensity = state
     assert feature_novelty is None
     in_range = (scores, None, proj, np.ones_like(intensity))
-    assert np.array_equal(novelty.labels(tolerant, in_range, reject=0.1), plain_labels)  # nothing novel: no change
+    plain_labels = novelty.labels(tolerant, in_range, reject=0.1)  # nothing novel: the classifier's evidence
+    assert np.mean(plain_labels[unknown] == -1) < 0.2  # the same background without the novelty term
     by_intensity = novelty.labels(tolerant, state, reject=0.1)  # class 2 moves unlike 0 and 1 (its ranges)
     assert np.mean(by_intensity[unknown] == -1) > 0.8 and np.mean(by_intensity[known] == y[known]) > 0.85
 

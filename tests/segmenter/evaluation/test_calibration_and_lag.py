@@ -8,7 +8,8 @@ import pytest
 from handflow.plugins.segmenter.base import lagged
 from handflow.plugins.segmenter.cli import format_stream_table
 from handflow.plugins.segmenter.datasets import load_recordings
-from handflow.plugins.segmenter.evaluation import RecordingsEvaluator, frame_metrics, segment_f1
+from handflow.plugins.segmenter.evaluation import REGISTRY, RecordingsEvaluator, frame_metrics, segment_f1
+from handflow.plugins.segmenter.evaluation._recordings import Choice
 from tests.segmenter.datasets.test_recordings import _synthetic_recordings
 
 
@@ -61,3 +62,15 @@ def test_an_evaluation_with_a_lag_labels_every_frame_from_the_later_window(three
     assert dtw["segment_f1"] == segment_f1([(f.truth, f.labels["dtw_1nn"]) for f in ev.folds_], ev.known)
     with pytest.raises(ValueError, match="lag"):
         RecordingsEvaluator(three_classes, methods=("dtw_1nn",), lag=-1)
+
+
+def test_a_clm_over_a_scorer_rejects_only_where_its_scorer_may(three_classes):
+    """The fallback rule gates clm_<scorer> by its scorer's best objective (docs/segmentation.md):
+    a CLM objective above the margin keeps rejection off while the scorer's is not."""
+    assert REGISTRY["clm_dtw"].rejects_with is REGISTRY["clm_dtw"].scorer
+    assert REGISTRY["clm_dtw_novelty"].rejects_with is None and REGISTRY["dtw_1nn"].rejects_with is None
+    ev = RecordingsEvaluator(three_classes, methods=("clm_dtw",), quick=True)
+    choices = [(Choice({"window": 20}, 0.3, 0.8), -np.inf, lambda r: 0.9)]
+    assert not ev._rule("clm_dtw", choices).fallback and not ev._rule("clm_dtw", choices, gate=0.7).fallback
+    gated = ev._rule("clm_dtw", choices, gate=0.52)
+    assert gated.fallback and gated.reject == -np.inf and gated.strict.reject == 0.3

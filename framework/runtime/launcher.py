@@ -281,7 +281,8 @@ class Launcher:
         until the units they feed have seen the last message they published (heartbeat ``seq.*``
         counters, at most ``DRAIN_S``), then stop those; SIGKILL stragglers after ``STOP_GRACE_S``.
         So every message published before the stop is handled downstream and recorded (a cycle of
-        units stops together; docs/recording.md, "Recording")."""
+        units stops together: each stops ticking and handles its inputs until they go quiet, see
+        ``GroupRuntime.shutdown``; docs/recording.md, "Recording")."""
         self.stopping = True
         for u in self.units:
             u.running_at_end = u.proc is not None

@@ -56,6 +56,8 @@ ORPHAN_POLL_S = 0.2
 ORPHAN_GRACE_S = 1.5
 STOPPED = "stopped"  # the state of a node's last heartbeat, sent after everything it published
 START_WAIT_S = 60.0  # without a start signal (no launcher), tick anyway after this long
+SETTLE_QUIET_S = 0.2  # at a stop, inputs are still handled until none came for this long …
+SETTLE_MAX_S = 1.0  # … or for at most this long (below ORPHAN_GRACE_S)
 _STATE_SLOTS = 128
 EXPECTED_ERRORS = (OSError, ValueError, RuntimeError, ImportError)
 """Errors a node raises on purpose with a message saying what to do: logged without a traceback."""
@@ -213,6 +215,8 @@ class GroupRuntime:
         self.lockstep = lockstep
         self.virtual_ns = 0
         self.stop_requested = False
+        self.closed = False  # inputs are no longer handled (after the stop's settling)
+        self._last_input = 0.0  # monotonic time of the last input handled
         self.session = transport.open_node_session(graph.spec.zenoh, hub, _login(graph, user))
         self.shared = SharedPayloads(graph.spec.zenoh.shared_memory)
         self.inbox = wakeup_queue()  # lock-step clock events; None wakes the loop
@@ -277,8 +281,9 @@ class GroupRuntime:
     def _on_sample(self, slot: _NodeSlot, port: str, payload: bytes, att: bytes | None) -> None:
         """Zenoh callback: handle the message right here, serialised with ticks by the lock."""
         with self._lock:
-            if self.stop_requested:
+            if self.closed or self.failure is not None:
                 return
+            self._last_input = time.monotonic()
             try:
                 self._deliver(slot, port, payload, att)
                 if self.lockstep:
@@ -403,6 +408,10 @@ class GroupRuntime:
     # -- shutdown ---------------------------------------------------------------------------
     def shutdown(self) -> None:
         self.stop_requested = True
+        if self.set_up and self.failure is None:
+            self._let_inputs_settle()
+        with self._lock:
+            self.closed = True
         for sub in self._subs:
             sub.undeclare()
         with self._lock:
@@ -410,6 +419,15 @@ class GroupRuntime:
         if self.set_up:  # the last counters, after teardown's last outputs: the launcher's summary and its
             self._publish_health(STOPPED)  # drain (STOPPED); a node that never set up is not ready
         self.session.close()
+
+    def _let_inputs_settle(self) -> None:
+        """Ticks have stopped; inputs are still handled until none came for ``SETTLE_QUIET_S`` (at most
+        ``SETTLE_MAX_S``), so that the last messages of upstream nodes stopped at the same moment — a
+        cycle of units, which the launcher stops together — are handled and their outputs published
+        (docs/recording.md, "Recording")."""
+        deadline = time.monotonic() + SETTLE_MAX_S
+        while (now := time.monotonic()) < deadline and now - self._last_input < SETTLE_QUIET_S:
+            time.sleep(0.01)
 
     def _teardown_all(self) -> None:
         for slot in self.slots:

@@ -310,8 +310,7 @@ class OnlineCLMNode(_RecognizerNode):
         """``models`` adapted by the ``enroll`` recording (:func:`..models.enrolled_models`); with
         ``align`` every observation is standardised with the session's enrolment frames first."""
         p = self.params
-        provenance = next(iter(models.models.values())).model.provenance_
-        training = p.enroll_training or provenance.get("dataset")
+        training = p.enroll_training or models.provenance.get("dataset")
         if training is None:
             raise ValueError("enroll: the models do not name their training recordings; set enroll_training")
         paths = self.ctx.resolve_path(training), self.ctx.resolve_path(p.enroll)

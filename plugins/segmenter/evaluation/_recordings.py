@@ -238,6 +238,7 @@ class RecordingsEvaluator:
         self.lag = lag
         self.jobs = jobs
         self._cache: dict[tuple, object] = {}
+        self._fold_choices: dict[str, list] = {}  # method → its calibrated parameter sets in this fold
 
     # -- one fold ---------------------------------------------------------------------------
     def _segments(self, recs: list[Recording]) -> dict[int, list[np.ndarray]]:
@@ -271,12 +272,15 @@ class RecordingsEvaluator:
 
     def _choices(self, method, views: dict[tuple[str, str], list[Recording]]) -> list[tuple[Choice, float, Callable]]:
         """Every parameter set of ``method`` (normalisation and derived features included), calibrated
-        on the inner folds."""
-        return [
-            self._calibrated(method, train, {**params, "derived": derived, "normalise": normalise})
-            for (normalise, derived), train in views.items()
-            for params in method.grid(self.quick)
-        ]
+        on the inner folds; once per fold, whether for the method itself or as the scorer another
+        method rejects with."""
+        if method.name not in self._fold_choices:
+            self._fold_choices[method.name] = [
+                self._calibrated(method, train, {**params, "derived": derived, "normalise": normalise})
+                for (normalise, derived), train in views.items()
+                for params in method.grid(self.quick)
+            ]
+        return self._fold_choices[method.name]
 
     def _calibrated(self, method, train: list[Recording], params: dict) -> tuple[Choice, float, Callable]:
         """``params``' best rejection value on the inner folds of ``train``, the sweep's keep-all
@@ -395,6 +399,7 @@ class RecordingsEvaluator:
                 f"  {held}: no training segment of {untrained} in the other recordings; models leave them out"
             )
         labels, selected, sweeps, strict = {}, {}, {}, {}
+        self._fold_choices = {}
         sessions = {a: enrolled_views(views, self.known, self.enroll, a) for a in self.enrol_adaptations if self.enroll}
         enrolled = {a: {} for a in sessions}
 

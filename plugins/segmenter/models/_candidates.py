@@ -190,6 +190,7 @@ class CandidateSet:
             scaling = first.scaling if isinstance(first, UKRCandidate) else None
             pipeline = FeaturePipeline.from_provenances(provenances, scaling)
         self.pipeline = pipeline
+        self.provenance = provenances[0]  # how the (first) model was trained: dataset, steps, calibration
         self.evidence_temperature = float(provenances[0].get("evidence_temperature", 1.0))
         self.own_errors = np.array([float(p.get("own_error", 1.0)) for p in provenances])
         self.intensity = IntensityRanges.from_provenances(provenances)  # None for models without ranges

@@ -73,11 +73,10 @@ def enrolled_models(
         raise DatasetError(
             f"{training} holds no segment of {untrained}: name the recordings the models were trained on"
         )
-    provenance = next(iter(models.models.values())).model.provenance_
     refit = fit_recording_models(
         {classes[c]: segs for c, segs in by_class.items()},
         delay=models.delay.window,
-        n_steps=int(provenance.get("steps", 150)),
+        n_steps=int(models.provenance.get("steps", 150)),
         random_state=random_state,
         scaling="none" if models.scaling is None else "standard",
         derived=models.derived.kind,

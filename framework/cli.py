@@ -67,6 +67,9 @@ def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
             register = ep.load()
         except Exception as exc:  # a broken family must not take the whole CLI down
             broken = parent.add_parser(path[-1], help=f"(unavailable: {exc})")
+            broken.add_argument(
+                "ignored", nargs=argparse.REMAINDER, help=argparse.SUPPRESS
+            )  # say why, whatever follows
             broken.set_defaults(func=lambda args, exc=exc, name=ep.name: _unavailable(name, exc))
             continue
         doc = (register.__doc__ or "").strip().splitlines()

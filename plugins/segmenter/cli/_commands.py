@@ -204,6 +204,12 @@ def register_evaluate(parser: argparse.ArgumentParser) -> None:
         "cores; 1 = one after the other, the same figures either way; docs/segmentation.md)",
     )
     parser.add_argument(
+        "--checkpoints",
+        metavar="DIR",
+        help="continuous recordings: keep every finished fold in DIR; a later run with the same recordings and "
+        "settings takes the folds from there, so an interrupted evaluation resumes (docs/segmentation.md)",
+    )
+    parser.add_argument(
         "--methods",
         help=f"subset of {','.join(METHODS)} (continuous recordings: also ukr_clm_online, minirocket, clm_minirocket, "
         "clm_dtw, clm_minirocket_novelty, clm_dtw_novelty; default all but clm_dtw and the *_novelty methods, "
@@ -302,6 +308,8 @@ def run_evaluate(args) -> int:
     try:
         if args.enroll:
             raise DatasetError("--enroll applies to continuous recordings (docs/segmentation.md, Enrolment)")
+        if args.checkpoints:
+            raise DatasetError("--checkpoints applies to continuous recordings (docs/segmentation.md)")
         if (args.normalise, args.pseudo_unknowns, args.derived, args.calibration, args.lag) != (
             None,
             "refit",

@@ -53,6 +53,7 @@ def run_recordings_evaluation(args, progress) -> int:
             jobs=args.jobs or default_jobs(),
             enroll=args.enroll,
             enrol_adaptations=tuple(a for a in args.enroll_adaptation.split(",") if a),
+            checkpoints=args.checkpoints,
         )
         result = evaluator.evaluate()
     except (ValueError, ImportError) as exc:

@@ -37,6 +37,9 @@ Folds are independent (each starts its own model cache and every fit takes ``ran
 other; BLAS runs one thread either way, as the sums of a multi-threaded BLAS (the HMMs',
 MiniRocket's) can differ in the last bits (docs/segmentation.md, ``--jobs``).
 
+``checkpoints`` (a directory) keeps every finished fold and takes those of an earlier run with
+the same recordings and settings from there (:mod:`._checkpoints`).
+
 ``enroll`` = K ≥ 1 refits every method with the first K segments per known class of the
 held-out recording (``enrol_adaptations``: aligning every recording by its own enrolment, or not)
 and scores both fits on the frames after them (:mod:`._enrolment`).
@@ -59,6 +62,7 @@ from .._moved import renamed
 from ..base import lagged
 from ..datasets import Recording, RecordingSet, enrolment_split, segments
 from ..features import DERIVED, ChannelScaling, RunningStandardizer, derive
+from ._checkpoints import FoldCheckpoints, settings_digest
 from ._enrolment import ADAPTATIONS, check_enrolment, enrolled_views, enrolment_report, fold_note
 from ._methods import REGISTRY, Fitted, UKRCLMMethod
 from ._metrics import calibrate, frame_metrics, segment_f1, tradeoff_curve
@@ -198,6 +202,7 @@ class RecordingsEvaluator:
         jobs: int = 1,
         enroll: int = 0,
         enrol_adaptations: tuple[str, ...] = ADAPTATIONS[:1],
+        checkpoints: str | None = None,
     ) -> None:
         if jobs < 1:
             raise ValueError(f"jobs must be at least 1, got {jobs}")
@@ -237,6 +242,7 @@ class RecordingsEvaluator:
         self.calibration = calibration
         self.lag = lag
         self.jobs = jobs
+        self.checkpoints = checkpoints
         self._cache: dict[tuple, object] = {}
         self._fold_choices: dict[str, list] = {}  # method → its calibrated parameter sets in this fold
 
@@ -425,12 +431,14 @@ class RecordingsEvaluator:
                 selected[name]["strict"] = {**choice.strict.params, "reject": float(choice.strict.reject)}
                 strict_fit, strict_state, _ = self._final(method, choice.strict.params, views)
                 strict[name] = lag(method.labels(strict_fit, strict_state, choice.strict.reject))
-            for online in (REGISTRY[m] for m in self.methods if REGISTRY[m].batch is method):
-                labels[online.name] = online.labels_online(fitted, choice.reject, test.X)
-                selected[online.name] = selected[name]
             for adaptation, session in sessions.items():
                 enrolled[adaptation].update(self._enrolled(method, choice, session))
             self.progress(f"  {held}: {name} {selected[name]} in {time.perf_counter() - t0:.1f}s")
+            for online in (REGISTRY[m] for m in self.methods if REGISTRY[m].batch is method):
+                t0 = time.perf_counter()
+                labels[online.name] = online.labels_online(fitted, choice.reject, test.X)
+                selected[online.name] = selected[name]
+                self.progress(f"  {held}: {online.name} replayed {name}'s models in {time.perf_counter() - t0:.1f}s")
         lagged_labels = {name: lag(x) for name, x in labels.items()}
         truth = next(iter(views.values()))[1].y
         scored_from = enrolment_split(truth, self.known, self.enroll)[1] if self.enroll else 0
@@ -469,27 +477,36 @@ class RecordingsEvaluator:
         processes (module docstring); progress per fold either way."""
         global _FORKED
         names, start, done = self.data.names(), time.perf_counter(), {}
+        kept = self._checkpoints()
+        for held in names if kept else ():
+            if (fold := kept.load(held)) is not None:
+                done[held] = fold
+                self.progress(f"fold '{held}' taken from {kept.path(held)}")
+        todo = [(k, held) for k, held in enumerate(names) if held not in done]
+        skipped = len(done)
 
         def finished(held: str, fold: FoldResult) -> None:
             done[held] = fold
+            if kept:
+                kept.save(fold)
             spent, n = time.perf_counter() - start, len(names)
             if len(done) < n:  # folds differ in size; the mean so far is the estimate
                 self.progress(
                     f"fold '{held}' done ({len(done)}/{n}); {spent / 60:.1f} min so far, "
-                    f"about {spent / len(done) * (n - len(done)) / 60:.0f} min to go"
+                    f"about {spent / (len(done) - skipped) * (n - len(done)) / 60:.0f} min to go"
                 )
 
-        jobs = min(self.jobs, len(names))
-        if jobs == 1:
+        jobs = min(self.jobs, len(todo))
+        if jobs <= 1:
             with threadpool_limits(1):  # as in a worker: BLAS sums in the same order whatever ``jobs``
-                for k, held in enumerate(names):
+                for k, held in todo:
                     finished(held, self._announced_fold(k, held))
             return [done[h] for h in names]
         _FORKED = self
         try:
             context = multiprocessing.get_context("fork")
             with ProcessPoolExecutor(jobs, mp_context=context, initializer=_one_thread) as pool:
-                futures = {pool.submit(_forked_fold, k, held): held for k, held in enumerate(names)}
+                futures = {pool.submit(_forked_fold, k, held): held for k, held in todo}
                 try:
                     for future in as_completed(futures):
                         finished(futures[future], future.result())
@@ -498,6 +515,16 @@ class RecordingsEvaluator:
         finally:
             _FORKED = None
         return [done[h] for h in names]
+
+    def _checkpoints(self) -> FoldCheckpoints | None:
+        """The store of finished folds (``checkpoints``), keyed by the data and every setting that
+        moves a figure; None without one."""
+        if not self.checkpoints:
+            return None
+        settings = {k: v for k, v in self._parameters().items() if k != "dataset"}
+        settings.update(methods=list(self.methods), random_state=self.random_state)
+        digest = settings_digest(self.data.recordings, self.data.class_names, settings)
+        return FoldCheckpoints(self.checkpoints, digest, FoldResult, self.progress)
 
     def evaluate(self) -> dict:
         folds = self._run_folds()

@@ -155,6 +155,7 @@ def fit_class_models(
 
 MAX_POINTS_PER_CLASS = 800  # UKR training points per class of fit_recording_models (thin_pieces above it)
 MIN_PERIOD = 5  # frames; the shortest cycle fit_recording_models looks for
+MAX_STATISTICS_FRAMES = 4000  # training frames per class whose errors set the models' metric (thin_pieces above it)
 
 
 def thin_pieces(pieces: list[np.ndarray], max_points: int) -> list[np.ndarray]:
@@ -187,7 +188,10 @@ def fit_recording_models(
     error of the training frames on their own class's model) — and each model stores its own
     typical error relative to it (``own_error``) and the evidence temperature of the training
     frames (``evidence_temperature``), as :class:`CLMSegmenter`'s ``reconstruction="relative"``
-    uses them, and the range of its training frames' motion intensity (:mod:`..novelty`).
+    uses them, and the range of its training frames' motion intensity (:mod:`..novelty`).  The
+    errors behind those statistics are those of at most :data:`MAX_STATISTICS_FRAMES` evenly
+    thinned frames per class (whole segments; documented choice: a fit then costs the same
+    however long the recordings grow).
     ``scaling="standard"`` z-scores the channels with all training frames first and stores the
     scaling with the models (for models used outside the evaluation).  ``derived="velocities"``
     appends each channel's step to every frame first (:mod:`..features`; the models derive them from
@@ -223,7 +227,10 @@ def fit_recording_models(
         models[c] = model
     pipeline = FeaturePipeline(features, Headings(), scaler, embedding)
     cands = candidate_set(models, pipeline)
-    errors = {c: np.vstack([cands.project(s).errors for s in segs]) for c, segs in by_class.items()}  # (frames, M)
+    errors = {  # (frames, M)
+        c: np.vstack([cands.project(s).errors for s in thin_pieces(segs, MAX_STATISTICS_FRAMES)])
+        for c, segs in by_class.items()
+    }
     own = {c: errors[c][:, j] for j, c in enumerate(frames)}
     reference = float(np.median(np.concatenate(list(own.values())))) or 1.0
     tau = evidence_temperature(-np.vstack(list(errors.values())) / reference)

@@ -48,3 +48,29 @@ def test_trained_candidates_hold_the_pipeline_their_files_would_record():
 def test_models_of_different_pipelines_are_refused():
     with pytest.raises(ValueError, match="different delay embeddings"):
         FeaturePipeline.from_provenances([{"delay_window": 2}, {"delay_window": 3}])
+
+
+def test_the_error_metric_comes_from_at_most_the_capped_frames_per_class(monkeypatch):
+    """Above ``MAX_STATISTICS_FRAMES`` the models' error statistics come from evenly thinned whole
+    segments (docs/segmentation.md, "Class models for real recordings"): the reference is the
+    median own-model error of exactly those segments, and the rest of the fit is unchanged."""
+    from handflow.plugins.segmenter.models import _training, thin_pieces
+
+    rng = np.random.default_rng(2)
+    t = np.linspace(0, 4 * np.pi, 120)
+    by_class = {
+        "a": [np.c_[np.sin(t + k), np.cos(t + k)] + 0.02 * rng.normal(size=(120, 2)) for k in range(4)],
+        "b": [np.c_[np.sin(2 * t + k), np.cos(t)] + 0.02 * rng.normal(size=(120, 2)) for k in range(4)],
+    }
+    full = fit_recording_models(by_class, delay=4, n_steps=20, random_state=0)
+    monkeypatch.setattr(_training, "MAX_STATISTICS_FRAMES", 250)
+    capped = fit_recording_models(by_class, delay=4, n_steps=20, random_state=0)
+    kept = {c: thin_pieces(segs, 250) for c, segs in by_class.items()}
+    assert all(len(k) == 2 for k in kept.values())  # the cap binds: half the segments per class
+    full_reference = full.models["a"].model.provenance_["error_reference"]
+    own = np.concatenate([full.project(s).errors[:, j] for j, c in enumerate(kept) for s in kept[c]])  # relative
+    reference = capped.models["a"].model.provenance_["error_reference"]
+    assert reference == pytest.approx(float(np.median(own)) * full_reference, rel=1e-9)
+    assert reference != full_reference
+    for c in by_class:  # the manifolds themselves are fitted on the same points
+        np.testing.assert_array_equal(capped.models[c].model.latents_, full.models[c].model.latents_)

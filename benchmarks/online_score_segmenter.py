@@ -10,11 +10,13 @@ scorer (window ``--window``) is fitted on the labelled segments of the others, s
 window of 200, 100 Hz).  Baseline in the same run: the scorer alone per sample (MiniRocket
 argmax, no CLM).  BLAS and numba are limited to one thread.
 
-    python benchmarks/online_score_segmenter.py bm.npz [--folds 2] [--background 0.5] [--clm-window 200] [--novelty 0.25] [--distance-z 2] [--json]
+    python benchmarks/online_score_segmenter.py bm.npz [--folds 2] [--background 0.5] [--clm-window 200] [--novelty 0.25] [--distance-z 2] [--null-class] [--json]
 
 ``--novelty F`` adds the novelty term (class manifolds with a delay window of 8 fitted on the same
 segments; their projection is part of the scorer time); ``--distance-z Z`` the feature novelty
-(part of the scorer time too).
+(part of the scorer time too).  ``--null-class`` rejects with the null class instead of the
+background factor, its score calibrated on the fold's training recordings as ``fit-scorer`` does
+(``evaluation.calibrate_null_score``, untimed; docs/segmentation.md, "Score sources").
 """
 
 from __future__ import annotations
@@ -31,7 +33,8 @@ from pathlib import Path
 
 import numpy as np
 
-from handflow.plugins.segmenter.datasets import load_recordings, segments
+from handflow.plugins.segmenter.datasets import RecordingSet, load_recordings, segments
+from handflow.plugins.segmenter.evaluation import calibrate_null_score
 from handflow.plugins.segmenter.models import fit_recording_models
 from handflow.plugins.segmenter.online import OnlineScoreCLMSegmenter, batch_labels
 from handflow.plugins.segmenter.scorers import MiniRocketScorer, load_scorer
@@ -90,6 +93,11 @@ def main(argv=None) -> int:
         help="add the novelty term: class manifolds (delay 8) fitted on the same segments, this novelty factor",
     )
     ap.add_argument("--distance-z", type=float, default=None, help="add the feature novelty beyond this z-score")
+    ap.add_argument(
+        "--null-class",
+        action="store_true",
+        help="reject with the null class, its score calibrated on the training recordings (not --background)",
+    )
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args(argv)
     data = load_recordings(args.recordings)
@@ -108,6 +116,7 @@ def main(argv=None) -> int:
         0,
     )
     params = dict(history=args.history, background_factor=args.background, distance_z=args.distance_z, random_state=0)
+    null_scores = []
     for rec in data.recordings[: args.folds]:
         segs = segments(data.without(rec.name), classes)
         scorer = MiniRocketScorer(window=args.window, random_state=0).fit(
@@ -118,6 +127,11 @@ def main(argv=None) -> int:
         if args.novelty is not None:
             by_name = {data.class_names[c]: segs[c] for c in classes}
             params.update(novelty_models=fit_recording_models(by_name, delay=8, random_state=0), novelty=args.novelty)
+        if args.null_class:
+            training = RecordingSet(data.without(rec.name), data.class_names, data.columns, data.source)
+            null_scores.append(float(calibrate_null_score(training, "minirocket", args.window).reject))
+            params["null_score"] = null_scores[-1]
+            print(f"{rec.name}: null score {null_scores[-1]:.4g}", file=sys.stderr)
         seg = OnlineScoreCLMSegmenter(scorer, window=args.clm_window, **params)
         node_path_latency(seg, rec.X[: WARMUP + 10])  # compile numba kernels outside the measurement
         run = stream(seg, rec.X)
@@ -162,7 +176,8 @@ def main(argv=None) -> int:
         "held_out": data.names()[: args.folds],
         "window": args.clm_window,
         "minirocket_window": args.window,
-        "background_factor": args.background,
+        "background_factor": None if args.null_class else args.background,
+        "null_scores": null_scores or None,
         "history": args.history,
         "novelty": args.novelty,
         "distance_z": args.distance_z,

@@ -146,7 +146,15 @@ class OnlineCLMNode(_RecognizerNode):
             None,
             ge=0,
             description="multiplies λ_bg (3 = strong background; 0 = none); null = the level `train-classes` "
-            "calibrated for the models (source ukr), else 1",
+            "calibrated for the models (source ukr), the null class of null_score (source minirocket/dtw, when "
+            "there is one and neither novelty_models nor distance_z is set), else 1",
+        )
+        null_score: float | None = Field(
+            None,
+            description="source minirocket/dtw: the background is a null class scoring this on every observation, "
+            "a rejection threshold on the scorer's scale (docs/segmentation.md, rejection on the scorer's scale; "
+            "-.inf = no rejection); null = the score `fit-scorer` calibrated and stored in the scorer file, if any. "
+            "Not with background_factor, novelty_models or distance_z, which reject with the background factor",
         )
         background: float | None = Field(None, description="λ_bg; null = 1 − 10/N")
         error_scale: float = Field(1.0, gt=0, description="multiplies e_t before c_sre (1 = spec)")
@@ -223,6 +231,15 @@ class OnlineCLMNode(_RecognizerNode):
                 raise ValueError("novelty_models needs source minirocket or dtw (the UKR source rejects by itself)")
             if self.source != MiniRocketScorer.kind and self.distance_z is not None:
                 raise ValueError("distance_z needs source minirocket (the only scorer with features)")
+            if self.null_score is not None and self.source == "ukr":
+                raise ValueError("null_score needs source minirocket or dtw (a threshold on the scorer's scale)")
+            if self.null_score is not None and (
+                self.background_factor is not None or self.novelty_models or self.distance_z is not None
+            ):
+                raise ValueError(
+                    "null_score rejects on the scorer's scale, background_factor, novelty_models and distance_z "
+                    "with the background factor: choose one (docs/segmentation.md)"
+                )
             if self.source != "ukr" and self.min_progress:
                 raise ValueError("min_progress needs source 'ukr' (a scorer's evidence has no latent time)")
             if self.source != "ukr" and self.max_fit_ratio is not None:
@@ -289,6 +306,7 @@ class OnlineCLMNode(_RecognizerNode):
             self.segmenter = OnlineScoreCLMSegmenter(
                 scorer,
                 background_factor=_first_set(p.background_factor, 1.0),
+                null_score=self.null_score(scorer),
                 novelty_models=novelty_models,
                 novelty=p.novelty,
                 distance_z=p.distance_z,
@@ -328,6 +346,16 @@ class OnlineCLMNode(_RecognizerNode):
                 f"'{self.params.source}'; set source: {scorer.kind}"
             )
         return scorer
+
+    def null_score(self, scorer: WindowScorer) -> float | None:
+        """The null class's score the segmenter rejects with: the ``null_score`` parameter, else the
+        one ``fit-scorer`` calibrated (``scorer.null_score_``) unless ``background_factor``,
+        ``novelty_models`` or ``distance_z`` is set; None = the background factor rejects
+        (docs/segmentation.md, "Score sources")."""
+        p = self.params
+        if p.background_factor is not None or p.novelty_models or p.distance_z is not None:
+            return None
+        return scorer.null_score_ if p.null_score is None else p.null_score
 
     def recognise(self, y: np.ndarray, stamp: int) -> None:
         """Push ``y`` and publish the label of observation ``newest − lag`` from it: the newest

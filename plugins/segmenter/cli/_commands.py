@@ -34,11 +34,7 @@ from ..models import (
     save_class_models,
     train_class_models,
 )
-from ._recordings import run_recordings_evaluation, run_train_recording_models
-
-
-def _progress(msg: str) -> None:
-    print(f"[{time.strftime('%H:%M:%S')}] {msg}", file=sys.stderr, flush=True)
+from ._recordings import _progress, run_recordings_evaluation, run_train_recording_models
 
 
 def _add_dataset_args(parser: argparse.ArgumentParser) -> None:

@@ -21,12 +21,17 @@ from ..evaluation import (
     REGISTRY,
     RecordingsEvaluator,
     calibrate_background,
+    calibrate_null_score,
     default_jobs,
     methods_to_run,
 )
 from ..features import DERIVED
 from ..models import fit_recording_models, save_class_models
 from ..scorers import SCORERS
+
+
+def _progress(msg: str) -> None:
+    print(f"[{time.strftime('%H:%M:%S')}] {msg}", file=sys.stderr, flush=True)
 
 
 def run_recordings_evaluation(args, progress) -> int:
@@ -148,7 +153,8 @@ def run_make_continuous(args) -> int:
 def register_fit_scorer(parser) -> None:
     parser.description = (
         "Fit a frame scorer (MiniRocket or DTW 1-NN over the causal window) on every labelled segment of "
-        "continuous recordings and save it without pickle, for the segmenter.online_clm node (docs/segmentation.md)."
+        "continuous recordings, calibrate its null class's score (the rejection threshold) on inner folds of "
+        "them and save it without pickle, for the segmenter.online_clm node (docs/segmentation.md)."
     )
     parser.add_argument("recordings", help="folder of labelled CSV recordings or a continuous .npz")
     parser.add_argument("--source", choices=sorted(SCORERS), default="minirocket")
@@ -235,6 +241,8 @@ def _calibrated_background(args, classes: list[str], progress) -> dict:
 
 
 def run_fit_scorer(args) -> int:
+    """``fit-scorer``: the scorer fitted on every labelled segment, its null class's score
+    calibrated on inner folds of the recordings (:func:`_calibrated_null_score`), saved."""
     t0 = time.perf_counter()
     try:
         cls = SCORERS[args.source]
@@ -248,12 +256,42 @@ def run_fit_scorer(args) -> int:
     except (ValueError, ImportError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
+    scorer.null_score_, scorer.null_calibration_ = _calibrated_null_score(args, names)
     out = scorer.save(args.out)
     print(
         f"wrote {args.source} scorer ({len(names)} classes: {', '.join(names)}; window {args.window}) "
         f"to {out} in {time.perf_counter() - t0:.1f}s"
     )
     return 0
+
+
+def _calibrated_null_score(args, classes: list[str]) -> tuple[float | None, dict | None]:
+    """The null class's score of the scorer, chosen on inner folds of the recordings as the
+    evaluation's ``clm_<source>`` chooses it (:func:`..evaluation.calibrate_null_score`), and its
+    report; ``(None, None)`` with a message when the recordings cannot be calibrated at all (too
+    few recordings or classes: the node rejects with its background factor)."""
+    try:
+        choice = calibrate_null_score(
+            load_recordings(args.recordings), args.source, args.window, classes, args.seed, progress=_progress
+        )
+    except ValueError as exc:
+        _progress(f"null class not calibrated ({exc}); the online node rejects with its background_factor")
+        return None, None
+    report = {
+        "validation_objective": round(choice.objective, 4),
+        "rejection": "off" if choice.fallback else "calibrated",
+    }
+    if choice.fallback:
+        _progress(
+            f"null class: rejection cannot be calibrated on this data (best inner-fold objective "
+            f"{choice.objective:.3f}, rejecting everything scores 0.5): null score -inf, rejection off"
+        )
+    else:
+        _progress(
+            f"null class: score {choice.reject:g} on the scorer's scale (inner-fold objective "
+            f"{choice.objective:.3f}); the online node uses it by default"
+        )
+    return float(choice.reject), report
 
 
 __getattr__ = renamed(

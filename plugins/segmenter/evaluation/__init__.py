@@ -47,6 +47,7 @@ from ._recordings import (
     FoldResult,
     RecordingsEvaluator,
     calibrate_background,
+    calibrate_null_score,
     default_jobs,
     half_window,
 )
@@ -110,6 +111,7 @@ __all__ = [
     "heading_choices",
     "calibrate",
     "calibrate_background",
+    "calibrate_null_score",
     "default_jobs",
     "frame_metrics",
     "half_window",

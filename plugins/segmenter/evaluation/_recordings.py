@@ -16,8 +16,9 @@ scaling and chosen on the same inner splits, per method, as one more parameter. 
 point beats rejecting everything on validation by more than ``FALLBACK_MARGIN``,
 ``calibration="fallback"`` (the default) switches rejection off for that method and fold and takes
 the parameters that label the most validation frames right; ``"strict"`` keeps the objective's
-choice whatever it is (docs/segmentation.md).  :func:`calibrate_background` applies the same rule
-to the models ``train-classes`` writes for the online node.
+choice whatever it is (docs/segmentation.md).  :func:`calibrate_background` and
+:func:`calibrate_null_score` apply the same rule to the models ``train-classes`` and the scorers
+``fit-scorer`` write for the online node.
 
 ``lag`` labels each frame from the evidence of the window ending ``lag`` frames later
 (:func:`..base.lagged`), in the calibration as in the figures; every method is also reported at
@@ -643,20 +644,60 @@ def calibrate_background(
     models' delay window, history H, derived features and training steps: ``fallback`` is set
     (and ``reject`` is 0, no background) when no background level beats rejecting everything
     (docs/segmentation.md)."""
+    method = UKRCLMMethod()
+    method.steps = steps
+    params = {"delay": delay, "history": history, "derived": derived, "normalise": "training"}
+    return _calibrate_on_all(data, method, params, known, random_state, calibration, progress, scaled=True)
+
+
+def calibrate_null_score(
+    data: RecordingSet,
+    kind: str,
+    window: int,
+    known: list[str] | None = None,
+    random_state: int = 0,
+    calibration: str = CALIBRATIONS[0],
+    progress: Callable[[str], None] = lambda msg: None,
+) -> Choice:
+    """The null class's score of a ``kind`` scorer (``minirocket``, ``dtw``) fitted on all of
+    ``data`` (``fit-scorer``, for the online node): the rejection threshold on the scorer's scale,
+    chosen as ``clm_<kind>`` chooses it in a fold of the evaluation — its inner folds, the
+    calibration rule and the gate by the scorer's own calibration — with the scorer's window on
+    the raw channels the scorer is fitted on; ``fallback`` is set (and ``reject`` is −inf,
+    rejection off) when rejection cannot be calibrated (docs/segmentation.md, "Score sources")."""
+    params = {"window": window, "derived": "none"}
+    return _calibrate_on_all(data, REGISTRY[f"clm_{kind}"], params, known, random_state, calibration, progress)
+
+
+def _calibrate_on_all(
+    data: RecordingSet,
+    method,
+    params: dict,
+    known: list[str] | None,
+    random_state: int,
+    calibration: str,
+    progress: Callable[[str], None],
+    scaled: bool = False,
+) -> Choice:
+    """The evaluation's choice of ``method``'s rejection value with ``params`` on the inner folds of
+    all of ``data`` (the models a command writes): the calibration rule, gated by the method's
+    scorer (``rejects_with``) as in :meth:`RecordingsEvaluator._select`; the recordings z-scored
+    with all their frames (``scaled``, the ``"training"`` normalisation) or as they are.  A
+    ValueError when ``data`` cannot be calibrated (too few recordings or classes)."""
+    derived = params["derived"]
     ev = RecordingsEvaluator(
         data,
         known,
-        ("ukr_clm",),
+        (method.name,),
         random_state=random_state,
         progress=progress,
         derived=(derived,),
         calibration=calibration,
     )
-    train, _ = ev.fold_views(None)["training", derived]
-    method = UKRCLMMethod()
-    method.steps = steps
-    params = {"delay": delay, "history": history, "derived": derived, "normalise": "training"}
-    return ev._rule(method.name, [ev._calibrated(method, train, params)])
+    train = ev.fold_views(None)["training", derived][0] if scaled else list(data.recordings)
+    scorer = method.rejects_with
+    gate = None if scorer is None else ev._calibrated(scorer, train, params)[0].objective
+    return ev._rule(method.name, [ev._calibrated(method, train, params)], gate)
 
 
 __getattr__ = renamed(__name__, {"StreamEvaluator": "RecordingsEvaluator"})  # the names before the recordings rename

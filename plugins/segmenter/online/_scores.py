@@ -10,9 +10,12 @@ revisions, segment events — is the UKR segmenter's.  With ``novelty_models`` (
 from ``handflow train-classes``) each observation's evidence is scaled by its novelty weight
 (:func:`..compatibility.novelty_weight`, with the models' intensity ranges, :mod:`..novelty`), so
 motion no manifold explains goes to the background; with ``distance_z`` also by the weight of its
-feature novelty (:func:`..novelty.distance_weight`, scorers with features only).
-:func:`batch_labels` segments a whole recording with the same compatibilities, the reference of
-the online/batch agreement.
+feature novelty (:func:`..novelty.distance_weight`, scorers with features only).  With
+``null_score`` the background is instead a *null class* that scores ``null_score`` on every
+observation (:func:`..compatibility.null_class_evidence`, ``reconstruction="relative"``): the CLM
+rejects on the scorer's scale, as the evaluation's ``clm_<scorer>`` (docs/segmentation.md,
+"Rejection on the scorer's scale").  :func:`batch_labels` segments a whole recording with the
+same compatibilities, the reference of the online/batch agreement.
 """
 
 from __future__ import annotations
@@ -22,7 +25,7 @@ from collections import deque
 import numpy as np
 
 from ..clm import CLMSegmenter
-from ..compatibility import evidence_band, history_compatibility, novelty_weight
+from ..compatibility import evidence_band, history_compatibility, novelty_weight, null_class_evidence
 from ..models import CandidateSet
 from ..novelty import distance_weight
 from ..scorers import WindowScorer
@@ -34,7 +37,9 @@ class OnlineScoreCLMSegmenter(OnlineCLMSegmenter):
 
     Takes the online segmenter's parameters; the UKR-only ones (``error_scale``,
     ``order_rating``, ``pair_error``, ``order_path``, ``min_span``) have no effect; the segment rules
-    (``min_progress``, ``max_fit_ratio``) are refused.
+    (``min_progress``, ``max_fit_ratio``) are refused.  ``null_score``: the background is the
+    layer of a null class scoring it (module docstring; ``reconstruction`` is then ``"relative"``
+    and ``background_factor`` has no effect), instead of the thesis background.
     """
 
     def __init__(
@@ -43,13 +48,15 @@ class OnlineScoreCLMSegmenter(OnlineCLMSegmenter):
         novelty_models: CandidateSet | None = None,
         novelty: float = 0.25,
         distance_z: float | None = None,
+        null_score: float | None = None,
         **params,
     ) -> None:
         self.scorer = scorer
         self.novelty_models = novelty_models
         self.novelty = novelty
         self.distance_z = distance_z
-        super().__init__(None, **params)
+        self.null_score = null_score
+        super().__init__(None, **_with_null_class(null_score, novelty_models, distance_z, params))
         if distance_z is not None and not scorer.has_features:
             raise ValueError(f"distance_z needs a scorer with features (minirocket), not {scorer.kind}")
         if self.segment_rules:
@@ -60,7 +67,7 @@ class OnlineScoreCLMSegmenter(OnlineCLMSegmenter):
     @classmethod
     def _get_param_names(cls) -> list[str]:
         names = set(OnlineCLMSegmenter._get_param_names()) - {"candidates"}
-        return sorted(names | {"scorer", "novelty_models", "novelty", "distance_z"})
+        return sorted(names | {"scorer", "novelty_models", "novelty", "distance_z", "null_score"})
 
     @property
     def classes_(self) -> list[str]:
@@ -76,7 +83,8 @@ class OnlineScoreCLMSegmenter(OnlineCLMSegmenter):
         self._weights: deque[np.ndarray] = deque(maxlen=int(self.history))  # novelty weights of the last H observations
 
     def _source_rows(self, m: int) -> dict[str, np.ndarray]:
-        return {"evidence": np.zeros((self.window, m))}
+        """The evidence per class (and of the null class, last, with ``null_score``)."""
+        return {"evidence": np.zeros((self.window, m + (self.null_score is not None)))}
 
     def push(self, y: np.ndarray) -> OnlineUpdate:
         """Consume one observation (d,): score its causal window, then re-segment the window."""
@@ -94,7 +102,7 @@ class OnlineScoreCLMSegmenter(OnlineCLMSegmenter):
 
     def update_scores(self, scores: np.ndarray, known: float | np.ndarray = 1.0) -> OnlineUpdate:
         """:meth:`push` for an observation already scored (M,), with its novelty weights (M,)."""
-        self._append(evidence=self.scorer.evidence(scores)[0] * known)
+        self._append(evidence=_evidence(self.scorer, scores, self.null_score)[0] * known)
         return self._segment()
 
     def known_weight(self, y: np.ndarray, feature_novelty: float | None = None) -> float | np.ndarray:
@@ -118,6 +126,35 @@ class OnlineScoreCLMSegmenter(OnlineCLMSegmenter):
         weights = known_weights(self.novelty_models, self.novelty, Y, self.history, feature_novelty, self.distance_z)
         for s, known in zip(scores, weights):
             yield self.update_scores(s, known)
+
+
+def _with_null_class(
+    null_score: float | None, novelty_models: CandidateSet | None, distance_z: float | None, params: dict
+) -> dict:
+    """The CLM parameters ``params`` with the reconstruction of the rejection: ``"relative"`` with
+    a null class (its layer, the evidence's last column, is the background), ``"absolute"`` (the
+    thesis background) without; a ValueError for another one, or for a null class together with
+    novelty weights."""
+    if null_score is not None and (novelty_models is not None or distance_z is not None):
+        raise ValueError(
+            "null_score rejects on the scorer's scale, novelty_models and distance_z with the background "
+            "factor: choose one (docs/segmentation.md)"
+        )
+    reconstruction = "absolute" if null_score is None else "relative"
+    if params.get("reconstruction", reconstruction) != reconstruction:
+        raise ValueError(
+            f"reconstruction {params['reconstruction']!r} does not apply: over a scorer's evidence the background "
+            "is the thesis band ('absolute') or, with null_score, the null class's layer ('relative')"
+        )
+    return {**params, "reconstruction": reconstruction}
+
+
+def _evidence(scorer: WindowScorer, scores: np.ndarray, null_score: float | None) -> np.ndarray:
+    """Class evidence (N, M) of scores (N, M) at the scorer's temperature, with the null class's
+    last (N, M + 1) when ``null_score`` is given."""
+    if null_score is None:
+        return scorer.evidence(scores)
+    return null_class_evidence(np.atleast_2d(scores), null_score, scorer.temperature_)
 
 
 def _scores(scorer: WindowScorer, Y: np.ndarray, distance_z: float | None) -> tuple[np.ndarray, np.ndarray | None]:
@@ -154,14 +191,16 @@ def batch_labels(
     novelty_models: CandidateSet | None = None,
     novelty: float = 0.25,
     distance_z: float | None = None,
+    null_score: float | None = None,
     **params,
 ) -> np.ndarray:
     """Whole-recording CLM over ``scorer``'s evidence at its fitted temperature, scaled by the
-    novelty weights of ``novelty_models`` and of the feature novelty beyond ``distance_z`` if given
-    (class indices, −1 = background); ``params`` are :class:`..clm.CLMSegmenter`'s."""
-    seg = CLMSegmenter(None, **params)
+    novelty weights of ``novelty_models`` and of the feature novelty beyond ``distance_z`` if given,
+    or with the null class of ``null_score`` as the background (class indices, −1 = background);
+    ``params`` are :class:`..clm.CLMSegmenter`'s."""
+    seg = CLMSegmenter(None, **_with_null_class(null_score, novelty_models, distance_z, params))
     _, span, width = seg.widths()
     scores, feature_novelty = _scores(scorer, Y, distance_z)
     known = known_weights(novelty_models, novelty, Y, int(seg.history), feature_novelty, distance_z)
-    evidence = scorer.evidence(scores) * known
+    evidence = _evidence(scorer, scores, null_score) * known
     return seg.fit_predict_bands(*seg.with_background(evidence_band(evidence, width, span)))

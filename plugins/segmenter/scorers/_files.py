@@ -3,6 +3,7 @@ which never unpickles and checks version, checksums and shapes."""
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 from handflow.framework.files.npz import building, npz_metadata, read_npz
@@ -32,6 +33,8 @@ def load_scorer(path: str | Path) -> WindowScorer:
         scorer.classes_ = list(meta["classes"])
         scorer.n_features_in_ = int(meta["n_features_in"])
         scorer.temperature_ = float(meta["temperature"])
+        scorer.null_score_ = float(meta["null_score"]) if "null_score" in meta else None
+        scorer.null_calibration_ = meta.get("null_calibration")
         if not (scorer.classes_ and scorer.n_features_in_ >= 1 and scorer.temperature_ > 0 and int(scorer.window) >= 1):
             raise ValueError("classes, channels, temperature or window out of range")
         scorer._restore(arrays)
@@ -45,4 +48,9 @@ def _metadata(path: Path, arrays: dict, refit: str) -> dict:
         raise ScorerFileError(f"{path}: scorer metadata lacks or garbles kind/params/classes/sha256; {refit}")
     if not all(isinstance(v, str) for v in meta["sha256"].values()):
         raise ScorerFileError(f"{path}: scorer metadata garbles the checksums; {refit}")
+    null = meta.get("null_score", 0.0)  # files without it: the null class is not calibrated
+    if isinstance(null, bool) or not isinstance(null, int | float) or math.isnan(null):
+        raise ScorerFileError(f"{path}: scorer metadata garbles null_score (not a number); {refit}")
+    if not isinstance(meta.get("null_calibration", {}), dict):
+        raise ScorerFileError(f"{path}: scorer metadata garbles null_calibration; {refit}")
     return meta

@@ -9,7 +9,9 @@ the online node maps scores to evidence the same way on every sample.
 
 File format (:meth:`WindowScorer.save`, :func:`load_scorer`): one ``.npz`` of plain numeric
 arrays plus ``metadata``, a JSON string with the format name and version, the scorer kind, its
-hyper-parameters, class names, temperature and the SHA-256 of every array.  Loading never
+hyper-parameters, class names, temperature, the SHA-256 of every array and, once calibrated by
+``fit-scorer``, the null class's score (``null_score``, −inf = rejection off) with its report
+(``null_calibration``; files without them load with ``null_score_`` None).  Loading never
 unpickles, checks the version (a file of another version is refused with what to do) and the
 checksums (a truncated or edited file is refused), then the arrays' shapes.
 """
@@ -47,8 +49,10 @@ def causal_windows(X: np.ndarray, ends: np.ndarray, width: int) -> np.ndarray:
 class WindowScorer(BaseEstimator, ABC):
     """Per-class scores of the causal window ending at each frame; fitted on segments per class.
 
-    After :meth:`fit`: ``classes_`` (class names, score column order), ``n_features_in_`` and
-    ``temperature_`` (the evidence temperature of :meth:`evidence`).
+    After :meth:`fit`: ``classes_`` (class names, score column order), ``n_features_in_``,
+    ``temperature_`` (the evidence temperature of :meth:`evidence`) and ``null_score_``, the null
+    class's score on the scorer's scale that ``fit-scorer`` calibrates (None until then; its report
+    in ``null_calibration_``; docs/segmentation.md, "Score sources").
     """
 
     kind: ClassVar[str] = ""
@@ -67,6 +71,7 @@ class WindowScorer(BaseEstimator, ABC):
         self.classes_ = list(segments)
         self.n_features_in_ = dims.pop()
         self.temperature_ = evidence_temperature(self._fit(segments))
+        self.null_score_, self.null_calibration_ = None, None
         return self
 
     @abstractmethod
@@ -127,6 +132,8 @@ class WindowScorer(BaseEstimator, ABC):
             "temperature": float(self.temperature_),
             "sha256": {k: _digest(v) for k, v in arrays.items()},
         }
+        if self.null_score_ is not None:
+            meta.update(null_score=float(self.null_score_), null_calibration=self.null_calibration_)
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
         with path.open("wb") as f:

@@ -20,6 +20,7 @@ from handflow.plugins.segmenter.online import OnlineScoreCLMSegmenter, batch_lab
 from handflow.plugins.segmenter.scorers import FORMAT_VERSION, DTWScorer, MiniRocketScorer, ScorerFileError, load_scorer
 from tests.conftest import run_command
 from tests.garbage import damaged_file
+from tests.segmenter.datasets.test_recordings import _indistinguishable_recordings
 
 DEMO = Path(__file__).resolve().parents[3] / "recordings" / "segmenter_demo"
 FUZZ = settings(max_examples=80, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
@@ -156,7 +157,10 @@ JSON = st.recursive(
 
 @FUZZ
 @given(
-    key=st.sampled_from(["kind", "params", "classes", "n_features_in", "temperature", "sha256", "version"]), value=JSON
+    key=st.sampled_from(
+        "kind params classes n_features_in temperature sha256 version null_score null_calibration".split()
+    ),
+    value=JSON,
 )
 def test_garbled_metadata_fails_clearly(minirocket, tmp_path, key, value):
     bad = _rewrite(minirocket[1], tmp_path / "meta.npz", lambda m, a: m.update({key: value}))
@@ -326,3 +330,75 @@ def test_novelty_models_with_another_channel_count_are_refused_at_start(novelty_
     folder = save_class_models(models, tmp_path)
     with pytest.raises(ValueError, match="trained on 2 channels, the scorer on 3"):
         NodeHarness(OnlineCLMNode, {"source": "dtw", "scorer": str(path), "novelty_models": str(folder)}).setup()
+
+
+def test_online_segmenter_with_a_null_class_agrees_with_the_batch_clm(dtw, demo):
+    """The null class rejects on the scorer's scale online as in the batch (docs/segmentation.md)."""
+    scorer, _ = dtw
+    X = demo[1].X
+    threshold = float(np.quantile(scorer.scores(X).max(axis=1), 0.2))
+    params = dict(history=10, random_state=0)
+    online = OnlineScoreCLMSegmenter(scorer, window=150, null_score=threshold, **params)
+    assert online.get_params()["null_score"] == threshold and online.reconstruction == "relative"
+    labels = online.replay(X)
+    assert np.mean(labels == batch_labels(scorer, X, null_score=threshold, **params)) > 0.9
+    kept = labels >= 0  # the frames the scorer is least sure of are rejected, the others mostly right
+    assert 0.05 < np.mean(~kept) < 0.5 and np.mean(labels[kept] == demo[1].y[kept]) > 0.9
+    up = online.update(X[0])  # the stream goes on: the class layers' activities, the null class's left out
+    assert up.scores.shape == (3,)
+    for null, rejected in ((np.inf, 1.0), (-np.inf, 0.0)):
+        everything = OnlineScoreCLMSegmenter(scorer, window=150, null_score=null, **params).replay(X[:200])
+        assert np.mean(everything == -1) == rejected
+        assert np.mean(batch_labels(scorer, X[:200], null_score=null, **params) == -1) == rejected
+
+
+def test_a_null_class_is_one_way_to_reject(dtw, rocket_without_rest, novelty_setup):
+    with pytest.raises(ValueError, match="choose one"):
+        OnlineScoreCLMSegmenter(dtw[0], novelty_models=novelty_setup[2], null_score=0.0)
+    with pytest.raises(ValueError, match="choose one"):
+        batch_labels(rocket_without_rest, np.zeros((5, 3)), distance_z=2.0, null_score=0.0)
+    with pytest.raises(ValueError, match="reconstruction 'absolute' does not apply"):
+        OnlineScoreCLMSegmenter(dtw[0], null_score=0.0, reconstruction="absolute")
+    with pytest.raises(ValueError, match="reconstruction 'relative' does not apply"):
+        OnlineScoreCLMSegmenter(dtw[0], reconstruction="relative")
+
+
+def test_fit_scorer_calibrates_the_null_class_for_the_node(tmp_path, capsys):
+    out = tmp_path / "dtw.npz"
+    assert run_command(register_fit_scorer, [str(DEMO), "--source", "dtw", "--window", "8", "--out", str(out)]) == 0
+    scorer = load_scorer(out)
+    assert np.isfinite(scorer.null_score_) and scorer.null_calibration_["rejection"] == "calibrated"
+    assert scorer.null_calibration_["validation_objective"] > 0.55
+    assert f"null class: score {scorer.null_score_:g} on the scorer's scale" in capsys.readouterr().err
+    node = NodeHarness(OnlineCLMNode, {"source": "dtw", "scorer": str(out), "window": 50}).setup().node.segmenter
+    assert node.null_score == scorer.null_score_ and node.reconstruction == "relative"
+    given = NodeHarness(OnlineCLMNode, {"source": "dtw", "scorer": str(out), "null_score": -1.0}).setup()
+    assert given.node.segmenter.null_score == -1.0
+    factor = NodeHarness(OnlineCLMNode, {"source": "dtw", "scorer": str(out), "background_factor": 0.5}).setup()
+    assert factor.node.segmenter.null_score is None and factor.node.segmenter.background_factor == 0.5
+    assert factor.node.segmenter.reconstruction == "absolute"
+    with pytest.raises(Exception, match="choose one"):
+        NodeHarness(OnlineCLMNode, {"source": "dtw", "scorer": str(out), "null_score": 0.0, "background_factor": 1})
+    old = _rewrite(out, tmp_path / "old.npz", lambda m, a: [m.pop("null_score"), m.pop("null_calibration")])
+    assert load_scorer(old).null_score_ is None  # a file from before: the node rejects with the background factor
+    plain = NodeHarness(OnlineCLMNode, {"source": "dtw", "scorer": str(old)}).setup().node.segmenter
+    assert plain.null_score is None and plain.background_factor == 1.0
+    bad = _rewrite(out, tmp_path / "bad.npz", lambda m, a: m.update(null_score="high"))
+    with pytest.raises(ScorerFileError, match="garbles null_score.*fit-scorer"):
+        load_scorer(bad)
+
+
+def test_fit_scorer_says_when_the_null_class_cannot_be_calibrated(tmp_path, capsys):
+    data = _indistinguishable_recordings(tmp_path)  # three 'classes' of one and the same noise
+    out = tmp_path / "dtw.npz"
+    assert run_command(register_fit_scorer, [data.source, "--source", "dtw", "--window", "4", "--out", str(out)]) == 0
+    assert "null class: rejection cannot be calibrated on this data" in capsys.readouterr().err
+    scorer = load_scorer(out)  # -inf: written and read back as JSON's -Infinity
+    assert scorer.null_score_ == -np.inf and scorer.null_calibration_["rejection"] == "off"
+    two = tmp_path / "two"
+    two.mkdir()
+    for rec in sorted(DEMO.glob("*.csv"))[:2]:
+        (two / rec.name).write_text(rec.read_text())
+    assert run_command(register_fit_scorer, [str(two), "--source", "dtw", "--window", "8", "--out", str(out)]) == 0
+    assert "null class not calibrated (leave-one-recording-out needs at least 3 recordings" in capsys.readouterr().err
+    assert load_scorer(out).null_score_ is None

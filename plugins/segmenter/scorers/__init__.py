@@ -13,6 +13,7 @@ from ._hmm import (
     PerClassHMM,
 )
 from ._minirocket import (
+    MAX_TRAINING_WINDOWS,
     WINDOWS_PER_SEGMENT,
     MiniRocketScorer,
 )
@@ -36,6 +37,7 @@ __all__ = [
     "SCORERS",
     "ScorerFileError",
     "SlidingDTW1NN",
+    "MAX_TRAINING_WINDOWS",
     "WINDOWS_PER_SEGMENT",
     "WindowScorer",
     "causal_windows",

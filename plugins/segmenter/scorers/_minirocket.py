@@ -9,6 +9,7 @@ from ..novelty import FeatureNovelty
 from ._window import WindowScorer, causal_windows
 
 WINDOWS_PER_SEGMENT = 12  # MiniRocket training windows per segment
+MAX_TRAINING_WINDOWS = 5000  # fewer windows per segment (one at least) beyond this many in all
 
 
 class MiniRocketScorer(WindowScorer):
@@ -16,8 +17,10 @@ class MiniRocketScorer(WindowScorer):
 
     The input is standardised with the training frames' mean and std (``mean_``, ``std_``).
     Training windows end at up to ``WINDOWS_PER_SEGMENT`` evenly spaced frames of each segment
-    (a window reaching before a segment's start repeats its first frame; documented choice that
-    keeps the ridge fit affordable).  Scores are the ridge decision values, one column per class
+    (a window reaching before a segment's start repeats its first frame), fewer per segment when
+    that would exceed ``MAX_TRAINING_WINDOWS`` in all (documented choice that keeps the ridge fit
+    affordable: its cross-validation costs the cube of the windows; none of the shared sets
+    reaches the limit).  Scores are the ridge decision values, one column per class
     (two for a binary problem); the evidence temperature comes from those of the training windows.  Fitted: ``parameters_`` (the MiniRocket transform: channels per
     combination, channel indices, dilations, features per dilation, biases), ``coef_`` (M, F),
     ``intercept_`` (M,), ``novelty_`` (:class:`..novelty.FeatureNovelty` of the training
@@ -88,9 +91,10 @@ class MiniRocketScorer(WindowScorer):
         sd = frames.std(axis=0)
         self.std_ = np.where(sd > 0, sd, 1.0)
         windows, targets, origins = [], [], []
+        per_segment = min(WINDOWS_PER_SEGMENT, max(1, MAX_TRAINING_WINDOWS // sum(map(len, segments.values()))))
         for k, segs in enumerate(segments.values()):
             for seg in segs:
-                ends = np.unique(np.linspace(0, len(seg) - 1, WINDOWS_PER_SEGMENT).astype(int))
+                ends = np.unique(np.linspace(0, len(seg) - 1, per_segment).astype(int))
                 windows.append(causal_windows((seg - self.mean_) / self.std_, ends, int(self.window)))
                 targets.append(np.full(len(ends), k))
                 origins.append(np.full(len(ends), len(origins)))

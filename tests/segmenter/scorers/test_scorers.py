@@ -47,6 +47,24 @@ def dtw(demo, tmp_path_factory):
     return scorer, scorer.save(tmp_path_factory.mktemp("scorer") / "dtw.npz")
 
 
+@pytest.mark.parametrize("limit, per_segment", [(10_000, 12), (30, 2), (5, 1)])
+def test_minirocket_trains_on_fewer_windows_per_segment_beyond_the_limit(demo, monkeypatch, limit, per_segment):
+    """Every segment keeps at least one window; beyond ``MAX_TRAINING_WINDOWS`` each keeps fewer."""
+    pytest.importorskip("aeon")
+    from handflow.plugins.segmenter.scorers import _minirocket
+
+    taken, windows = [], _minirocket.causal_windows
+
+    def counted(X, ends, width):
+        taken.append(len(ends))
+        return windows(X, ends, width)
+
+    monkeypatch.setattr(_minirocket, "MAX_TRAINING_WINDOWS", limit)
+    monkeypatch.setattr(_minirocket, "causal_windows", counted)
+    MiniRocketScorer(window=16, n_kernels=84, random_state=0, feature_novelty=False).fit(demo[0])
+    assert taken == [per_segment] * sum(map(len, demo[0].values()))  # 18 segments
+
+
 def test_reloaded_minirocket_scores_exactly_like_the_fitted_one(minirocket, demo):
     scorer, path = minirocket
     X = demo[1].X

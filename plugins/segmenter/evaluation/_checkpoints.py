@@ -3,8 +3,9 @@ survives an interruption and resumes where it stopped (docs/segmentation.md, ``-
 
 Each fold is written as ``fold-<recording>.npz`` when it ends (atomically: a stopped run leaves
 no half-written fold): its arrays, and a JSON ``metadata`` string with the rest of the fold and
-the *digest* of what the fold depends on — the recordings' contents, the evaluation's settings
-and the handflow version.  A later run with the same digest takes the fold from the file; a file
+the *digest* of what the fold depends on — the recordings' contents, the evaluation's settings,
+the handflow version and the source of the packages that compute it (the segmenter's and the
+manifolds'; an edited editable install is other code).  A later run with the same digest takes the fold from the file; a file
 of other settings or data, of another format version, or one that cannot be read is computed
 again, and the progress says why.  Files are never unpickled.
 """
@@ -37,10 +38,21 @@ def _handflow_version() -> str:
         return "unknown"
 
 
+def _code(h) -> None:
+    """Feed ``h`` the source files of the packages whose code computes a fold."""
+    import handflow.plugins.manifold as manifold
+
+    for root in (Path(__file__).parents[1], Path(manifold.__file__).parent):
+        for path in sorted(root.rglob("*.py")):
+            h.update(path.relative_to(root).as_posix().encode())
+            h.update(path.read_bytes())
+
+
 def settings_digest(recordings: list, class_names: list[str], settings: dict) -> str:
     """SHA-256 of the recordings' names, samples and labels, the class names, ``settings``
-    (JSON-able) and the handflow version: what a fold's figures depend on."""
+    (JSON-able), the handflow version and the code: what a fold's figures depend on."""
     h = hashlib.sha256()
+    _code(h)
     for r in recordings:
         for part in (
             r.name.encode(),
@@ -97,7 +109,7 @@ class FoldCheckpoints:
             arrays = read_npz(path, "evaluation fold", hint)
             meta = npz_metadata(arrays, path, "evaluation fold", hint, fmt=(FORMAT, FORMAT_VERSION, "version"))
             if meta.get("digest") != self.digest:
-                self.progress(f"  {path}: a fold of other recordings, settings or handflow version; computing it again")
+                self.progress(f"  {path}: a fold of other recordings, settings or code; computing it again")
                 return None
             with building(path, "evaluation fold", hint):
                 fold = self.fold_type(**_restore(meta["fold"], arrays))

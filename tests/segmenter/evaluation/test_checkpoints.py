@@ -54,7 +54,7 @@ def test_folds_of_other_settings_or_garbled_files_are_computed_again(recordings,
     kept = tmp_path / "folds"
     _run(capsys, recordings, "--checkpoints", str(kept))
     other, err = _run(capsys, recordings, "--checkpoints", str(kept), "--lag", "2")
-    assert err.count("a fold of other recordings, settings or handflow version") == 4
+    assert err.count("a fold of other recordings, settings or code") == 4
     assert err.count("holding out") == 4 and other["parameters"]["lag"] == 2
     path = kept / "fold-r1.npz"
     path.write_bytes(path.read_bytes()[:100])  # truncated

@@ -111,6 +111,7 @@ class FoldResult:
     unlagged: dict[str, np.ndarray]  # per method: the labels at lag 0 (``labels`` are at the evaluation's lag)
     enrolled: dict[str, dict[str, np.ndarray]] = field(default_factory=dict)  # per adaptation, method: labels
     scored_from: int = 0  # the first frame after the enrolment
+    seconds: float = 0.0  # the fold's own wall time
 
 
 @dataclass
@@ -468,7 +469,8 @@ class RecordingsEvaluator:
     # -- all folds --------------------------------------------------------------------------
     def _announced_fold(self, k: int, held: str) -> FoldResult:
         self.progress(f"fold {k + 1}/{len(self.data.recordings)}: holding out '{held}'")
-        fold = self.run_fold(held)
+        t0 = time.perf_counter()
+        fold = replace(self.run_fold(held), seconds=time.perf_counter() - t0)
         if self.enroll:
             self.progress(f"  {fold_note(fold, self.known)}")
         return fold
@@ -484,19 +486,20 @@ class RecordingsEvaluator:
                 done[held] = fold
                 self.progress(f"fold '{held}' taken from {kept.path(held)}")
         todo = [(k, held) for k, held in enumerate(names) if held not in done]
-        skipped = len(done)
 
         def finished(held: str, fold: FoldResult) -> None:
             done[held] = fold
+            computed.append(fold.seconds)
             if kept:
                 kept.save(fold)
-            spent, n = time.perf_counter() - start, len(names)
-            if len(done) < n:  # folds differ in size; the mean so far is the estimate
+            spent, left = time.perf_counter() - start, len(names) - len(done)
+            if left:  # folds differ in size: their mean so far, over the workers, is the estimate
                 self.progress(
-                    f"fold '{held}' done ({len(done)}/{n}); {spent / 60:.1f} min so far, "
-                    f"about {spent / (len(done) - skipped) * (n - len(done)) / 60:.0f} min to go"
+                    f"fold '{held}' done ({len(done)}/{len(names)}); {spent / 60:.1f} min so far, "
+                    f"about {np.mean(computed) * left / min(jobs, left) / 60:.0f} min to go"
                 )
 
+        computed: list[float] = []  # wall times of the folds computed in this run
         jobs = min(self.jobs, len(todo))
         if jobs <= 1:
             with threadpool_limits(1):  # as in a worker: BLAS sums in the same order whatever ``jobs``

@@ -10,7 +10,6 @@ from handflow.plugins.segmenter.cli import format_stream_table
 from handflow.plugins.segmenter.datasets import load_recordings
 from handflow.plugins.segmenter.evaluation import REGISTRY, RecordingsEvaluator, frame_metrics, segment_f1
 from handflow.plugins.segmenter.evaluation._recordings import Choice
-from tests.segmenter.datasets.test_recordings import _synthetic_recordings
 
 
 def test_lagged_labels_come_from_the_window_ending_lag_frames_later():
@@ -23,14 +22,8 @@ def test_lagged_labels_come_from_the_window_ending_lag_frames_later():
 
 
 @pytest.fixture(scope="module")
-def three_classes(tmp_path_factory):
-    """Four synthetic recordings of three motion classes in random order."""
-    arrays = {"class_names": np.array(["a", "b", "c"])}
-    for k in range(4):
-        arrays[f"X_r{k}"], arrays[f"y_r{k}"] = _synthetic_recordings(k)
-    path = tmp_path_factory.mktemp("lag") / "s.npz"
-    np.savez(path, **arrays)
-    return load_recordings(path)
+def three_classes(three_class_npz):
+    return load_recordings(three_class_npz)
 
 
 def test_the_evaluation_reports_accuracy_at_lag_zero_and_at_half_the_window(three_classes):

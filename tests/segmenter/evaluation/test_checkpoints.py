@@ -4,7 +4,6 @@ settings takes it from there instead of computing it; anything else is computed 
 
 import json
 
-import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -14,60 +13,48 @@ from handflow.plugins.segmenter.datasets import load_recordings
 from handflow.plugins.segmenter.evaluation import RecordingsEvaluator
 from handflow.plugins.segmenter.evaluation._checkpoints import FoldCheckpoints
 from tests.conftest import run_command
-from tests.segmenter.datasets.test_recordings import _synthetic_recordings
-
-
-@pytest.fixture(scope="module")
-def recordings(tmp_path_factory):
-    arrays = {"class_names": np.array(["a", "b", "c"])}
-    for k in range(4):
-        arrays[f"X_r{k}"], arrays[f"y_r{k}"] = _synthetic_recordings(k)
-    path = tmp_path_factory.mktemp("ckpt") / "r.npz"
-    np.savez(path, **arrays)
-    return path
-
 
 ARGS = ["--methods", "dtw_1nn", "--quick", "--json", "--jobs", "1", "--normalise", "training", "--derived", "none"]
 
 
-def _run(capsys, recordings, *extra) -> tuple[dict, str]:
-    assert run_command(register_evaluate, [str(recordings), *ARGS, *extra]) == 0
+def _run(capsys, three_class_npz, *extra) -> tuple[dict, str]:
+    assert run_command(register_evaluate, [str(three_class_npz), *ARGS, *extra]) == 0
     out = capsys.readouterr()
     result = json.loads(out.out)
     result.pop("runtime_s")
     return result, out.err
 
 
-def test_a_resumed_evaluation_takes_the_kept_folds_and_reports_the_same(recordings, tmp_path, capsys):
-    plain, _ = _run(capsys, recordings)
+def test_a_resumed_evaluation_takes_the_kept_folds_and_reports_the_same(three_class_npz, tmp_path, capsys):
+    plain, _ = _run(capsys, three_class_npz)
     kept = tmp_path / "folds"
-    first, err = _run(capsys, recordings, "--checkpoints", str(kept))
+    first, err = _run(capsys, three_class_npz, "--checkpoints", str(kept))
     assert first == plain and sorted(p.name for p in kept.iterdir()) == [f"fold-r{k}.npz" for k in range(4)]
     (kept / "fold-r2.npz").unlink()  # as if the run had stopped during that fold
-    resumed, err = _run(capsys, recordings, "--checkpoints", str(kept))
+    resumed, err = _run(capsys, three_class_npz, "--checkpoints", str(kept))
     assert resumed == plain
     assert [f"fold 'r{k}' taken from" in err for k in range(4)] == [True, True, False, True]
     assert err.count("holding out") == 1 and "holding out 'r2'" in err
 
 
-def test_folds_of_other_settings_or_garbled_files_are_computed_again(recordings, tmp_path, capsys):
+def test_folds_of_other_settings_or_garbled_files_are_computed_again(three_class_npz, tmp_path, capsys):
     kept = tmp_path / "folds"
-    _run(capsys, recordings, "--checkpoints", str(kept))
-    other, err = _run(capsys, recordings, "--checkpoints", str(kept), "--lag", "2")
+    _run(capsys, three_class_npz, "--checkpoints", str(kept))
+    other, err = _run(capsys, three_class_npz, "--checkpoints", str(kept), "--lag", "2")
     assert err.count("a fold of other recordings, settings or code") == 4
     assert err.count("holding out") == 4 and other["parameters"]["lag"] == 2
     path = kept / "fold-r1.npz"
     path.write_bytes(path.read_bytes()[:100])  # truncated
-    again, err = _run(capsys, recordings, "--checkpoints", str(kept), "--lag", "2")
+    again, err = _run(capsys, three_class_npz, "--checkpoints", str(kept), "--lag", "2")
     assert again == other
     assert "not a readable evaluation fold file" in err and err.count("holding out") == 1
 
 
 @pytest.fixture(scope="module")
-def kept_fold(recordings, tmp_path_factory) -> tuple[FoldCheckpoints, bytes]:
+def kept_fold(three_class_npz, tmp_path_factory) -> tuple[FoldCheckpoints, bytes]:
     """The store of one evaluation and the file of its first fold."""
     ev = RecordingsEvaluator(
-        load_recordings(recordings), methods=("dtw_1nn",), quick=True, checkpoints=tmp_path_factory.mktemp("kept")
+        load_recordings(three_class_npz), methods=("dtw_1nn",), quick=True, checkpoints=tmp_path_factory.mktemp("kept")
     )
     store = ev._checkpoints()
     store.save(ev.run_fold("r0"))

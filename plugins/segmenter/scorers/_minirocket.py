@@ -9,7 +9,7 @@ from ..novelty import FeatureNovelty
 from ._window import WindowScorer, causal_windows
 
 WINDOWS_PER_SEGMENT = 12  # MiniRocket training windows per segment
-MAX_TRAINING_WINDOWS = 5000  # fewer windows per segment (one at least) beyond this many in all
+MAX_TRAINING_WINDOWS = 2000  # fewer windows per segment (one at least) beyond this many in all
 
 
 class MiniRocketScorer(WindowScorer):
@@ -19,8 +19,8 @@ class MiniRocketScorer(WindowScorer):
     Training windows end at up to ``WINDOWS_PER_SEGMENT`` evenly spaced frames of each segment
     (a window reaching before a segment's start repeats its first frame), fewer per segment when
     that would exceed ``MAX_TRAINING_WINDOWS`` in all (documented choice that keeps the ridge fit
-    affordable: its cross-validation costs the cube of the windows; none of the shared sets
-    reaches the limit).  Scores are the ridge decision values, one column per class
+    affordable — its cross-validation costs the cube of the windows — and the cost linear in the
+    recordings' length; docs/segmentation.md, "Score sources").  Scores are the ridge decision values, one column per class
     (two for a binary problem); the evidence temperature comes from those of the training windows.  Fitted: ``parameters_`` (the MiniRocket transform: channels per
     combination, channel indices, dilations, features per dilation, biases), ``coef_`` (M, F),
     ``intercept_`` (M,), ``novelty_`` (:class:`..novelty.FeatureNovelty` of the training

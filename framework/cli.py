@@ -8,11 +8,11 @@ Each entry point names ``register(parser)``, which adds its arguments to its sub
 from __future__ import annotations
 
 import argparse
-import importlib.metadata
 import logging
 import signal
 import sys
 
+from .files.provenance import installed_version
 from .registry import command_entries
 
 
@@ -44,7 +44,7 @@ def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
     parser.add_argument(
         "--version",
         action="version",
-        version=f"%(prog)s {importlib.metadata.version('handflow')}",
+        version=f"%(prog)s {installed_version()}",
         help="print the installed handflow distribution's version and exit",
     )
     subparsers: dict[tuple[str, ...], argparse._SubParsersAction] = {

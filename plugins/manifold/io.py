@@ -10,23 +10,16 @@ from __future__ import annotations
 
 import datetime as _dt
 import json
-from importlib import metadata as _md
 
 import numpy as np
 
 from handflow.framework.files.npz import NpzFileError, building, npz_metadata, read_npz
+from handflow.framework.files.provenance import installed_version
 
 FORMAT = "handflow.structured_ukr"
 FORMAT_VERSION = 1
 _ARRAYS = ("Y", "latents", "sequence_ids", "train_variance", "history")
 RETRAIN = "train it again with `handflow train` (docs/training.md)"
-
-
-def _software_version():
-    try:
-        return _md.version("handflow")
-    except _md.PackageNotFoundError:
-        return "unknown"
 
 
 def _json_params(model):
@@ -44,7 +37,7 @@ def save_model(model, path, provenance=None):
     """Write ``model`` (fitted) to ``path`` (.npz)."""
     prov = {
         "software": "handflow",
-        "software_version": _software_version(),
+        "software_version": installed_version(),
         "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
     }
     prov.update(getattr(model, "provenance_", {}) or {})

@@ -25,6 +25,7 @@ from handflow.plugins.manifold.io import FORMAT as UKR
 from handflow.plugins.manifold.io import FORMAT_VERSION as UKR_VERSION
 
 from .clm import UKROnlyRecognizer
+from .datasets import ADAPTATIONS
 from .features import ChannelScaling, RunningStandardizer
 from .models import CandidateSet, enrolled_models, load_candidates
 from .online import OnlineCLMSegmenter, OnlineScoreCLMSegmenter, SegmentChange, SegmentTracker
@@ -209,8 +210,8 @@ class OnlineCLMNode(_RecognizerNode):
             "--enroll` does (docs/segmentation.md, Enrolment)",
         )
         enroll_segments: int = Field(1, ge=1, description="with enroll: segments per class that enrol (K)")
-        enroll_adaptation: Literal["align", "refit"] = Field(
-            "align",
+        enroll_adaptation: Literal[ADAPTATIONS] = Field(
+            ADAPTATIONS[0],
             description="with enroll: 'align' refits the models on recordings standardised with their own enrolment "
             "frames and standardises the stream with the session's; 'refit' adds the segments only",
         )

@@ -225,8 +225,7 @@ def _calibrated_background(args, classes: list[str], progress) -> dict:
     except ValueError as exc:
         progress(f"background level not calibrated ({exc}); the online node uses its background_factor parameter")
         return {}
-    report = {"history": args.history, "validation_objective": round(choice.objective, 4)}
-    report["rejection"] = "off" if choice.fallback else "calibrated"
+    report = {"history": args.history, **_calibration_report(choice)}
     if choice.fallback:
         progress(
             f"background level: rejection cannot be calibrated on this data (best inner-fold objective "
@@ -238,6 +237,11 @@ def _calibrated_background(args, classes: list[str], progress) -> dict:
             f"(inner-fold objective {choice.objective:.3f}); the online node uses it by default"
         )
     return {"background_factor": float(choice.reject), "background_calibration": report}
+
+
+def _calibration_report(choice) -> dict:
+    """What a calibrated :class:`..evaluation.Choice` stores with the models or scorer it is for."""
+    return {"validation_objective": round(choice.objective, 4), "rejection": "off" if choice.fallback else "calibrated"}
 
 
 def run_fit_scorer(args) -> int:
@@ -277,10 +281,7 @@ def _calibrated_null_score(args, classes: list[str]) -> tuple[float | None, dict
     except ValueError as exc:
         _progress(f"null class not calibrated ({exc}); the online node rejects with its background_factor")
         return None, None
-    report = {
-        "validation_objective": round(choice.objective, 4),
-        "rejection": "off" if choice.fallback else "calibrated",
-    }
+    report = _calibration_report(choice)
     if choice.fallback:
         _progress(
             f"null class: rejection cannot be calibrated on this data (best inner-fold objective "

@@ -1,6 +1,7 @@
 """Labelled trajectories, continuous recordings and synthetic letters (docs/segmentation.md)."""
 
 from ._enrolment import (
+    ADAPTATIONS,
     MIN_SPREAD,
     EnrolmentError,
     enrolment_recording,
@@ -33,6 +34,7 @@ from ._trajectories import (
 )
 
 __all__ = [
+    "ADAPTATIONS",
     "DatasetError",
     "EnrolmentError",
     "LABEL_COLUMN",

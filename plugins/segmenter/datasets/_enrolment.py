@@ -14,6 +14,7 @@ import numpy as np
 from ..base import runs
 from ._recordings import UNLABELLED, Recording
 
+ADAPTATIONS = ("align", "refit")  # how a session adapts to its enrolment; the first is the default
 MIN_SPREAD = 0.1  # floor of an aligned channel's spread, in units of the training frames' (documented choice)
 
 

@@ -18,24 +18,17 @@ import json
 import os
 import re
 from collections.abc import Callable
-from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 
 import numpy as np
 
 from handflow.framework.files.npz import NpzFileError, building, npz_metadata, read_npz
+from handflow.framework.files.provenance import installed_version
 
 FORMAT = "handflow.evaluation-fold"
 FORMAT_VERSION = 1
 _UNSAFE = re.compile(r"[^\w.-]")  # characters a recording's name may not bring into a file name
 _ARRAY = "@array"  # a JSON object {"@array": key} stands for the file's array ``key``
-
-
-def _handflow_version() -> str:
-    try:
-        return version("handflow")
-    except PackageNotFoundError:  # run from a source tree that is not installed
-        return "unknown"
 
 
 def _code(h) -> None:
@@ -60,7 +53,7 @@ def settings_digest(recordings: list, class_names: list[str], settings: dict) ->
             np.ascontiguousarray(r.y, dtype=np.int64),
         ):
             h.update(part if isinstance(part, bytes) else part.tobytes())
-    h.update(json.dumps([class_names, settings, _handflow_version()], sort_keys=True, default=str).encode())
+    h.update(json.dumps([class_names, settings, installed_version()], sort_keys=True, default=str).encode())
     return h.hexdigest()
 
 

@@ -15,10 +15,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..datasets import EnrolmentError, RecordingSet, enrolment_recording, enrolment_split, session_aligned
+from ..datasets import (
+    ADAPTATIONS,
+    EnrolmentError,
+    RecordingSet,
+    enrolment_recording,
+    enrolment_split,
+    session_aligned,
+)
 from ._metrics import frame_metrics
-
-ADAPTATIONS = ("align", "refit")  # the first is the default
 
 
 def check_enrolment(data: RecordingSet, known: list[int], k: int, adaptations: tuple[str, ...]) -> None:

@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from ..datasets import (
+    ADAPTATIONS,
     MIN_SPREAD,
     DatasetError,
     EnrolmentError,
@@ -25,8 +26,6 @@ from ..datasets import (
 )
 from ._candidates import CandidateSet
 from ._training import fit_recording_models
-
-ADAPTATIONS = ("align", "refit")  # as the evaluation's; the first is the default
 
 
 def _recordings(path: str | Path, classes: list[str]) -> list[Recording]:

@@ -6,8 +6,10 @@ from ._segmenter import (
     RECONSTRUCTIONS,
     CLMSegmenter,
     default_solver,
+    run_stretches,
 )
 from ._solver import (
+    BISECTION_MIN_N,
     LANCZOS_MIN_N,
     CLMResult,
     CLMRun,
@@ -21,6 +23,7 @@ from ._ukr_only import (
 )
 
 __all__ = [
+    "BISECTION_MIN_N",
     "CLMResult",
     "CLMRun",
     "CLMSegmenter",
@@ -34,4 +37,5 @@ __all__ = [
     "clm_energy",
     "gershgorin_bound",
     "largest_eigenvalue",
+    "run_stretches",
 ]

@@ -26,7 +26,7 @@ from ..compatibility import (
     thesis_background_strength,
 )
 from ..models import CandidateSet, Projection
-from ._solver import CLMResult, CompetitiveLayerModel
+from ._solver import CLMResult, CompetitiveLayerModel, clm_energy
 
 RECONSTRUCTIONS = ("absolute", "relative")
 ETA = 0.98  # annealing factor per sweep (docs/segmentation.md, documented choices)
@@ -39,6 +39,42 @@ def default_solver(candidates: CandidateSet | None = None, **params) -> Competit
     :data:`ETA`, or :data:`ETA_HEADED` for candidates with heading channels, and ``params``."""
     headed = candidates is not None and candidates.headings.active
     return CompetitiveLayerModel(**{"eta": ETA_HEADED if headed else ETA, **params})
+
+
+RUN_MARGIN = 8  # a run's margins, in band widths (docs/segmentation.md, "Long recordings")
+
+
+def run_stretches(n: int, run_length: int | None, margin: int) -> list[tuple[int, int, int, int]]:
+    """``(lo, hi, keep_lo, keep_hi)`` per run over ``n`` observations: each run covers ``lo…hi``
+    (at most ``run_length``) and keeps ``keep_lo…keep_hi``; the kept parts tile ``0…n`` and lie
+    ``margin`` observations inside their run wherever the sequence goes on."""
+    if run_length is None or n <= run_length:
+        return [(0, n, 0, n)]
+    core = int(run_length) - 2 * int(margin)
+    if core < 1:
+        raise ValueError(f"run_length {run_length} leaves no observation between margins of {margin}")
+    out = []
+    for keep_lo in range(0, n, core):
+        keep_hi = min(n, keep_lo + core)
+        out.append((max(0, keep_lo - margin), min(n, keep_hi + margin), keep_lo, keep_hi))
+    return out
+
+
+def _joined(results: list[CLMResult], stretches, band: np.ndarray, diag: np.ndarray, J: float) -> CLMResult:
+    """The runs' kept parts as one result: its energy is the whole sequence's at the strongest
+    run's inhibition."""
+    x = np.concatenate([r.activities[:, a - lo : b - lo] for r, (lo, _, a, b) in zip(results, stretches)], axis=1)
+    temperature = np.concatenate([r.temperature[a - lo : b - lo] for r, (lo, _, a, b) in zip(results, stretches)])
+    inhibition = max(r.inhibition for r in results)
+    return CLMResult(
+        activities=x,
+        winners=np.where(x.max(axis=0) > 0.0, x.argmax(axis=0), -1),
+        sweeps=max(r.sweeps for r in results),
+        converged=all(r.converged for r in results),
+        energy=clm_energy(x, band, diag, J, inhibition),
+        inhibition=inhibition,
+        temperature=temperature,
+    )
 
 
 class _Result:
@@ -131,6 +167,12 @@ class CLMSegmenter(BaseEstimator):
         (documented choice: the annealed Gauss–Seidel dynamics end in a local minimum of the
         CLM energy — on real letter pairs the true segmentation often has lower energy than a
         single run's result; keeping the best of 3 minimises the same energy better).
+    run_length : int or None, default None
+        A sequence longer than this is solved in runs over overlapping stretches of at most this
+        many observations, each keeping the labels of its middle, :attr:`run_margin` from its ends
+        (``None`` = one run over the whole sequence, the spec).  Documented choice (docs/segmentation.md, "Long recordings"):
+        the compatibilities reach only the band, and a run over a long sequence costs more per
+        observation as its arrays outgrow the caches.
     random_state : int, numpy.random.Generator or None, default None
         Seed of the stochastic solver.
     J, eta, tol, max_sweeps, inhibition_margin, spectral : optional
@@ -199,6 +241,7 @@ class CLMSegmenter(BaseEstimator):
         min_progress: float = 0.0,
         max_fit_ratio: float | None = None,
         restarts: int = 1,
+        run_length: int | None = None,
         random_state=None,
         **solver_params,
     ) -> None:
@@ -229,6 +272,7 @@ class CLMSegmenter(BaseEstimator):
         self.min_progress = min_progress
         self.max_fit_ratio = max_fit_ratio
         self.restarts = restarts
+        self.run_length = run_length
         self.random_state = random_state
 
     def set_params(self, **params):
@@ -246,6 +290,11 @@ class CLMSegmenter(BaseEstimator):
                 raise ValueError(f"reconstruction must be one of {RECONSTRUCTIONS}, got {self.reconstruction!r}")
             if int(self.history) < 1:
                 raise ValueError(f"history H must be >= 1, got {self.history}")
+            if self.run_length is not None and int(self.run_length) < 4 * self.run_margin:
+                raise ValueError(
+                    f"run_length must be at least {4 * self.run_margin} observations (twice its two margins of "
+                    f"{RUN_MARGIN} band widths) or None (one run), got {self.run_length}"
+                )
             if not float(self.min_progress) >= 0:
                 raise ValueError(f"min_progress must be >= 0 periods, got {self.min_progress}")
             if self.max_fit_ratio is not None and not float(self.max_fit_ratio) >= 1:
@@ -265,6 +314,11 @@ class CLMSegmenter(BaseEstimator):
     def background_strength(self, n: int) -> float:
         base = thesis_background_strength(n) if self.background is None else float(self.background)
         return base * self.background_factor
+
+    @property
+    def run_margin(self) -> int:
+        """Observations between a run's kept part and its ends (``run_length``): :data:`RUN_MARGIN` band widths."""
+        return RUN_MARGIN * self.widths()[2]
 
     def widths(self) -> tuple[int, int, int]:
         """Background radius K_bg, candidate neighbourhood ``max(H, min_span)`` and band width."""
@@ -353,7 +407,15 @@ class CLMSegmenter(BaseEstimator):
 
     def fit_predict_bands(self, band: np.ndarray, diag: np.ndarray) -> np.ndarray:
         """Segment with given layer compatibilities (:meth:`with_background` adds the background):
-        the lowest-energy of ``restarts`` runs; returns layer indices (−1 = background)."""
+        the lowest-energy of ``restarts`` runs, over stretches of ``run_length``; returns layer
+        indices (−1 = background)."""
+        solver = self._solver()
+        stretches = run_stretches(band.shape[1], self.run_length, self.run_margin)
+        results = [self._best_run(band[:, lo:hi], diag) for lo, hi, _, _ in stretches]
+        self._store(results[0] if len(results) == 1 else _joined(results, stretches, band, diag, solver.J))
+        return self.labels_
+
+    def _best_run(self, band: np.ndarray, diag: np.ndarray) -> CLMResult:
         solver = self._solver()
         lam = solver.spectral_scale(band, diag)
         best = None
@@ -361,8 +423,7 @@ class CLMSegmenter(BaseEstimator):
             result = solver.solve(band, diag, lambda_max=lam)
             if best is None or result.energy < best.energy:
                 best = result
-        self._store(best)
-        return self.labels_
+        return best
 
     def _store(self, result: CLMResult) -> None:
         self.result_ = result

@@ -2,6 +2,7 @@ import numpy as np
 import pytest
 
 from handflow.plugins.segmenter.clm import CompetitiveLayerModel, clm_energy, largest_eigenvalue
+from handflow.plugins.segmenter.clm import _solver as clm_solver
 from handflow.plugins.segmenter.compatibility import background_band
 
 
@@ -34,6 +35,15 @@ def test_largest_eigenvalue_of_long_sequences_matches_dense():  # the Lanczos pa
     band[1] = 0.0  # an all-zero layer: its eigenvalue is the diagonal
     for a in range(band.shape[0]):
         assert largest_eigenvalue(band[a], diag[a]) == pytest.approx(np.linalg.eigvalsh(dense(band[a], diag[a]))[-1])
+
+
+def test_largest_eigenvalue_by_bisection_matches_dense(monkeypatch):  # the path from BISECTION_MIN_N on
+    monkeypatch.setattr(clm_solver, "BISECTION_MIN_N", 250)
+    band, diag = random_layers(n=300, width=6)
+    band[1] = -0.4  # near-constant compatibilities: crowded top eigenvalues, Lanczos's slow case
+    for a in range(band.shape[0]):
+        exact = np.linalg.eigvalsh(dense(band[a], diag[a]))[-1]
+        assert largest_eigenvalue(band[a], diag[a]) == pytest.approx(exact, rel=1e-12, abs=1e-12)
 
 
 def test_energy_matches_dense_formula():

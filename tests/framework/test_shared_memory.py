@@ -8,7 +8,6 @@ import signal
 import subprocess
 import sys
 import textwrap
-import time
 
 import pytest
 import zenoh
@@ -144,7 +143,8 @@ def test_buffers_held_by_a_killed_process_never_block_publishing_and_its_pool_is
         [sys.executable, "-c", HOLDER, f"tcp/127.0.0.1:{port}"], stdout=subprocess.PIPE, text=True
     )
     try:
-        time.sleep(2.0)  # the holder connects
+        # the holder's subscriber is routed (a fixed pause lost the first payload on a loaded machine)
+        wait_until(lambda: pub.matching_status.matching, timeout=60, what="the holder's subscriber")
         for i in range(6):
             pub.put(pool.wrap(bytes([i]) * (256 << 10)))
             assert holder.stdout.readline().strip() == str(i + 1)

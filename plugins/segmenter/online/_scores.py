@@ -64,6 +64,18 @@ class OnlineScoreCLMSegmenter(OnlineCLMSegmenter):
                 "min_progress and max_fit_ratio need class manifolds' latent time and errors; a scorer's evidence has none"
             )
 
+    def set_params(self, **params):
+        """Set parameters as the constructor takes them, and build again as it does: a new
+        ``null_score`` brings its reconstruction and the window's null-class column with it."""
+        unknown = sorted(set(params) - set(self._get_param_names()))
+        if unknown:
+            raise ValueError(f"invalid parameters {unknown} for {type(self).__name__}")
+        merged = {**self.get_params(deep=False), **params}
+        if "null_score" in params and "reconstruction" not in params:
+            merged.pop("reconstruction")  # follows the null class (_with_null_class)
+        self.__init__(**merged)
+        return self
+
     @classmethod
     def _get_param_names(cls) -> list[str]:
         names = set(OnlineCLMSegmenter._get_param_names()) - {"candidates"}

@@ -370,6 +370,22 @@ def test_online_segmenter_with_a_null_class_agrees_with_the_batch_clm(dtw, demo)
         assert np.mean(batch_labels(scorer, X[:200], null_score=null, **params) == -1) == rejected
 
 
+def test_set_params_switches_the_null_class_as_the_constructor_does(dtw, demo):
+    scorer, _ = dtw
+    X = demo[1].X[:200]
+    built = OnlineScoreCLMSegmenter(scorer, window=150, history=10, random_state=0)
+    assert built.reconstruction == "absolute"
+    built.set_params(null_score=np.inf)
+    assert built.reconstruction == "relative" and np.all(built.replay(X) == -1)
+    fresh = OnlineScoreCLMSegmenter(scorer, window=150, history=10, random_state=0, null_score=np.inf)
+    mine, theirs = built.get_params(deep=False), fresh.get_params(deep=False)
+    assert mine.pop("solver").get_params() == theirs.pop("solver").get_params() and mine == theirs
+    built.set_params(null_score=None)
+    assert built.reconstruction == "absolute" and built.null_score is None
+    with pytest.raises(ValueError, match="invalid parameters"):
+        built.set_params(nul_score=0.0)
+
+
 def test_a_null_class_is_one_way_to_reject(dtw, rocket_without_rest, novelty_setup):
     with pytest.raises(ValueError, match="choose one"):
         OnlineScoreCLMSegmenter(dtw[0], novelty_models=novelty_setup[2], null_score=0.0)

@@ -122,10 +122,16 @@ def largest_eigenvalue(band: np.ndarray, diag: float) -> float:
             return float(eigsh(A, k=1, which="LA", tol=1e-10, v0=np.ones(n), return_eigenvectors=False)[0])
         except ArpackError:  # no convergence: the exact banded solver below
             pass
-    lower = np.zeros((width + 1, n))  # LAPACK lower form: lower[k, i] = A[i + k, i]
-    lower[0] = diag
-    lower[1:] = band[:, :width].T
+    lower = _lower_form(band[:, :width], diag)
     return float(eigvals_banded(lower, lower=True, select="i", select_range=(n - 1, n - 1))[0])
+
+
+def _lower_form(band: np.ndarray, diag: float) -> np.ndarray:
+    """The banded matrix in LAPACK's lower form: ``lower[k, i] = A[i + k, i]``."""
+    lower = np.zeros((band.shape[1] + 1, band.shape[0]))
+    lower[0] = diag
+    lower[1:] = band.T
+    return lower
 
 
 def _bisected_eigenvalue(band: np.ndarray, diag: float) -> float:
@@ -135,8 +141,7 @@ def _bisected_eigenvalue(band: np.ndarray, diag: float) -> float:
     to ``BISECTION_RTOL`` of its first scale; returns the bracket's upper end."""
     lo, hi = diag, gershgorin_bound(band[None], np.array([diag]))
     tol = BISECTION_RTOL * max(abs(lo), abs(hi))
-    shifted = np.zeros((band.shape[1] + 1, band.shape[0]))  # σI − A in LAPACK lower form
-    shifted[1:] = -band.T
+    shifted = -_lower_form(band, diag)  # σI − A, its diagonal set per σ
     while hi - lo > tol:
         mid = 0.5 * (lo + hi)
         shifted[0] = mid - diag

@@ -279,10 +279,12 @@ def register_evaluate(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--enroll-adaptation",
-        default="align",
-        help="with --enroll: comma-separated ways to adapt, each reported, the first at the top — 'align' (default): "
-        "every recording is also standardised with the mean and spread of its own enrolment segments; 'refit': "
-        "the segments are extra training data only (docs/segmentation.md, Enrolment)",
+        default="chosen",
+        help="with --enroll: comma-separated ways to adapt, each reported, the first at the top — 'chosen' "
+        "(default): per method and fold, whichever of no enrolment, 'refit' and 'align' labels the inner folds' "
+        "frames after their own enrolment best; 'align': every recording is also standardised with the mean and "
+        "spread of its own enrolment segments; 'refit': the segments are extra training data only "
+        "(docs/segmentation.md, Enrolment)",
     )
     parser.set_defaults(func=run_evaluate)
 

@@ -7,6 +7,7 @@ import inspect
 import json
 import sys
 import time
+from collections import Counter
 from pathlib import Path
 
 import numpy as np
@@ -102,8 +103,14 @@ def _enrolment_line(report: dict) -> str:
     def fig(x: float | None) -> str:
         return "—" if x is None else f"{x:.3f}"
 
+    def named(name: str, a: dict) -> str:
+        if "chosen" not in a:
+            return name
+        counts = Counter(a["chosen"].values())
+        return f"{name}: " + ", ".join(f"{choice} in {n}" for choice, n in counts.most_common())
+
     adapted = ", ".join(
-        f"{fig(a['open_set_accuracy'])} with it ({name}; gain {fig(a['gain'])})"
+        f"{fig(a['open_set_accuracy'])} with it ({named(name, a)}; gain {fig(a['gain'])})"
         for name, a in report["adaptations"].items()
     )
     return f"open-set accuracy {adapted}, {fig(report['open_set_accuracy_without_enrolment'])} without"

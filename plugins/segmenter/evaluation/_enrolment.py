@@ -4,11 +4,14 @@ With ``enroll`` = K ≥ 1, every fold's held-out recording starts with the first
 each known class (:func:`..datasets.enrolment_split`).  Every method is fitted once more with
 those segments as one more training recording, put first (its other frames unlabelled), with the
 parameters and rejection value chosen without them on the inner folds.  Adaptations
-(:data:`ADAPTATIONS`): ``"align"`` also standardises every recording of the fold with the
+(:data:`EVALUATION_ADAPTATIONS`): ``"align"`` also standardises every recording of the fold with the
 class-balanced mean and spread of its own enrolment frames (a per-session alignment of scale and
 offset, :func:`..datasets.session_alignment`; the recordings are scaled with the training frames
-already, so the spread's floor is a tenth of theirs); ``"refit"`` adds the segments only.  Both fits label the whole held-out recording and
-are scored on the same frames: those after the enrolment.
+already, so the spread's floor is a tenth of theirs); ``"refit"`` adds the segments only;
+``"chosen"`` (the default) takes, per method and fold, whichever of :data:`ENROL_CHOICES` labels
+the inner folds' frames after their own enrolment best (``"none"``: the fit without enrolment).
+Both fits label the whole held-out recording and are scored on the same frames: those after the
+enrolment.
 """
 
 from __future__ import annotations
@@ -25,14 +28,24 @@ from ..datasets import (
 )
 from ._metrics import frame_metrics
 
+CHOSEN = "chosen"  # the adaptation chosen per method and fold on the inner folds
+ENROL_CHOICES = ("none", "refit", "align")  # what CHOSEN chooses among; ties keep the first
+EVALUATION_ADAPTATIONS = (CHOSEN, *ADAPTATIONS)  # the first is the evaluation's default
+
 
 def check_enrolment(data: RecordingSet, known: list[int], k: int, adaptations: tuple[str, ...]) -> None:
     """A ValueError that says what to change when some recording cannot be a held-out one with
     ``k`` enrolment segments of every known class (the evaluation then stops before any fold)."""
     if k < 0:
         raise ValueError(f"--enroll must be >= 0 segments per class, got {k}")
-    if not adaptations or len(set(adaptations)) != len(adaptations) or not set(adaptations) <= set(ADAPTATIONS):
-        raise ValueError(f"enrolment adaptations: name distinct choices among {ADAPTATIONS}, got {list(adaptations)}")
+    if (
+        not adaptations
+        or len(set(adaptations)) != len(adaptations)
+        or not set(adaptations) <= set(EVALUATION_ADAPTATIONS)
+    ):
+        raise ValueError(
+            f"enrolment adaptations: name distinct choices among {EVALUATION_ADAPTATIONS}, got {list(adaptations)}"
+        )
     for rec in data.recordings:
         try:
             if enrolment_split(rec.y, known, k, data.class_names)[1] == len(rec.y):
@@ -44,22 +57,26 @@ def check_enrolment(data: RecordingSet, known: list[int], k: int, adaptations: t
             ) from None
 
 
+def enrolled(train: list, test, known: list[int], k: int, adaptation: str) -> tuple[list, object]:
+    """The training recordings with ``test``'s enrolment first, and ``test``; every recording
+    aligned by its own enrolment for ``"align"``; both unchanged for ``"none"``."""
+    if adaptation == "none":
+        return train, test
+    if adaptation == "align":
+        train, test = [session_aligned(r, known, k) for r in train], session_aligned(test, known, k)
+    return [enrolment_recording(test, known, k)[0], *train], test
+
+
 def enrolled_views(views: dict, known: list[int], k: int, adaptation: str) -> dict:
-    """Per normalisation and derived feature choice (``views``: → training recordings, held-out recording): the
-    training recordings with the held-out recording's enrolment first, and the held-out
-    recording; every recording aligned by its own enrolment for ``"align"``."""
-    out = {}
-    for key, (train, test) in views.items():
-        if adaptation == "align":
-            train, test = [session_aligned(r, known, k) for r in train], session_aligned(test, known, k)
-        out[key] = ([enrolment_recording(test, known, k)[0], *train], test)
-    return out
+    """:func:`enrolled` per normalisation and derived feature choice (``views``: → training
+    recordings, held-out recording)."""
+    return {key: enrolled(train, test, known, k, adaptation) for key, (train, test) in views.items()}
 
 
 def enrolment_report(folds: list, name: str, known: list[int], adaptations: tuple[str, ...]) -> dict:
     """Frame metrics of ``name`` with (per adaptation; the first one's at the top) and without
     enrolment on the same frames (each fold's frames after its enrolment, pooled), the gains in
-    open-set accuracy and the first scored frame per fold."""
+    open-set accuracy, the first scored frame per fold and, for ``"chosen"``, each fold's choice."""
 
     def pooled(labels_of) -> dict:
         return frame_metrics(
@@ -78,6 +95,8 @@ def enrolment_report(folds: list, name: str, known: list[int], adaptations: tupl
             else (with_["open_set_accuracy"] - without["open_set_accuracy"])
         )
         by[a] = {"open_set_accuracy": with_["open_set_accuracy"], "gain": gain, "with_enrolment": with_}
+        if a == CHOSEN:  # what the inner folds chose, per fold
+            by[a]["chosen"] = {f.recording: f.selected[name]["enrol_adaptation"] for f in folds}
     return {
         "adaptation": adaptations[0],
         **by[adaptations[0]],

@@ -42,8 +42,9 @@ MiniRocket's) can differ in the last bits (docs/segmentation.md, ``--jobs``).
 the same recordings and settings from there (:mod:`._checkpoints`).
 
 ``enroll`` = K ≥ 1 refits every method with the first K segments per known class of the
-held-out recording (``enrol_adaptations``: aligning every recording by its own enrolment, or not)
-and scores both fits on the frames after them (:mod:`._enrolment`).
+held-out recording (``enrol_adaptations``: aligning every recording by its own enrolment, or not,
+or whichever of those and no enrolment labels the inner folds' frames after their own enrolment
+best) and scores both fits on the frames after them (:mod:`._enrolment`).
 """
 
 from __future__ import annotations
@@ -61,10 +62,19 @@ from threadpoolctl import threadpool_limits
 
 from .._moved import renamed
 from ..base import lagged
-from ..datasets import Recording, RecordingSet, enrolment_split, segments
+from ..datasets import ADAPTATIONS, Recording, RecordingSet, enrolment_split, segments
 from ..features import DERIVED, ChannelScaling, RunningStandardizer, derive
 from ._checkpoints import FoldCheckpoints, settings_digest
-from ._enrolment import ADAPTATIONS, check_enrolment, enrolled_views, enrolment_report, fold_note
+from ._enrolment import (
+    CHOSEN,
+    ENROL_CHOICES,
+    EVALUATION_ADAPTATIONS,
+    check_enrolment,
+    enrolled,
+    enrolled_views,
+    enrolment_report,
+    fold_note,
+)
 from ._methods import REGISTRY, Fitted, UKRCLMMethod
 from ._metrics import calibrate, frame_metrics, segment_f1, tradeoff_curve
 
@@ -203,7 +213,7 @@ class RecordingsEvaluator:
         lag: int = 0,
         jobs: int = 1,
         enroll: int = 0,
-        enrol_adaptations: tuple[str, ...] = ADAPTATIONS[:1],
+        enrol_adaptations: tuple[str, ...] = EVALUATION_ADAPTATIONS[:1],
         checkpoints: str | None = None,
     ) -> None:
         if jobs < 1:
@@ -408,8 +418,8 @@ class RecordingsEvaluator:
             )
         labels, selected, sweeps, strict = {}, {}, {}, {}
         self._fold_choices = {}
-        sessions = {a: enrolled_views(views, self.known, self.enroll, a) for a in self.enrol_adaptations if self.enroll}
-        enrolled = {a: {} for a in sessions}
+        sessions = {a: enrolled_views(views, self.known, self.enroll, a) for a in ADAPTATIONS if self.enroll}
+        with_enrolment = {a: {} for a in self.enrol_adaptations if self.enroll}
 
         def lag(x: np.ndarray) -> np.ndarray:
             return lagged(x, self.lag)
@@ -433,19 +443,26 @@ class RecordingsEvaluator:
                 selected[name]["strict"] = {**choice.strict.params, "reject": float(choice.strict.reject)}
                 strict_fit, strict_state, _ = self._final(method, choice.strict.params, views)
                 strict[name] = lag(method.labels(strict_fit, strict_state, choice.strict.reject))
-            for adaptation, session in sessions.items():
-                enrolled[adaptation].update(self._enrolled(method, choice, session))
+            if CHOSEN in with_enrolment:
+                selected[name]["enrol_adaptation"] = self._adaptation(method, choice, views)
             self.progress(f"  {held}: {name} {selected[name]} in {time.perf_counter() - t0:.1f}s")
-            for online in (REGISTRY[m] for m in self.methods if REGISTRY[m].batch is method):
+            for online in map(REGISTRY.get, self._replaying(method)):
                 t0 = time.perf_counter()
                 labels[online.name] = online.labels_online(fitted, choice.reject, test.X)
                 selected[online.name] = selected[name]
                 self.progress(f"  {held}: {online.name} replayed {name}'s models in {time.perf_counter() - t0:.1f}s")
+            for adaptation in with_enrolment:
+                chosen = selected[name]["enrol_adaptation"] if adaptation == CHOSEN else adaptation
+                with_enrolment[adaptation].update(
+                    {m: lag(labels[m]) for m in (name, *self._replaying(method))}
+                    if chosen == "none"
+                    else self._enrolled(method, choice, sessions[chosen])
+                )
         lagged_labels = {name: lag(x) for name, x in labels.items()}
         truth = next(iter(views.values()))[1].y
         scored_from = enrolment_split(truth, self.known, self.enroll)[1] if self.enroll else 0
         return FoldResult(
-            held, truth, lagged_labels, selected, sweeps, strict, untrained, labels, enrolled, scored_from
+            held, truth, lagged_labels, selected, sweeps, strict, untrained, labels, with_enrolment, scored_from
         )
 
     def _enrolled(self, method, choice: Choice, session: dict) -> dict[str, np.ndarray]:
@@ -454,9 +471,39 @@ class RecordingsEvaluator:
         :func:`._enrolment.enrolled_views`)."""
         fitted, state, test = self._final(method, choice.params, session)
         out = {method.name: method.labels(fitted, state, choice.reject)}
-        for online in (REGISTRY[m] for m in self.methods if REGISTRY[m].batch is method):
+        for online in map(REGISTRY.get, self._replaying(method)):
             out[online.name] = online.labels_online(fitted, choice.reject, test.X)
         return {name: lagged(x, self.lag) for name, x in out.items()}
+
+    def _replaying(self, method) -> list[str]:
+        """The online methods of this evaluation that replay ``method``'s models."""
+        return [m for m in self.methods if REGISTRY[m].batch is method]
+
+    def _adaptation(self, method, choice: Choice, views) -> str:
+        """The enrolment adaptation (:data:`._enrolment.ENROL_CHOICES`) under which ``method`` with
+        ``choice`` labels the inner folds' frames after their own enrolment best (open-set
+        accuracy, pooled; ties keep the first): each inner validation recording enrols as the
+        held-out one does, refitted on the other training recordings."""
+        train = views[choice.params["normalise"], choice.params["derived"]][0]
+        folds = [(v, [t for t in train if t is not v]) for v in train[-INNER_FOLDS:]]
+        starts = [enrolment_split(v.y, self.known, self.enroll)[1] for v, _ in folds]
+        truth = np.concatenate([v.y[s:] for (v, _), s in zip(folds, starts)])
+        scores = {}
+        for adaptation in ENROL_CHOICES:
+            pred = []
+            for (v, rest), start in zip(folds, starts):
+                fit_on, test = enrolled(rest, v, self.known, self.enroll, adaptation)
+                fitted = self._fit(method, fit_on, choice.params)
+                labels = method.labels(fitted, self._prepare(method, fitted, test), choice.reject)
+                pred.append(lagged(labels, self.lag)[start:])
+            scores[adaptation] = frame_metrics(truth, np.concatenate(pred), self.known)["open_set_accuracy"] or 0.0
+        best = max(ENROL_CHOICES, key=scores.get)
+        self.progress(
+            f"    {method.name}: enrolment {best} ("
+            + ", ".join(f"{a} {score:.3f}" for a, score in scores.items())
+            + " on the inner folds' frames after their enrolment)"
+        )
+        return best
 
     def _final(self, method, params: dict, views) -> tuple:
         """``method`` fitted with ``params`` on all training recordings, its state on the held-out

@@ -9,7 +9,8 @@ class-balanced mean and spread of its own enrolment frames (a per-session alignm
 offset, :func:`..datasets.session_alignment`; the recordings are scaled with the training frames
 already, so the spread's floor is a tenth of theirs); ``"refit"`` adds the segments only;
 ``"chosen"`` (the default) takes, per method and fold, whichever of :data:`ENROL_CHOICES` labels
-the inner folds' frames after their own enrolment best (``"none"``: the fit without enrolment).
+the inner folds' frames after their own enrolment best (``"none"``: the fit without enrolment),
+an adaptation only when it beats no enrolment there by :data:`ENROL_MARGIN`.
 Both fits label the whole held-out recording and are scored on the same frames: those after the
 enrolment.
 """
@@ -30,6 +31,7 @@ from ._metrics import frame_metrics
 
 CHOSEN = "chosen"  # the adaptation chosen per method and fold on the inner folds
 ENROL_CHOICES = ("none", "refit", "align")  # what CHOSEN chooses among; ties keep the first
+ENROL_MARGIN = 0.05  # an adaptation must beat no enrolment on the inner folds by this much (documented choice)
 EVALUATION_ADAPTATIONS = (CHOSEN, *ADAPTATIONS)  # the first is the evaluation's default
 
 

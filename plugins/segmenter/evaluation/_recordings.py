@@ -68,6 +68,7 @@ from ._checkpoints import FoldCheckpoints, settings_digest
 from ._enrolment import (
     CHOSEN,
     ENROL_CHOICES,
+    ENROL_MARGIN,
     EVALUATION_ADAPTATIONS,
     check_enrolment,
     enrolled,
@@ -444,7 +445,9 @@ class RecordingsEvaluator:
                 strict_fit, strict_state, _ = self._final(method, choice.strict.params, views)
                 strict[name] = lag(method.labels(strict_fit, strict_state, choice.strict.reject))
             if CHOSEN in with_enrolment:
-                selected[name]["enrol_adaptation"] = self._adaptation(method, choice, views)
+                selected[name]["enrol_adaptation"], selected[name]["enrol_validation"] = self._adaptation(
+                    method, choice, views
+                )
             self.progress(f"  {held}: {name} {selected[name]} in {time.perf_counter() - t0:.1f}s")
             for online in map(REGISTRY.get, self._replaying(method)):
                 t0 = time.perf_counter()
@@ -479,11 +482,12 @@ class RecordingsEvaluator:
         """The online methods of this evaluation that replay ``method``'s models."""
         return [m for m in self.methods if REGISTRY[m].batch is method]
 
-    def _adaptation(self, method, choice: Choice, views) -> str:
-        """The enrolment adaptation (:data:`._enrolment.ENROL_CHOICES`) under which ``method`` with
-        ``choice`` labels the inner folds' frames after their own enrolment best (open-set
-        accuracy, pooled; ties keep the first): each inner validation recording enrols as the
-        held-out one does, refitted on the other training recordings."""
+    def _adaptation(self, method, choice: Choice, views) -> tuple[str, dict[str, float]]:
+        """The enrolment adaptation (:data:`._enrolment.ENROL_CHOICES`) of ``method`` with
+        ``choice``, and each one's open-set accuracy on the inner folds' frames after their own
+        enrolment (pooled): each inner validation recording enrols as the held-out one does,
+        refitted on the other training recordings.  The best one, if it beats no enrolment by
+        :data:`._enrolment.ENROL_MARGIN` (ties keep the first); no enrolment otherwise."""
         train = views[choice.params["normalise"], choice.params["derived"]][0]
         folds = [(v, [t for t in train if t is not v]) for v in train[-INNER_FOLDS:]]
         starts = [enrolment_split(v.y, self.known, self.enroll)[1] for v, _ in folds]
@@ -498,12 +502,14 @@ class RecordingsEvaluator:
                 pred.append(lagged(labels, self.lag)[start:])
             scores[adaptation] = frame_metrics(truth, np.concatenate(pred), self.known)["open_set_accuracy"] or 0.0
         best = max(ENROL_CHOICES, key=scores.get)
+        if scores[best] < scores[ENROL_CHOICES[0]] + ENROL_MARGIN:
+            best = ENROL_CHOICES[0]
         self.progress(
             f"    {method.name}: enrolment {best} ("
             + ", ".join(f"{a} {score:.3f}" for a, score in scores.items())
-            + " on the inner folds' frames after their enrolment)"
+            + f" on the inner folds' frames after their enrolment; an adaptation must gain {ENROL_MARGIN})"
         )
-        return best
+        return best, scores
 
     def _final(self, method, params: dict, views) -> tuple:
         """``method`` fitted with ``params`` on all training recordings, its state on the held-out

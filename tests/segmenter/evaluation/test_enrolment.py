@@ -15,6 +15,8 @@ from handflow.plugins.segmenter.datasets import (
     session_aligned,
 )
 from handflow.plugins.segmenter.evaluation import RecordingsEvaluator, frame_metrics
+from handflow.plugins.segmenter.evaluation import _recordings as recordings_module
+from handflow.plugins.segmenter.evaluation._enrolment import ENROL_MARGIN
 from tests.conftest import run_command
 from tests.segmenter.datasets.test_recordings import _synthetic_recordings
 
@@ -96,3 +98,53 @@ def test_a_recording_without_k_segments_of_a_known_class_stops_the_evaluation_sa
     err = capsys.readouterr().err
     assert "--enroll 2: recording 'r0' has fewer segments than the 2 to enrol: class 'b' has 1" in err
     assert "lower --enroll, or leave such classes out with --known" in err
+
+
+def _shifted_sessions(path):
+    """The recordings of :func:`sessions`, each session moved and scaled as a new glove fit would."""
+    arrays = {"class_names": np.array(["a", "b", "c"])}
+    for k in range(4):
+        halves = [_synthetic_recordings(k), _synthetic_recordings(k + 10)]
+        X, arrays[f"y_r{k}"] = (np.concatenate(part) for part in zip(*halves))
+        arrays[f"X_r{k}"] = (1.0 + 0.8 * k) * X + np.array([2.0 * k, -1.5 * k])
+    np.savez(path, **arrays)
+    return load_recordings(path)
+
+
+@pytest.mark.parametrize("shifted", [False, True])
+def test_the_chosen_adaptation_is_one_of_the_others_per_fold_and_its_labels_are_that_ones(sessions, tmp_path, shifted):
+    data = _shifted_sessions(tmp_path / "s.npz") if shifted else sessions
+    ev = RecordingsEvaluator(
+        data,
+        methods=("dtw_1nn",),
+        quick=True,
+        normalise="training",
+        enroll=1,
+        enrol_adaptations=("chosen", "refit", "align"),
+    )
+    res = ev.evaluate()
+    report = res["methods"]["dtw_1nn"]["enrolment"]
+    assert report["adaptation"] == "chosen"
+    chosen = report["adaptations"]["chosen"]["chosen"]
+    assert set(chosen) == set(data.names()) and set(chosen.values()) <= {"none", "refit", "align"}
+    for f in ev.folds_:
+        picked = f.selected["dtw_1nn"]["enrol_adaptation"]
+        assert chosen[f.recording] == picked
+        expected = f.labels["dtw_1nn"] if picked == "none" else f.enrolled[picked]["dtw_1nn"]
+        assert np.array_equal(f.enrolled["chosen"]["dtw_1nn"], expected)
+    if shifted:  # sessions that differ in offset and scale under the training z-score: the alignment wins
+        assert set(chosen.values()) == {"align"} and report["gain"] > 0.1
+        for f in ev.folds_:
+            inner = f.selected["dtw_1nn"]["enrol_validation"]
+            assert inner["align"] >= max(inner.values()) and inner["align"] >= inner["none"] + ENROL_MARGIN
+        assert "(chosen: align in 4; gain" in format_stream_table(res)
+
+
+def test_without_an_inner_fold_gain_of_the_margin_the_enrolment_is_not_used(sessions, monkeypatch):
+    monkeypatch.setattr(recordings_module, "ENROL_MARGIN", 1.0)  # no adaptation gains a whole unit of accuracy
+    ev = RecordingsEvaluator(sessions, methods=("ukr_clm", "ukr_clm_online"), quick=True, enroll=1)
+    report = ev.evaluate()["methods"]["ukr_clm_online"]["enrolment"]
+    assert set(report["adaptations"]["chosen"]["chosen"].values()) == {"none"} and report["gain"] == 0
+    for f in ev.folds_:
+        assert set(f.selected["ukr_clm"]["enrol_validation"]) == {"none", "refit", "align"}
+        assert all(np.array_equal(f.enrolled["chosen"][m], f.labels[m]) for m in ("ukr_clm", "ukr_clm_online"))

@@ -1,0 +1,106 @@
+"""How much could enrolment buy the UKR class models at most, by moving each class's errors?
+
+Per fold of leave-one-recording-out, ``ukr_clm`` is fitted without enrolment with the parameters
+that fold selected in an evaluation (its ``--json`` output), and the held-out recording is
+projected.  On its frames after the enrolment (``--enroll K``; docs/segmentation.md, "Enrolment")
+the frame-wise best fit (the class of the smallest error, the argmax of the evidence the CLM
+groups) is scored:
+
+- ``frame-wise``: as fitted;
+- ``enrolment offsets``: per-class offsets of the errors chosen to label the enrolment frames
+  best (coordinate search over a grid; ties keep the smaller offset);
+- ``enrolment ratios``: each class's errors divided by their median on its enrolment frames,
+  times its training frames' own typical error;
+- ``oracle offsets``: per-class offsets chosen on the scored frames themselves — an upper bound
+  for any adaptation that shifts the classes' errors, which no enrolment can reach.
+
+Reported: accuracy over the scored frames pooled over the folds (every class of the set known)
+and ``ukr_clm``'s own labels for reference.
+
+    python benchmarks/enrolment_bound.py ../shared/data/gesture_phases.npz --selected gp.json [--enroll 1] [--json]
+"""
+
+from __future__ import annotations
+
+import one_core  # noqa: F401  (one thread for BLAS and numba, set before numpy loads)
+
+# isort: split
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+from recording_set import open_recordings
+
+from handflow.plugins.segmenter.datasets import enrolment_split
+from handflow.plugins.segmenter.evaluation import REGISTRY, RecordingsEvaluator
+
+OFFSETS = np.round(np.linspace(-3.0, 3.0, 61), 10)  # error offsets searched, in the models' error units
+ROUNDS = 3  # coordinate-search passes over the classes
+
+
+def best_offsets(errors: np.ndarray, truth: np.ndarray, classes: np.ndarray) -> np.ndarray:
+    """Per-class offsets b (coordinate search over :data:`OFFSETS`) maximising the share of
+    ``truth`` equal to the class of the smallest ``errors − b``; ties keep the smaller |b|."""
+    b = np.zeros(len(classes))
+    for _ in range(ROUNDS):
+        for j in range(len(classes)):
+            trial = np.tile(b, (len(OFFSETS), 1))
+            trial[:, j] = OFFSETS
+            right = [np.mean(classes[np.argmin(errors - t, axis=1)] == truth) for t in trial]
+            b[j] = max(zip(right, -np.abs(OFFSETS), OFFSETS))[2]
+    return b
+
+
+def fold_labels(errors, y, mask, start, classes, own) -> dict[str, np.ndarray]:
+    """Each variant's labels of the scored frames (``start`` on) of one fold."""
+    enrol_median = np.array([np.median(errors[mask & (y == c), j]) for j, c in enumerate(classes)])
+    scored = errors[start:]
+    return {
+        "frame-wise": classes[np.argmin(scored, axis=1)],
+        "enrolment offsets": classes[np.argmin(scored - best_offsets(errors[mask], y[mask], classes), axis=1)],
+        "enrolment ratios": classes[np.argmin(scored / enrol_median * own, axis=1)],
+        "oracle offsets": classes[np.argmin(scored - best_offsets(scored, y[start:], classes), axis=1)],
+    }
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("recordings", type=Path)
+    ap.add_argument("--selected", type=Path, required=True, help="an evaluation's --json output (ukr_clm's folds)")
+    ap.add_argument("--enroll", type=int, default=1)
+    ap.add_argument("--json", action="store_true")
+    args = ap.parse_args()
+    data = open_recordings(args.recordings)
+    if data is None:
+        return 2
+    folds = {
+        f["recording"]: f["selected"] for f in json.loads(args.selected.read_text())["methods"]["ukr_clm"]["folds"]
+    }
+    ev = RecordingsEvaluator(data, normalise=("training", "recording"), derived=("none", "velocities"))
+    method = REGISTRY["ukr_clm"]
+    right: dict[str, int] = {}
+    scored = 0
+    for held in data.names():
+        params = {k: folds[held][k] for k in ("delay", "history", "derived", "normalise")}
+        fitted, proj, test = ev._final(method, params, ev.fold_views(held))
+        mask, start = enrolment_split(test.y, ev.known, args.enroll)
+        classes = np.array(fitted.classes)
+        labels = fold_labels(proj.errors, test.y, mask, start, classes, fitted.model.own_errors)
+        labels["ukr_clm"] = method.labels(fitted, proj, folds[held]["reject"])[start:]
+        for name, lab in labels.items():
+            right[name] = right.get(name, 0) + int(np.sum(lab == test.y[start:]))
+        scored += len(test.y) - start
+        print(f"{held}: {len(test.y) - start} scored frames", file=sys.stderr)
+    result = {name: n / scored for name, n in right.items()}
+    if args.json:
+        print(json.dumps({"scored_frames": scored, "accuracy": result}, indent=1))
+    else:
+        for name, value in result.items():
+            print(f"{name:18s} {value:.3f}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -142,7 +142,9 @@ def test_the_chosen_adaptation_is_one_of_the_others_per_fold_and_its_labels_are_
 
 def test_without_an_inner_fold_gain_of_the_margin_the_enrolment_is_not_used(sessions, monkeypatch):
     monkeypatch.setattr(recordings_module, "ENROL_MARGIN", 1.0)  # no adaptation gains a whole unit of accuracy
-    ev = RecordingsEvaluator(sessions, methods=("ukr_clm", "ukr_clm_online"), quick=True, enroll=1)
+    ev = RecordingsEvaluator(
+        sessions, methods=("ukr_clm", "ukr_clm_online"), quick=True, normalise="training", derived=("none",), enroll=1
+    )
     report = ev.evaluate()["methods"]["ukr_clm_online"]["enrolment"]
     assert set(report["adaptations"]["chosen"]["chosen"].values()) == {"none"} and report["gain"] == 0
     for f in ev.folds_:

@@ -136,6 +136,12 @@ class Choice:
     strict: Choice | None = None  # the objective's own choice, when it was overruled
 
 
+def inner_folds(train: list[Recording]) -> list[tuple[Recording, list[Recording]]]:
+    """The inner splits of the training recordings ``train``: each of the last :data:`INNER_FOLDS`
+    validated by the others."""
+    return [(v, [t for t in train if t is not v]) for v in train[-INNER_FOLDS:]]
+
+
 def _zscore(train: list[Recording], recs: list[Recording], normalise: str = "training") -> list[Recording]:
     """``recs`` z-scored with the mean and standard deviation of the frames of ``train``
     (``"training"``) or causally with running ones, each recording on its own, those frames being
@@ -333,7 +339,7 @@ class RecordingsEvaluator:
         (recordings with ``params``' derived features, scaled): its known accuracy and its
         pseudo-unknown rejection (mean over the known classes the folds hold) as functions of the
         rejection value, and the method's sweep of that value."""
-        folds = [(r, [t for t in train if t is not r]) for r in train[-INNER_FOLDS:]]
+        folds = inner_folds(train)
         truth = np.concatenate([np.where(np.isin(v.y, self.known), v.y, -1) for v, _ in folds])
         present = [c for c in self.known if np.any(truth == c)]
         fits = [(self._fit(method, rest, params), v) for v, rest in folds]
@@ -489,7 +495,7 @@ class RecordingsEvaluator:
         refitted on the other training recordings.  The best one, if it beats no enrolment by
         :data:`._enrolment.ENROL_MARGIN` (ties keep the first); no enrolment otherwise."""
         train = views[choice.params["normalise"], choice.params["derived"]][0]
-        folds = [(v, [t for t in train if t is not v]) for v in train[-INNER_FOLDS:]]
+        folds = inner_folds(train)
         starts = [enrolment_split(v.y, self.known, self.enroll)[1] for v, _ in folds]
         truth = np.concatenate([v.y[s:] for (v, _), s in zip(folds, starts)])
         scores = {}

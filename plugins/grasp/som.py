@@ -329,7 +329,7 @@ def _span(n: int) -> np.ndarray:
 def _check_pair(name: str, pair) -> None:
     try:
         a, b = (float(v) for v in pair)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):  # OverflowError: float() of a huge integer
         raise ValueError(f"{name} must be a (start, end) pair, got {pair!r}") from None
     if not (a > 0 and b > 0):
         raise ValueError(f"{name} start and end must be positive, got {pair!r}")

@@ -45,7 +45,7 @@ def parse_latent(latent):
             )
         try:
             kernels.append(Kernel(d["kernel"], float(d["beta"])))
-        except (TypeError, ValueError) as exc:
+        except (TypeError, ValueError, OverflowError) as exc:  # OverflowError: float() of a huge integer
             raise InvalidInputError(f"latent[{l}]: {exc}") from None
         if d.get("time", False):
             times.append(l)
@@ -95,7 +95,7 @@ def check_array(a, name="Y", ndim=2, columns=None):
     """Float array of the given ndim, all finite, with ``columns`` columns if given."""
     try:
         a = np.asarray(a, dtype=float)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):  # OverflowError: a huge integer
         raise InvalidInputError(f"{name} must be numeric") from None
     if a.ndim != ndim:
         raise InvalidInputError(f"{name} must be {ndim}-dimensional, got shape {a.shape}")

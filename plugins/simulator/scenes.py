@@ -107,7 +107,7 @@ def schedule(name: str, value, form: tuple[str, ...], valid, rule: str) -> tuple
         items = tuple(tuple(float(v) for v in entry) for entry in value)
         if any(len(entry) != len(form) for entry in items):
             raise ValueError
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):  # OverflowError: float() of a huge integer
         raise ValueError(f"{name} must be a list of [{', '.join(form)}] entries, got {value!r}") from None
     if not np.isfinite(items).all():
         raise ValueError(f"{name} need finite numbers, got {value!r}")

@@ -231,6 +231,8 @@ GOOD = closed_curves()
         ({"latent": RING_LATENT, "time_dim": 3}, GOOD, "time dimension index 3 is out of range"),
         ({"latent": [{"kernel": "gaussian", "beta": 1}]}, GOOD, "need a time dimension"),
         ({"latent": [{"kernel": "gaussian", "beta": -1}]}, GOOD, "positive"),
+        ({"latent": [{"kernel": "gaussian", "beta": 10**400}]}, GOOD, "latent\\[0\\]"),  # an integer no float holds
+        ({}, [np.array([[1, 10**400]])], "must be numeric"),
         ({"latent": CYL_LATENT * 2}, GOOD, "only one latent dimension can be the time"),
         ({"latent": CYL_LATENT + [{"kernel": "gaussian", "beta": 1}]}, GOOD, "fewer dimensions"),
         ({"optimizer": "adam"}, GOOD, "unknown optimizer"),

@@ -123,6 +123,8 @@ def test_a_swapped_cap_has_the_new_radius_and_keeps_its_angle_and_thread():
 def test_bad_cap_torques_are_rejected_naming_the_form():
     with pytest.raises(ValueError, match=r"\[time_s, duration_s, friction_torque\]"):
         CapScene(torques=[[1.0, 0.5]])
+    with pytest.raises(ValueError, match=r"\[time_s, duration_s, friction_torque\]"):
+        CapScene(torques=[[1.0, 0.5, 10**400]])  # an integer no float holds
     with pytest.raises(ValueError, match="time_s >= 0"):
         CapScene(torques=[[-1.0, 0.5, 1.0]])
     with pytest.raises(ValueError, match="0.01 <= radius_m <= 0.05"):

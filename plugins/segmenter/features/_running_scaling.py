@@ -23,7 +23,7 @@ def _frames(X, what: str, n_channels: int | None = None, single: bool = False) -
     that says what is wrong."""
     try:
         X = np.asarray(X, dtype=float).reshape(1, -1) if single else np.asarray(X, dtype=float)
-    except (TypeError, ValueError) as exc:
+    except (TypeError, ValueError, OverflowError) as exc:  # OverflowError: a huge integer
         raise ValueError(f"{what}: not numeric ({exc})") from None
     if X.ndim != 2 or X.shape[1] == 0:
         raise ValueError(f"{what}: expected a (frames, channels) array, got shape {X.shape}")

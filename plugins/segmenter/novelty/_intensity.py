@@ -92,7 +92,7 @@ class IntensityRanges:
             windows = {int(p["intensity_window"]) for p in provenances}
             low = np.array([[float(v) for v in p["intensity_low"]] for p in provenances])
             high = np.array([[float(v) for v in p["intensity_high"]] for p in provenances])
-        except (KeyError, TypeError, ValueError) as exc:
+        except (KeyError, TypeError, ValueError, OverflowError) as exc:  # OverflowError: int(inf)
             raise ValueError(f"a model's intensity range is malformed ({exc}); retrain the class models") from None
         if len(floors) > 1 or len(windows) > 1 or low.shape != high.shape or low.shape[1] != len(next(iter(floors))):
             raise ValueError("class models measured intensity differently; retrain them together")

@@ -88,6 +88,7 @@ def test_the_variance_floor_keeps_a_still_channel_from_turning_into_noise():
         (np.ones(3), "frames, channels"),
         (np.zeros((0, 2)), "at least one frame"),
         ([["a", "b"]], "not numeric"),
+        ([[1, 10**400]], "not numeric"),  # an integer no float holds
     ],
 )
 def test_bad_training_frames_are_refused_with_a_reason(X, needle):

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
@@ -100,6 +100,7 @@ JSONISH = st.recursive(
 
 @settings(max_examples=200, deadline=None)
 @given(key=st.sampled_from(["intensity_low", "intensity_high", "intensity_floor", "intensity_window"]), value=JSONISH)
+@example(key="intensity_window", value=float("inf"))  # int(inf) raises OverflowError, not ValueError
 def test_a_tampered_intensity_range_is_a_clear_error_or_a_usable_range(key, value):
     good = IntensityRanges(np.zeros((2, 2)), np.ones((2, 2)), np.full(2, 1e-3))
     provenances = [good.class_provenance(0), {**good.class_provenance(1), key: value}]

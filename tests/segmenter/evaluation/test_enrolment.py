@@ -36,16 +36,21 @@ def test_enrolment_takes_the_first_k_segments_of_each_known_class_and_scores_the
         enrolment_split(LABELS, [0, 1], 3, ["a", "b", "c"])
 
 
-@pytest.fixture(scope="module")
-def sessions(tmp_path_factory):
-    """Four synthetic recordings of three motion classes, each class twice in either half."""
+def _session_set(path, shifted: bool = False):
+    """Four synthetic recordings of three motion classes, each class twice in either half;
+    ``shifted``: each session moved and scaled as a new glove fit would."""
     arrays = {"class_names": np.array(["a", "b", "c"])}
     for k in range(4):
         halves = [_synthetic_recordings(k), _synthetic_recordings(k + 10)]
-        arrays[f"X_r{k}"], arrays[f"y_r{k}"] = (np.concatenate(part) for part in zip(*halves))
-    path = tmp_path_factory.mktemp("enrol") / "s.npz"
+        X, arrays[f"y_r{k}"] = (np.concatenate(part) for part in zip(*halves))
+        arrays[f"X_r{k}"] = (1.0 + 0.8 * k) * X + np.array([2.0 * k, -1.5 * k]) if shifted else X
     np.savez(path, **arrays)
     return load_recordings(path)
+
+
+@pytest.fixture(scope="module")
+def sessions(tmp_path_factory):
+    return _session_set(tmp_path_factory.mktemp("enrol") / "s.npz")
 
 
 def test_without_enrolment_the_evaluation_is_unchanged(sessions):
@@ -100,20 +105,9 @@ def test_a_recording_without_k_segments_of_a_known_class_stops_the_evaluation_sa
     assert "lower --enroll, or leave such classes out with --known" in err
 
 
-def _shifted_sessions(path):
-    """The recordings of :func:`sessions`, each session moved and scaled as a new glove fit would."""
-    arrays = {"class_names": np.array(["a", "b", "c"])}
-    for k in range(4):
-        halves = [_synthetic_recordings(k), _synthetic_recordings(k + 10)]
-        X, arrays[f"y_r{k}"] = (np.concatenate(part) for part in zip(*halves))
-        arrays[f"X_r{k}"] = (1.0 + 0.8 * k) * X + np.array([2.0 * k, -1.5 * k])
-    np.savez(path, **arrays)
-    return load_recordings(path)
-
-
 @pytest.mark.parametrize("shifted", [False, True])
 def test_the_chosen_adaptation_is_one_of_the_others_per_fold_and_its_labels_are_that_ones(sessions, tmp_path, shifted):
-    data = _shifted_sessions(tmp_path / "s.npz") if shifted else sessions
+    data = _session_set(tmp_path / "s.npz", shifted=True) if shifted else sessions
     ev = RecordingsEvaluator(
         data,
         methods=("dtw_1nn",),

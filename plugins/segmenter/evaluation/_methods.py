@@ -52,6 +52,7 @@ class Fitted:
     model: object
     classes: list[int]
     params: dict
+    training: list[np.ndarray] | None = None  # training segments, kept by methods that need them after fitting
 
 
 def _columns(fitted: Fitted, drop: int | None) -> list[int]:
@@ -132,6 +133,11 @@ class ScoreMethod(Method, ABC):
         cols = _columns(fitted, drop)
         return _to_global(threshold_labels(state[:, cols], reject), [fitted.classes[k] for k in cols])
 
+    def temperature(self, fitted: Fitted) -> float:
+        """The evidence temperature the online node maps this scorer's scores with: that of its
+        training frames' scores, fixed at fitting (:class:`..scorers.WindowScorer`)."""
+        return fitted.model.temperature_
+
     def reject_grid(self, fitted: Fitted, states: list[np.ndarray], n: int = 41) -> np.ndarray:
         """Thresholds at ``n`` quantiles of the winning score (:func:`._metrics.score_thresholds`)."""
         return score_thresholds(np.concatenate([s.max(axis=1) for s in states]), n)
@@ -154,10 +160,18 @@ class DTWMethod(ThresholdOnTrajectories, ScoreMethod):
     def fit(self, segments, params, seed) -> Fitted:
         classes = sorted(segments)
         model = SlidingDTW1NN(window=params["window"]).fit({c: _thin(segments[c], 4) for c in classes})
-        return Fitted(model, classes, params)
+        return Fitted(model, classes, params, training=[s for c in classes for s in segments[c]])
 
     def prepare(self, fitted, X):
         return fitted.model.scores(X)
+
+    def temperature(self, fitted: Fitted) -> float:
+        """:class:`..scorers.DTWScorer`'s: that of the training frames' scores against the thinned
+        references, computed when first asked (``clm_dtw``; scoring them costs ``dtw_1nn`` nothing)."""
+        model = fitted.model
+        if not hasattr(model, "temperature_"):
+            model.temperature_ = evidence_temperature(np.vstack([model.scores(s) for s in fitted.training]))
+        return model.temperature_
 
     @staticmethod
     def trajectory_model(evaluator) -> SlidingDTW1NN:
@@ -388,16 +402,21 @@ class ScoreCLMMethod(Method):
     def without_class(self, fitted, segments, drop, seed):
         return self.scorer.without_class(fitted, segments, drop, seed)
 
+    def _temperature(self, fitted: Fitted) -> float:
+        """The scorer's evidence temperature, fixed at fitting as the online node's
+        (:meth:`ScoreMethod.temperature`)."""
+        return self.scorer.temperature(fitted)
+
     def evidence(self, fitted: Fitted, state, drop: int | None) -> np.ndarray:
         """Per-frame evidence (N, M) of the classes left after ``drop``, rows summing to 1."""
-        evidence = score_evidence(state)[:, _columns(fitted, drop)]
+        evidence = score_evidence(state, self._temperature(fitted))[:, _columns(fitted, drop)]
         return evidence / evidence.sum(axis=1, keepdims=True)
 
     def labels(self, fitted, state, reject, drop=None):
         """The CLM over the classes' evidence and a null class scoring ``reject`` on the scorer's
         scale (:func:`..compatibility.null_class_evidence`), the background being its layer."""
         cols = _columns(fitted, drop)
-        evidence = null_class_evidence(state[:, cols], reject, evidence_temperature(state))
+        evidence = null_class_evidence(state[:, cols], reject, self._temperature(fitted))
         return self._segmented(evidence, [fitted.classes[k] for k in cols], "relative", reject)
 
     def _segmented(self, evidence: np.ndarray, classes: list[int], reconstruction: str, factor: float) -> np.ndarray:
@@ -479,6 +498,9 @@ class NoveltyCLMMethod(ScoreCLMMethod):
         if refit is None:
             return None
         return Fitted((refit, manifolds.without(str(drop))), refit.classes, fitted.params)
+
+    def _temperature(self, fitted: Fitted) -> float:
+        return self.scorer.temperature(fitted.model[0])
 
     def evidence(self, fitted: Fitted, state, drop: int | None) -> np.ndarray:
         scores, novelty, proj, intensity = state

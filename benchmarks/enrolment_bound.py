@@ -12,12 +12,16 @@ groups) is scored:
 - ``enrolment ratios``: each class's errors divided by their median on its enrolment frames,
   times its training frames' own typical error;
 - ``oracle offsets``: per-class offsets chosen on the scored frames themselves — an upper bound
-  for any adaptation that shifts the classes' errors, which no enrolment can reach.
+  for any adaptation that shifts the classes' errors, which no enrolment can reach;
+- with ``--weights R,...``: ``refit ×R`` (frame-wise) and ``ukr_clm refit ×R``, the models refitted
+  with the enrolment recording R times among the training recordings (its segments weigh R times
+  in the thinned training points, where the ``refit`` adaptation weighs them once).
 
 Reported: accuracy over the scored frames pooled over the folds (every class of the set known)
 and ``ukr_clm``'s own labels for reference.
 
-    python benchmarks/enrolment_bound.py ../shared/data/gesture_phases.npz --selected gp.json [--enroll 1] [--json]
+    python benchmarks/enrolment_bound.py ../shared/data/gesture_phases.npz --selected gp.json [--enroll 1] \
+        [--weights 5,20] [--json]
 """
 
 from __future__ import annotations
@@ -33,7 +37,7 @@ from pathlib import Path
 import numpy as np
 from recording_set import open_recordings
 
-from handflow.plugins.segmenter.datasets import enrolment_split
+from handflow.plugins.segmenter.datasets import enrolment_recording, enrolment_split
 from handflow.plugins.segmenter.evaluation import REGISTRY, RecordingsEvaluator
 
 OFFSETS = np.round(np.linspace(-3.0, 3.0, 61), 10)  # error offsets searched, in the models' error units
@@ -70,6 +74,7 @@ def main() -> int:
     ap.add_argument("recordings", type=Path)
     ap.add_argument("--selected", type=Path, required=True, help="an evaluation's --json output (ukr_clm's folds)")
     ap.add_argument("--enroll", type=int, default=1)
+    ap.add_argument("--weights", default="", help="comma-separated R: refit with the enrolment R times")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
     data = open_recordings(args.recordings)
@@ -84,11 +89,20 @@ def main() -> int:
     scored = 0
     for held in data.names():
         params = {k: folds[held][k] for k in ("delay", "history", "derived", "normalise")}
-        fitted, proj, test = ev._final(method, params, ev.fold_views(held))
+        views = ev.fold_views(held)
+        fitted, proj, test = ev._final(method, params, views)
         mask, start = enrolment_split(test.y, ev.known, args.enroll)
         classes = np.array(fitted.classes)
         labels = fold_labels(proj.errors, test.y, mask, start, classes, fitted.model.own_errors)
         labels["ukr_clm"] = method.labels(fitted, proj, folds[held]["reject"])[start:]
+        train = views[params["normalise"], params["derived"]][0]
+        for r in (int(w) for w in args.weights.split(",") if w):
+            weighted = method.fit(
+                ev._segments([enrolment_recording(test, ev.known, args.enroll)[0]] * r + train), params, 0
+            )
+            state = method.prepare(weighted, test.X)
+            labels[f"refit ×{r}"] = classes[np.argmin(state.errors[start:], axis=1)]
+            labels[f"ukr_clm refit ×{r}"] = method.labels(weighted, state, folds[held]["reject"])[start:]
         for name, lab in labels.items():
             right[name] = right.get(name, 0) + int(np.sum(lab == test.y[start:]))
         scored += len(test.y) - start

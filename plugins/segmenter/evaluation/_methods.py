@@ -370,7 +370,8 @@ class UKROnlyMethod(UKRMethod):
 
 class ScoreCLMMethod(Method):
     """The CLM as a segmentation layer over a classifier's per-frame scores: evidence
-    (:func:`..compatibility.score_evidence`) → banded compatibilities within the history H
+    (:func:`..compatibility.score_evidence` at the scorer's temperature fixed at fitting, as the
+    online node maps them) → banded compatibilities within the history H
     (:func:`..compatibility.evidence_band`) → one CLM layer per class plus the background, the
     layer of a null class; rejection = the null class's score, a threshold on the scorer's scale
     swept at the scorer's deciles and calibrated like every method's, and off wherever the

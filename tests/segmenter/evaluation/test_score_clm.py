@@ -12,12 +12,18 @@ from handflow.plugins.segmenter.evaluation import REGISTRY, RecordingsEvaluator
 from handflow.plugins.segmenter.scorers import DTWScorer
 
 
-def test_clm_dtw_maps_scores_to_evidence_at_the_saved_scorers_temperature(three_class_npz):
-    ev = RecordingsEvaluator(load_recordings(three_class_npz), methods=("clm_dtw",), quick=True)
+def _fitted_on_fold(npz, name: str, params: dict):
+    """``name`` fitted on the training recordings of fold r0 (training z-score, no derived
+    features): the method, its fit, the training segments and the held-out recording."""
+    ev = RecordingsEvaluator(load_recordings(npz), methods=(name,), quick=True)
     train, test = ev.fold_views("r0")["training", "none"]
     segments = ev._segments(train)
-    method = REGISTRY["clm_dtw"]
-    fitted = method.fit(segments, {"window": 20}, 0)
+    method = REGISTRY[name]
+    return method, method.fit(segments, params, 0), segments, test
+
+
+def test_clm_dtw_maps_scores_to_evidence_at_the_saved_scorers_temperature(three_class_npz):
+    method, fitted, segments, test = _fitted_on_fold(three_class_npz, "clm_dtw", {"window": 20})
     assert not hasattr(fitted.model, "temperature_")  # dtw_1nn alone never scores the training frames
     node = DTWScorer(window=20).fit({str(c): segments[c] for c in sorted(segments)})  # what fit-scorer saves
     state = method.prepare(fitted, test.X)
@@ -28,10 +34,7 @@ def test_clm_dtw_maps_scores_to_evidence_at_the_saved_scorers_temperature(three_
 
 def test_clm_minirocket_maps_scores_at_its_scorers_fitted_temperature(three_class_npz):
     pytest.importorskip("aeon")
-    ev = RecordingsEvaluator(load_recordings(three_class_npz), methods=("clm_minirocket",), quick=True)
-    train, test = ev.fold_views("r0")["training", "none"]
-    method = REGISTRY["clm_minirocket"]
-    fitted = method.fit(ev._segments(train), {"window": 32}, 0)
+    method, fitted, _, test = _fitted_on_fold(three_class_npz, "clm_minirocket", {"window": 32})
     state = method.prepare(fitted, test.X)
     assert method._temperature(fitted) == fitted.model.temperature_
     np.testing.assert_allclose(method.evidence(fitted, state, None), fitted.model.evidence(state), atol=1e-12)

@@ -15,13 +15,17 @@ groups) is scored:
   for any adaptation that shifts the classes' errors, which no enrolment can reach;
 - with ``--weights R,...``: ``refit ×R`` (frame-wise) and ``ukr_clm refit ×R``, the models refitted
   with the enrolment recording R times among the training recordings (its segments weigh R times
-  in the thinned training points, where the ``refit`` adaptation weighs them once).
+  in the thinned training points, where the ``refit`` adaptation weighs them once);
+- with ``--session``: models fitted on the enrolment segments alone, in the folds where every
+  class's can be fitted (a segment shorter than the delay window cannot): their frame-wise winner,
+  the training models' on the same frames, and the class of the smaller of the two models'
+  errors relative to each model's own typical error.
 
 Reported: accuracy over the scored frames pooled over the folds (every class of the set known)
 and ``ukr_clm``'s own labels for reference.
 
     python benchmarks/enrolment_bound.py ../shared/data/gesture_phases.npz --selected gp.json [--enroll 1] \
-        [--weights 5,20] [--json]
+        [--weights 5,20] [--session] [--json]
 """
 
 from __future__ import annotations
@@ -37,6 +41,7 @@ from pathlib import Path
 import numpy as np
 from recording_set import open_recordings
 
+from handflow.plugins.manifold import InvalidInputError
 from handflow.plugins.segmenter.datasets import enrolment_recording, enrolment_split
 from handflow.plugins.segmenter.evaluation import REGISTRY, RecordingsEvaluator
 
@@ -75,6 +80,7 @@ def main() -> int:
     ap.add_argument("--selected", type=Path, required=True, help="an evaluation's --json output (ukr_clm's folds)")
     ap.add_argument("--enroll", type=int, default=1)
     ap.add_argument("--weights", default="", help="comma-separated R: refit with the enrolment R times")
+    ap.add_argument("--session", action="store_true", help="also models fitted on the enrolment alone")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
     data = open_recordings(args.recordings)
@@ -87,6 +93,7 @@ def main() -> int:
     method = REGISTRY["ukr_clm"]
     right: dict[str, int] = {}
     scored = 0
+    session = {"unfittable": [], "right": {}, "scored_frames": 0}
     for held in data.names():
         params = {k: folds[held][k] for k in ("delay", "history", "derived", "normalise")}
         views = ev.fold_views(held)
@@ -96,10 +103,9 @@ def main() -> int:
         labels = fold_labels(proj.errors, test.y, mask, start, classes, fitted.model.own_errors)
         labels["ukr_clm"] = method.labels(fitted, proj, folds[held]["reject"])[start:]
         train = views[params["normalise"], params["derived"]][0]
+        enrolment = enrolment_recording(test, ev.known, args.enroll)[0]
         for r in (int(w) for w in args.weights.split(",") if w):
-            weighted = method.fit(
-                ev._segments([enrolment_recording(test, ev.known, args.enroll)[0]] * r + train), params, 0
-            )
+            weighted = method.fit(ev._segments([enrolment] * r + train), params, 0)
             state = method.prepare(weighted, test.X)
             labels[f"refit ×{r}"] = classes[np.argmin(state.errors[start:], axis=1)]
             labels[f"ukr_clm refit ×{r}"] = method.labels(weighted, state, folds[held]["reject"])[start:]
@@ -107,12 +113,36 @@ def main() -> int:
             right[name] = right.get(name, 0) + int(np.sum(lab == test.y[start:]))
         scored += len(test.y) - start
         print(f"{held}: {len(test.y) - start} scored frames", file=sys.stderr)
-    result = {name: n / scored for name, n in right.items()}
+        if args.session:
+            try:
+                alone = method.fit(ev._segments([enrolment]), params, 0)
+            except InvalidInputError as exc:
+                session["unfittable"].append(held)
+                print(f"{held}: no models on the enrolment alone ({exc})", file=sys.stderr)
+                continue
+            errors = method.prepare(alone, test.X).errors[start:]
+            own = proj.errors[start:]
+            relative = np.minimum(own / fitted.model.own_errors, errors / alone.model.own_errors)
+            for name, lab in (("session models", errors), ("training models", own), ("smaller relative", relative)):
+                session["right"][name] = session["right"].get(name, 0) + int(
+                    np.sum(classes[np.argmin(lab, axis=1)] == test.y[start:])
+                )
+            session["scored_frames"] += len(test.y) - start
+    result = {"scored_frames": scored, "accuracy": {name: n / scored for name, n in right.items()}}
+    if args.session:
+        n = session.pop("scored_frames")
+        result["session_models"] = {
+            "unfittable": session["unfittable"],
+            "scored_frames": n,
+            "accuracy": {name: k / n for name, k in session["right"].items()} if n else {},
+        }
     if args.json:
-        print(json.dumps({"scored_frames": scored, "accuracy": result}, indent=1))
+        print(json.dumps(result, indent=1))
     else:
-        for name, value in result.items():
+        for name, value in result["accuracy"].items():
             print(f"{name:18s} {value:.3f}")
+        for name, value in result.get("session_models", {}).get("accuracy", {}).items():
+            print(f"{name:18s} {value:.3f} (folds with session models)")
     return 0
 
 

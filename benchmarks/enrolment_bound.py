@@ -62,6 +62,25 @@ def best_offsets(errors: np.ndarray, truth: np.ndarray, classes: np.ndarray) -> 
     return b
 
 
+class Tally:
+    """Frames labelled right per variant and frames scored, pooled over the folds."""
+
+    def __init__(self) -> None:
+        self.right: dict[str, int] = {}
+        self.frames = 0
+
+    def add(self, labels: dict[str, np.ndarray], truth: np.ndarray) -> None:
+        for name, lab in labels.items():
+            self.right[name] = self.right.get(name, 0) + int(np.sum(lab == truth))
+        self.frames += len(truth)
+
+    def report(self) -> dict:
+        return {
+            "scored_frames": self.frames,
+            "accuracy": {name: n / self.frames for name, n in self.right.items()} if self.frames else {},
+        }
+
+
 def fold_labels(errors, y, mask, start, classes, own) -> dict[str, np.ndarray]:
     """Each variant's labels of the scored frames (``start`` on) of one fold."""
     enrol_median = np.array([np.median(errors[mask & (y == c), j]) for j, c in enumerate(classes)])
@@ -91,14 +110,13 @@ def main() -> int:
     }
     ev = RecordingsEvaluator(data, normalise=("training", "recording"), derived=("none", "velocities"))
     method = REGISTRY["ukr_clm"]
-    right: dict[str, int] = {}
-    scored = 0
-    session = {"unfittable": [], "right": {}, "scored_frames": 0}
+    pooled, alone_pooled, unfittable = Tally(), Tally(), []
     for held in data.names():
         params = {k: folds[held][k] for k in ("delay", "history", "derived", "normalise")}
         views = ev.fold_views(held)
         fitted, proj, test = ev._final(method, params, views)
         mask, start = enrolment_split(test.y, ev.known, args.enroll)
+        truth = test.y[start:]
         classes = np.array(fitted.classes)
         labels = fold_labels(proj.errors, test.y, mask, start, classes, fitted.model.own_errors)
         labels["ukr_clm"] = method.labels(fitted, proj, folds[held]["reject"])[start:]
@@ -109,33 +127,23 @@ def main() -> int:
             state = method.prepare(weighted, test.X)
             labels[f"refit ×{r}"] = classes[np.argmin(state.errors[start:], axis=1)]
             labels[f"ukr_clm refit ×{r}"] = method.labels(weighted, state, folds[held]["reject"])[start:]
-        for name, lab in labels.items():
-            right[name] = right.get(name, 0) + int(np.sum(lab == test.y[start:]))
-        scored += len(test.y) - start
-        print(f"{held}: {len(test.y) - start} scored frames", file=sys.stderr)
+        pooled.add(labels, truth)
+        print(f"{held}: {len(truth)} scored frames", file=sys.stderr)
         if args.session:
             try:
                 alone = method.fit(ev._segments([enrolment]), params, 0)
             except InvalidInputError as exc:
-                session["unfittable"].append(held)
+                unfittable.append(held)
                 print(f"{held}: no models on the enrolment alone ({exc})", file=sys.stderr)
                 continue
             errors = method.prepare(alone, test.X).errors[start:]
             own = proj.errors[start:]
             relative = np.minimum(own / fitted.model.own_errors, errors / alone.model.own_errors)
-            for name, lab in (("session models", errors), ("training models", own), ("smaller relative", relative)):
-                session["right"][name] = session["right"].get(name, 0) + int(
-                    np.sum(classes[np.argmin(lab, axis=1)] == test.y[start:])
-                )
-            session["scored_frames"] += len(test.y) - start
-    result = {"scored_frames": scored, "accuracy": {name: n / scored for name, n in right.items()}}
+            variants = {"session models": errors, "training models": own, "smaller relative": relative}
+            alone_pooled.add({name: classes[np.argmin(e, axis=1)] for name, e in variants.items()}, truth)
+    result = pooled.report()
     if args.session:
-        n = session.pop("scored_frames")
-        result["session_models"] = {
-            "unfittable": session["unfittable"],
-            "scored_frames": n,
-            "accuracy": {name: k / n for name, k in session["right"].items()} if n else {},
-        }
+        result["session_models"] = {"unfittable": unfittable, **alone_pooled.report()}
     if args.json:
         print(json.dumps(result, indent=1))
     else:

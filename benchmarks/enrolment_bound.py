@@ -16,6 +16,10 @@ groups) is scored:
 - with ``--weights R,...``: ``refit ×R`` (frame-wise) and ``ukr_clm refit ×R``, the models refitted
   with the enrolment recording R times among the training recordings (its segments weigh R times
   in the thinned training points, where the ``refit`` adaptation weighs them once);
+- with ``--residual-offset N``: ``offset`` (frame-wise) and ``ukr_clm offset``, the held-out
+  recording's embedded frames shifted by the mean residual of the enrolment frames on their own
+  class's manifold (one offset for the session, the same for every delay; re-estimated N times
+  from the shifted frames' projections);
 - with ``--session``: models fitted on the enrolment segments alone, in the folds where every
   class's can be fitted (a segment shorter than the delay window cannot): their frame-wise winner,
   the training models' on the same frames, and the class of the smaller of the two models'
@@ -25,7 +29,7 @@ Reported: accuracy over the scored frames pooled over the folds (every class of 
 and ``ukr_clm``'s own labels for reference.
 
     python benchmarks/enrolment_bound.py ../shared/data/gesture_phases.npz --selected gp.json [--enroll 1] \
-        [--weights 5,20] [--session] [--json]
+        [--weights 5,20] [--residual-offset 2] [--session] [--json]
 """
 
 from __future__ import annotations
@@ -44,6 +48,7 @@ from recording_set import open_recordings
 from handflow.plugins.manifold import InvalidInputError
 from handflow.plugins.segmenter.datasets import enrolment_recording, enrolment_split
 from handflow.plugins.segmenter.evaluation import REGISTRY, RecordingsEvaluator
+from handflow.plugins.segmenter.models import Projection
 
 OFFSETS = np.round(np.linspace(-3.0, 3.0, 61), 10)  # error offsets searched, in the models' error units
 ROUNDS = 3  # coordinate-search passes over the classes
@@ -93,12 +98,32 @@ def fold_labels(errors, y, mask, start, classes, own) -> dict[str, np.ndarray]:
     }
 
 
+def residual_offset_projections(candidates, X, y, mask, classes, rounds: int):
+    """The projection of ``X`` after each of ``rounds`` re-estimations of the session offset: the
+    mean, over the enrolment frames (``mask``) and the delays, of their embedded frame minus its
+    reconstruction on the manifold of the frame's own class."""
+    batched = candidates._batched_projector()
+    Y = candidates.pipeline.transform_both(X)[0]
+    window = int(candidates.delay.window)
+    column = {c: j for j, c in enumerate(classes)}
+    own = np.array([column[c] for c in y[mask]])
+    offset = np.zeros(Y.shape[1])
+    for _ in range(rounds):
+        F = batched.project((Y - offset)[mask])[1]
+        residual = (Y - offset)[mask] - F[np.arange(len(own)), own]
+        step = residual.mean(axis=0).reshape(window, -1).mean(axis=0)
+        offset = offset + np.tile(step, window)
+        lt, e = candidates._batched_project(batched, Y - offset)
+        yield Projection(lt, e, candidates.classes)
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("recordings", type=Path)
     ap.add_argument("--selected", type=Path, required=True, help="an evaluation's --json output (ukr_clm's folds)")
     ap.add_argument("--enroll", type=int, default=1)
     ap.add_argument("--weights", default="", help="comma-separated R: refit with the enrolment R times")
+    ap.add_argument("--residual-offset", type=int, default=0, help="rounds of the session offset (0: off)")
     ap.add_argument("--session", action="store_true", help="also models fitted on the enrolment alone")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
@@ -127,6 +152,10 @@ def main() -> int:
             state = method.prepare(weighted, test.X)
             labels[f"refit ×{r}"] = classes[np.argmin(state.errors[start:], axis=1)]
             labels[f"ukr_clm refit ×{r}"] = method.labels(weighted, state, folds[held]["reject"])[start:]
+        offsets = residual_offset_projections(fitted.model, test.X, test.y, mask, classes, args.residual_offset)
+        for n, shifted in enumerate(offsets, 1):
+            labels[f"offset {n}"] = classes[np.argmin(shifted.errors[start:], axis=1)]
+            labels[f"ukr_clm offset {n}"] = method.labels(fitted, shifted, folds[held]["reject"])[start:]
         pooled.add(labels, truth)
         print(f"{held}: {len(truth)} scored frames", file=sys.stderr)
         if args.session:

@@ -29,7 +29,7 @@ Reported: accuracy over the scored frames pooled over the folds (every class of 
 and ``ukr_clm``'s own labels for reference.
 
     python benchmarks/enrolment_bound.py ../shared/data/gesture_phases.npz --selected gp.json [--enroll 1] \
-        [--weights 5,20] [--residual-offset 2] [--session] [--json]
+        [--weights 5,20] [--residual-offset 3] [--session] [--json]
 """
 
 from __future__ import annotations
@@ -54,6 +54,11 @@ OFFSETS = np.round(np.linspace(-3.0, 3.0, 61), 10)  # error offsets searched, in
 ROUNDS = 3  # coordinate-search passes over the classes
 
 
+def winners(errors: np.ndarray, classes: np.ndarray) -> np.ndarray:
+    """Per frame the class of the smallest error (the frame-wise winner the CLM groups)."""
+    return classes[np.argmin(errors, axis=1)]
+
+
 def best_offsets(errors: np.ndarray, truth: np.ndarray, classes: np.ndarray) -> np.ndarray:
     """Per-class offsets b (coordinate search over :data:`OFFSETS`) maximising the share of
     ``truth`` equal to the class of the smallest ``errors − b``; ties keep the smaller |b|."""
@@ -62,7 +67,7 @@ def best_offsets(errors: np.ndarray, truth: np.ndarray, classes: np.ndarray) -> 
         for j in range(len(classes)):
             trial = np.tile(b, (len(OFFSETS), 1))
             trial[:, j] = OFFSETS
-            right = [np.mean(classes[np.argmin(errors - t, axis=1)] == truth) for t in trial]
+            right = [np.mean(winners(errors - t, classes) == truth) for t in trial]
             b[j] = max(zip(right, -np.abs(OFFSETS), OFFSETS))[2]
     return b
 
@@ -91,10 +96,10 @@ def fold_labels(errors, y, mask, start, classes, own) -> dict[str, np.ndarray]:
     enrol_median = np.array([np.median(errors[mask & (y == c), j]) for j, c in enumerate(classes)])
     scored = errors[start:]
     return {
-        "frame-wise": classes[np.argmin(scored, axis=1)],
-        "enrolment offsets": classes[np.argmin(scored - best_offsets(errors[mask], y[mask], classes), axis=1)],
-        "enrolment ratios": classes[np.argmin(scored / enrol_median * own, axis=1)],
-        "oracle offsets": classes[np.argmin(scored - best_offsets(scored, y[start:], classes), axis=1)],
+        "frame-wise": winners(scored, classes),
+        "enrolment offsets": winners(scored - best_offsets(errors[mask], y[mask], classes), classes),
+        "enrolment ratios": winners(scored / enrol_median * own, classes),
+        "oracle offsets": winners(scored - best_offsets(scored, y[start:], classes), classes),
     }
 
 
@@ -150,11 +155,11 @@ def main() -> int:
         for r in (int(w) for w in args.weights.split(",") if w):
             weighted = method.fit(ev._segments([enrolment] * r + train), params, 0)
             state = method.prepare(weighted, test.X)
-            labels[f"refit ×{r}"] = classes[np.argmin(state.errors[start:], axis=1)]
+            labels[f"refit ×{r}"] = winners(state.errors[start:], classes)
             labels[f"ukr_clm refit ×{r}"] = method.labels(weighted, state, folds[held]["reject"])[start:]
         offsets = residual_offset_projections(fitted.model, test.X, test.y, mask, classes, args.residual_offset)
         for n, shifted in enumerate(offsets, 1):
-            labels[f"offset {n}"] = classes[np.argmin(shifted.errors[start:], axis=1)]
+            labels[f"offset {n}"] = winners(shifted.errors[start:], classes)
             labels[f"ukr_clm offset {n}"] = method.labels(fitted, shifted, folds[held]["reject"])[start:]
         pooled.add(labels, truth)
         print(f"{held}: {len(truth)} scored frames", file=sys.stderr)
@@ -169,7 +174,7 @@ def main() -> int:
             own = proj.errors[start:]
             relative = np.minimum(own / fitted.model.own_errors, errors / alone.model.own_errors)
             variants = {"session models": errors, "training models": own, "smaller relative": relative}
-            alone_pooled.add({name: classes[np.argmin(e, axis=1)] for name, e in variants.items()}, truth)
+            alone_pooled.add({name: winners(e, classes) for name, e in variants.items()}, truth)
     result = pooled.report()
     if args.session:
         result["session_models"] = {"unfittable": unfittable, **alone_pooled.report()}

@@ -114,8 +114,8 @@ def residual_offset_projections(candidates, X, y, mask, classes, rounds: int):
     own = np.array([column[c] for c in y[mask]])
     offset = np.zeros(Y.shape[1])
     for _ in range(rounds):
-        F = batched.project((Y - offset)[mask])[1]
-        residual = (Y - offset)[mask] - F[np.arange(len(own)), own]
+        enrolled = (Y - offset)[mask]
+        residual = enrolled - batched.project(enrolled)[1][np.arange(len(own)), own]
         step = residual.mean(axis=0).reshape(window, -1).mean(axis=0)
         offset = offset + np.tile(step, window)
         lt, e = candidates._batched_project(batched, Y - offset)

@@ -200,6 +200,12 @@ def register_evaluate(parser: argparse.ArgumentParser) -> None:
         "cores; 1 = one after the other, the same figures either way; docs/segmentation.md)",
     )
     parser.add_argument(
+        "--verbose",
+        action="store_true",
+        help="continuous recordings: also print every candidate's calibration and each fold's full choice "
+        "(default: one line per fold and method)",
+    )
+    parser.add_argument(
         "--checkpoints",
         metavar="DIR",
         help="continuous recordings: keep every finished fold in DIR; a later run with the same recordings and "

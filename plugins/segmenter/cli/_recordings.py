@@ -60,6 +60,7 @@ def run_recordings_evaluation(args, progress) -> int:
             enroll=args.enroll,
             enrol_adaptations=tuple(a for a in args.enroll_adaptation.split(",") if a),
             checkpoints=args.checkpoints,
+            detail=progress if args.verbose else lambda msg: None,
         )
         result = evaluator.evaluate()
     except (ValueError, ImportError) as exc:

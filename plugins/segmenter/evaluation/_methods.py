@@ -39,6 +39,7 @@ from ..novelty import distance_weight
 from ..online import OnlineCLMSegmenter
 from ..scorers import MiniRocketScorer, PerClassHMM, SlidingDTW1NN, decide
 from ._metrics import score_thresholds, threshold_labels
+from ._selection import FULL, Fidelity
 
 MIN_PROGRESS = (0.0, 0.3)  # the CLM's min_progress grid (periods; docs/segmentation.md)
 MIN_SPANS = (0, 20)  # the CLM's min_span grid (observations; docs/segmentation.md)
@@ -118,8 +119,9 @@ class ScoreMethod(Method, ABC):
         """Parameter sets tried on the inner validation split."""
 
     @abstractmethod
-    def fit(self, segments: dict[int, list[np.ndarray]], params: dict, seed: int) -> Fitted:
-        """Fit on training segments per known class (global class indices)."""
+    def fit(self, segments: dict[int, list[np.ndarray]], params: dict, seed: int, fidelity: Fidelity = FULL) -> Fitted:
+        """Fit on training segments per known class (global class indices); ``fidelity``: what
+        the fit may spend (:mod:`._selection`; only the class manifolds have a cheaper form)."""
 
     @abstractmethod
     def prepare(self, fitted: Fitted, X: np.ndarray) -> np.ndarray:
@@ -157,7 +159,7 @@ class DTWMethod(ThresholdOnTrajectories, ScoreMethod):
     def grid(self, quick: bool) -> list[dict]:
         return [{"window": w} for w in ((20,) if quick else (10, 30))]
 
-    def fit(self, segments, params, seed) -> Fitted:
+    def fit(self, segments, params, seed, fidelity=FULL) -> Fitted:
         classes = sorted(segments)
         model = SlidingDTW1NN(window=params["window"]).fit({c: _thin(segments[c], 4) for c in classes})
         return Fitted(model, classes, params, training=[s for c in classes for s in segments[c]])
@@ -187,7 +189,7 @@ class HMMMethod(ThresholdOnTrajectories, ScoreMethod):
     def grid(self, quick: bool) -> list[dict]:
         return [{"n_states": s, "window": w} for s in ((4,) if quick else (3, 6)) for w in (20,)]
 
-    def fit(self, segments, params, seed) -> Fitted:
+    def fit(self, segments, params, seed, fidelity=FULL) -> Fitted:
         classes = sorted(segments)
         model = PerClassHMM(n_states=params["n_states"], window=params["window"], random_state=seed)
         return Fitted(model.fit({c: segments[c] for c in classes}), classes, params)
@@ -214,7 +216,7 @@ class MiniRocketMethod(ScoreMethod):
     def grid(self, quick: bool) -> list[dict]:
         return [{"window": w} for w in ((32,) if quick else (16, 48))]
 
-    def fit(self, segments, params, seed) -> Fitted:
+    def fit(self, segments, params, seed, fidelity=FULL) -> Fitted:
         scorer = MiniRocketScorer(window=params["window"], random_state=seed, feature_novelty=self.has_features)
         scorer.fit(dict(sorted(segments.items())))
         return Fitted(scorer, list(scorer.classes_), params)
@@ -254,9 +256,15 @@ class UKRMethod(Method):
     def fit_key(self) -> str:
         return "ukr"
 
-    def _fit_candidates(self, segments, seed, delay: int) -> CandidateSet:
+    def _fit_candidates(self, segments, seed, delay: int, fidelity: Fidelity = FULL) -> CandidateSet:
         by_class = {str(c): segments[c] for c in sorted(segments)}
-        return fit_recording_models(by_class, delay=delay, n_steps=self.steps, random_state=seed)
+        budget = {
+            k: v
+            for k, v in (("max_points", fidelity.max_points), ("statistics_frames", fidelity.statistics_frames))
+            if v is not None
+        }
+        steps = self.steps if fidelity.steps is None else fidelity.steps
+        return fit_recording_models(by_class, delay=delay, n_steps=steps, random_state=seed, **budget)
 
     def prepare(self, fitted: Fitted, X: np.ndarray) -> Projection:
         return fitted.model.project(X)
@@ -308,8 +316,8 @@ class UKRCLMMethod(UKRMethod):
         )
         return evaluator.to_global(labels, proj.classes)
 
-    def fit(self, segments, params, seed) -> Fitted:
-        return Fitted(self._fit_candidates(segments, seed, params["delay"]), sorted(segments), params)
+    def fit(self, segments, params, seed, fidelity=FULL) -> Fitted:
+        return Fitted(self._fit_candidates(segments, seed, params["delay"], fidelity), sorted(segments), params)
 
     def segmenter(self, candidates: CandidateSet, reject: float, history: int, kind=CLMSegmenter) -> CLMSegmenter:
         """The batch segmenter of this method, or (``kind=OnlineCLMSegmenter``) the online one with the same settings."""
@@ -353,8 +361,8 @@ class UKROnlyMethod(UKRMethod):
         labels = UKROnlyRecognizer(cands, history=case.history, **params).predict_projected(proj)
         return evaluator.to_global(labels, proj.classes)
 
-    def fit(self, segments, params, seed) -> Fitted:
-        return Fitted(self._fit_candidates(segments, seed, params["delay"]), sorted(segments), params)
+    def fit(self, segments, params, seed, fidelity=FULL) -> Fitted:
+        return Fitted(self._fit_candidates(segments, seed, params["delay"], fidelity), sorted(segments), params)
 
     def _compat(self, fitted, proj, cands) -> np.ndarray:
         rec = UKROnlyRecognizer(cands, lam=fitted.params["lam"], order_rating=fitted.params["order_rating"])
@@ -390,7 +398,7 @@ class ScoreCLMMethod(Method):
     def grid(self, quick: bool) -> list[dict]:
         return self.scorer.grid(quick)
 
-    def fit(self, segments, params, seed) -> Fitted:
+    def fit(self, segments, params, seed, fidelity=FULL) -> Fitted:
         return self.scorer.fit(segments, params, seed)
 
     @property
@@ -478,9 +486,9 @@ class NoveltyCLMMethod(ScoreCLMMethod):
             for z in (self.distance_zs if self.scorer.has_features else (None,))
         ]
 
-    def fit(self, segments, params, seed) -> Fitted:
-        scorer = self.scorer.fit(segments, params, seed)
-        manifolds = self.ukr._fit_candidates(segments, seed, params["delay"])
+    def fit(self, segments, params, seed, fidelity=FULL) -> Fitted:
+        scorer = self.scorer.fit(segments, params, seed, fidelity)
+        manifolds = self.ukr._fit_candidates(segments, seed, params["delay"], fidelity)
         return Fitted((scorer, manifolds), scorer.classes, params)
 
     @property

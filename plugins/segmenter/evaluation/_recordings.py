@@ -55,6 +55,7 @@ import os
 import time
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor, as_completed
+from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -78,6 +79,7 @@ from ._enrolment import (
 )
 from ._methods import REGISTRY, Fitted, UKRCLMMethod
 from ._metrics import calibrate, frame_metrics, segment_f1, tradeoff_curve
+from ._selection import FULL, REFINE, SCREEN, Fidelity, first_of_best, survivors
 
 INNER_FOLDS = 3  # validation recordings of the inner split (each validated by a fit on the others)
 DEFAULT_METHODS = ("ukr_clm", "ukr_clm_online", "ukr_only", "dtw_1nn", "hmm", "minirocket", "clm_minirocket")
@@ -123,6 +125,7 @@ class FoldResult:
     enrolled: dict[str, dict[str, np.ndarray]] = field(default_factory=dict)  # per adaptation, method: labels
     scored_from: int = 0  # the first frame after the enrolment
     seconds: float = 0.0  # the fold's own wall time
+    timing: dict[str, dict[str, float]] = field(default_factory=dict)  # method → phase → seconds
 
 
 @dataclass
@@ -195,6 +198,43 @@ def _fallback_note(folds: int, fell_back: int, strict: dict | None) -> str | Non
     )
 
 
+def choice_summary(selected: dict) -> str:
+    """A method's choice in a fold, for the progress line: view, grid point, rejection, objective."""
+    grid = ", ".join(f"{k} {v}" for k, v in selected.items() if k not in _NOT_GRID)
+    rejection = "rejection off" if selected["rejection"] == "off" else f"reject {selected['reject']:.3g}"
+    return (
+        f"{selected['normalise']}/{selected['derived']}, {grid}, {rejection} "
+        f"(validation {selected['validation_objective']:.3f})"
+    )
+
+
+_NOT_GRID = (
+    "normalise",
+    "derived",
+    "reject",
+    "validation_objective",
+    "rejection",
+    "strict",
+    "enrol_adaptation",
+    "enrol_validation",
+)
+
+
+def _timing(folds: list[FoldResult]) -> dict:
+    """Seconds per method and phase (selection, final fit, labelling), summed over the folds, and
+    each fold's wall time: the JSON's ``timing`` (on the machine of the run, unlike the figures)."""
+    per_method: dict[str, dict[str, float]] = {}
+    for fold in folds:
+        for name, phases in fold.timing.items():
+            for phase, seconds in phases.items():
+                per_method.setdefault(name, {}).setdefault(phase, 0.0)
+                per_method[name][phase] += seconds
+    return {
+        "methods": {n: {p: round(v, 2) for p, v in phases.items()} for n, phases in per_method.items()},
+        "folds": {f.recording: round(f.seconds, 2) for f in folds},
+    }
+
+
 def half_window(selected: dict) -> int:
     """Half the causal window behind a method's labels, in frames: the ``window`` of a scorer
     (MiniRocket, DTW, HMM; the scorer's for the CLM over it) or the ``delay`` window of the
@@ -222,6 +262,7 @@ class RecordingsEvaluator:
         enroll: int = 0,
         enrol_adaptations: tuple[str, ...] = EVALUATION_ADAPTATIONS[:1],
         checkpoints: str | None = None,
+        detail: Callable[[str], None] = lambda msg: None,
     ) -> None:
         if jobs < 1:
             raise ValueError(f"jobs must be at least 1, got {jobs}")
@@ -255,6 +296,7 @@ class RecordingsEvaluator:
         self.quick = quick
         self.random_state = random_state
         self.progress = progress
+        self.detail = detail  # every calibrated candidate (``--verbose``)
         self.normalise = normalise
         self.pseudo_unknowns = pseudo_unknowns
         self.derived = tuple(derived)
@@ -264,6 +306,7 @@ class RecordingsEvaluator:
         self.checkpoints = checkpoints
         self._cache: dict[tuple, object] = {}
         self._fold_choices: dict[str, list] = {}  # method → its calibrated parameter sets in this fold
+        self._timing: dict[str, dict[str, float]] = {}  # method → phase → seconds, in this fold
 
     # -- one fold ---------------------------------------------------------------------------
     def _segments(self, recs: list[Recording]) -> dict[int, list[np.ndarray]]:
@@ -296,23 +339,31 @@ class RecordingsEvaluator:
         return self._rule(name, self._choices(method, views), gate)
 
     def _choices(self, method, views: dict[tuple[str, str], list[Recording]]) -> list[tuple[Choice, float, Callable]]:
-        """Every parameter set of ``method`` (normalisation and derived features included), calibrated
-        on the inner folds; once per fold, whether for the method itself or as the scorer another
-        method rejects with."""
+        """The parameter sets of ``method`` (normalisation and derived features included) that
+        survive the screen, calibrated on the inner folds (:mod:`._selection`); once per fold,
+        whether for the method itself or as the scorer another method rejects with."""
         if method.name not in self._fold_choices:
-            self._fold_choices[method.name] = [
-                self._calibrated(method, train, {**params, "derived": derived, "normalise": normalise})
+            candidates = [
+                (train, {**params, "derived": derived, "normalise": normalise})
                 for (normalise, derived), train in views.items()
                 for params in method.grid(self.quick)
             ]
+            if len(candidates) > 1:
+                screened = [self._calibrated(method, train, params, SCREEN)[0] for train, params in candidates]
+                candidates = [candidates[i] for i in survivors([c.objective for c in screened])]
+            self._fold_choices[method.name] = [
+                self._calibrated(method, train, params, REFINE) for train, params in candidates
+            ]
         return self._fold_choices[method.name]
 
-    def _calibrated(self, method, train: list[Recording], params: dict) -> tuple[Choice, float, Callable]:
-        """``params``' best rejection value on the inner folds of ``train``, the sweep's keep-all
-        value and the known accuracy as a function of the rejection value."""
-        known_acc, pseudo_rej, grid = self.validation(method, train, params)
+    def _calibrated(
+        self, method, train: list[Recording], params: dict, fidelity: Fidelity = FULL
+    ) -> tuple[Choice, float, Callable]:
+        """``params``' best rejection value on the inner folds of ``train`` at ``fidelity``, the
+        sweep's keep-all value and the known accuracy as a function of the rejection value."""
+        known_acc, pseudo_rej, grid = self.validation(method, train, params, fidelity)
         value, score = calibrate(known_acc, pseudo_rej, grid)
-        self.progress(f"    {method.name} {params}: reject={value:.4g} objective={score:.3f}")
+        self.detail(f"    {method.name} {fidelity.name} {params}: reject={value:.4g} objective={score:.3f}")
         return Choice(params, value, score), grid[0], known_acc
 
     def _rule(self, name: str, choices: list[tuple[Choice, float, Callable]], gate: float | None = None) -> Choice:
@@ -321,35 +372,37 @@ class RecordingsEvaluator:
         rejection off, with the parameters that label the most inner-fold frames right.  ``gate``:
         the best objective of the scorer the method rejects with (``rejects_with``), which must
         beat it too: the method's rejection is off wherever its scorer's is."""
-        best = max(choices, key=lambda c: c[0].objective)[0]  # ties: the first
+        best = choices[first_of_best([c.objective for c, *_ in choices])][0]
         separable = min(best.objective, np.inf if gate is None else gate) > REJECT_ALL_OBJECTIVE + FALLBACK_MARGIN
         if self.calibration == "strict" or separable:
             return best
         keep_all = [(known_acc(first), Choice(c.params, first, c.objective)) for c, first, known_acc in choices]
         accuracy, chosen = max(keep_all, key=lambda c: c[0])
-        self.progress(
+        self.detail(
             f"    {name}: rejection off (best objective {best.objective:.3f}"
             + ("" if gate is None else f", its scorer's {gate:.3f}")
             + f"); {chosen.params} keeps {accuracy:.3f}"
         )
         return replace(chosen, fallback=True, strict=best)
 
-    def validation(self, method, train: list[Recording], params: dict) -> tuple[Callable, Callable, np.ndarray]:
+    def validation(
+        self, method, train: list[Recording], params: dict, fidelity: Fidelity = FULL
+    ) -> tuple[Callable, Callable, np.ndarray]:
         """The calibration's view of ``method`` with ``params`` on the inner folds of ``train``
-        (recordings with ``params``' derived features, scaled): its known accuracy and its
-        pseudo-unknown rejection (mean over the known classes the folds hold) as functions of the
-        rejection value, and the method's sweep of that value."""
+        (recordings with ``params``' derived features, scaled) at ``fidelity``: its known accuracy
+        and its pseudo-unknown rejection (mean over the known classes the folds hold) as
+        functions of the rejection value, and the values of the method's sweep it tries."""
         folds = inner_folds(train)
         truth = np.concatenate([np.where(np.isin(v.y, self.known), v.y, -1) for v, _ in folds])
         present = [c for c in self.known if np.any(truth == c)]
-        fits = [(self._fit(method, rest, params), v) for v, rest in folds]
-        states = [(f, self._prepare(method, f, v)) for f, v in fits]
-        unseen = {c: self._without(method, fits, folds, params, c) for c in present}
+        fits = [(self._fit(method, rest, params, fidelity), v) for v, rest in folds]
+        states = [(f, self._prepare(method, f, v), v) for f, v in fits]
+        unseen = {c: self._without(method, fits, folds, params, c, fidelity) for c in present}
 
         def pred(r, drop=None):
             if drop is not None and unseen[drop] is not None:  # a model that never saw the class
-                return np.concatenate([lagged(method.labels(f, s, r), self.lag) for f, s in unseen[drop]])
-            return np.concatenate([lagged(method.labels(f, s, r, drop=drop), self.lag) for f, s in states])
+                return np.concatenate([self._labels(method, f, s, v, r) for f, s, v in unseen[drop]])
+            return np.concatenate([self._labels(method, f, s, v, r, drop) for f, s, v in states])
 
         @functools.cache
         def known_acc(r):
@@ -358,40 +411,49 @@ class RecordingsEvaluator:
         def pseudo_rej(r):
             return float(np.mean([np.mean(pred(r, drop=c)[truth == c] == -1) for c in present]))
 
-        return known_acc, pseudo_rej, method.reject_grid(fits[0][0], [s for _, s in states])
+        return known_acc, pseudo_rej, fidelity.sweep(method.reject_grid(fits[0][0], [s for _, s, _ in states]))
 
-    def _fit(self, method, train: list[Recording], params: dict) -> Fitted:
-        """``method.fit`` on ``train``, shared within a fold by the methods of one ``fit_key``
-        (minirocket and clm_minirocket fit the same classifier on the same data) and by the
-        parameter sets that differ only in a method's ``label_params`` (used after the fit)."""
-        key = self._fit_key(method, params, train)
+    def _labels(self, method, fitted: Fitted, state, rec: Recording, reject: float, drop: int | None = None):
+        """``method``'s lagged labels of ``rec`` at ``reject`` (without class ``drop``), computed
+        once per fold: the screen's values come back in the refined sweep."""
+        key = ("labels", method.name, id(fitted.model), repr(sorted(fitted.params.items())), rec.name, reject, drop)
         if key not in self._cache:
-            self._cache[key] = method.fit(self._segments(train), params, self.random_state)
+            self._cache[key] = lagged(method.labels(fitted, state, reject, drop=drop), self.lag)
+        return self._cache[key]
+
+    def _fit(self, method, train: list[Recording], params: dict, fidelity: Fidelity = FULL) -> Fitted:
+        """``method.fit`` on ``train`` at ``fidelity``, shared within a fold by the methods of one
+        ``fit_key`` (minirocket and clm_minirocket fit the same classifier on the same data), by
+        the parameter sets that differ only in a method's ``label_params`` (used after the fit)
+        and by the fidelities whose models are the same."""
+        key = self._fit_key(method, params, train, fidelity)
+        if key not in self._cache:
+            self._cache[key] = method.fit(self._segments(train), params, self.random_state, fidelity)
         return replace(self._cache[key], params=params)
 
     @staticmethod
-    def _fit_key(method, params: dict, train: list[Recording]) -> tuple:
+    def _fit_key(method, params: dict, train: list[Recording], fidelity: Fidelity) -> tuple:
         fit_params = {k: v for k, v in params.items() if k not in getattr(method, "label_params", ())}
-        return (method.fit_key, repr(sorted(fit_params.items())), tuple(r.name for r in train))
+        return (method.fit_key, repr(sorted(fit_params.items())), tuple(r.name for r in train), fidelity.models)
 
-    def _without(self, method, fits, folds, params: dict, drop: int) -> list | None:
-        """Per inner fold the model and validation state of ``method`` fitted without class ``drop``
-        (:meth:`~._methods.ScoreMethod.without_class`), or None where dropping it is exact
-        or the evaluation drops classes (``pseudo_unknowns="drop"``)."""
-        if self.pseudo_unknowns == "drop":
+    def _without(self, method, fits, folds, params: dict, drop: int, fidelity: Fidelity) -> list | None:
+        """Per inner fold the model, validation state and recording of ``method`` fitted without
+        class ``drop`` (:meth:`~._methods.ScoreMethod.without_class`), or None where dropping it
+        is exact or the evaluation or ``fidelity`` drops classes (``pseudo_unknowns="drop"``)."""
+        if "drop" in (self.pseudo_unknowns, fidelity.pseudo_unknowns):
             return None
         unseen = []
         for (fitted, v), (_, rest) in zip(fits, folds):
             if drop not in fitted.classes:  # this inner split never held the class: the model is one
-                unseen.append((fitted, self._prepare(method, fitted, v)))
+                unseen.append((fitted, self._prepare(method, fitted, v), v))
                 continue
-            key = (*self._fit_key(method, params, rest), "without", drop)
+            key = (*self._fit_key(method, params, rest, fidelity), "without", drop)
             if key not in self._cache:
                 self._cache[key] = method.without_class(fitted, self._segments(rest), drop, self.random_state)
             if self._cache[key] is None:
                 return None
             refit = replace(self._cache[key], params=params)
-            unseen.append((refit, self._prepare(method, refit, v)))
+            unseen.append((refit, self._prepare(method, refit, v), v))
         return unseen
 
     def _prepare(self, method, fitted: Fitted, rec: Recording):
@@ -424,7 +486,7 @@ class RecordingsEvaluator:
                 f"  {held}: no training segment of {untrained} in the other recordings; models leave them out"
             )
         labels, selected, sweeps, strict = {}, {}, {}, {}
-        self._fold_choices = {}
+        self._fold_choices, self._timing = {}, {}
         sessions = {a: enrolled_views(views, self.known, self.enroll, a) for a in ADAPTATIONS if self.enroll}
         with_enrolment = {a: {} for a in self.enrol_adaptations if self.enroll}
 
@@ -435,11 +497,13 @@ class RecordingsEvaluator:
             if REGISTRY[name].batch is not None:
                 continue  # replayed with the models of its batch method, below
             t0 = time.perf_counter()
-            choice = self._select(name, {key: train for key, (train, _) in views.items()})
+            with self._timed(name, "selection"):
+                choice = self._select(name, {key: train for key, (train, _) in views.items()})
             method = REGISTRY[name]
             fitted, state, test = self._final(method, choice.params, views)
-            labels[name] = method.labels(fitted, state, choice.reject)
-            sweeps[name] = [lag(method.labels(fitted, state, r)) for r in method.reject_grid(fitted, [state])]
+            with self._timed(name, "labelling"):
+                labels[name] = method.labels(fitted, state, choice.reject)
+                sweeps[name] = [lag(method.labels(fitted, state, r)) for r in method.reject_grid(fitted, [state])]
             selected[name] = {
                 **choice.params,
                 "reject": float(choice.reject),
@@ -449,17 +513,21 @@ class RecordingsEvaluator:
             if choice.fallback:
                 selected[name]["strict"] = {**choice.strict.params, "reject": float(choice.strict.reject)}
                 strict_fit, strict_state, _ = self._final(method, choice.strict.params, views)
-                strict[name] = lag(method.labels(strict_fit, strict_state, choice.strict.reject))
+                with self._timed(name, "labelling"):
+                    strict[name] = lag(method.labels(strict_fit, strict_state, choice.strict.reject))
             if CHOSEN in with_enrolment:
-                selected[name]["enrol_adaptation"], selected[name]["enrol_validation"] = self._adaptation(
-                    method, choice, views
-                )
-            self.progress(f"  {held}: {name} {selected[name]} in {time.perf_counter() - t0:.1f}s")
+                with self._timed(name, "selection"):
+                    selected[name]["enrol_adaptation"], selected[name]["enrol_validation"] = self._adaptation(
+                        method, choice, views
+                    )
+            self.progress(f"  {held}: {name} {choice_summary(selected[name])} in {time.perf_counter() - t0:.1f} s")
+            self.detail(f"    {name}: {selected[name]}")
             for online in map(REGISTRY.get, self._replaying(method)):
                 t0 = time.perf_counter()
-                labels[online.name] = online.labels_online(fitted, choice.reject, test.X)
+                with self._timed(online.name, "labelling"):
+                    labels[online.name] = online.labels_online(fitted, choice.reject, test.X)
                 selected[online.name] = selected[name]
-                self.progress(f"  {held}: {online.name} replayed {name}'s models in {time.perf_counter() - t0:.1f}s")
+                self.progress(f"  {held}: {online.name} replayed {name}'s models in {time.perf_counter() - t0:.1f} s")
             for adaptation in with_enrolment:
                 chosen = selected[name]["enrol_adaptation"] if adaptation == CHOSEN else adaptation
                 with_enrolment[adaptation].update(
@@ -471,8 +539,28 @@ class RecordingsEvaluator:
         truth = next(iter(views.values()))[1].y
         scored_from = enrolment_split(truth, self.known, self.enroll)[1] if self.enroll else 0
         return FoldResult(
-            held, truth, lagged_labels, selected, sweeps, strict, untrained, labels, with_enrolment, scored_from
+            held,
+            truth,
+            lagged_labels,
+            selected,
+            sweeps,
+            strict,
+            untrained,
+            labels,
+            with_enrolment,
+            scored_from,
+            timing=self._timing,
         )
+
+    @contextmanager
+    def _timed(self, name: str, phase: str):
+        """Adds the wall time of the block to ``name``'s ``phase`` in this fold's timing."""
+        t0 = time.perf_counter()
+        try:
+            yield
+        finally:
+            phases = self._timing.setdefault(name, {})
+            phases[phase] = phases.get(phase, 0.0) + time.perf_counter() - t0
 
     def _enrolled(self, method, choice: Choice, session: dict) -> dict[str, np.ndarray]:
         """The lagged labels of the held-out recording by ``method`` (and the online methods that
@@ -503,7 +591,7 @@ class RecordingsEvaluator:
             pred = []
             for (v, rest), start in zip(folds, starts):
                 fit_on, test = enrolled(rest, v, self.known, self.enroll, adaptation)
-                fitted = self._fit(method, fit_on, choice.params)
+                fitted = self._fit(method, fit_on, choice.params, REFINE)
                 labels = method.labels(fitted, self._prepare(method, fitted, test), choice.reject)
                 pred.append(lagged(labels, self.lag)[start:])
             scores[adaptation] = frame_metrics(truth, np.concatenate(pred), self.known)["open_set_accuracy"] or 0.0
@@ -522,8 +610,10 @@ class RecordingsEvaluator:
         recording and that recording as the method sees it (with ``params``' normalisation and
         derived features)."""
         train, test = views[params["normalise"], params["derived"]]
-        fitted = self._fit(method, train, params)
-        return fitted, self._prepare(method, fitted, test), test
+        with self._timed(method.name, "final_fit"):
+            fitted = self._fit(method, train, params)
+        with self._timed(method.name, "labelling"):
+            return fitted, self._prepare(method, fitted, test), test
 
     # -- all folds --------------------------------------------------------------------------
     def _announced_fold(self, k: int, held: str) -> FoldResult:
@@ -633,6 +723,7 @@ class RecordingsEvaluator:
             if self.enroll:
                 res["enrolment"] = enrolment_report(folds, name, self.known, self.enrol_adaptations)
             out["methods"][name] = res
+        out["timing"] = _timing(folds)
         self.folds_ = folds
         return out
 

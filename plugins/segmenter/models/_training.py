@@ -176,21 +176,23 @@ def fit_recording_models(
     scaling: str = "none",
     progress: Callable[[str], None] | None = None,
     derived: str = "none",
+    max_points: int = MAX_POINTS_PER_CLASS,
+    statistics_frames: int = MAX_STATISTICS_FRAMES,
 ) -> CandidateSet:
     """Class models for real recordings (docs/segmentation.md, "Class models for real recordings"):
     label → training segments (T, d), each holding any number of repetitions.
 
     Each segment is delay-embedded (``delay`` frames, :mod:`..features`; complete windows only), cut
     into cycles (period detection on the embedded class data, :func:`._cycles.split_cycles`), and one
-    periodic StructuredUKR per class is fitted on at most :data:`MAX_POINTS_PER_CLASS` evenly
-    thinned points.  Documented choice: errors are measured in one metric for all models — Σ =
+    periodic StructuredUKR per class is fitted on at most ``max_points`` evenly thinned points
+    (:data:`MAX_POINTS_PER_CLASS`).  Documented choice: errors are measured in one metric for all models — Σ =
     the variance of all classes' embedded training frames, one ``error_reference`` (the median
     error of the training frames on their own class's model) — and each model stores its own
     typical error relative to it (``own_error``) and the evidence temperature of the training
     frames (``evidence_temperature``), as :class:`CLMSegmenter`'s ``reconstruction="relative"``
     uses them, and the range of its training frames' motion intensity (:mod:`..novelty`).  The
-    errors behind those statistics are those of at most :data:`MAX_STATISTICS_FRAMES` evenly
-    thinned frames per class (whole segments; documented choice: a fit then costs the same
+    errors behind those statistics are those of at most ``statistics_frames`` evenly thinned
+    frames per class (:data:`MAX_STATISTICS_FRAMES`) (whole segments; documented choice: a fit then costs the same
     however long the recordings grow).
     ``scaling="standard"`` z-scores the channels with all training frames first and stores the
     scaling with the models (for models used outside the evaluation).  ``derived="velocities"``
@@ -218,7 +220,7 @@ def fit_recording_models(
     for c, segs in embedded.items():
         direction = phase_direction(np.vstack(segs))
         seqs = [cyc for s in segs for cyc in split_cycles(s, direction, MIN_PERIOD) if len(cyc) >= 4] or segs
-        seqs = thin_pieces(seqs, MAX_POINTS_PER_CLASS)
+        seqs = thin_pieces(seqs, max_points)
         if progress:
             progress(f"training '{c}' on {len(seqs)} pieces ({sum(map(len, seqs))} points, delay {delay})")
         model = periodic_class_model(seqs, auto_beta(seqs), n_steps=n_steps, random_state=random_state)
@@ -228,7 +230,7 @@ def fit_recording_models(
     pipeline = FeaturePipeline(features, Headings(), scaler, embedding)
     cands = candidate_set(models, pipeline)
     errors = {  # (frames, M)
-        c: np.vstack([cands.project(s).errors for s in thin_pieces(segs, MAX_STATISTICS_FRAMES)])
+        c: np.vstack([cands.project(s).errors for s in thin_pieces(segs, statistics_frames)])
         for c, segs in by_class.items()
     }
     own = {c: errors[c][:, j] for j, c in enumerate(frames)}

@@ -3,6 +3,16 @@ recordings protocol (docs/segmentation.md)."""
 
 import warnings
 
+from ._calibration import (
+    CALIBRATIONS,
+    FALLBACK_MARGIN,
+    INNER_FOLDS,
+    MIN_TRAINED_CLASSES,
+    PSEUDO_UNKNOWNS,
+    REJECT_ALL_OBJECTIVE,
+    Choice,
+)
+from ._folds import FoldResult, default_jobs
 from ._methods import (
     MAX_FIT_RATIOS,
     MIN_PROGRESS,
@@ -35,22 +45,13 @@ from ._metrics import (
     tradeoff_curve,
 )
 from ._recordings import (
-    CALIBRATIONS,
     DEFAULT_METHODS,
-    FALLBACK_MARGIN,
-    INNER_FOLDS,
-    MIN_TRAINED_CLASSES,
     NORMALISATIONS,
-    PSEUDO_UNKNOWNS,
-    REJECT_ALL_OBJECTIVE,
-    Choice,
-    FoldResult,
     RecordingsEvaluator,
     calibrate_background,
     calibrate_null_score,
-    default_jobs,
-    half_window,
 )
+from ._report import half_window
 from ._trajectories import (
     EXPERIMENTS,
     METHODS,

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..base import lagged
 from ..datasets import (
     ADAPTATIONS,
     EnrolmentError,
@@ -27,6 +28,9 @@ from ..datasets import (
     enrolment_split,
     session_aligned,
 )
+from ._calibration import Choice, inner_folds
+from ._fidelity import REFINE
+from ._methods import REGISTRY
 from ._metrics import frame_metrics
 
 CHOSEN = "chosen"  # the adaptation chosen per method and fold on the inner folds
@@ -123,3 +127,47 @@ def fold_note(fold, known: list[int]) -> str:
         for name in fold.labels
     )
     return f"{fold.recording}: after the enrolment (from frame {fold.scored_from}): {figures}"
+
+
+class EnrolmentFits:
+    """The enrolment part of :class:`._recordings.RecordingsEvaluator`: the fits with the held-out
+    recording's enrolment and the choice of adaptation on the inner folds."""
+
+    def _enrolled(self, method, choice: Choice, session: dict) -> dict[str, np.ndarray]:
+        """The lagged labels of the held-out recording by ``method`` (and the online methods that
+        replay its models) with ``choice``, fitted with the enrolment (``session``:
+        :func:`._enrolment.enrolled_views`)."""
+        fitted, state, test = self._final(method, choice.params, session)
+        out = {method.name: method.labels(fitted, state, choice.reject)}
+        for online in map(REGISTRY.get, self._replaying(method)):
+            out[online.name] = online.labels_online(fitted, choice.reject, test.X)
+        return {name: lagged(x, self.lag) for name, x in out.items()}
+
+    def _adaptation(self, method, choice: Choice, views) -> tuple[str, dict[str, float]]:
+        """The enrolment adaptation (:data:`._enrolment.ENROL_CHOICES`) of ``method`` with
+        ``choice``, and each one's open-set accuracy on the inner folds' frames after their own
+        enrolment (pooled): each inner validation recording enrols as the held-out one does,
+        refitted on the other training recordings.  The best one, if it beats no enrolment by
+        :data:`._enrolment.ENROL_MARGIN` (ties keep the first); no enrolment otherwise."""
+        train = views[choice.params["normalise"], choice.params["derived"]][0]
+        folds = inner_folds(train)
+        starts = [enrolment_split(v.y, self.known, self.enroll)[1] for v, _ in folds]
+        truth = np.concatenate([v.y[s:] for (v, _), s in zip(folds, starts)])
+        scores = {}
+        for adaptation in ENROL_CHOICES:
+            pred = []
+            for (v, rest), start in zip(folds, starts):
+                fit_on, test = enrolled(rest, v, self.known, self.enroll, adaptation)
+                fitted = self._fit(method, fit_on, choice.params, REFINE)
+                labels = method.labels(fitted, self._prepare(method, fitted, test), choice.reject)
+                pred.append(lagged(labels, self.lag)[start:])
+            scores[adaptation] = frame_metrics(truth, np.concatenate(pred), self.known)["open_set_accuracy"] or 0.0
+        best = max(ENROL_CHOICES, key=scores.get)
+        if scores[best] < scores[ENROL_CHOICES[0]] + ENROL_MARGIN:
+            best = ENROL_CHOICES[0]
+        self.progress(
+            f"    {method.name}: enrolment {best} ("
+            + ", ".join(f"{a} {score:.3f}" for a, score in scores.items())
+            + f" on the inner folds' frames after their enrolment; an adaptation must gain {ENROL_MARGIN})"
+        )
+        return best, scores

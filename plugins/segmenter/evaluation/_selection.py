@@ -14,43 +14,18 @@ the fidelities below, ``KEEP`` and ``TIE_MARGIN``.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from collections.abc import Callable
+from typing import TYPE_CHECKING
 
-import numpy as np
+from ..datasets import Recording
+from ._fidelity import REFINE, SCREEN
+from ._methods import REGISTRY
+
+if TYPE_CHECKING:
+    from ._calibration import Choice
 
 KEEP = 1 / 3  # share of the screened candidates that are refined (at least one)
 TIE_MARGIN = 0.01  # objectives this close to the best are a tie: the first candidate in order wins
-
-
-@dataclass(frozen=True)
-class Fidelity:
-    """What a fit or a calibration spends.  ``max_points``, ``steps``, ``statistics_frames``:
-    the UKR class models' training points per class, RPROP steps and frames per class behind
-    their error statistics (None: the full models' own); ``pseudo_unknowns``: ``"drop"`` drops a
-    class's decision column instead of refitting without it (None: the evaluation's setting);
-    ``reject_stride``: every k-th value of the rejection sweep, its last value always kept."""
-
-    name: str
-    max_points: int | None = None
-    steps: int | None = None
-    statistics_frames: int | None = None
-    pseudo_unknowns: str | None = None
-    reject_stride: int = 1
-
-    @property
-    def models(self) -> tuple:
-        """What changes a fitted model (fits of equal ``models`` are shared)."""
-        return (self.max_points, self.steps, self.statistics_frames)
-
-    def sweep(self, values: np.ndarray) -> np.ndarray:
-        """The rejection values this fidelity tries, from the method's sweep ``values``."""
-        keep = np.unique(np.r_[np.arange(0, len(values), max(1, self.reject_stride)), len(values) - 1])
-        return np.asarray(values)[keep]
-
-
-FULL = Fidelity("full")
-REFINE = Fidelity("refine", max_points=250, steps=60, statistics_frames=500)
-SCREEN = replace(REFINE, name="screen", pseudo_unknowns="drop", reject_stride=3)
 
 
 def survivors(objectives: list[float]) -> list[int]:
@@ -67,3 +42,38 @@ def first_of_best(objectives: list[float]) -> int:
     views first, so a tie does not flip a choice between files or machines)."""
     top = max(objectives)
     return next(i for i, o in enumerate(objectives) if o >= top - TIE_MARGIN)
+
+
+class HalvingSelection:
+    """The selection part of :class:`._recordings.RecordingsEvaluator`: a method's choice in a fold
+    by successive halving over its candidates, calibrated on the inner folds
+    (:class:`._calibration.InnerFoldCalibration`)."""
+
+    def _select(self, name: str, views: dict[tuple[str, str], list[Recording]]) -> Choice:
+        """Normalisation, derived features, hyper-parameters and rejection value of one method, chosen
+        on inner splits of the training recordings (``views``: (normalisation, derived) → those recordings)."""
+        method = REGISTRY[name]
+        gate = (
+            None
+            if method.rejects_with is None
+            else max(c.objective for c, *_ in self._choices(method.rejects_with, views))
+        )
+        return self._rule(name, self._choices(method, views), gate)
+
+    def _choices(self, method, views: dict[tuple[str, str], list[Recording]]) -> list[tuple[Choice, float, Callable]]:
+        """The parameter sets of ``method`` (normalisation and derived features included) that
+        survive the screen, calibrated on the inner folds (:mod:`._selection`); once per fold,
+        whether for the method itself or as the scorer another method rejects with."""
+        if method.name not in self._fold_choices:
+            candidates = [
+                (train, {**params, "derived": derived, "normalise": normalise})
+                for (normalise, derived), train in views.items()
+                for params in method.grid(self.quick)
+            ]
+            if len(candidates) > 1:
+                screened = [self._calibrated(method, train, params, SCREEN)[0] for train, params in candidates]
+                candidates = [candidates[i] for i in survivors([c.objective for c in screened])]
+            self._fold_choices[method.name] = [
+                self._calibrated(method, train, params, REFINE) for train, params in candidates
+            ]
+        return self._fold_choices[method.name]

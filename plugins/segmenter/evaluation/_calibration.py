@@ -1,0 +1,185 @@
+"""Calibration on the inner folds of a fold's training recordings (docs/segmentation.md, "How
+the parameters are chosen"): each of the last :data:`INNER_FOLDS` training recordings is
+validated by a fit on the others; a method's rejection value is the one of the best mean of its
+known accuracy and its rejection of pseudo-unknowns (each known class in turn removed from the
+model set), and the calibration rule (``calibration``: ``"fallback"``, ``"strict"``) decides
+whether it may reject at all.  Fits, states and labels are computed once per fold and shared by
+the methods and fidelities that can share them (:class:`InnerFoldCalibration`)."""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from ..base import lagged
+from ..datasets import Recording, segments
+from ._fidelity import FULL, Fidelity
+from ._methods import Fitted
+from ._metrics import calibrate, frame_metrics
+from ._selection import first_of_best
+
+INNER_FOLDS = 3  # validation recordings of the inner split (each validated by a fit on the others)
+
+
+PSEUDO_UNKNOWNS = ("refit", "drop")
+
+
+CALIBRATIONS = ("fallback", "strict")  # the first is the default
+
+
+REJECT_ALL_OBJECTIVE = 0.5  # mean(known accuracy 0, pseudo-unknown rejection 1)
+
+
+FALLBACK_MARGIN = 0.05  # an operating point must beat rejecting everything by this much (documented choice)
+
+
+MIN_TRAINED_CLASSES = 2  # known classes with training segments every training split needs
+
+
+@dataclass
+class Choice:
+    """One method's parameters and rejection value chosen on the inner folds."""
+
+    params: dict
+    reject: float
+    objective: float
+    fallback: bool = False  # rejection switched off: nothing beat rejecting everything
+    strict: Choice | None = None  # the objective's own choice, when it was overruled
+
+
+def inner_folds(train: list[Recording]) -> list[tuple[Recording, list[Recording]]]:
+    """The inner splits of the training recordings ``train``: each of the last :data:`INNER_FOLDS`
+    validated by the others."""
+    return [(v, [t for t in train if t is not v]) for v in train[-INNER_FOLDS:]]
+
+
+class InnerFoldCalibration:
+    """The calibration part of :class:`._recordings.RecordingsEvaluator`: its fold's cache of fits,
+    states and labels (``_cache``), and the calibration of one parameter set at a fidelity."""
+
+    def _segments(self, recs: list[Recording]) -> dict[int, list[np.ndarray]]:
+        """Training segments of the known classes that ``recs`` hold; a known class without one is
+        left out of the model (its frames elsewhere count as known and are wrong unless labelled
+        as it, which that model cannot do).  At least two classes are needed."""
+        segs = {c: s for c, s in segments(recs, self.known).items() if s}
+        if len(segs) < MIN_TRAINED_CLASSES:
+            raise ValueError(
+                f"the recordings {[r.name for r in recs]} hold training segments of "
+                f"{[self.data.class_names[c] for c in segs] or 'no'} known class(es); every training split of "
+                f"leave-one-recording-out needs at least {MIN_TRAINED_CLASSES}: add recordings that hold "
+                "more classes or name classes that more recordings hold with --known"
+            )
+        return segs
+
+    def _untrained(self, recs: list[Recording]) -> list[str]:
+        """Names of the known classes without a training segment in ``recs``."""
+        return [self.data.class_names[c] for c, segs in segments(recs, self.known).items() if not segs]
+
+    def _calibrated(
+        self, method, train: list[Recording], params: dict, fidelity: Fidelity = FULL
+    ) -> tuple[Choice, float, Callable]:
+        """``params``' best rejection value on the inner folds of ``train`` at ``fidelity``, the
+        sweep's keep-all value and the known accuracy as a function of the rejection value."""
+        known_acc, pseudo_rej, grid = self.validation(method, train, params, fidelity)
+        value, score = calibrate(known_acc, pseudo_rej, grid)
+        self.detail(f"    {method.name} {fidelity.name} {params}: reject={value:.4g} objective={score:.3f}")
+        return Choice(params, value, score), grid[0], known_acc
+
+    def _rule(self, name: str, choices: list[tuple[Choice, float, Callable]], gate: float | None = None) -> Choice:
+        """The calibration rule over a method's calibrated parameter sets: the best objective,
+        or — ``"fallback"``, when it does not beat rejecting everything by ``FALLBACK_MARGIN`` —
+        rejection off, with the parameters that label the most inner-fold frames right.  ``gate``:
+        the best objective of the scorer the method rejects with (``rejects_with``), which must
+        beat it too: the method's rejection is off wherever its scorer's is."""
+        best = choices[first_of_best([c.objective for c, *_ in choices])][0]
+        separable = min(best.objective, np.inf if gate is None else gate) > REJECT_ALL_OBJECTIVE + FALLBACK_MARGIN
+        if self.calibration == "strict" or separable:
+            return best
+        keep_all = [(known_acc(first), Choice(c.params, first, c.objective)) for c, first, known_acc in choices]
+        accuracy, chosen = max(keep_all, key=lambda c: c[0])
+        self.detail(
+            f"    {name}: rejection off (best objective {best.objective:.3f}"
+            + ("" if gate is None else f", its scorer's {gate:.3f}")
+            + f"); {chosen.params} keeps {accuracy:.3f}"
+        )
+        return replace(chosen, fallback=True, strict=best)
+
+    def validation(
+        self, method, train: list[Recording], params: dict, fidelity: Fidelity = FULL
+    ) -> tuple[Callable, Callable, np.ndarray]:
+        """The calibration's view of ``method`` with ``params`` on the inner folds of ``train``
+        (recordings with ``params``' derived features, scaled) at ``fidelity``: its known accuracy
+        and its pseudo-unknown rejection (mean over the known classes the folds hold) as
+        functions of the rejection value, and the values of the method's sweep it tries."""
+        folds = inner_folds(train)
+        truth = np.concatenate([np.where(np.isin(v.y, self.known), v.y, -1) for v, _ in folds])
+        present = [c for c in self.known if np.any(truth == c)]
+        fits = [(self._fit(method, rest, params, fidelity), v) for v, rest in folds]
+        states = [(f, self._prepare(method, f, v), v) for f, v in fits]
+        unseen = {c: self._without(method, fits, folds, params, c, fidelity) for c in present}
+
+        def pred(r, drop=None):
+            if drop is not None and unseen[drop] is not None:  # a model that never saw the class
+                return np.concatenate([self._labels(method, f, s, v, r) for f, s, v in unseen[drop]])
+            return np.concatenate([self._labels(method, f, s, v, r, drop) for f, s, v in states])
+
+        @functools.cache
+        def known_acc(r):
+            return frame_metrics(truth, pred(r), self.known)["known_accuracy"] or 0.0
+
+        def pseudo_rej(r):
+            return float(np.mean([np.mean(pred(r, drop=c)[truth == c] == -1) for c in present]))
+
+        return known_acc, pseudo_rej, fidelity.sweep(method.reject_grid(fits[0][0], [s for _, s, _ in states]))
+
+    def _labels(self, method, fitted: Fitted, state, rec: Recording, reject: float, drop: int | None = None):
+        """``method``'s lagged labels of ``rec`` at ``reject`` (without class ``drop``), computed
+        once per fold: the screen's values come back in the refined sweep."""
+        key = ("labels", method.name, id(fitted.model), repr(sorted(fitted.params.items())), rec.name, reject, drop)
+        if key not in self._cache:
+            self._cache[key] = lagged(method.labels(fitted, state, reject, drop=drop), self.lag)
+        return self._cache[key]
+
+    def _fit(self, method, train: list[Recording], params: dict, fidelity: Fidelity = FULL) -> Fitted:
+        """``method.fit`` on ``train`` at ``fidelity``, shared within a fold by the methods of one
+        ``fit_key`` (minirocket and clm_minirocket fit the same classifier on the same data), by
+        the parameter sets that differ only in a method's ``label_params`` (used after the fit)
+        and by the fidelities whose models are the same."""
+        key = self._fit_key(method, params, train, fidelity)
+        if key not in self._cache:
+            self._cache[key] = method.fit(self._segments(train), params, self.random_state, fidelity)
+        return replace(self._cache[key], params=params)
+
+    @staticmethod
+    def _fit_key(method, params: dict, train: list[Recording], fidelity: Fidelity) -> tuple:
+        fit_params = {k: v for k, v in params.items() if k not in getattr(method, "label_params", ())}
+        return (method.fit_key, repr(sorted(fit_params.items())), tuple(r.name for r in train), fidelity.models)
+
+    def _without(self, method, fits, folds, params: dict, drop: int, fidelity: Fidelity) -> list | None:
+        """Per inner fold the model, validation state and recording of ``method`` fitted without
+        class ``drop`` (:meth:`~._methods.ScoreMethod.without_class`), or None where dropping it
+        is exact or the evaluation or ``fidelity`` drops classes (``pseudo_unknowns="drop"``)."""
+        if "drop" in (self.pseudo_unknowns, fidelity.pseudo_unknowns):
+            return None
+        unseen = []
+        for (fitted, v), (_, rest) in zip(fits, folds):
+            if drop not in fitted.classes:  # this inner split never held the class: the model is one
+                unseen.append((fitted, self._prepare(method, fitted, v), v))
+                continue
+            key = (*self._fit_key(method, params, rest, fidelity), "without", drop)
+            if key not in self._cache:
+                self._cache[key] = method.without_class(fitted, self._segments(rest), drop, self.random_state)
+            if self._cache[key] is None:
+                return None
+            refit = replace(self._cache[key], params=params)
+            unseen.append((refit, self._prepare(method, refit, v), v))
+        return unseen
+
+    def _prepare(self, method, fitted: Fitted, rec: Recording):
+        key = (method.fit_key, id(fitted.model), rec.name)
+        if key not in self._cache:
+            self._cache[key] = method.prepare(fitted, rec.X)
+        return self._cache[key]

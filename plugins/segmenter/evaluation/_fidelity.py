@@ -1,0 +1,41 @@
+"""What a fit or a calibration of the evaluation may spend (docs/segmentation.md, "How the
+parameters are chosen"): the full models that label a held-out recording (:data:`FULL`), and the
+cheaper ones the successive halving of :mod:`._selection` screens and refines candidates with
+(:data:`SCREEN`, :data:`REFINE`; documented choices)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Fidelity:
+    """What a fit or a calibration spends.  ``max_points``, ``steps``, ``statistics_frames``:
+    the UKR class models' training points per class, RPROP steps and frames per class behind
+    their error statistics (None: the full models' own); ``pseudo_unknowns``: ``"drop"`` drops a
+    class's decision column instead of refitting without it (None: the evaluation's setting);
+    ``reject_stride``: every k-th value of the rejection sweep, its last value always kept."""
+
+    name: str
+    max_points: int | None = None
+    steps: int | None = None
+    statistics_frames: int | None = None
+    pseudo_unknowns: str | None = None
+    reject_stride: int = 1
+
+    @property
+    def models(self) -> tuple:
+        """What changes a fitted model (fits of equal ``models`` are shared)."""
+        return (self.max_points, self.steps, self.statistics_frames)
+
+    def sweep(self, values: np.ndarray) -> np.ndarray:
+        """The rejection values this fidelity tries, from the method's sweep ``values``."""
+        keep = np.unique(np.r_[np.arange(0, len(values), max(1, self.reject_stride)), len(values) - 1])
+        return np.asarray(values)[keep]
+
+
+FULL = Fidelity("full")
+REFINE = Fidelity("refine", max_points=250, steps=60, statistics_frames=500)
+SCREEN = replace(REFINE, name="screen", pseudo_unknowns="drop", reject_stride=3)

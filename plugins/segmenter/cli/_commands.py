@@ -200,6 +200,13 @@ def register_evaluate(parser: argparse.ArgumentParser) -> None:
         "cores; 1 = one after the other, the same figures either way; docs/segmentation.md)",
     )
     parser.add_argument(
+        "--params",
+        metavar="RESULT.json",
+        help="continuous recordings: rerun the parameters an earlier --json result chose, without selection — per "
+        "fold for the recordings it held out (the same labels), its most frequent choice for others "
+        "(docs/segmentation.md)",
+    )
+    parser.add_argument(
         "--verbose",
         action="store_true",
         help="continuous recordings: also print every candidate's calibration and each fold's full choice "
@@ -312,8 +319,8 @@ def run_evaluate(args) -> int:
     try:
         if args.enroll:
             raise DatasetError("--enroll applies to continuous recordings (docs/segmentation.md, Enrolment)")
-        if args.checkpoints:
-            raise DatasetError("--checkpoints applies to continuous recordings (docs/segmentation.md)")
+        if args.checkpoints or args.params:
+            raise DatasetError("--checkpoints and --params apply to continuous recordings (docs/segmentation.md)")
         if (args.normalise, args.pseudo_unknowns, args.derived, args.calibration, args.lag) != (
             None,
             "refit",

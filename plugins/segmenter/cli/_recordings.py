@@ -20,6 +20,7 @@ from ..evaluation import (
     DEFAULT_METHODS,
     NORMALISATIONS,
     REGISTRY,
+    ChosenParameters,
     RecordingsEvaluator,
     calibrate_background,
     calibrate_null_score,
@@ -60,6 +61,7 @@ def run_recordings_evaluation(args, progress) -> int:
             enroll=args.enroll,
             enrol_adaptations=tuple(a for a in args.enroll_adaptation.split(",") if a),
             checkpoints=args.checkpoints,
+            chosen=ChosenParameters.load(args.params) if args.params else None,
             detail=progress if args.verbose else lambda msg: None,
         )
         result = evaluator.evaluate()

@@ -12,6 +12,7 @@ from ._calibration import (
     REJECT_ALL_OBJECTIVE,
     Choice,
 )
+from ._chosen import ChosenParameters
 from ._folds import FoldResult, default_jobs
 from ._methods import (
     MAX_FIT_RATIOS,
@@ -69,6 +70,7 @@ from ._trajectories import (
 )
 
 __all__ = [
+    "ChosenParameters",
     "REGISTRY",
     "TRAJECTORY_METHODS",
     "Method",

@@ -19,7 +19,6 @@ from ..datasets import Recording, segments
 from ._fidelity import FULL, Fidelity
 from ._methods import Fitted
 from ._metrics import calibrate, frame_metrics
-from ._selection import first_of_best
 
 INNER_FOLDS = 3  # validation recordings of the inner split (each validated by a fit on the others)
 
@@ -94,7 +93,7 @@ class InnerFoldCalibration:
         rejection off, with the parameters that label the most inner-fold frames right.  ``gate``:
         the best objective of the scorer the method rejects with (``rejects_with``), which must
         beat it too: the method's rejection is off wherever its scorer's is."""
-        best = choices[first_of_best([c.objective for c, *_ in choices])][0]
+        best = max(choices, key=lambda c: c[0].objective)[0]  # ties: the first
         separable = min(best.objective, np.inf if gate is None else gate) > REJECT_ALL_OBJECTIVE + FALLBACK_MARGIN
         if self.calibration == "strict" or separable:
             return best

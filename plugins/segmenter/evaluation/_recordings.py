@@ -43,6 +43,7 @@ from ._calibration import (
     Choice,
     InnerFoldCalibration,
 )
+from ._chosen import ChosenParameters
 from ._enrolment import (
     CHOSEN,
     EVALUATION_ADAPTATIONS,
@@ -99,6 +100,7 @@ class RecordingsEvaluator(HalvingSelection, InnerFoldCalibration, EnrolmentFits,
         enrol_adaptations: tuple[str, ...] = EVALUATION_ADAPTATIONS[:1],
         checkpoints: str | None = None,
         detail: Callable[[str], None] = lambda msg: None,
+        chosen: ChosenParameters | None = None,
     ) -> None:
         if jobs < 1:
             raise ValueError(f"jobs must be at least 1, got {jobs}")
@@ -140,6 +142,9 @@ class RecordingsEvaluator(HalvingSelection, InnerFoldCalibration, EnrolmentFits,
         self.lag = lag
         self.jobs = jobs
         self.checkpoints = checkpoints
+        self.chosen = chosen  # parameters of an earlier run: no selection (``--params``)
+        if chosen is not None:
+            chosen.check(tuple(m for m in methods if REGISTRY[m].batch is None), self.normalise, self.derived)
         self._cache: dict[tuple, object] = {}
         self._fold_choices: dict[str, list] = {}  # method → its calibrated parameter sets in this fold
         self._timing: dict[str, dict[str, float]] = {}  # method → phase → seconds, in this fold
@@ -180,7 +185,11 @@ class RecordingsEvaluator(HalvingSelection, InnerFoldCalibration, EnrolmentFits,
                 continue  # replayed with the models of its batch method, below
             t0 = time.perf_counter()
             with self._timed(name, "selection"):
-                choice = self._select(name, {key: train for key, (train, _) in views.items()})
+                choice = (
+                    self._select(name, {key: train for key, (train, _) in views.items()})
+                    if self.chosen is None
+                    else self.chosen.choice(name, held)
+                )
             method = REGISTRY[name]
             fitted, state, test = self._final(method, choice.params, views)
             with self._timed(name, "labelling"):
@@ -197,7 +206,10 @@ class RecordingsEvaluator(HalvingSelection, InnerFoldCalibration, EnrolmentFits,
                 strict_fit, strict_state, _ = self._final(method, choice.strict.params, views)
                 with self._timed(name, "labelling"):
                     strict[name] = lag(method.labels(strict_fit, strict_state, choice.strict.reject))
-            if CHOSEN in with_enrolment:
+            if CHOSEN in with_enrolment and self.chosen and "enrol_adaptation" in self.chosen.selected(name, held):
+                earlier = self.chosen.selected(name, held)
+                selected[name].update({k: earlier[k] for k in ("enrol_adaptation", "enrol_validation")})
+            elif CHOSEN in with_enrolment:
                 with self._timed(name, "selection"):
                     selected[name]["enrol_adaptation"], selected[name]["enrol_validation"] = self._adaptation(
                         method, choice, views
@@ -278,6 +290,7 @@ class RecordingsEvaluator(HalvingSelection, InnerFoldCalibration, EnrolmentFits,
                 else "the operating point of the best validation objective, whatever it is",
             },
             "quick": self.quick,
+            **({"params_from": self.chosen.source} if self.chosen else {}),
             "grids": {n: REGISTRY[n].grid(self.quick) for n in self.methods if REGISTRY[n].batch is None},
             **({"enroll": self.enroll, "enrol_adaptations": list(self.enrol_adaptations)} if self.enroll else {}),
         }

@@ -11,6 +11,7 @@ import numpy as np
 
 from ..base import lagged
 from ._calibration import FALLBACK_MARGIN, REJECT_ALL_OBJECTIVE
+from ._chosen import REPORTED
 from ._enrolment import enrolment_report
 from ._methods import REGISTRY
 from ._metrics import frame_metrics, segment_f1, tradeoff_curve
@@ -62,16 +63,7 @@ def _fallback_note(folds: int, fell_back: int, strict: dict | None) -> str | Non
     )
 
 
-_NOT_GRID = (
-    "normalise",
-    "derived",
-    "reject",
-    "validation_objective",
-    "rejection",
-    "strict",
-    "enrol_adaptation",
-    "enrol_validation",
-)
+_NOT_GRID = ("normalise", "derived", *REPORTED)
 
 
 def choice_summary(selected: dict) -> str:

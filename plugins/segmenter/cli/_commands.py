@@ -200,6 +200,20 @@ def register_evaluate(parser: argparse.ArgumentParser) -> None:
         "cores; 1 = one after the other, the same figures either way; docs/segmentation.md)",
     )
     parser.add_argument(
+        "--scheduler",
+        metavar="tcp://HOST:PORT",
+        help="continuous recordings: run the folds on the dask.distributed cluster of this scheduler instead of "
+        "local processes, with the same figures (pip install 'handflow[cluster]' here and on every worker; "
+        "docs/segmentation.md)",
+    )
+    parser.add_argument(
+        "--cache",
+        metavar="DIR",
+        help="continuous recordings: keep every method's part of every fold in DIR and take it from there when a "
+        "later run has the same recordings, settings and code — a run that adds a method or only changes the "
+        "report computes just what is new; DIR can be deleted at any time (docs/segmentation.md)",
+    )
+    parser.add_argument(
         "--params",
         metavar="RESULT.json",
         help="continuous recordings: rerun the parameters an earlier --json result chose, without selection — per "
@@ -319,8 +333,11 @@ def run_evaluate(args) -> int:
     try:
         if args.enroll:
             raise DatasetError("--enroll applies to continuous recordings (docs/segmentation.md, Enrolment)")
-        if args.checkpoints or args.params:
-            raise DatasetError("--checkpoints and --params apply to continuous recordings (docs/segmentation.md)")
+        if args.checkpoints or args.params or args.cache or args.scheduler:
+            raise DatasetError(
+                "--checkpoints, --cache, --params and --scheduler apply to continuous recordings "
+                "(docs/segmentation.md)"
+            )
         if (args.normalise, args.pseudo_unknowns, args.derived, args.calibration, args.lag) != (
             None,
             "refit",

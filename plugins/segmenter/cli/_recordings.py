@@ -62,6 +62,8 @@ def run_recordings_evaluation(args, progress) -> int:
             enrol_adaptations=tuple(a for a in args.enroll_adaptation.split(",") if a),
             checkpoints=args.checkpoints,
             chosen=ChosenParameters.load(args.params) if args.params else None,
+            cache=args.cache,
+            scheduler=args.scheduler,
             detail=progress if args.verbose else lambda msg: None,
         )
         result = evaluator.evaluate()

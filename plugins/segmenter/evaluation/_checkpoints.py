@@ -27,7 +27,7 @@ from handflow.framework.files.provenance import installed_version
 
 FORMAT = "handflow.evaluation-fold"
 FORMAT_VERSION = 1
-_UNSAFE = re.compile(r"[^\w.-]")  # characters a recording's name may not bring into a file name
+UNSAFE = re.compile(r"[^\w.-]")  # characters a recording's name may not bring into a file name
 _ARRAY = "@array"  # a JSON object {"@array": key} stands for the file's array ``key``
 
 
@@ -90,7 +90,7 @@ class FoldCheckpoints:
         self.progress = progress
 
     def path(self, held: str) -> Path:
-        return self.directory / f"fold-{_UNSAFE.sub('_', held)}.npz"
+        return self.directory / f"fold-{UNSAFE.sub('_', held)}.npz"
 
     def load(self, held: str):
         """The fold of ``held`` from its file, or None (no file, or one that cannot be used here)."""

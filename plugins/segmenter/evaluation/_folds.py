@@ -1,24 +1,28 @@
 """The fold runner of the leave-one-recording-out protocol (docs/segmentation.md, ``--jobs``):
-folds one after the other or over forked worker processes with one BLAS thread each (the same
-figures either way), finished folds kept in and taken from ``checkpoints``, the progress line
-per fold with its estimate of the time left, and each fold's wall time per method and phase."""
+folds one after the other, over local worker processes (``jobs``, joblib's loky), or on a
+dask.distributed cluster (``scheduler``), through joblib and with one BLAS thread each — the
+same figures every way; finished folds kept in and taken from ``checkpoints``, each method's
+part of a fold in and from ``cache``; the progress line per fold with its estimate of the time
+left, and each fold's wall time per method and phase."""
 
 from __future__ import annotations
 
-import multiprocessing
 import os
 import time
 from collections import Counter
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from collections.abc import Callable
 from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
+from joblib import Parallel, delayed, parallel_config
 from threadpoolctl import threadpool_limits
 
-from ._checkpoints import FoldCheckpoints, settings_digest
+from ._checkpoints import UNSAFE, FoldCheckpoints, settings_digest
 from ._enrolment import fold_note
+from ._methods import REGISTRY
 from ._third_party import counted_warnings
 
 if TYPE_CHECKING:
@@ -30,16 +34,47 @@ def default_jobs() -> int:
     return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
 
 
-_FORKED: RecordingsEvaluator | None = None  # the evaluator whose folds the forked workers run
+def _shipped_fold(evaluator: RecordingsEvaluator, k: int, held: str) -> FoldResult:
+    """A fold in a worker process, local or a cluster's, to which the evaluator travels with the
+    task (one BLAS thread)."""
+    with threadpool_limits(1):
+        return evaluator._announced_fold(k, held)
 
 
-def _one_thread() -> None:
-    """A worker's start: its BLAS/OpenMP pools get one thread, so ``jobs`` workers use ``jobs`` cores."""
-    threadpool_limits(1)
+def cluster_client(scheduler: str):
+    """A dask.distributed client of the scheduler at ``scheduler`` (``tcp://HOST:PORT``); an
+    ImportError that says what to install, a ValueError when no scheduler answers there."""
+    try:
+        from dask.distributed import Client
+    except ImportError as exc:
+        raise ImportError(
+            f"--scheduler needs dask.distributed ({exc}): pip install 'handflow[cluster]' here and on the workers"
+        ) from exc
+    try:
+        return Client(scheduler, timeout=CONNECT_TIMEOUT)
+    except OSError as exc:
+        raise ValueError(
+            f"no dask scheduler answers at {scheduler} ({exc}); start one with 'dask scheduler' and workers with "
+            f"'dask worker {scheduler}' (docs/segmentation.md)"
+        ) from exc
 
 
-def _forked_fold(k: int, held: str) -> FoldResult:
-    return _FORKED._announced_fold(k, held)
+CONNECT_TIMEOUT = "10s"  # how long --scheduler waits for the scheduler to answer
+
+
+@dataclass
+class MethodFold:
+    """One batch method's part of a fold (with the online methods that replay its models): what
+    ``--cache`` keeps per method and fold."""
+
+    recording: str
+    method: str
+    labels: dict[str, np.ndarray]  # per method, at lag 0
+    selected: dict[str, dict]
+    sweeps: list[np.ndarray]  # the batch method's labels at every rejection value of its sweep (lagged)
+    strict: np.ndarray | None  # its labels at the strict choice where it fell back (lagged)
+    enrolled: dict[str, dict[str, np.ndarray]]  # per adaptation, method: labels (lagged)
+    timing: dict[str, dict[str, float]]  # method → phase → seconds
 
 
 @dataclass
@@ -98,9 +133,9 @@ class FoldRunner:
         return fold
 
     def _run_folds(self) -> list[FoldResult]:
-        """Every fold's result in recording order: one after the other, or over ``jobs`` forked
-        processes (module docstring); progress per fold either way."""
-        global _FORKED
+        """Every fold's result in recording order: one after the other, over ``jobs`` local
+        processes, or on the dask cluster of ``scheduler`` (joblib either way; module docstring);
+        progress per fold."""
         names, start, done = self.data.names(), time.perf_counter(), {}
         kept = self._checkpoints()
         for held in names if kept else ():
@@ -123,24 +158,62 @@ class FoldRunner:
 
         computed: list[float] = []  # wall times of the folds computed in this run
         jobs = min(self.jobs, len(todo))
-        if jobs <= 1:
+        if self.scheduler and todo:
+            with cluster_client(self.scheduler) as client, parallel_config(backend="dask"):
+                jobs = max(1, len(client.scheduler_info()["workers"]))
+                self.progress(f"{len(todo)} folds on the dask cluster at {self.scheduler} ({jobs} workers)")
+                self._parallel(-1, todo, finished)
+        elif jobs > 1:
+            with parallel_config(backend="loky", inner_max_num_threads=1):
+                self._parallel(jobs, todo, finished)
+        else:
             with threadpool_limits(1):  # as in a worker: BLAS sums in the same order whatever ``jobs``
                 for k, held in todo:
                     finished(held, self._announced_fold(k, held))
-            return [done[h] for h in names]
-        _FORKED = self
-        try:
-            context = multiprocessing.get_context("fork")
-            with ProcessPoolExecutor(jobs, mp_context=context, initializer=_one_thread) as pool:
-                futures = {pool.submit(_forked_fold, k, held): held for k, held in todo}
-                try:
-                    for future in as_completed(futures):
-                        finished(futures[future], future.result())
-                finally:  # a fold failed: the folds not yet started are not run
-                    pool.shutdown(cancel_futures=True)
-        finally:
-            _FORKED = None
         return [done[h] for h in names]
+
+    def _parallel(self, jobs: int, todo: list[tuple[int, str]], finished: Callable) -> None:
+        """The folds ``todo`` over ``jobs`` workers of joblib's current backend, each reported to
+        ``finished`` as it ends; a fold that fails stops the others."""
+        tasks = Parallel(n_jobs=jobs, return_as="generator_unordered")(
+            delayed(_shipped_fold)(self, k, held) for k, held in todo
+        )
+        for fold in tasks:
+            finished(fold.recording, fold)
+
+    def _cached_method_fold(self, held: str, name: str, compute: Callable[[], MethodFold]) -> MethodFold:
+        """Batch method ``name``'s part of the fold of ``held``: from ``cache`` when an earlier run
+        computed it for the same recordings, settings and code, else ``compute()`` (kept there)."""
+        store = self._method_store(name)
+        kept = store.load(held) if store else None
+        if kept is not None:
+            self.progress(f"  {held}: {name} taken from {store.path(held)}")
+            return kept
+        part = compute()
+        if store:
+            store.save(part)
+        return part
+
+    def _method_store(self, name: str) -> FoldCheckpoints | None:
+        """The ``cache`` of batch method ``name``'s parts of folds, keyed by the data, every setting
+        that moves its figures (not the other methods: a run that adds one reuses the others'),
+        the choices of ``--params`` and the code; None without a cache."""
+        if not self.cache:
+            return None
+        if name not in self._stores:
+            settings = {k: v for k, v in self._parameters().items() if k not in ("dataset", "grids", "params_from")}
+            settings.update(
+                method=name,
+                grid=REGISTRY[name].grid(self.quick),
+                replays=self._replaying(REGISTRY[name]),
+                chosen=self.chosen.by_method[name] if self.chosen else None,
+                random_state=self.random_state,
+            )
+            digest = settings_digest(self.data.recordings, self.data.class_names, settings)
+            self._stores[name] = FoldCheckpoints(
+                Path(self.cache) / UNSAFE.sub("_", name), digest, MethodFold, self.progress
+            )
+        return self._stores[name]
 
     def _checkpoints(self) -> FoldCheckpoints | None:
         """The store of finished folds (``checkpoints``), keyed by the data and every setting that

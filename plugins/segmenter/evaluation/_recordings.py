@@ -51,7 +51,7 @@ from ._enrolment import (
     check_enrolment,
     enrolled_views,
 )
-from ._folds import FoldResult, FoldRunner, timing
+from ._folds import FoldResult, FoldRunner, MethodFold, timing
 from ._methods import REGISTRY, UKRCLMMethod
 from ._report import Report, choice_summary
 from ._selection import HalvingSelection
@@ -101,6 +101,8 @@ class RecordingsEvaluator(HalvingSelection, InnerFoldCalibration, EnrolmentFits,
         checkpoints: str | None = None,
         detail: Callable[[str], None] = lambda msg: None,
         chosen: ChosenParameters | None = None,
+        cache: str | None = None,
+        scheduler: str | None = None,
     ) -> None:
         if jobs < 1:
             raise ValueError(f"jobs must be at least 1, got {jobs}")
@@ -143,6 +145,9 @@ class RecordingsEvaluator(HalvingSelection, InnerFoldCalibration, EnrolmentFits,
         self.jobs = jobs
         self.checkpoints = checkpoints
         self.chosen = chosen  # parameters of an earlier run: no selection (``--params``)
+        self.cache = cache  # a directory of every method's finished parts of folds (``--cache``)
+        self._stores: dict = {}  # method → its store in ``cache``
+        self.scheduler = scheduler  # a dask scheduler's address: the folds run on its cluster
         if chosen is not None:
             chosen.check(tuple(m for m in methods if REGISTRY[m].batch is None), self.normalise, self.derived)
         self._cache: dict[tuple, object] = {}
@@ -166,85 +171,88 @@ class RecordingsEvaluator(HalvingSelection, InnerFoldCalibration, EnrolmentFits,
         return views
 
     def run_fold(self, held: str) -> FoldResult:
+        """The fold that holds out ``held``: every method chosen, fitted and labelling it."""
         views = self.fold_views(held)
         untrained = self._untrained(self.data.without(held))
         if untrained:
             self.progress(
                 f"  {held}: no training segment of {untrained} in the other recordings; models leave them out"
             )
-        labels, selected, sweeps, strict = {}, {}, {}, {}
         self._fold_choices, self._timing = {}, {}
         sessions = {a: enrolled_views(views, self.known, self.enroll, a) for a in ADAPTATIONS if self.enroll}
-        with_enrolment = {a: {} for a in self.enrol_adaptations if self.enroll}
-
-        def lag(x: np.ndarray) -> np.ndarray:
-            return lagged(x, self.lag)
-
-        for name in self.methods:
-            if REGISTRY[name].batch is not None:
-                continue  # replayed with the models of its batch method, below
-            t0 = time.perf_counter()
-            with self._timed(name, "selection"):
-                choice = (
-                    self._select(name, {key: train for key, (train, _) in views.items()})
-                    if self.chosen is None
-                    else self.chosen.choice(name, held)
-                )
-            method = REGISTRY[name]
-            fitted, state, test = self._final(method, choice.params, views)
-            with self._timed(name, "labelling"):
-                labels[name] = method.labels(fitted, state, choice.reject)
-                sweeps[name] = [lag(method.labels(fitted, state, r)) for r in method.reject_grid(fitted, [state])]
-            selected[name] = {
-                **choice.params,
-                "reject": float(choice.reject),
-                "validation_objective": choice.objective,
-                "rejection": "off" if choice.fallback else "calibrated",
-            }
-            if choice.fallback:
-                selected[name]["strict"] = {**choice.strict.params, "reject": float(choice.strict.reject)}
-                strict_fit, strict_state, _ = self._final(method, choice.strict.params, views)
-                with self._timed(name, "labelling"):
-                    strict[name] = lag(method.labels(strict_fit, strict_state, choice.strict.reject))
-            if CHOSEN in with_enrolment and self.chosen and "enrol_adaptation" in self.chosen.selected(name, held):
-                earlier = self.chosen.selected(name, held)
-                selected[name].update({k: earlier[k] for k in ("enrol_adaptation", "enrol_validation")})
-            elif CHOSEN in with_enrolment:
-                with self._timed(name, "selection"):
-                    selected[name]["enrol_adaptation"], selected[name]["enrol_validation"] = self._adaptation(
-                        method, choice, views
-                    )
-            self.progress(f"  {held}: {name} {choice_summary(selected[name])} in {time.perf_counter() - t0:.1f} s")
-            self.detail(f"    {name}: {selected[name]}")
-            for online in map(REGISTRY.get, self._replaying(method)):
-                t0 = time.perf_counter()
-                with self._timed(online.name, "labelling"):
-                    labels[online.name] = online.labels_online(fitted, choice.reject, test.X)
-                selected[online.name] = selected[name]
-                self.progress(f"  {held}: {online.name} replayed {name}'s models in {time.perf_counter() - t0:.1f} s")
-            for adaptation in with_enrolment:
-                chosen = selected[name]["enrol_adaptation"] if adaptation == CHOSEN else adaptation
-                with_enrolment[adaptation].update(
-                    {m: lag(labels[m]) for m in (name, *self._replaying(method))}
-                    if chosen == "none"
-                    else self._enrolled(method, choice, sessions[chosen])
-                )
-        lagged_labels = {name: lag(x) for name, x in labels.items()}
+        parts = [
+            self._cached_method_fold(held, name, lambda name=name: self._method_fold(held, name, views, sessions))
+            for name in self.methods
+            if REGISTRY[name].batch is None  # online methods replay the models of their batch method
+        ]
         truth = next(iter(views.values()))[1].y
-        scored_from = enrolment_split(truth, self.known, self.enroll)[1] if self.enroll else 0
         return FoldResult(
             held,
             truth,
-            lagged_labels,
-            selected,
-            sweeps,
-            strict,
-            untrained,
-            labels,
-            with_enrolment,
-            scored_from,
-            timing=self._timing,
+            labels={m: lagged(x, self.lag) for p in parts for m, x in p.labels.items()},
+            selected={m: x for p in parts for m, x in p.selected.items()},
+            sweeps={p.method: p.sweeps for p in parts},
+            strict={p.method: p.strict for p in parts if p.strict is not None},
+            untrained=untrained,
+            unlagged={m: x for p in parts for m, x in p.labels.items()},
+            enrolled={a: {m: x for p in parts for m, x in p.enrolled[a].items()} for a in self.enrol_adaptations}
+            if self.enroll
+            else {},
+            scored_from=enrolment_split(truth, self.known, self.enroll)[1] if self.enroll else 0,
+            timing={m: x for p in parts for m, x in p.timing.items()},
         )
+
+    def _method_fold(self, held: str, name: str, views, sessions) -> MethodFold:
+        """Batch method ``name`` (with the online methods that replay its models) in the fold of
+        ``held``: its choice — selected on the inner folds, or ``chosen`` — its labels of the
+        held-out recording at the chosen rejection value and over its sweep, and with enrolment."""
+        method, t0 = REGISTRY[name], time.perf_counter()
+        with self._timed(name, "selection"):
+            choice = (
+                self._select(name, {key: train for key, (train, _) in views.items()})
+                if self.chosen is None
+                else self.chosen.choice(name, held)
+            )
+        fitted, state, test = self._final(method, choice.params, views)
+        with self._timed(name, "labelling"):
+            labels = {name: method.labels(fitted, state, choice.reject)}
+            sweeps = [lagged(method.labels(fitted, state, r), self.lag) for r in method.reject_grid(fitted, [state])]
+        selected = {
+            **choice.params,
+            "reject": float(choice.reject),
+            "validation_objective": choice.objective,
+            "rejection": "off" if choice.fallback else "calibrated",
+        }
+        strict = None
+        if choice.fallback:
+            selected["strict"] = {**choice.strict.params, "reject": float(choice.strict.reject)}
+            strict_fit, strict_state, _ = self._final(method, choice.strict.params, views)
+            with self._timed(name, "labelling"):
+                strict = lagged(method.labels(strict_fit, strict_state, choice.strict.reject), self.lag)
+        if self.enroll and CHOSEN in self.enrol_adaptations:
+            earlier = self.chosen.selected(name, held) if self.chosen else {}
+            if "enrol_adaptation" in earlier:
+                selected.update({k: earlier[k] for k in ("enrol_adaptation", "enrol_validation")})
+            else:
+                with self._timed(name, "selection"):
+                    selected["enrol_adaptation"], selected["enrol_validation"] = self._adaptation(method, choice, views)
+        self.progress(f"  {held}: {name} {choice_summary(selected)} in {time.perf_counter() - t0:.1f} s")
+        self.detail(f"    {name}: {selected}")
+        for online in map(REGISTRY.get, self._replaying(method)):
+            t0 = time.perf_counter()
+            with self._timed(online.name, "labelling"):
+                labels[online.name] = online.labels_online(fitted, choice.reject, test.X)
+            self.progress(f"  {held}: {online.name} replayed {name}'s models in {time.perf_counter() - t0:.1f} s")
+        enrolled = {}
+        for adaptation in self.enrol_adaptations if self.enroll else ():
+            chosen = selected["enrol_adaptation"] if adaptation == CHOSEN else adaptation
+            enrolled[adaptation] = (
+                {m: lagged(x, self.lag) for m, x in labels.items()}
+                if chosen == "none"
+                else self._enrolled(method, choice, sessions[chosen])
+            )
+        timing = {m: self._timing.get(m, {}) for m in labels}
+        return MethodFold(held, name, labels, dict.fromkeys(labels, selected), sweeps, strict, enrolled, timing)
 
     def _final(self, method, params: dict, views) -> tuple:
         """``method`` fitted with ``params`` on all training recordings, its state on the held-out

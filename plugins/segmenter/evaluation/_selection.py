@@ -1,7 +1,10 @@
 """Successive halving over a method's candidates on the inner folds (docs/segmentation.md,
 "How the parameters are chosen").
 
-A candidate is one normalisation × derived features × grid point of a method.  Every candidate
+A candidate is one normalisation × derived features × grid point of a method; the CLM over a
+scorer's scores (``clm_minirocket``, ``clm_dtw``) has one, its scorer's best refined candidate,
+and calibrates only its null class's score there (documented choice: it segments the scores the
+scorer's own selection chose, at a fifth of the CLM runs).  Every candidate
 is first *screened*: calibrated on the inner folds with cheap models (:data:`SCREEN`: UKR
 manifolds on fewer points and steps, pseudo-unknowns by dropped columns, every third value of
 the rejection sweep).  The best third (:func:`survivors`) is then *refined* with the same
@@ -77,6 +80,9 @@ class HalvingSelection:
                 for (normalise, derived), train in views.items()
                 for params in method.grid(self.quick)
             ]
+            if method.rejects_with is not None:  # the CLM over a scorer: the scorer's best candidate
+                best = max(self._choices(method.rejects_with, views), key=lambda c: c[0].objective)[0].params
+                candidates = [(train, params) for train, params in candidates if params == best]
             if len(candidates) > 1:
                 screened = [self._calibrated(method, train, params, SCREEN)[0] for train, params in candidates]
                 candidates = [candidates[i] for i in survivors([c.objective for c in screened])]

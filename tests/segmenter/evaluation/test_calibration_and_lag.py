@@ -8,8 +8,7 @@ import pytest
 from handflow.plugins.segmenter.base import lagged
 from handflow.plugins.segmenter.cli import format_stream_table
 from handflow.plugins.segmenter.datasets import load_recordings
-from handflow.plugins.segmenter.evaluation import REGISTRY, RecordingsEvaluator, frame_metrics, segment_f1
-from handflow.plugins.segmenter.evaluation import Choice
+from handflow.plugins.segmenter.evaluation import REGISTRY, Choice, RecordingsEvaluator, frame_metrics, segment_f1
 
 
 def test_lagged_labels_come_from_the_window_ending_lag_frames_later():

@@ -10,11 +10,13 @@ from collections import Counter
 import numpy as np
 import pytest
 
+from handflow.plugins.segmenter.cli import register_evaluate
 from handflow.plugins.segmenter.datasets import load_recordings
 from handflow.plugins.segmenter.evaluation import REGISTRY, ChosenParameters, RecordingsEvaluator
 from handflow.plugins.segmenter.evaluation._fidelity import FULL, REFINE, SCREEN
 from handflow.plugins.segmenter.evaluation._selection import TIE_MARGIN, first_of_best, survivors
 from handflow.plugins.segmenter.evaluation._third_party import counted_warnings, summary
+from tests.conftest import run_command
 
 UKR_SWEEP = np.array([0.0, 1 / 32, 1 / 16, 1 / 8, 1 / 4, 1 / 2, 1.0, 2.0, 4.0, 8.0, 16.0, 64.0])
 
@@ -126,3 +128,23 @@ def test_a_new_recording_gets_the_choice_of_most_folds_ties_to_the_first():
     assert chosen.choice("dtw_1nn", "new").params == {"window": 20, "derived": "none", "normalise": "training"}
     folds[3]["selected"]["window"] = 10
     assert chosen.__class__({"methods": {"dtw_1nn": {"folds": folds}}}).selected("dtw_1nn", "new")["window"] == 10
+
+
+def test_the_cache_gives_the_same_json_and_computes_only_a_method_added(three_class_npz, tmp_path, capsys):
+    def run(methods: str, *extra: str) -> tuple[dict, str]:
+        argv = [str(three_class_npz), "--quick", "--json", "--jobs", "1", "--methods", methods, *extra]
+        assert run_command(register_evaluate, [*argv, "--cache", str(tmp_path / "cache")]) == 0
+        out = capsys.readouterr()
+        result = json.loads(out.out)
+        result.pop("runtime_s"), result.pop("timing")
+        return result, out.err
+
+    first, err = run("ukr_clm,ukr_clm_online")
+    assert "taken from" not in err
+    again, err = run("ukr_clm,ukr_clm_online")
+    assert again == first and err.count("ukr_clm taken from") == 4
+    more, err = run("ukr_clm,ukr_clm_online,dtw_1nn")
+    assert err.count("ukr_clm taken from") == 4 and "dtw_1nn taken from" not in err
+    assert more["methods"]["ukr_clm"] == first["methods"]["ukr_clm"]
+    _, err = run("ukr_clm,ukr_clm_online", "--lag", "2")  # another setting: computed again
+    assert "taken from" not in err

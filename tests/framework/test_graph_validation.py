@@ -122,6 +122,15 @@ def test_validate_cli_exit_code_and_every_problem(tmp_path, run_handflow):
     assert f"{path}:10:" in proc.stderr and "ghost" in proc.stderr
 
 
+def test_a_misspelt_plugin_name_gets_a_did_you_mean(tmp_path, run_handflow):
+    path = write(tmp_path, "name: x\nnodes:\n  - id: a\n    plugin: basic.signl\n")
+    proc = run_handflow("validate", str(path))
+    assert proc.returncode == 2
+    assert f"{path}:4: unknown plugin 'basic.signl'; did you mean 'basic.signal'" in proc.stderr
+    listed = run_handflow("plugins", "segmenter.onlineclm")
+    assert listed.returncode == 2 and "did you mean 'segmenter.online_clm'" in listed.stderr
+
+
 def test_run_refuses_invalid_graph(tmp_path, run_handflow):
     proc = run_handflow("run", str(write(tmp_path, BAD["unknown_plugin"][0])), "--duration", "1")
     assert proc.returncode == 2

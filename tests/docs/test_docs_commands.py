@@ -422,6 +422,7 @@ def run_page(doc: Path, workspace: Path) -> None:
     """Run a page's commands in order in ``workspace``, checking each one's stated outcome."""
     jobs: list[subprocess.Popen] = []
     started: dict[str, int] = {}
+    shipped = set(workspace.glob("configs/*.yaml"))  # the installed package's graphs: `handflow run NAME`
     try:
         for block in doc_blocks(doc):
             for kind, arg in block.markers:
@@ -459,6 +460,10 @@ def run_page(doc: Path, workspace: Path) -> None:
             if job.poll() is None:
                 job.kill()
                 job.communicate()
+    added = sorted(p.name for p in set(workspace.glob("configs/*.yaml")) - shipped)
+    assert not added, (
+        f"{doc.name} writes graph(s) {added} into the package, listed as shipped; write to the current directory"
+    )
 
 
 def _check(block: Block, original: str, outcome: Outcome, where: str) -> None:

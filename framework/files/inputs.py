@@ -26,7 +26,8 @@ class InputPath:
 
     ``kind``: ``file``, ``dir``, ``any`` (either) or ``device`` (must exist; a serial port, say);
     ``what`` names it in messages and ``hint`` says how to get a good one; ``check(path)`` raises
-    ``ValueError`` (or ``OSError``) with its own message for an existing but unusable input;
+    ``ValueError`` (or ``OSError``) with its own message for an existing but unusable file or folder
+    (the plugin's own loader, reading what the node reads at start without building anything);
     values for which ``skip(value)`` is true name no path (e.g. a glove's ``emulator``).
     """
 
@@ -48,7 +49,7 @@ class InputPath:
             where = "" if raw.is_absolute() else f" (looked for {path})"
             exists = " exists but" if path.exists() else ""
             return f"{self.what} {value}:{exists} no such {kind}{where}; {self.hint}"
-        if self.check is not None and path.is_file():
+        if self.check is not None and (path.is_file() or path.is_dir()):  # not a device: it is opened at start
             try:
                 self.check(path)
             except (ValueError, OSError) as exc:

@@ -93,6 +93,30 @@ def test_a_missing_input_is_refused_before_anything_starts(tmp_path, case, entry
         assert "started" not in proc.stderr  # run: no process was launched
 
 
+@pytest.mark.parametrize(
+    "index, model, words",
+    [
+        ('{"classes": {"grasp": ', None, "classes.json: inconsistent class index file (JSONDecodeError"),
+        ('{"classes": {"grasp": "grasp.npz"}}', b"not a zip", "grasp.npz: not a class model file"),
+        ('{"classes": {"grasp": "gone.npz"}}', None, "not found; train them with `handflow train-classes"),
+    ],
+    ids=["broken classes.json", "garbage model file", "model file missing"],
+)
+def test_a_models_folder_the_node_cannot_load_is_refused_before_anything_starts(tmp_path, index, model, words):
+    """The segmenter's own preflight reads the folder's index and each model's metadata (not the
+    models): validate and run exit 2 at the 'models' line instead of a crash loop at run time."""
+    (tmp_path / "trained").mkdir()
+    (tmp_path / "trained" / "classes.json").write_text(index)
+    if model is not None:
+        (tmp_path / "trained" / "grasp.npz").write_bytes(model)
+    graph, [line] = _graph(tmp_path, ["plugin: segmenter.online_clm\n    params:\n      models: trained"])
+    for cmd in (["validate", str(graph)], ["run", str(graph), "--duration", "2"]):
+        proc = handflow(*cmd, cwd=tmp_path)
+        assert proc.returncode == 2, (cmd, proc.stderr)
+        assert f"{graph}:{line}: node 'n0' (segmenter.online_clm): " in proc.stderr and words in proc.stderr
+        assert "started" not in proc.stderr and "Traceback" not in proc.stderr
+
+
 def test_validate_lists_every_failure_at_once(tmp_path):
     _som_file(tmp_path / "som.npz")
     graph, lines = _graph(tmp_path, [entry for case, entry, _, _ in CASES if case != "missing extra"])
@@ -131,12 +155,15 @@ def test_a_node_failing_during_setup_twice_alike_is_a_crash_loop_within_seconds(
     # the rule: the second failure with the same setup error is the crash loop (no third start)
     assert sum("started src" in line for line in log) == 2
     first = next(line for line in log if "src failed during setup" in line)
-    loop = next(line for line in log if "crash loop: src failed during setup twice" in line)
+    loop = next(line for line in log if "crash loop: src failed during setup 2 times with the same error" in line)
     assert _stamp(loop) - _stamp(first) <= 10.0
-    assert "not numeric CSV rows under a header row" in loop
     assert "Traceback" not in proc.stderr
     assert "all nodes ready" not in proc.stderr
-    assert f"{graph}:6: src (crash loop, not restarted): failed during setup" in proc.stderr
+    summary = f"{graph}:6: src (crash loop after 2 failed starts, not restarted): failed during setup"
+    assert summary in proc.stderr
+    # the node's message once as it happens, once in the summary with its graph line; not per attempt
+    message = "not numeric CSV rows under a header row"
+    assert message in first and proc.stderr.count(message) == 2, proc.stderr
 
 
 def test_a_failed_node_down_at_the_end_exits_4_with_its_own_message(tmp_path):

@@ -490,6 +490,13 @@ def test_the_training_tutorial_works_from_an_empty_directory(workspace):
 
     model = StructuredUKR.load(out / "my_manifold.npz")
     assert model.latents_.shape[1] == 1 and model.Y_.shape[1] == 24  # one latent time, 24 ShadowHand joints
+    # the good fit the page shows: a low objective, every demonstration climbing once round the
+    # period π, never falling back more than 0.05 rad (the page's "runs backwards" is the bad fit)
+    assert model.objective_ <= 0.2, model.objective_
+    for seq in np.unique(model.sequence_ids_):
+        latent = np.unwrap(model.latents_[model.sequence_ids_ == seq, 0], period=np.pi)
+        assert (latent - np.maximum.accumulate(latent)).min() >= -0.05, f"demonstration {seq} runs backwards"
+        assert latent[-1] - latent[0] >= 0.9 * np.pi, f"demonstration {seq} climbs {latent[-1] - latent[0]:.2f} rad"
 
 
 def test_the_loopback_lsl_setup_shown_in_lsl_md_is_the_shipped_file():

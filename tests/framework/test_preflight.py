@@ -66,7 +66,7 @@ def _graph(tmp_path: Path, entries: list[str]) -> tuple[Path, list[int]]:
     text += "".join(f"  - id: n{i}\n    {entry}\n" for i, entry in enumerate(entries))
     path = tmp_path / "graph.yaml"
     path.write_text(text)
-    marks = ("csv:", "models:", "manifold:", "port:", "plugin: lsl.")
+    marks = ("csv:", "models:", "manifold:", "port:", "calibration:", "plugin: lsl.")
     lines = [k for k, line in enumerate(text.splitlines(), 1) if line.strip().startswith(marks)]
     return path, lines
 
@@ -93,27 +93,49 @@ def test_a_missing_input_is_refused_before_anything_starts(tmp_path, case, entry
         assert "started" not in proc.stderr  # run: no process was launched
 
 
-@pytest.mark.parametrize(
-    "index, model, words",
-    [
-        ('{"classes": {"grasp": ', None, "classes.json: inconsistent class index file (JSONDecodeError"),
-        ('{"classes": {"grasp": "grasp.npz"}}', b"not a zip", "grasp.npz: not a class model file"),
-        ('{"classes": {"grasp": "gone.npz"}}', None, "not found; train them with `handflow train-classes"),
-    ],
-    ids=["broken classes.json", "garbage model file", "model file missing"],
-)
-def test_a_models_folder_the_node_cannot_load_is_refused_before_anything_starts(tmp_path, index, model, words):
-    """The segmenter's own preflight reads the folder's index and each model's metadata (not the
-    models): validate and run exit 2 at the 'models' line instead of a crash loop at run time."""
-    (tmp_path / "trained").mkdir()
-    (tmp_path / "trained" / "classes.json").write_text(index)
-    if model is not None:
-        (tmp_path / "trained" / "grasp.npz").write_bytes(model)
-    graph, [line] = _graph(tmp_path, ["plugin: segmenter.online_clm\n    params:\n      models: trained"])
+MODELS = "plugin: segmenter.online_clm\n    params:\n      models: trained"
+# (case, files to write, node entry, words the message must hold)
+UNLOADABLE = [
+    (
+        "broken classes.json",
+        {"trained/classes.json": '{"classes": {"grasp": '},
+        MODELS,
+        "classes.json: inconsistent class index file (JSONDecodeError",
+    ),
+    (
+        "garbage model file",
+        {"trained/classes.json": '{"classes": {"grasp": "grasp.npz"}}', "trained/grasp.npz": "not a zip"},
+        MODELS,
+        "grasp.npz: not a class model file",
+    ),
+    (
+        "model file missing",
+        {"trained/classes.json": '{"classes": {"grasp": "gone.npz"}}'},
+        MODELS,
+        "not found; train them with `handflow train-classes",
+    ),
+    (
+        "broken calibration",
+        {"calib.yaml": "lower: [1, 2\n"},
+        "plugin: mapping.human_hand\n    params:\n      calibration: calib.yaml",
+        "calib.yaml:2: YAML syntax error",
+    ),
+]
+
+
+@pytest.mark.parametrize("case, files, entry, words", UNLOADABLE, ids=[c[0] for c in UNLOADABLE])
+def test_a_file_the_node_cannot_load_is_refused_before_anything_starts(tmp_path, case, files, entry, words):
+    """The plugin's own preflight reads what the node reads at start (a models folder's index and
+    each model's metadata, a calibration), without building anything: validate and run exit 2 at
+    the parameter's line instead of a crash loop at run time."""
+    for name, text in files.items():
+        (tmp_path / name).parent.mkdir(exist_ok=True)
+        (tmp_path / name).write_text(text)
+    graph, [line] = _graph(tmp_path, [entry])
     for cmd in (["validate", str(graph)], ["run", str(graph), "--duration", "2"]):
         proc = handflow(*cmd, cwd=tmp_path)
         assert proc.returncode == 2, (cmd, proc.stderr)
-        assert f"{graph}:{line}: node 'n0' (segmenter.online_clm): " in proc.stderr and words in proc.stderr
+        assert f"{graph}:{line}: node 'n0' (" in proc.stderr and words in proc.stderr
         assert "started" not in proc.stderr and "Traceback" not in proc.stderr
 
 

@@ -212,12 +212,18 @@ def test_inspect_of_a_file_too_short_for_the_magic_is_not_mcap(tmp_path, capsys,
 
 
 def test_inspect_of_a_file_cut_after_its_magic_is_recovered(tmp_path, capsys):
-    """A valid start that ends early is a truncated recording: recovered, exit 0."""
+    """A valid start that ends early is a truncated recording: recovered, exit 0; so is a recording
+    just opened (its writer puts the magic on disk at once)."""
     path = tmp_path / "cut.mcap"
     path.write_bytes(b"\x89MCAP0\r\n")
-    assert inspect_cmd.run(argparse.Namespace(file=str(path), json=True)) == 0
-    summary = json.loads(capsys.readouterr().out)
-    assert summary["recovered"] and summary["total_messages"] == 0
+    live = McapWriter(tmp_path / "live.mcap")
+    try:
+        for f in (path, live.path):
+            assert inspect_cmd.run(argparse.Namespace(file=str(f), json=True)) == 0
+            summary = json.loads(capsys.readouterr().out)
+            assert summary["recovered"] and summary["total_messages"] == 0
+    finally:
+        live.close()
 
 
 def test_writer_is_thread_safe(tmp_path):

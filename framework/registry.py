@@ -7,6 +7,7 @@ names the current one in ``plugin_name`` and loading it by the old name warns (d
 
 from __future__ import annotations
 
+import difflib
 import warnings
 from dataclasses import dataclass
 from functools import cache
@@ -50,11 +51,19 @@ def plugin_entries() -> dict[str, PluginEntry]:
     return {ep.name: PluginEntry(ep.name, ep.value, ep) for ep in entry_points(group=PLUGIN_GROUP)}
 
 
+def unknown_plugin(name: str) -> str:
+    """What to say about a plugin name that is not installed: the closest names, then all of them."""
+    names = sorted(plugin_entries())
+    close = difflib.get_close_matches(name, names, n=3, cutoff=0.6)
+    guess = f"did you mean {' or '.join(repr(c) for c in close)}? " if close else ""
+    return f"unknown plugin '{name}'; {guess}installed plugins: {', '.join(names)}"
+
+
 def load_plugin(name: str) -> type[Node]:
     """The node class of plugin ``name``; :class:`PluginError` lists the known names if unknown."""
     entries = plugin_entries()
     if name not in entries:
-        raise PluginError(f"unknown plugin '{name}'; installed plugins: {', '.join(sorted(entries))}")
+        raise PluginError(unknown_plugin(name))
     cls = entries[name].load()
     canonical = getattr(cls, "plugin_name", None)
     if canonical and canonical != name:

@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 import subprocess
 import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
@@ -25,6 +27,17 @@ def handflow(*args: str, timeout: float = 120, check: bool = False, **kw) -> sub
     if check and proc.returncode != 0:
         raise AssertionError(f"handflow {' '.join(args)} failed ({proc.returncode}):\n{proc.stdout}\n{proc.stderr}")
     return proc
+
+
+@contextmanager
+def cpu_hog() -> Iterator[None]:
+    """A busy machine: a process spinning on one core while the block runs."""
+    hog = subprocess.Popen([sys.executable, "-c", "while True: pass"])
+    try:
+        yield
+    finally:
+        hog.kill()
+        hog.wait()
 
 
 def run_command(register, argv: list[str]):

@@ -26,6 +26,11 @@ def register(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--listen", type=float, default=2.0, help="listening window of --once in seconds (default 2)")
     parser.add_argument("--window", type=float, default=WINDOW_S, help="sliding window for rates and latency (s)")
     parser.add_argument(
+        "--wide",
+        action="store_true",
+        help="every column at full width (default: one line per topic within the terminal's width, COLUMNS when piped)",
+    )
+    parser.add_argument(
         "--foxglove",
         nargs="?",
         const=8765,
@@ -69,9 +74,14 @@ def run(args: argparse.Namespace) -> int:
             else:
                 from rich.console import Console
 
-                Console().print(render(snap, title, graph))
+                console = Console()
+                tables = render(snap, title, graph, None if args.wide else console.width)
+                if args.wide:  # as wide as the tables: the terminal wraps what it cannot show
+                    unlimited = console.options.update_width(1_000_000)
+                    console = Console(width=console.measure(tables, options=unlimited).maximum)
+                console.print(tables)
         else:
-            _live(monitor, title, graph)
+            _live(monitor, title, graph, args.wide)
     except KeyboardInterrupt:
         pass
     finally:
@@ -82,10 +92,10 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _live(monitor: Monitor, title: str, graph: str | None) -> None:
+def _live(monitor: Monitor, title: str, graph: str | None, wide: bool) -> None:
     from rich.live import Live
 
-    with Live(render(monitor.snapshot(), title, graph), refresh_per_second=4, screen=False) as live:
-        while True:
+    with Live(refresh_per_second=4, screen=False) as live:
+        while True:  # the terminal's width now: it may have been resized
+            live.update(render(monitor.snapshot(), title, graph, None if wide else live.console.width))
             time.sleep(0.5)
-            live.update(render(monitor.snapshot(), title, graph))

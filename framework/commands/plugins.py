@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 
-from ..registry import PluginError, plugin_entries
+from ..registry import PluginError, plugin_entries, unknown_plugin
 
 
 def register(parser: argparse.ArgumentParser) -> None:
@@ -40,7 +41,7 @@ def run(args: argparse.Namespace) -> int:
     names = sorted(plugin_entries())
     if args.name:
         if args.name not in names:
-            print(f"unknown plugin '{args.name}'; installed: {', '.join(names)}")
+            print(unknown_plugin(args.name), file=sys.stderr)
             return 2
         names = [args.name]
     infos = [_describe(n) for n in names]

@@ -79,8 +79,7 @@ def run(args: argparse.Namespace) -> int:
     finally:
         for s, h in old.items():
             signal.signal(s, h)
-        recorder.close()
+        recorder.close(log_summary=False)  # printed once, below
         session.close()
-    counts = recorder.writer.counts
-    print(f"recorded {sum(counts.values())} message(s) on {len(counts)} topic(s) to {args.out}")
+    print(recorder.summary)
     return 0

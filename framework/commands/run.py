@@ -94,7 +94,7 @@ def run(args: argparse.Namespace) -> int:
         print("failed nodes:\n" + "\n".join(f"  {line}" for line in failed), file=sys.stderr)
     if launcher.crash_loops:
         for why in launcher.crash_loops:
-            print(f"error: crash loop: {why} (see its log above)", file=sys.stderr)
+            print(f"error: crash loop: {why} (see 'failed nodes' above)", file=sys.stderr)
         return 3
     if down:
         print("error: a node failed and was not running at the end (see 'failed nodes' above)", file=sys.stderr)

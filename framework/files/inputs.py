@@ -26,7 +26,8 @@ class InputPath:
 
     ``kind``: ``file``, ``dir``, ``any`` (either) or ``device`` (must exist; a serial port, say);
     ``what`` names it in messages and ``hint`` says how to get a good one; ``check(path)`` raises
-    ``ValueError`` (or ``OSError``) with its own message for an existing but unusable input;
+    ``ValueError`` (or ``OSError``) with its own message for an existing but unusable file or folder
+    (the plugin's own loader, reading what the node reads at start without building anything);
     values for which ``skip(value)`` is true name no path (e.g. a glove's ``emulator``).
     """
 
@@ -48,7 +49,7 @@ class InputPath:
             where = "" if raw.is_absolute() else f" (looked for {path})"
             exists = " exists but" if path.exists() else ""
             return f"{self.what} {value}:{exists} no such {kind}{where}; {self.hint}"
-        if self.check is not None and path.is_file():
+        if self.check is not None and (path.is_file() or path.is_dir()):  # not a device: it is opened at start
             try:
                 self.check(path)
             except (ValueError, OSError) as exc:
@@ -73,13 +74,33 @@ def _markers(annotation: Any) -> list[InputPath]:
     return found
 
 
-def declared_inputs(params: BaseModel, loc: tuple = ()) -> Iterator[tuple[tuple, str, InputPath]]:
-    """Every (location in params, value, declaration) of the inputs named by ``params``."""
-    for name, info in type(params).model_fields.items():
-        value = getattr(params, name)
+def _model_of(annotation: Any) -> type[BaseModel] | None:
+    """The params model a field's type names (``Model``, ``Model | None``), for values not yet validated."""
+    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+        return annotation
+    return next(filter(None, map(_model_of, get_args(annotation))), None)
+
+
+def declared_inputs(
+    model: type[BaseModel], values: BaseModel | dict, loc: tuple = ()
+) -> Iterator[tuple[tuple, str, InputPath]]:
+    """Every (location in params, value, declaration) of the inputs named by ``values``: the validated
+    params of ``model``, or its raw dict (params that failed validation: the keys that passed, so one
+    mistake does not hide a missing file; docs/pipelines.md)."""
+    for name, info in model.model_fields.items():
+        if isinstance(values, BaseModel):
+            value = getattr(values, name)
+        elif name in values:
+            value = values[name]
+        elif info.is_required():
+            continue
+        else:
+            value = info.get_default(call_default_factory=True)
         markers = [m for m in info.metadata if isinstance(m, InputPath)] + _markers(info.annotation)
         if isinstance(value, BaseModel):
-            yield from declared_inputs(value, loc + (name,))
+            yield from declared_inputs(type(value), value, loc + (name,))
+        elif isinstance(value, dict) and (sub := _model_of(info.annotation)) is not None:
+            yield from declared_inputs(sub, value, loc + (name,))
         elif markers and isinstance(value, str):
             yield loc + (name,), value, markers[0]
         elif markers and isinstance(value, list):
@@ -104,10 +125,11 @@ def missing_modules(requires: dict[str, str]) -> list[str]:
     ]
 
 
-def node_input_problems(cls: Any, params: BaseModel, base_dir: Path) -> list[tuple[tuple, str]]:
-    """(location in the node's params, or () for the node itself; message) per unusable input."""
+def node_input_problems(cls: Any, params: BaseModel | dict, base_dir: Path) -> list[tuple[tuple, str]]:
+    """(location in the node's params, or () for the node itself; message) per unusable input;
+    ``params`` validated, or the raw ones that passed (see :func:`declared_inputs`)."""
     problems: list[tuple[tuple, str]] = [((), msg) for msg in missing_modules(getattr(cls, "requires", {}))]
-    for loc, value, marker in declared_inputs(params):
+    for loc, value, marker in declared_inputs(cls.Params, params):
         if (msg := marker.problem(value, base_dir)) is not None:
             problems.append((loc, msg))
     return problems

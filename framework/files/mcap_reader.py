@@ -13,10 +13,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from mcap.exceptions import EndOfFile, InvalidMagic
+from mcap.exceptions import EndOfFile
 from mcap.records import Attachment, Channel, Footer, Metadata, Schema
 from mcap.records import Message as McapMessage
 from mcap.stream_reader import StreamReader
+from mcap.writer import MCAP0_MAGIC
 
 from .. import keys, wire
 from ..messages import Message, MessageError, decode, message_types
@@ -105,6 +106,11 @@ def iter_recording(
     # id → (channel, is data, selected, handflow type, Zenoh key)
     channels: dict[int, tuple[Channel, bool, bool, str, str]] = {}
     with f:
+        if f.read(len(MCAP0_MAGIC)) != MCAP0_MAGIC:  # empty, a few bytes or another format: not a truncated MCAP
+            raise RecordingError(
+                f"{path} is not an MCAP file (it does not start with the MCAP magic bytes); pass a .mcap recording"
+            )
+        f.seek(0)
         records = StreamReader(f, validate_crcs=True).records
         while True:
             try:
@@ -112,10 +118,6 @@ def iter_recording(
             except StopIteration:
                 break
             except Exception as exc:
-                if isinstance(exc, InvalidMagic) and not schemas and not report.complete:
-                    raise RecordingError(
-                        f"{path} is not an MCAP file (bad magic bytes); pass a .mcap recording"
-                    ) from exc
                 report.error = _describe_read_error(exc, f)
                 log.warning("%s", report.describe())
                 return

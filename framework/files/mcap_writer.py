@@ -182,6 +182,7 @@ class McapWriter:
             raise RecordingError(f"cannot write recording {self.path}: {exc.strerror}; choose a writable path") from exc
         self._writer = Writer(self._file, chunk_size=chunk_size, compression=CompressionType[compression.upper()])
         self._writer.start(profile="ros2" if encoding == "cdr" else "", library="handflow")
+        self._file.flush()  # the magic on disk at once: a file being recorded is never taken for a non-MCAP one
         self.foxglove_images = foxglove_images and encoding == "json"  # Foxglove shows sensor_msgs/Image itself
         self._lock = threading.Lock()
         self._schemas: dict[str, int] = {}

@@ -23,11 +23,25 @@ class NpzFileError(ValueError):
     """A file that cannot be used; the message names it and says what to do."""
 
 
+ZIP_MAGIC = b"PK"
+"""How an .npz archive (a zip file) starts."""
+
+
+def _starts(head: bytes) -> str:
+    return f"this one starts with {head!r}" if head else "this one is empty"
+
+
 @contextmanager
 def _opened(path, what: str, hint: str, error: type[ValueError]) -> Iterator[np.lib.npyio.NpzFile]:
     path = Path(path)
     if not path.is_file():
         raise error(f"{path}: no such {what} file; {hint}")
+    with open(path, "rb") as f:
+        head = f.read(4)
+    if not head.startswith(ZIP_MAGIC):  # numpy would take it for a pickle and advise allow_pickle
+        raise error(
+            f"{path}: not a {what} file: that is an .npz archive (a zip of NumPy arrays), {_starts(head)}; {hint}"
+        )
     try:
         with np.load(path, allow_pickle=False) as data:
             yield data

@@ -174,7 +174,8 @@ def _message_type(name: str) -> type[Message] | None:
 def read_graph_text(
     text: str, path: Path, only: Collection[str] | None = None, preflight: bool = False, host: str | None = None
 ) -> tuple[Graph | None, list[Problem]]:
-    """Parse and validate graph YAML; returns the graph (None if unusable) and all problems.
+    """Parse and validate graph YAML; returns the graph (None if unusable) and all problems in file
+    order, one mistake hiding no other (docs/pipelines.md, "The graph file").
 
     With ``only``, plugin classes are loaded and checked for those node ids alone (a node process
     of an already validated graph imports just its own plugins; docs/architecture.md).  With
@@ -187,15 +188,14 @@ def read_graph_text(
     data, lines = parsed
     if not isinstance(data, dict):
         return None, [Problem(1, "a graph file must be a YAML mapping with 'name' and 'nodes'")]
-    try:
-        spec = GraphSpec.model_validate(data)
-    except ValidationError as exc:
-        return None, pydantic_problems(exc, lines)
+    spec, index, problems = _read_spec(data, lines)
+    if spec is None:
+        return None, _in_file_order(problems)
 
     graph = Graph(spec, path)
-    problems: list[Problem] = []
+    classes: dict[str, type[Node]] = {}  # nodes whose plugin loaded, their params valid or not
     seen: dict[str, int] = {}
-    for i, ns in enumerate(spec.nodes):
+    for i, ns in zip(index, spec.nodes):
         if ns.id in seen:
             problems.append(
                 Problem(
@@ -208,7 +208,7 @@ def read_graph_text(
         if only is not None and ns.id not in only:
             continue
         try:
-            cls = load_plugin(ns.plugin)
+            cls = classes[ns.id] = load_plugin(ns.plugin)
         except PluginError as exc:
             problems.append(Problem(line_of(lines, ("nodes", i, "plugin")), str(exc)))
             continue
@@ -216,8 +216,10 @@ def read_graph_text(
             params = cls.Params.model_validate(ns.params)
         except ValidationError as exc:
             problems += pydantic_problems(exc, lines, ("nodes", i, "params"), f"node '{ns.id}' param ")
-            continue
-        graph.nodes[ns.id] = ResolvedNode(ns, cls, params, seen[ns.id])
+            failed = {err["loc"][0] for err in exc.errors() if err["loc"]}
+            params = {k: v for k, v in ns.params.items() if k not in failed}  # the rest is still checked
+        else:
+            graph.nodes[ns.id] = ResolvedNode(ns, cls, params, seen[ns.id])
         if preflight and ns.host == host:
             for loc, message in node_input_problems(cls, params, path.parent):
                 at = ("nodes", i, "params", *loc) if loc else ("nodes", i, "plugin")
@@ -240,14 +242,46 @@ def read_graph_text(
     if spec.status is not None:
         problems += _status_problems(graph, spec.status, lines)
 
-    for i, ns in enumerate(spec.nodes):
-        rn = graph.nodes.get(ns.id)
-        if rn is None or rn.spec is not ns:
-            continue
+    checked: set[str] = set()
+    for i, ns in zip(index, spec.nodes):
+        if ns.id not in classes or ns.id in checked:
+            continue  # an unknown plugin, a duplicate id or a node this process does not load
+        checked.add(ns.id)
         for port, source in ns.inputs.items():
             line = line_of(lines, ("nodes", i, "inputs", port))
-            problems += _input_problems(graph, rn, port, source, line)
-    return (graph if not problems else None), problems
+            problems += _input_problems(graph, classes, ns, port, source, line)
+    return (graph if not problems else None), _in_file_order(problems)
+
+
+def _in_file_order(problems: list[Problem]) -> list[Problem]:
+    return sorted(problems, key=lambda p: p.line)
+
+
+def _read_spec(data: dict, lines: dict) -> tuple[GraphSpec | None, list[int], list[Problem]]:
+    """The graph's spec with the nodes that passed their own checks, their indices in the file's node
+    list, and the problems of the others and of the top-level fields; a top-level field that fails is
+    left out, so the nodes are still checked (None: the spec fails without it, e.g. no 'name')."""
+    problems: list[Problem] = []
+    index: list[int] = []
+    nodes = data.get("nodes")
+    if isinstance(nodes, list):
+        valid = []
+        for i, raw in enumerate(nodes):
+            try:
+                valid.append(NodeSpec.model_validate(raw))
+                index.append(i)
+            except ValidationError as exc:
+                problems += pydantic_problems(exc, lines, ("nodes", i), f"nodes.{i}.")
+        data = {**data, "nodes": valid}
+    try:
+        return GraphSpec.model_validate(data), index, problems
+    except ValidationError as exc:
+        problems += pydantic_problems(exc, lines)
+        failed = {err["loc"][0] for err in exc.errors() if err["loc"]}
+    try:
+        return GraphSpec.model_validate({k: v for k, v in data.items() if k not in failed}), index, problems
+    except ValidationError:
+        return None, [], problems
 
 
 def _zenoh_problems(spec: GraphSpec, lines) -> list[Problem]:
@@ -357,41 +391,44 @@ def _status_problems(graph: Graph, status: StatusSpec, lines: dict) -> list[Prob
     return []
 
 
-def _input_problems(graph: Graph, rn: ResolvedNode, port: str, source: str, line: int) -> list[Problem]:
-    nid = rn.spec.id
-    if port not in rn.cls.inputs:
+def _input_problems(
+    graph: Graph, classes: dict[str, type[Node]], ns: NodeSpec, port: str, source: str, line: int
+) -> list[Problem]:
+    """What is wrong with input ``port`` of node ``ns`` reading ``source``; the message types are
+    compared where both nodes' params are valid, the port names wherever their plugins loaded."""
+    nid, cls = ns.id, classes[ns.id]
+    if port not in cls.inputs:
         return [
             Problem(
                 line,
-                f"node '{nid}' ({rn.spec.plugin}) has no input port '{port}'; its inputs: {', '.join(rn.cls.inputs) or 'none'}",
+                f"node '{nid}' ({ns.plugin}) has no input port '{port}'; its inputs: {', '.join(cls.inputs) or 'none'}",
             )
         ]
     src_node, sep, src_port = source.partition("/")
     if not sep or not src_port:
         return [Problem(line, f"node '{nid}' input '{port}': source must be 'node/port', got '{source}'")]
-    if src_node not in graph.nodes and source not in graph.spec.external:
-        known = [n for n in graph.spec.nodes if n.id == src_node]
-        if known:  # the source node exists but failed its own checks (reported there)
-            return []
+    if src_node not in classes and source not in graph.spec.external:
+        if any(n.id == src_node for n in graph.spec.nodes):
+            return []  # the source node exists but its plugin did not load (reported there)
         return [
             Problem(
                 line,
                 f"node '{nid}' input '{port}' reads from missing node '{src_node}'; "
-                f"existing nodes: {', '.join(graph.nodes)} (or declare '{source}' under 'external:')",
+                f"existing nodes: {', '.join(n.id for n in graph.spec.nodes)} (or declare '{source}' under 'external:')",
             )
         ]
-    out_type = graph.source_type(source)
-    if out_type is None and src_node not in graph.nodes:
-        return []  # an external topic of an unknown type (reported with 'external:')
-    if out_type is None:
-        src = graph.nodes[src_node]
-        outs = src.cls.output_types(src.params)
+    if src_node in classes and src_port not in classes[src_node].outputs:
+        outs = classes[src_node].outputs
         return [
             Problem(
                 line,
                 f"node '{nid}' input '{port}': node '{src_node}' has no output '{src_port}'; its outputs: {', '.join(outs) or 'none'}",
             )
         ]
+    out_type = graph.source_type(source)
+    rn = graph.nodes.get(nid)
+    if out_type is None or rn is None:
+        return []  # a node whose params failed (reported there), or an external topic of an unknown type
     in_type = rn.cls.input_types(rn.params)[port]
     if not issubclass(out_type, in_type):
         return [

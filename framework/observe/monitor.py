@@ -219,52 +219,54 @@ class Monitor:
             sub.undeclare()
 
 
-def render(snapshot: dict[str, Any], title: str = "handflow monitor", graph: str | None = None) -> Any:
-    """A rich renderable (two tables) of a snapshot; topics of ``graph`` are shown as ``node/port``."""
+def render(
+    snapshot: dict[str, Any], title: str = "handflow monitor", graph: str | None = None, width: int | None = None
+) -> Any:
+    """A rich renderable (two tables) of a snapshot, one line per topic and node within ``width``
+    characters (None: every column, docs/monitoring.md); topics of ``graph`` are shown as ``node/port``."""
     from rich.console import Group
-    from rich.table import Table
+    from rich.text import Text
 
-    topics = Table(title=title, expand=True)
-    for col, kw in (
-        ("topic", {"no_wrap": True, "min_width": 12}),  # the name must stay readable; "last value" gives way
-        ("type", {}),
-        ("rate Hz", {"justify": "right"}),
-        ("latency ms", {"justify": "right"}),
-        ("gaps/dropped", {"justify": "right"}),
-        ("count", {"justify": "right"}),
-        ("shm", {}),
-        ("last value", {"overflow": "ellipsis"}),
-    ):
-        topics.add_column(col, **kw)
-    for t in snapshot["topics"]:
-        lat = "-" if t["latency_ms"] is None else f"{t['latency_ms']:.2f}"
-        lost = f"{t['gaps']}/{t['dropped']}"
-        lost = f"[red]{lost}[/red]" if t["gaps"] or t["dropped"] else lost
-        name = t["topic"].removeprefix(f"{keys.PREFIX}/{graph}/") if graph else t["topic"]
-        topics.add_row(
-            name,
-            t["type"].removeprefix("handflow."),
-            f"{t['rate_hz']:.1f}",
-            lat,
-            lost,
-            str(t["count"]),
-            "yes" if t["shm"] else "-",
-            t["last"],
-        )
-    nodes = Table(title="nodes", expand=True)
-    for col in ("graph", "node", "alive", "pid", "restarts seen", "dropped", "input gaps", "handled", "published"):
-        nodes.add_column(col)
-    for n in snapshot["nodes"]:
-        alive = "[green]yes[/green]" if n["alive"] else f"[red]no ({n['last_heartbeat_s']:.0f}s)[/red]"
-        nodes.add_row(
-            n["graph"],
-            n["id"],
-            alive,
-            str(n["pid"]),
-            str(n["restarts_seen"]),
-            str(n["dropped"]),
-            str(n["input_gaps"]),
-            str(n["handled"]),
-            str(n["published"]),
-        )
-    return Group(topics, nodes)
+    from .fit import Column, fitted_table
+
+    def column(header, short, cells, priority, justify="left", flexible=False):
+        texts = [c if isinstance(c, Text) else Text(str(c)) for c in cells]
+        return Column(header, short, texts, priority, justify, flexible)
+
+    ts = snapshot["topics"]
+    lost = [Text(f"{t['gaps']}/{t['dropped']}", style="red" if t["gaps"] or t["dropped"] else "") for t in ts]
+    topics = [
+        column(
+            "topic",
+            "topic",
+            [t["topic"].removeprefix(f"{keys.PREFIX}/{graph}/") if graph else t["topic"] for t in ts],
+            0,
+        ),
+        column("type", "type", [t["type"].removeprefix("handflow.") for t in ts], 6),
+        column("rate Hz", "Hz", [f"{t['rate_hz']:.1f}" for t in ts], 1, "right"),
+        column(
+            "latency ms", "ms", ["-" if t["latency_ms"] is None else f"{t['latency_ms']:.2f}" for t in ts], 2, "right"
+        ),
+        column("gaps/dropped", "lost", lost, 3, "right"),
+        column("count", "n", [t["count"] for t in ts], 5, "right"),
+        column("shm", "shm", ["yes" if t["shm"] else "-" for t in ts], 7),
+        column("last value", "last", [t["last"] for t in ts], 4, flexible=True),
+    ]
+    ns = snapshot["nodes"]
+    alive = [
+        Text("yes", style="green") if n["alive"] else Text(f"no ({n['last_heartbeat_s']:.0f}s)", style="red")
+        for n in ns
+    ]
+    nodes = [
+        column("node", "node", [n["id"] for n in ns], 0),
+        column("alive", "alive", alive, 1),
+        column("pid", "pid", [n["pid"] for n in ns], 7, "right"),
+        column("restarts seen", "restarts", [n["restarts_seen"] for n in ns], 2, "right"),
+        column("dropped", "dropped", [n["dropped"] for n in ns], 3, "right"),
+        column("input gaps", "gaps", [n["input_gaps"] for n in ns], 4, "right"),
+        column("handled", "handled", [n["handled"] for n in ns], 5, "right"),
+        column("published", "published", [n["published"] for n in ns], 6, "right"),
+    ]
+    if graph is None:  # several graphs: say which one each node belongs to
+        nodes.insert(0, column("graph", "graph", [n["graph"] for n in ns], 1))
+    return Group(fitted_table(title, topics, width), fitted_table("nodes", nodes, width))

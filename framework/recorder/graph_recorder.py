@@ -151,14 +151,16 @@ class GraphRecorder:
         name, media_type = (f"{key}.urdf", "application/xml") if urdf else (f"{key}.txt", "text/plain")
         self.writer.add_attachment(name, text.encode(), media_type)
 
-    def close(self) -> None:
+    @property
+    def summary(self) -> str:
+        """``recorded N message(s) on T topic(s) to PATH``."""
+        return f"recorded {self.writer.message_count} message(s) on {len(self.writer.counts)} topic(s) to {self.writer.path}"
+
+    def close(self, log_summary: bool = True) -> None:
+        """Stop recording and finish the file; log :attr:`summary` unless the caller prints it itself."""
         if self._subscriber is not None:
             self._subscriber.undeclare()
             self._subscriber = None
         self.writer.close()
-        log.info(
-            "recorded %d message(s) on %d topic(s) to %s",
-            self.writer.message_count,
-            len(self.writer.counts),
-            self.writer.path,
-        )
+        if log_summary:
+            log.info("%s", self.summary)

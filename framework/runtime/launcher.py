@@ -54,6 +54,7 @@ class Unit:
     failures: list[float] = field(default_factory=list)  # monotonic times of recent failures
     gave_up: str | None = None  # why supervision stopped restarting it (a crash loop)
     failure: dict | None = None  # the last failure: phase ("setup" or "running") and reason
+    attempts: int = 0  # starts that ended in that same failure, in a row
     running_at_end: bool = False
     log_tail: collections.deque = field(default_factory=lambda: collections.deque(maxlen=LOG_TAIL))
 
@@ -212,7 +213,7 @@ class Launcher:
                 continue
             down |= not u.running_at_end
             state = (
-                "crash loop, not restarted"
+                f"crash loop after {len(u.exit_codes)} failed starts, not restarted"
                 if u.gave_up
                 else f"restarted {u.restarts}x, running at the end"
                 if u.running_at_end
@@ -245,28 +246,35 @@ class Launcher:
                     continue
                 why = f"killed by signal {-code}" if code < 0 else f"exit code {code}"
                 previous, unit.failure = unit.failure, self._failure(unit, code)
+                repeated = previous == unit.failure  # its message was logged already: said once (docs/reliability.md)
+                unit.attempts = unit.attempts + 1 if repeated else 1
                 unit.failures = [t for t in unit.failures if now - t <= unit.policy.window_s] + [now]
-                same_setup_error = unit.failure["phase"] == "setup" and previous == unit.failure
+                failed = (
+                    f"{unit.name} failed again with the same error (attempt {unit.attempts})"
+                    if repeated
+                    else f"{unit.name} failed {_why(unit.failure)}"
+                )
                 if unit.policy.policy == "never":
-                    log.error(
-                        "%s failed %s; restart policy 'never': the rest of the graph keeps running",
-                        unit.name,
-                        _why(unit.failure),
-                    )
-                elif same_setup_error or len(unit.failures) > unit.policy.max_restarts:
+                    log.error("%s; restart policy 'never': the rest of the graph keeps running", failed)
+                elif (repeated and unit.failure["phase"] == "setup") or len(unit.failures) > unit.policy.max_restarts:
                     unit.gave_up = (
-                        f"{unit.name} failed during setup twice with the same error: {unit.failure['reason']}"
-                        if same_setup_error
-                        else f"{unit.name} failed {len(unit.failures)} times within {unit.policy.window_s:.0f}s "
-                        f"(last: {unit.failure['reason']})"
-                    ) + "; not restarted again"
-                    tail = "\n".join(f"    {line}" for line in unit.log_tail)
-                    log.error("crash loop: %s; its last log lines:\n%s", unit.gave_up, tail)
-                    self.event("crash_loop", unit, unit.gave_up)
+                        f"{unit.name} failed during setup {unit.attempts} times with the same error"
+                        if repeated and unit.failure["phase"] == "setup"
+                        else f"{unit.name} failed {len(unit.failures)} times within {unit.policy.window_s:.0f}s"
+                    )
+                    reason = " (above)" if repeated else f" (last: {unit.failure['reason']})"
+                    tail = "".join(f"\n    {line}" for line in unit.log_tail)
+                    log.error(
+                        "crash loop: %s%s; not restarted again%s",
+                        unit.gave_up,
+                        reason,
+                        tail and "; its last log lines:" + tail,
+                    )
+                    self.event("crash_loop", unit, f"{unit.gave_up}: {unit.failure['reason']}; not restarted again")
                 else:
                     delay = min(unit.policy.max_backoff_s, unit.policy.backoff_s * 2 ** (len(unit.failures) - 1))
                     unit.restart_at = now + delay
-                    log.warning("%s failed %s; restarting in %.2fs", unit.name, _why(unit.failure), delay)
+                    log.warning("%s; restarting in %.2fs", failed, delay)
                     self.event("restart", unit, f"{why}; restart in {delay:.2f}s")
             if unit.proc is None and unit.restart_at is not None and now >= unit.restart_at:
                 unit.restart_at = None

@@ -482,10 +482,10 @@ def main(argv: list[str] | None = None, parent: int | None = None) -> int:
     try:
         rt.run()
     except SetupError as exc:
-        if isinstance(exc.cause, EXPECTED_ERRORS):  # the node's own message says what to do
-            log.error("%s", exc)
-        else:
+        if not isinstance(exc.cause, EXPECTED_ERRORS):
             log.error("%s\n%s", exc, "".join(traceback.format_exception(exc.cause)))
+        elif args.state_dir is None:  # else the launcher reports the node's own message, once
+            log.error("%s", exc)
         cause = exc.cause
         reason = str(cause) if isinstance(cause, EXPECTED_ERRORS) else f"{type(cause).__name__}: {cause}"
         code, failure = 1, {"phase": "setup", "reason": f"node '{exc.node_id}': {reason}"}

@@ -18,7 +18,7 @@ from handflow.plugins.mapping.calibration import (
 )
 
 from .frames_io import load_frames, save_frames
-from .node import EmulatorParams, FaultParams, build_emulator, missing_device_message
+from .node import EmulatorParams, FaultParams, build_emulator, unusable_device_message
 from .reader import GloveReader, ReaderConfig
 
 CALIBRATION_STEPS = (
@@ -174,7 +174,7 @@ def run_calibrate(args: argparse.Namespace) -> int:
     except (CalibrationFileError, FileNotFoundError, ValueError) as exc:
         print(f"calibrate: {exc}", file=sys.stderr)
         return 2
-    if frames is None and (problem := missing_device_message(args.port)) is not None:
+    if frames is None and (problem := unusable_device_message(args.port)) is not None:
         print(f"calibrate: {problem}", file=sys.stderr)  # before the guided session, not after it
         return 2
     if frames is None:

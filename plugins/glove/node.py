@@ -26,7 +26,7 @@ from handflow.framework.plugin import Node
 
 from .emulator import Fault, GloveEmulator, array_source
 from .frames_io import load_frames
-from .reader import GloveReader, ReaderConfig
+from .reader import GloveReader, ReaderConfig, open_transport
 from .synthetic import HandMotion, SyntheticGlove
 
 
@@ -96,6 +96,24 @@ def missing_device_message(port: str) -> str | None:
         return None
     found = ", ".join(serial_ports()) or "none"
     return f"glove device {port} not found (serial ports on this machine: {found}); {DEVICE_HINT}"
+
+
+def unusable_device_message(port: str) -> str | None:
+    """What to do when ``port`` names a device that is missing or cannot be opened and configured as a
+    serial port, /dev/null say (None if it can be, or is no path); opens and closes it once."""
+    if _no_device(port):
+        return None
+    if (problem := missing_device_message(port)) is not None:
+        return problem
+    try:
+        open_transport(ReaderConfig(port=port)).close()
+    except OSError as exc:  # pyserial's SerialException is one
+        found = ", ".join(serial_ports()) or "none"
+        return (
+            f"glove device {port} cannot be opened as a serial port ({exc}); check that it is the glove's "
+            f"device (serial ports on this machine: {found}) and that you may open it (group dialout); {DEVICE_HINT}"
+        )
+    return None
 
 
 class CyberGloveNode(Node):

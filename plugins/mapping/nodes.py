@@ -2,7 +2,7 @@
 
 - ``mapping.human_hand``: ``raw`` GloveFrame → ``joints`` JointState (24 human-model joints);
   params ``profile`` and ``calibration`` (paths relative to the graph file; defaults ship in
-  configs/glove/).
+  configs/glove/; read by the preflight, docs/pipelines.md "Inputs").
 - ``mapping.shadow_hand`` / ``mapping.gifu_hand``: ``joints`` human JointState → ``joints`` robot
   JointState.  Input joints are matched by name (any order); a message lacking a human joint is
   dropped by the runtime with a rate-limited error naming it (docs/robustness.md).
@@ -13,11 +13,11 @@ Every output message carries the joint names and keeps the input's stamp.
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from typing import Literal
+from typing import Annotated, Literal
 
 import numpy as np
 
-from handflow.framework.files.inputs import InputFile
+from handflow.framework.files.inputs import InputPath
 from handflow.framework.files.params import StrictModel
 from handflow.framework.messages import GloveFrame, JointState, MessageError
 from handflow.framework.plugin import Node
@@ -33,8 +33,10 @@ class HumanHandMappingNode(Node):
     """Raw CyberGlove frames → 24 joints of the human hand model (docs/glove.md)."""
 
     class Params(StrictModel):
-        profile: InputFile = str(DEFAULT_PROFILE)
-        calibration: InputFile = str(DEFAULT_CALIBRATION)
+        profile: Annotated[str, InputPath(what="glove profile", check=load_profile)] = str(DEFAULT_PROFILE)
+        calibration: Annotated[str, InputPath(what="session calibration", check=load_calibration)] = str(
+            DEFAULT_CALIBRATION
+        )
         handedness: Literal["right", "left"] = "right"
 
     inputs = {"raw": GloveFrame}

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import replace
+from pathlib import Path
 from typing import Annotated, Literal
 
 import numpy as np
@@ -27,7 +28,7 @@ from handflow.plugins.manifold.io import FORMAT_VERSION as UKR_VERSION
 from .clm import UKROnlyRecognizer
 from .datasets import ADAPTATIONS
 from .features import ChannelScaling, RunningStandardizer
-from .models import CandidateSet, enrolled_models, load_candidates
+from .models import CandidateSet, enrolled_models, load_candidates, model_files
 from .online import OnlineCLMSegmenter, OnlineScoreCLMSegmenter, SegmentChange, SegmentTracker
 from .scorers import FORMAT, FORMAT_VERSION, MiniRocketScorer, ScorerFileError, WindowScorer, load_scorer
 
@@ -35,11 +36,19 @@ UNKNOWN = "unknown"
 UKR_FORMAT = (UKR, UKR_VERSION, "format_version")
 _TRAIN = "train them with `handflow train-classes` (docs/segmentation.md)"
 _FIT = "fit one with `handflow fit-scorer` (docs/segmentation.md)"
-Models = Annotated[
-    str,
-    InputPath("any", "class models", _TRAIN, check=format_check("class model", _TRAIN, UKR_FORMAT)),
-]
-"""A folder written by `handflow train-classes`, or one model file (its format and version checked)."""
+_MODEL_FORMAT = format_check("class model", _TRAIN, UKR_FORMAT)
+
+
+def check_models(path: Path) -> None:
+    """Preflight of ``models``: what the node reads at start — a folder's ``classes.json`` and the
+    model files it names (:func:`.model_files`), or one model file — each model's format and version,
+    without building the models (docs/pipelines.md, "Inputs")."""
+    for file in model_files(path).values():
+        _MODEL_FORMAT(file)
+
+
+Models = Annotated[str, InputPath("any", "class models", _TRAIN, check=check_models)]
+"""A folder written by `handflow train-classes`, or one model file (its index, format and version checked)."""
 Scorer = Annotated[
     str,
     InputPath(what="scorer file", hint=_FIT, check=format_check("scorer", _FIT, (FORMAT, FORMAT_VERSION, "version"))),

@@ -9,6 +9,9 @@ then publishes ``joints`` (collision-corrected JointState), ``contacts`` (Contac
 pybullet's link poses, every tick), ``markers`` (the scene's shapes, every tick) and ``description``
 (the viewer-safe URDF, at start and every ``description_period_s``), frames under ``frame_prefix``;
 ``view_hz: 0`` turns the three off.
+A tick that falls behind by more than ``max_catch_up_s`` skips the rest and warns, unless the
+stall began within the first second of running (``START_UP_S``: the first publications and the
+other processes' start on a busy machine; docs/simulator.md), which is logged at INFO.
 Fail-safe: when no targets arrived for ``hold_safe_after_s`` since the last one the node
 holds the last command, logs it once and reports ``holding = 1`` until targets resume (before
 the first target it waits silently: start-up, not a fault).
@@ -27,6 +30,9 @@ from handflow.framework.plugin import Node
 from .simulation import Simulation
 from .urdf import urdf_text
 from .viewer import scene_markers, simulated_hand_transforms
+
+START_UP_S = 1.0
+"""A stall that begins this soon after simulated time started is start-up, not lag: no WARNING."""
 
 
 class SimulatorParams(StrictModel):
@@ -78,6 +84,8 @@ class PybulletSimulatorNode(Node):
             hand=prm.hand, scene=prm.scene, scene_options=prm.scene_options, seed=prm.seed, physics_hz=prm.physics_hz
         )
         self.t0_ns: int | None = None
+        self.started_ns: int | None = None  # when simulated time started (t0_ns moves on a skip)
+        self.last_advance_ns: int | None = None
         self.last_target_ns: int | None = None
         self.last_image_ns: int | None = None
         self.holding = False
@@ -93,7 +101,7 @@ class PybulletSimulatorNode(Node):
             raise MessageError(str(exc)) from None
         self.last_target_ns = self.ctx.now_ns()
         if self.t0_ns is None:  # simulated time starts with the first event (message or tick)
-            self.t0_ns = self.last_target_ns
+            self.t0_ns = self.started_ns = self.last_target_ns
         if self.holding:
             self.ctx.log.info("targets resumed; leaving hold")
             self.holding = False
@@ -101,15 +109,21 @@ class PybulletSimulatorNode(Node):
     def _advance(self, now: int) -> None:
         """Step the physics until simulated time catches up with ``now`` (bounded per tick)."""
         if self.t0_ns is None:
-            self.t0_ns = now - int(self.sim.time * 1e9)
+            self.t0_ns = self.started_ns = now - int(self.sim.time * 1e9)
         due = int((now - self.t0_ns) * self.sim.physics_hz / 1e9 + 1e-4) - self.sim.steps  # tolerate ns rounding
         limit = int(self.params.max_catch_up_s * self.sim.physics_hz)
         if due > limit:
-            self.ctx.log.warning(
-                "simulation %d steps behind; skipping %.3f s", due, (due - limit) / self.sim.physics_hz
+            began = self.last_advance_ns if self.last_advance_ns is not None else self.started_ns
+            start_up = began - self.started_ns < START_UP_S * 1e9
+            (self.ctx.log.info if start_up else self.ctx.log.warning)(
+                "simulation %d steps behind%s; skipping %.3f s",
+                due,
+                " at start-up" if start_up else "",
+                (due - limit) / self.sim.physics_hz,
             )
             self.t0_ns += int((due - limit) * 1e9 / self.sim.physics_hz)
             due = limit
+        self.last_advance_ns = now
         self.sim.step(max(due, 0))
 
     def _check_hold(self, now: int) -> None:

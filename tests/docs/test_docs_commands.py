@@ -16,6 +16,8 @@ it for the test (it stays invisible in rendered Markdown):
   (arguments split like a shell line; ``sub`` markers apply to them too).  A command exits 0 unless
   its ``exit N`` check says otherwise.
 
+- ``<!-- doc-test: busy REASON -->``: the block runs while a CPU hog holds one core (a busy machine);
+
 - ``<!-- doc-test: file "PATH" -->`` before a block of any language: the page asks the reader to save
   that block as PATH, so the test writes it there before running the page's next command.
 
@@ -44,6 +46,7 @@ import subprocess
 import sys
 import textwrap
 import time
+from contextlib import nullcontext
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -54,6 +57,7 @@ import yaml
 from handflow.framework.files.mcap_reader import iter_recording
 from handflow.framework.graphs.model import load_graph
 from handflow.framework.runtime.discovery import live_runs
+from tests.conftest import cpu_hog
 
 REPO = Path(__file__).resolve().parents[2]
 TESTED_ELSEWHERE = {"recording.md", "monitoring.md"}  # tests/framework/test_recording_docs.py
@@ -79,7 +83,7 @@ FENCE = re.compile(r"^```(\w*)\s*$")
 JOB_STOP = re.compile(r"kill -INT %(\d+)")
 RUN = ("bash", "sh", "console")
 COMMAND = re.compile(r"^(\$ |handflow |python |pip )")
-MARKER = re.compile(r"^<!--\s*doc-test:\s*(skip|sub|drop|needs|expect|file)\b(.*?)-->\s*$")
+MARKER = re.compile(r"^<!--\s*doc-test:\s*(skip|sub|drop|needs|expect|file|busy)\b(.*?)-->\s*$")
 QUOTED = re.compile(r'"((?:[^"\\]|\\.)*)"')
 
 
@@ -320,8 +324,10 @@ def test_markers_and_blocks_are_well_formed():
             block.plan()  # a stale 'sub' fails here
             for kind, arg in block.markers:
                 quoted = QUOTED.findall(arg)
-                assert len(quoted) >= {"sub": 2, "expect": 2, "skip": 0}.get(kind, 1), (where, arg)
-                assert kind not in ("skip", "drop") or QUOTED.sub("", arg).strip(), f"{where}: {kind} needs a reason"
+                assert len(quoted) >= {"sub": 2, "expect": 2, "skip": 0, "busy": 0}.get(kind, 1), (where, arg)
+                assert kind not in ("skip", "drop", "busy") or QUOTED.sub("", arg).strip(), (
+                    f"{where}: {kind} needs a reason"
+                )
                 if kind == "expect":
                     assert any(quoted[0] in c for c in block.commands), f"{where}: expect '{quoted[0]}' matches nothing"
                     assert block.expectations(quoted[0])[0][0] in EXPECTATIONS, f"{where}: unknown check '{quoted[1]}'"
@@ -422,43 +428,53 @@ def run_page(doc: Path, workspace: Path) -> None:
     """Run a page's commands in order in ``workspace``, checking each one's stated outcome."""
     jobs: list[subprocess.Popen] = []
     started: dict[str, int] = {}
+    shipped = set(workspace.glob("configs/*.yaml"))  # the installed package's graphs: `handflow run NAME`
     try:
         for block in doc_blocks(doc):
             for kind, arg in block.markers:
                 if kind == "file":
                     (workspace / QUOTED.findall(arg)[0]).write_text(block.text)
-            for original, cmd in block.runnable():
-                where = f"{doc.name}:{block.line}: {cmd}"
-                if kill := JOB_STOP.fullmatch(cmd):
-                    job = jobs[int(kill.group(1)) - 1]
-                    job.send_signal(signal.SIGINT)
-                    out, err = job.communicate(timeout=60)
-                    _check(block, original, Outcome(workspace, out, err, job.returncode, job.since), where)
-                elif cmd.endswith("&"):
-                    name = _graph_name(workspace, cmd)
-                    started[name] = started.get(name, 0) + 1
-                    jobs.append(
-                        subprocess.Popen(
-                            ["bash", "-c", f"exec {cmd[:-1]}"],
-                            cwd=workspace,
-                            text=True,
-                            stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE,
-                        )
-                    )
-                    jobs[-1].since = time.time()
-                    _wait_started(name, started[name])
-                else:
-                    since = time.time()
-                    proc = subprocess.run(
-                        ["bash", "-c", cmd], cwd=workspace, capture_output=True, text=True, timeout=300
-                    )
-                    _check(block, original, Outcome(workspace, proc.stdout, proc.stderr, proc.returncode, since), where)
+            busy = cpu_hog() if any(kind == "busy" for kind, _ in block.markers) else nullcontext()
+            with busy:
+                _run_block(doc, block, workspace, jobs, started)
     finally:
         for job in jobs:
             if job.poll() is None:
                 job.kill()
                 job.communicate()
+    added = sorted(p.name for p in set(workspace.glob("configs/*.yaml")) - shipped)
+    assert not added, (
+        f"{doc.name} writes graph(s) {added} into the package, listed as shipped; write to the current directory"
+    )
+
+
+def _run_block(doc: Path, block: Block, workspace: Path, jobs: list[subprocess.Popen], started: dict[str, int]) -> None:
+    """Run one block's commands in ``workspace``: background jobs into ``jobs``, checking each outcome."""
+    for original, cmd in block.runnable():
+        where = f"{doc.name}:{block.line}: {cmd}"
+        if kill := JOB_STOP.fullmatch(cmd):
+            job = jobs[int(kill.group(1)) - 1]
+            job.send_signal(signal.SIGINT)
+            out, err = job.communicate(timeout=60)
+            _check(block, original, Outcome(workspace, out, err, job.returncode, job.since), where)
+        elif cmd.endswith("&"):
+            name = _graph_name(workspace, cmd)
+            started[name] = started.get(name, 0) + 1
+            jobs.append(
+                subprocess.Popen(
+                    ["bash", "-c", f"exec {cmd[:-1]}"],
+                    cwd=workspace,
+                    text=True,
+                    stdout=subprocess.PIPE,
+                    stderr=subprocess.PIPE,
+                )
+            )
+            jobs[-1].since = time.time()
+            _wait_started(name, started[name])
+        else:
+            since = time.time()
+            proc = subprocess.run(["bash", "-c", cmd], cwd=workspace, capture_output=True, text=True, timeout=300)
+            _check(block, original, Outcome(workspace, proc.stdout, proc.stderr, proc.returncode, since), where)
 
 
 def _check(block: Block, original: str, outcome: Outcome, where: str) -> None:
@@ -485,6 +501,13 @@ def test_the_training_tutorial_works_from_an_empty_directory(workspace):
 
     model = StructuredUKR.load(out / "my_manifold.npz")
     assert model.latents_.shape[1] == 1 and model.Y_.shape[1] == 24  # one latent time, 24 ShadowHand joints
+    # the good fit the page shows: a low objective, every demonstration climbing once round the
+    # period π, never falling back more than 0.05 rad (the page's "runs backwards" is the bad fit)
+    assert model.objective_ <= 0.2, model.objective_
+    for seq in np.unique(model.sequence_ids_):
+        latent = np.unwrap(model.latents_[model.sequence_ids_ == seq, 0], period=np.pi)
+        assert (latent - np.maximum.accumulate(latent)).min() >= -0.05, f"demonstration {seq} runs backwards"
+        assert latent[-1] - latent[0] >= 0.9 * np.pi, f"demonstration {seq} climbs {latent[-1] - latent[0]:.2f} rad"
 
 
 def test_the_loopback_lsl_setup_shown_in_lsl_md_is_the_shipped_file():

@@ -122,6 +122,72 @@ def test_validate_cli_exit_code_and_every_problem(tmp_path, run_handflow):
     assert f"{path}:10:" in proc.stderr and "ghost" in proc.stderr
 
 
+FIVE_MISTAKES = """\
+name: five
+nodes:
+  - id: source
+    plugin: basic.signal
+    params: {rate_hz: fast}
+  - id: scale
+    plugin: basic.transform
+    inputs: {in: source/outt}
+  - id: ctrl
+    plugin: manipulation.open_loop
+    params:
+      manifold: broken.npz
+  - id: sink
+    plugin: basic.snk
+    inputs: {in: scale/out}
+"""
+
+
+def test_validate_reports_five_mistakes_in_one_graph_as_five_lines_in_file_order(tmp_path, run_handflow):
+    """A failed parameter hides neither the node's wrong input port nor its unreadable model file."""
+    (tmp_path / "broken.npz").write_text("not a zip")
+    path = write(tmp_path, FIVE_MISTAKES)
+    proc = run_handflow("validate", str(path))
+    assert proc.returncode == 2
+    reported = [
+        line for line in proc.stderr.splitlines() if line.startswith(f"{path}:") and ": " in line[len(str(path)) + 1 :]
+    ]
+    expected = [
+        (5, "node 'source' param rate_hz: Input should be a valid number"),
+        (8, "node 'scale' input 'in': node 'source' has no output 'outt'; its outputs: out"),
+        (11, "node 'ctrl' param latent: required field is missing"),
+        (12, "broken.npz: not a manipulation manifold file"),
+        (14, "unknown plugin 'basic.snk'; did you mean 'basic.sink'"),
+    ]
+    assert len(reported) == len(expected), proc.stderr
+    for line, (no, words) in zip(reported, expected):
+        assert line.startswith(f"{path}:{no}: ") and words in line, (line, no, words)
+    assert proc.stderr.rstrip().endswith(f"{path}: 5 problem(s)")
+
+
+def test_a_bad_top_level_field_or_node_entry_hides_no_other_problem(tmp_path):
+    text = (
+        "name: x\nrecord: {topics: 3}\nnodes:\n  - id: bad id\n    plugin: basic.sink\n"
+        "  - id: a\n    plugin: basic.signal\n    params: {rate_hz: fast}\n"
+        "  - id: b\n    plugin: basic.sink\n    inputs: {in: ghost/out}\n"
+    )
+    graph, problems = validate_file(write(tmp_path, text))
+    assert graph is None
+    assert [(p.line, p.message.split(":")[0]) for p in problems] == [
+        (2, "record.topics"),
+        (4, "nodes.0.id"),
+        (8, "node 'a' param rate_hz"),
+        (11, "node 'b' input 'in' reads from missing node 'ghost'; existing nodes"),
+    ]
+
+
+def test_a_misspelt_plugin_name_gets_a_did_you_mean(tmp_path, run_handflow):
+    path = write(tmp_path, "name: x\nnodes:\n  - id: a\n    plugin: basic.signl\n")
+    proc = run_handflow("validate", str(path))
+    assert proc.returncode == 2
+    assert f"{path}:4: unknown plugin 'basic.signl'; did you mean 'basic.signal'" in proc.stderr
+    listed = run_handflow("plugins", "segmenter.onlineclm")
+    assert listed.returncode == 2 and "did you mean 'segmenter.online_clm'" in listed.stderr
+
+
 def test_run_refuses_invalid_graph(tmp_path, run_handflow):
     proc = run_handflow("run", str(write(tmp_path, BAD["unknown_plugin"][0])), "--duration", "1")
     assert proc.returncode == 2

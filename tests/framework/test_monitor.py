@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import io
 import json
+import re
 import signal
 import time
 
@@ -12,7 +14,7 @@ import pytest
 from handflow.framework.messages import Array, Header, RuntimeEvent, Status, encode
 from handflow.framework.network import sessions as transport
 from handflow.framework.network.settings import ZenohSettings
-from handflow.framework.observe.monitor import Monitor, summarize
+from handflow.framework.observe.monitor import Monitor, render, summarize
 from handflow.framework.recorder.replay import wait_matching
 from tests.framework._rec_helpers import chain, handflow, start, unique, wait_until
 
@@ -107,8 +109,59 @@ def test_json_without_once_is_rejected():
     assert proc.returncode == 2 and "--json needs --once" in proc.stderr
 
 
+def _demo_like_snapshot() -> dict:
+    """20 topics with long last values and 10 nodes, as the flagship shows them."""
+    topics = [
+        {
+            "topic": f"handflow/demo/node{i}/port_{i}",
+            "type": "handflow.JointState",
+            "rate_hz": 50.0,
+            "latency_ms": 1.25,
+            "gaps": i % 2,
+            "dropped": 0,
+            "count": 1000 + i,
+            "shm": i == 3,
+            "last": "names=[24] positions=[0.0741, 0.0133, -0.305, 0.977, …] (24) velocities=[0] hand='shadow'",
+        }
+        for i in range(20)
+    ]
+    nodes = [
+        {"id": f"node{i}", "graph": "demo", "alive": i != 4, "last_heartbeat_s": 3.0, "pid": 40000 + i}
+        | {"restarts_seen": 0, "dropped": 0, "input_gaps": 0, "handled": 123456, "published": 123456}
+        for i in range(10)
+    ]
+    return {"topics": topics, "nodes": nodes}
+
+
+def _printed(width: int | None) -> list[str]:
+    from rich.console import Console
+
+    console = Console(file=io.StringIO(), width=width or 1000, color_system=None)
+    console.print(render(_demo_like_snapshot(), "handflow monitor — graph 'demo'", "demo", width))
+    return console.file.getvalue().splitlines()
+
+
+@pytest.mark.parametrize("width", [80, 160])
+def test_the_table_fits_the_terminal_one_line_per_topic_and_node(width):
+    """docs/monitoring.md, "Terminal width": columns are abbreviated or dropped, never wrapped."""
+    lines = _printed(width)
+    assert max(len(line) for line in lines) <= width
+    assert len(lines) == (3 + 20) + (3 + 10), "\n".join(lines)  # title, header and rule per table, one line a row
+    rows = [line for line in lines if line.startswith("node") and "/port_" in line]
+    assert len(rows) == 20 and all(re.search(r"\b50\.0\b.*\b1\.25\b", row) for row in rows)  # rate and latency kept
+
+
+def test_wide_shows_every_column_in_full():
+    lines = _printed(None)
+    assert len(lines) == (3 + 20) + (3 + 10)
+    header = lines[1]
+    for col in ("type", "rate Hz", "latency ms", "gaps/dropped", "count", "shm", "last value"):
+        assert col in header, header
+    assert "hand='shadow'" in lines[3]  # the last value uncut
+
+
 @pytest.mark.slow
-def test_monitor_once_json_on_a_running_graph(tmp_path):
+def test_monitor_once_json_on_a_running_graph(tmp_path, monkeypatch):
     name = unique("mon")
     graph = chain(tmp_path / "g.yaml", name, rate=50)
     proc = start("run", str(graph))
@@ -120,6 +173,7 @@ def test_monitor_once_json_on_a_running_graph(tmp_path):
         mon = handflow("monitor", "--graph", name, "--once", "--json", "--listen", "2")
         assert mon.returncode == 0, mon.stderr
         snap = json.loads(mon.stdout)
+        monkeypatch.setenv("COLUMNS", "80")  # piped: the width comes from COLUMNS
         text = handflow("monitor", "--once", "--listen", "1")  # the only running graph is found by itself
     finally:
         proc.send_signal(signal.SIGINT)
@@ -131,3 +185,5 @@ def test_monitor_once_json_on_a_running_graph(tmp_path):
         assert t["rate_hz"] == pytest.approx(50, rel=0.3) and t["gaps"] == 0 and t["latency_ms"] is not None
     assert sorted((n["id"], n["alive"]) for n in snap["nodes"]) == [("scale", True), ("sink", True), ("source", True)]
     assert text.returncode == 0 and "source/out" in text.stdout and "sink" in text.stdout
+    lines = text.stdout.splitlines()
+    assert max(len(line) for line in lines) <= 80 and len(lines) == (3 + 2) + (3 + 3), text.stdout

@@ -66,7 +66,7 @@ def _graph(tmp_path: Path, entries: list[str]) -> tuple[Path, list[int]]:
     text += "".join(f"  - id: n{i}\n    {entry}\n" for i, entry in enumerate(entries))
     path = tmp_path / "graph.yaml"
     path.write_text(text)
-    marks = ("csv:", "models:", "manifold:", "port:", "plugin: lsl.")
+    marks = ("csv:", "models:", "manifold:", "port:", "calibration:", "plugin: lsl.")
     lines = [k for k, line in enumerate(text.splitlines(), 1) if line.strip().startswith(marks)]
     return path, lines
 
@@ -91,6 +91,52 @@ def test_a_missing_input_is_refused_before_anything_starts(tmp_path, case, entry
         assert words in proc.stderr
         assert "Traceback" not in proc.stderr
         assert "started" not in proc.stderr  # run: no process was launched
+
+
+MODELS = "plugin: segmenter.online_clm\n    params:\n      models: trained"
+# (case, files to write, node entry, words the message must hold)
+UNLOADABLE = [
+    (
+        "broken classes.json",
+        {"trained/classes.json": '{"classes": {"grasp": '},
+        MODELS,
+        "classes.json: inconsistent class index file (JSONDecodeError",
+    ),
+    (
+        "garbage model file",
+        {"trained/classes.json": '{"classes": {"grasp": "grasp.npz"}}', "trained/grasp.npz": "not a zip"},
+        MODELS,
+        "grasp.npz: not a class model file",
+    ),
+    (
+        "model file missing",
+        {"trained/classes.json": '{"classes": {"grasp": "gone.npz"}}'},
+        MODELS,
+        "not found; train them with `handflow train-classes",
+    ),
+    (
+        "broken calibration",
+        {"calib.yaml": "lower: [1, 2\n"},
+        "plugin: mapping.human_hand\n    params:\n      calibration: calib.yaml",
+        "calib.yaml:2: YAML syntax error",
+    ),
+]
+
+
+@pytest.mark.parametrize("case, files, entry, words", UNLOADABLE, ids=[c[0] for c in UNLOADABLE])
+def test_a_file_the_node_cannot_load_is_refused_before_anything_starts(tmp_path, case, files, entry, words):
+    """The plugin's own preflight reads what the node reads at start (a models folder's index and
+    each model's metadata, a calibration), without building anything: validate and run exit 2 at
+    the parameter's line instead of a crash loop at run time."""
+    for name, text in files.items():
+        (tmp_path / name).parent.mkdir(exist_ok=True)
+        (tmp_path / name).write_text(text)
+    graph, [line] = _graph(tmp_path, [entry])
+    for cmd in (["validate", str(graph)], ["run", str(graph), "--duration", "2"]):
+        proc = handflow(*cmd, cwd=tmp_path)
+        assert proc.returncode == 2, (cmd, proc.stderr)
+        assert f"{graph}:{line}: node 'n0' (" in proc.stderr and words in proc.stderr
+        assert "started" not in proc.stderr and "Traceback" not in proc.stderr
 
 
 def test_validate_lists_every_failure_at_once(tmp_path):
@@ -131,12 +177,15 @@ def test_a_node_failing_during_setup_twice_alike_is_a_crash_loop_within_seconds(
     # the rule: the second failure with the same setup error is the crash loop (no third start)
     assert sum("started src" in line for line in log) == 2
     first = next(line for line in log if "src failed during setup" in line)
-    loop = next(line for line in log if "crash loop: src failed during setup twice" in line)
+    loop = next(line for line in log if "crash loop: src failed during setup 2 times with the same error" in line)
     assert _stamp(loop) - _stamp(first) <= 10.0
-    assert "not numeric CSV rows under a header row" in loop
     assert "Traceback" not in proc.stderr
     assert "all nodes ready" not in proc.stderr
-    assert f"{graph}:6: src (crash loop, not restarted): failed during setup" in proc.stderr
+    summary = f"{graph}:6: src (crash loop after 2 failed starts, not restarted): failed during setup"
+    assert summary in proc.stderr
+    # the node's message once as it happens, once in the summary with its graph line; not per attempt
+    message = "not numeric CSV rows under a header row"
+    assert message in first and proc.stderr.count(message) == 2, proc.stderr
 
 
 def test_a_failed_node_down_at_the_end_exits_4_with_its_own_message(tmp_path):

@@ -201,6 +201,31 @@ def test_inspect_rejects_non_mcap_and_missing_files(tmp_path, capsys):
     assert "cannot read recording" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize("head", [b"", b"abc", b"\x89MCAP"])
+def test_inspect_of_a_file_too_short_for_the_magic_is_not_mcap(tmp_path, capsys, head):
+    """An empty or 3-byte file is no recording (exit 2), not a recovered one with 0 messages."""
+    bad = tmp_path / "short.mcap"
+    bad.write_bytes(head)
+    assert inspect_cmd.run(argparse.Namespace(file=str(bad), json=False)) == 2
+    err = capsys.readouterr().err
+    assert "not an MCAP file" in err and "RECOVERED" not in err
+
+
+def test_inspect_of_a_file_cut_after_its_magic_is_recovered(tmp_path, capsys):
+    """A valid start that ends early is a truncated recording: recovered, exit 0; so is a recording
+    just opened (its writer puts the magic on disk at once)."""
+    path = tmp_path / "cut.mcap"
+    path.write_bytes(b"\x89MCAP0\r\n")
+    live = McapWriter(tmp_path / "live.mcap")
+    try:
+        for f in (path, live.path):
+            assert inspect_cmd.run(argparse.Namespace(file=str(f), json=True)) == 0
+            summary = json.loads(capsys.readouterr().out)
+            assert summary["recovered"] and summary["total_messages"] == 0
+    finally:
+        live.close()
+
+
 def test_writer_is_thread_safe(tmp_path):
     path = tmp_path / "threads.mcap"
     w = McapWriter(path, chunk_size=4096, flush_interval_s=0.01)

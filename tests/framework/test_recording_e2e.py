@@ -57,6 +57,7 @@ def test_record_command_joins_a_running_graph(tmp_path):
         rec = handflow("record", name, "--out", str(tmp_path / "out.mcap"), "--duration", "2", "--topics", "source/*")
         assert rec.returncode == 0, rec.stderr
         assert "recorded" in rec.stdout
+        assert (rec.stdout + rec.stderr).count("recorded ") == 1, rec.stderr  # the summary once, on stdout
     finally:
         proc.send_signal(signal.SIGINT)
         proc.communicate(timeout=60)

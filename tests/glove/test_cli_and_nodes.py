@@ -55,6 +55,17 @@ def test_calibrate_on_a_missing_port_exits_2_before_the_guided_session(tmp_path,
     assert proc.returncode == 2 and "Step 1/" not in proc.stderr and "Traceback" not in proc.stderr
 
 
+def test_calibrate_on_a_path_that_is_no_serial_port_exits_2_before_the_guided_session(tmp_path, run_handflow):
+    """/dev/null exists but cannot be configured as a serial port: refused at once, not after 7 steps."""
+    out = tmp_path / "c.yaml"
+    t0 = time.monotonic()
+    proc = run_handflow("calibrate", "--port", "/dev/null", "-o", str(out))
+    assert proc.returncode == 2 and time.monotonic() - t0 < 10.0  # the guided session alone takes 35 s
+    assert "glove device /dev/null cannot be opened as a serial port" in proc.stderr
+    assert "serial ports on this machine" in proc.stderr and "port: emulator" in proc.stderr
+    assert "Step 1/" not in proc.stderr and "Traceback" not in proc.stderr and not out.exists()
+
+
 def test_calibrate_live_from_emulator(tmp_path, capsys):
     out = tmp_path / "live.json"
     assert run_command(register_calibrate, ["--port", "emulator", "-o", str(out), "--step-seconds", "0.15"]) == 0

@@ -94,4 +94,7 @@ nodes:
     assert proc.returncode == 3, proc.stderr  # the same setup error twice: a crash loop
     assert "ready" not in proc.stderr
     assert "Traceback" not in proc.stderr
-    assert f"{graph}:3: emg (crash loop, not restarted): failed during setup: node 'emg': no LSL stream" in proc.stderr
+    assert (
+        f"{graph}:3: emg (crash loop after 2 failed starts, not restarted): failed during setup: node 'emg': no LSL stream"
+        in proc.stderr
+    )

@@ -140,7 +140,7 @@ def test_missing_and_foreign_files_are_refused(tmp_path):
     with pytest.raises(ScorerFileError, match="no scorer metadata"):
         load_scorer(tmp_path / "other.npz")
     (tmp_path / "text.npz").write_text("hello")
-    with pytest.raises(ScorerFileError, match="not a readable scorer file"):
+    with pytest.raises(ScorerFileError, match="not a scorer file: that is an .npz archive"):
         load_scorer(tmp_path / "text.npz")
     # an .npy header cut inside its dictionary: numpy's reader raises tokenize.TokenError
     header = b"{'descr': '<f8', 'fortran_order': False, 'shape': (3,"

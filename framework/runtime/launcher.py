@@ -220,7 +220,12 @@ class Launcher:
                 else "not running at the end"
             )
             where = f"{self.graph.path}:{self.graph.nodes[u.node_ids[0]].line}"
-            lines.append(f"{where}: {', '.join(u.node_ids)} ({state}): failed {_why(u.failure)}")
+            why = (  # the same message again and again: printed once, as it first happened
+                f"failed {u.attempts} times with the same error, logged above at its first failure"
+                if u.attempts > 1
+                else f"failed {_why(u.failure)}"
+            )
+            lines.append(f"{where}: {', '.join(u.node_ids)} ({state}): {why}")
         return lines, down
 
     def _failure(self, unit: Unit, code: int) -> dict:

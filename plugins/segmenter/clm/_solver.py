@@ -20,8 +20,6 @@ dynamics instead of tracking the slowly decaying temperature.  The inner loop is
 
 from __future__ import annotations
 
-import hashlib
-from collections import OrderedDict
 from dataclasses import dataclass
 
 import numba
@@ -126,26 +124,6 @@ def largest_eigenvalue(band: np.ndarray, diag: float) -> float:
             pass
     lower = _lower_form(band[:, :width], diag)
     return float(eigvals_banded(lower, lower=True, select="i", select_range=(n - 1, n - 1))[0])
-
-
-EIGENVALUE_MEMO = 4096  # layers whose λ_max is remembered (least recently used dropped)
-_memo: OrderedDict[tuple, float] = OrderedDict()
-
-
-def layer_eigenvalue(band: np.ndarray, diag: float) -> float:
-    """:func:`largest_eigenvalue`, remembered by the layer's content (an exact memo; documented
-    choice): the CLM runs of a calibration share most of their layers — every rejection value and
-    pseudo-unknown of the UKR/CLM leaves the class layers as they were — and λ_max of a layer cost
-    more than its run's sweeps."""
-    layer = np.ascontiguousarray(band, dtype=np.float64)
-    key = (hashlib.blake2b(layer.data, digest_size=16).digest(), layer.shape, float(diag))
-    if key in _memo:
-        _memo.move_to_end(key)
-        return _memo[key]
-    value = _memo[key] = largest_eigenvalue(layer, diag)
-    if len(_memo) > EIGENVALUE_MEMO:
-        _memo.popitem(last=False)
-    return value
 
 
 def _lower_form(band: np.ndarray, diag: float) -> np.ndarray:
@@ -322,7 +300,7 @@ class CompetitiveLayerModel(BaseEstimator):
             return gershgorin_bound(band, diag)
         if self.spectral != "eigen":
             raise ValueError(f"spectral must be 'eigen' or 'gershgorin', got {self.spectral!r}")
-        return max(layer_eigenvalue(band[a], diag[a]) for a in range(band.shape[0]))
+        return max(largest_eigenvalue(band[a], diag[a]) for a in range(band.shape[0]))
 
     def initial_activities(self, shape: tuple[int, int]) -> np.ndarray:
         return self._generator().uniform(0.0, self.init_scale, size=shape) + 1e-12

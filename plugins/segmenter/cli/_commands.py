@@ -335,8 +335,7 @@ def run_evaluate(args) -> int:
             raise DatasetError("--enroll applies to continuous recordings (docs/segmentation.md, Enrolment)")
         if args.checkpoints or args.params or args.cache or args.scheduler:
             raise DatasetError(
-                "--checkpoints, --cache, --params and --scheduler apply to continuous recordings "
-                "(docs/segmentation.md)"
+                "--checkpoints, --cache, --params and --scheduler apply to continuous recordings (docs/segmentation.md)"
             )
         if (args.normalise, args.pseudo_unknowns, args.derived, args.calibration, args.lag) != (
             None,

@@ -1,5 +1,5 @@
 """Parameters chosen by an earlier evaluation (``--params RESULT.json``, docs/segmentation.md,
-"Evaluating with chosen parameters"): per method and held-out recording, the view, grid point and
+"Continuous recordings"): per method and held-out recording, the view, grid point and
 rejection value that run's selection chose, so a rerun skips the selection.  A recording that run
 did not hold out gets the method's *most frequent* choice (documented choice: the set chosen in
 most folds, ties to the earliest fold) — the set ``train-classes --params`` trains too."""

@@ -1,5 +1,5 @@
-"""What a fit or a calibration of the evaluation may spend (docs/segmentation.md, "How the
-parameters are chosen"): the full models that label a held-out recording (:data:`FULL`), and the
+"""What a fit or a calibration of the evaluation may spend (docs/segmentation.md, "successive
+halving"): the full models that label a held-out recording (:data:`FULL`), and the
 cheaper ones the successive halving of :mod:`._selection` screens and refines candidates with
 (:data:`SCREEN`, :data:`REFINE`; documented choices)."""
 

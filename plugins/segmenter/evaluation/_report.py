@@ -1,4 +1,4 @@
-"""The figures of an evaluation from its folds' labels (docs/segmentation.md, "Reading the
+"""The figures of an evaluation from its folds' labels (docs/segmentation.md, "reading the
 output"): per method the pooled frame metrics, the labels at lag 0 and at half the method's
 window, the rejection trade-off, the folds where rejection was switched off and why."""
 

@@ -1,5 +1,5 @@
 """Successive halving over a method's candidates on the inner folds (docs/segmentation.md,
-"How the parameters are chosen").
+"successive halving").
 
 A candidate is one normalisation × derived features × grid point of a method; the CLM over a
 scorer's scores (``clm_minirocket``, ``clm_dtw``) has one, its scorer's best refined candidate,

@@ -1,5 +1,5 @@
 """Warnings of third-party libraries during an evaluation, counted per fold and summarised once
-(docs/segmentation.md, "Reading the output"): hmmlearn logs "Model is not converging" whenever
+(docs/segmentation.md, "reading the output"): hmmlearn logs "Model is not converging" whenever
 EM's log-likelihood dips by a rounding error, dozens of times per evaluation, and the figures use
 the model it stopped at either way."""
 

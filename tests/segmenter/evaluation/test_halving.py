@@ -1,6 +1,6 @@
 """Continuous recordings: successive halving over each method's candidates, the fidelities it
-screens and refines with, the timing and warnings of the JSON (docs/segmentation.md, "How the
-parameters are chosen")."""
+screens and refines with, the timing and warnings of the JSON (docs/segmentation.md, "successive
+halving")."""
 
 import json
 import logging

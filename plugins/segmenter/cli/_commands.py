@@ -148,6 +148,26 @@ def _train(ds, args, headings: tuple[int, ...]):
     )
 
 
+def _fold_trainer(args):
+    """The training of the heading choice's cross-fitted splits (docs/segmentation.md): the
+    command's training options on a fold's train split, without the per-class progress lines."""
+
+    def train(ds, headings: tuple[int, ...]):
+        return candidate_set(
+            train_class_models(
+                ds,
+                beta=_beta(args),
+                n_steps=args.steps,
+                init=args.init,
+                random_state=args.seed,
+                kernel=args.kernel,
+                headings=headings,
+            )
+        )
+
+    return train
+
+
 HEADINGS_ON_RECORDINGS = "error: --headings applies to labelled trajectories, not to continuous recordings (drop it)"
 
 
@@ -332,7 +352,7 @@ def run_evaluate(args) -> int:
                 raise DatasetError(
                     f"drop --headings: the models in {args.models} keep the heading channels they were trained with"
                 )
-            candidates, alternatives = load_candidates(args.models), ()
+            candidates, alternatives, trainer = load_candidates(args.models), (), None
         else:
             choices = (
                 heading_choices(len(ds.columns))
@@ -341,12 +361,19 @@ def run_evaluate(args) -> int:
             )
             _progress(f"training one manifold per class ({len(ds.classes)} classes) per heading channels {choices}")
             candidates, *alternatives = [candidate_set(_train(ds, args, headings)) for headings in choices]
+            trainer = _fold_trainer(args) if len(choices) > 1 else None
         protocol = replace(
             TrajectoryProtocol.quick() if args.quick else TrajectoryProtocol(),
             selection=(args.select or "open-set").replace("-", "_"),
         )
         evaluator = Evaluator(
-            ds, candidates, protocol, random_state=args.seed, progress=_progress, alternatives=tuple(alternatives)
+            ds,
+            candidates,
+            protocol,
+            random_state=args.seed,
+            progress=_progress,
+            alternatives=tuple(alternatives),
+            trainer=trainer,
         )
     except (DatasetError, ModelsMissingError, ValueError) as exc:
         print(f"error: {exc}", file=sys.stderr)

@@ -45,6 +45,7 @@ from ..datasets import LabelledDataset, Trajectory
 from ..models import CandidateSet, Projection
 from ..scorers import PerClassHMM, SlidingDTW1NN
 from ._methods import REGISTRY, TRAJECTORY_METHODS
+from ._selection import first_of_best, survivors
 
 EXPERIMENTS = ("single", "concatenated", "middle_halves", "reversed_rejection", "left_out_rejection")
 METHODS = TRAJECTORY_METHODS  # the methods of this protocol (the registry's, in its order)
@@ -65,6 +66,7 @@ class TrajectoryProtocol:
     max_pairs: int | None = None
     grid_size: int | None = None  # keep only the first grid points per method (quick runs)
     selection: str = "open_set"  # or "recognition" (the thesis): see the module docstring
+    heading_folds: int | None = None  # at most this many cross-fitted splits for the heading channels (None: all)
 
     def __post_init__(self) -> None:
         if self.selection not in SELECTIONS:
@@ -94,6 +96,7 @@ class Case:
     parts: list[tuple[int, np.ndarray]]
     truth: np.ndarray
     left_out: str | None = None
+    draw: int = 0  # the same for the cases that differ only in H: seeds the CLM (shared when its span is)
 
     @property
     def key(self) -> tuple:
@@ -123,8 +126,9 @@ def build_cases(trajs: list[Trajectory], classes: list[str], protocol: Trajector
         lo, hi = (n // 4, n // 4 + n // 2) if middle else (0, n)
         return np.arange(lo, hi, nth)
 
-    for nth in protocol.nths:
+    for n_nth, nth in enumerate(protocol.nths):
         for H in protocol.histories:
+            first = len(cases)
             for i, t in enumerate(trajs):
                 idx = sub(i, nth)
                 truth = np.full(len(idx), cls_index[t.label])
@@ -144,6 +148,8 @@ def build_cases(trajs: list[Trajectory], classes: list[str], protocol: Trajector
                         ]
                     )
                     cases.append(Case(experiment, f"{trajs[i].name}+{trajs[j].name}", nth, H, parts, truth))
+            for k, case in enumerate(cases[first:]):
+                case.draw = n_nth * (len(cases) - first) + k
     return cases
 
 
@@ -158,11 +164,52 @@ def summarise(correct: list[float]) -> dict:
     }
 
 
+def screen_pairs(protocol: TrajectoryProtocol) -> set[tuple[int, int]]:
+    """The (N^th, H) pairs of the *screen* (docs/segmentation.md, "How the trajectory protocol
+    chooses"): the diagonal of the N^th × H design — the k-th sub-sampling with the k-th history,
+    cycling the shorter list — so every N^th and every H is screened, a quarter of the cases of
+    the full protocol."""
+    nths, hs = protocol.nths, protocol.histories
+    return {(nths[k % len(nths)], hs[k % len(hs)]) for k in range(max(len(nths), len(hs)))}
+
+
+def cross_fitted_splits(dataset: LabelledDataset, folds: int | None = None) -> list[LabelledDataset]:
+    """The splits the heading channels are chosen on (docs/segmentation.md): per class the
+    *pool* is its training then its validation trajectories (split order); fold ``f`` validates
+    the ``f``-th block of ``n_val`` (the class's validation count) from the pool's end and trains
+    on the rest, so fold 0 is ``dataset`` itself and every fold trains on as many trajectories
+    as the train split.  ``K = min over classes of len(pool) // n_val`` folds (at most
+    ``folds``): with 3 train / 1 validation letters per class every one of the 4 is validated
+    once.  The test split is never touched."""
+    pools: dict[str, list[Trajectory]] = {}
+    n_val: dict[str, int] = {}
+    for t in dataset.train + dataset.validation:
+        pools.setdefault(t.label, []).append(t)
+    for t in dataset.validation:
+        n_val[t.label] = n_val.get(t.label, 0) + 1
+    if not n_val:
+        return [dataset]
+    k = min(len(pools[c]) // n for c, n in n_val.items())
+    k = max(1, min(k, folds) if folds else k)
+    out = [dataset]
+    for f in range(1, k):
+        train, validation = [], []
+        for c, pool in pools.items():
+            n = n_val.get(c, 0)
+            held = set(range(len(pool) - (f + 1) * n, len(pool) - f * n)) if n else set()
+            for j, t in enumerate(pool):
+                (validation if j in held else train).append(t)
+        out.append(replace(dataset, train=train, validation=validation))
+    return out
+
+
 @dataclass
 class Evaluator:
     """Runs the protocol for the four methods on one dataset with trained candidates; the manifold
-    methods choose on validation among ``candidates`` and the ``alternatives`` (other heading
-    channels, :func:`heading_choices`)."""
+    methods choose among ``candidates`` and the ``alternatives`` (other heading channels,
+    :func:`heading_choices`) on the cross-fitted splits of :func:`cross_fitted_splits` when a
+    ``trainer`` (dataset, heading channels → candidates trained on its train split) is given,
+    else on the validation split alone."""
 
     dataset: LabelledDataset
     candidates: CandidateSet
@@ -170,6 +217,7 @@ class Evaluator:
     random_state: int = 0
     progress: Callable[[str], None] = lambda msg: None
     alternatives: tuple[CandidateSet, ...] = ()
+    trainer: Callable[[LabelledDataset, tuple[int, ...]], CandidateSet] | None = None
 
     def __post_init__(self) -> None:
         self.classes = self.candidates.classes
@@ -179,11 +227,15 @@ class Evaluator:
         self._projections: dict[tuple, Projection] = {}
         self._scores: dict[tuple, np.ndarray] = {}
         self._labels: dict[tuple, np.ndarray] = {}
+        self._objectives: dict[tuple, float] = {}
+        self._folds: list[Evaluator] | None = None
         self.cases = {
             split: build_cases(self.dataset.split(split), self.classes, self.protocol)
             for split in ("validation", "test")
         }
+        self.screen = screen_pairs(self.protocol)
         self.chosen: dict[str, Evaluator] = {}  # method → the evaluator of its chosen candidates
+        self.choices: dict[str, dict] = {}  # method → how it was chosen (the JSON's parameters.selection)
         self._others = [replace(self, candidates=c, alternatives=()) for c in self.alternatives]
 
     @property
@@ -243,12 +295,34 @@ class Evaluator:
         return [None, float(np.quantile(best, 0.25)), float(np.quantile(best, 0.05))]
 
     def baseline_scores(self, method: str, split: str, case: Case) -> np.ndarray:
+        """The baseline's (N, M) scores of a case.  Its scores are those of the causal window of
+        ``H`` observations ending at each point, so a case's parts are scored once each (a
+        trajectory's own scores serve its single, left-out and concatenated cases) and only the
+        first ``H − 1`` points of a later part, whose windows reach back into the part before, are
+        scored again with that context."""
         key = (method, split, case.key, case.history)
         if key not in self._scores:
-            model = REGISTRY[method].trajectory_model(self)
-            model.window = case.history
-            self._scores[key] = model.scores(self.sequence(split, case))
+            self._scores[key] = self._joined_scores(method, split, case.parts, case.history)
         return self._scores[key]
+
+    def _joined_scores(self, method: str, split: str, parts: list[tuple[int, np.ndarray]], H: int) -> np.ndarray:
+        model = REGISTRY[method].trajectory_model(self)
+        model.window = H
+        trajs = self.dataset.split(split)
+        out, before = [], []
+        for i, idx in parts:
+            data = trajs[i].data[idx]
+            key = (method, split, ((i, idx.tobytes()),), H)
+            if key not in self._scores:
+                self._scores[key] = model.scores(data)
+            own = self._scores[key]
+            if before and H > 1:
+                context = np.vstack(before)[-(H - 1) :]
+                head = min(H - 1, len(data))
+                own = np.vstack([model.scores(np.vstack([context, data[:head]]))[len(context) :], own[head:]])
+            out.append(own)
+            before.append(data)
+        return np.vstack(out)
 
     def predict(self, method: str, params: dict, split: str, case: Case, seed: int = 0) -> np.ndarray:
         """Global class index per point of a case (−1 = rejected)."""
@@ -258,26 +332,36 @@ class Evaluator:
         self, split: str, case: Case, seed: int, cands: CandidateSet, proj: Projection, params: dict
     ) -> np.ndarray:
         """The CLM's labels before the segment rules (:data:`SEGMENT_RULES`, which only reject after
-        the CLM): computed once per case, seed and the other parameters."""
+        the CLM): computed once per case, seed and the other parameters.  The CLM sees H only
+        through its neighbourhood ``max(H, min_span)``, so the cases that differ only in H (their
+        seeds are equal, :attr:`Case.draw`) share one run where that span is the same."""
         clm = {k: v for k, v in params.items() if k not in SEGMENT_RULES}
-        key = (split, case.experiment, case.left_out, case.key, case.history, seed, tuple(sorted(clm.items())))
+        span = max(int(case.history), int(clm.pop("min_span", 0)))
+        key = (split, case.experiment, case.left_out, case.key, span, seed, tuple(sorted(clm.items())))
         if key not in self._labels:
-            seg = CLMSegmenter(cands, history=case.history, random_state=seed, **clm)
+            seg = CLMSegmenter(cands, history=span, random_state=seed, **clm)
             self._labels[key] = seg.fit_predict_projected(proj)
         return self._labels[key]
 
     def run(
-        self, method: str, params: dict, split: str, runs: int = 1, experiments: tuple[str, ...] = EXPERIMENTS
+        self,
+        method: str,
+        params: dict,
+        split: str,
+        runs: int = 1,
+        experiments: tuple[str, ...] = EXPERIMENTS,
+        screen: bool = False,
     ) -> dict:
-        """Per-experiment summaries and cases of one method and parameter set on one split."""
+        """Per-experiment summaries and cases of one method and parameter set on one split
+        (``screen``: only the cases of :func:`screen_pairs`)."""
         per_exp: dict[str, list[dict]] = {e: [] for e in experiments}
-        for n, case in enumerate(self.cases[split]):
-            if case.experiment not in per_exp:
+        for case in self.cases[split]:
+            if case.experiment not in per_exp or (screen and (case.nth, case.history) not in self.screen):
                 continue
             shares = [
                 float(
                     np.mean(
-                        self.predict(method, params, split, case, seed=self.random_state * 100003 + n * 7 + r)
+                        self.predict(method, params, split, case, seed=self.random_state * 100003 + case.draw * 7 + r)
                         == case.truth
                     )
                 )
@@ -307,32 +391,88 @@ class Evaluator:
             return recognition
         return 0.5 * (recognition + rejection)
 
+    def validation_objective(self, method: str, params: dict, screen: bool = False) -> float:
+        """:meth:`objective` of one grid point on the validation split (one CLM run per case),
+        on the screen's cases or on all; computed once."""
+        key = (method, repr(sorted(params.items())), screen)
+        if key not in self._objectives:
+            self._objectives[key] = self.objective(self.run(method, params, "validation", screen=screen))
+        return self._objectives[key]
+
+    @property
+    def screens(self) -> bool:
+        """Whether the screen is a proper part of the validation cases (else every candidate is
+        scored on all of them at once)."""
+        return any((c.nth, c.history) not in self.screen for c in self.cases["validation"])
+
     def select(self, method: str) -> tuple[dict, float]:
-        """Best grid point on validation: (params, objective)."""
-        best, best_score = None, -np.inf
-        for params in self.grid(method):
-            res = self.run(method, params, "validation", runs=1)
-            score = self.objective(res)
-            self.progress(f"  {method} validation {params}: {score:.3f}")
-            if score > best_score:
-                best, best_score = params, score
-        return best, best_score
+        """The grid point chosen on validation by successive halving: (params, objective).  Every
+        grid point is *screened* on the cases of :func:`screen_pairs`; the best third
+        (:func:`._selection.survivors`) is *refined* on all validation cases; the first within
+        ``TIE_MARGIN`` of the best refined objective wins (:func:`._selection.first_of_best`, grid
+        order)."""
+        grid = self.grid(method)
+        keep = list(range(len(grid)))
+        if self.screens and len(grid) > 1:
+            screened = [self.validation_objective(method, params, screen=True) for params in grid]
+            keep = survivors(screened)
+        refined = [self.validation_objective(method, grid[i]) for i in keep]
+        for i, score in zip(keep, refined):
+            self.progress(f"  {method} validation {grid[i]}: {score:.3f}")
+        best = first_of_best(refined)
+        self._halving = {"candidates": len(grid), "refined": len(keep)}
+        return grid[keep[best]], refined[best]
+
+    def folds(self) -> list[Evaluator]:
+        """This evaluator on every split of :func:`cross_fitted_splits` (itself first), its
+        candidates' heading channels retrained by ``trainer`` on each fold's train split; only
+        itself without a ``trainer``."""
+        if self._folds is None:
+            self._folds = [self]
+            if self.trainer is not None:
+                for k, ds in enumerate(cross_fitted_splits(self.dataset, self.protocol.heading_folds)[1:], start=1):
+                    self.progress(f"fold {k}: training the class manifolds with heading channels {self.headings or 'none'}")
+                    cands = self.trainer(ds, tuple(self.headings))
+                    self._folds.append(replace(self, dataset=ds, candidates=cands, alternatives=(), trainer=None))
+        return self._folds
+
+    def cross_fitted(self, method: str, params: dict) -> list[float]:
+        """The screen objective of ``params`` on the validation split of every fold (:meth:`folds`)."""
+        return [ev.validation_objective(method, params, screen=True) for ev in self.folds()]
 
     def choose(self, method: str) -> tuple[Evaluator, dict, float]:
-        """:meth:`select` over the candidate sets a method chooses among (the alternatives for
-        the manifold methods): (evaluator of the best, params, objective); ties keep the first."""
+        """The evaluator (heading channels) and grid point of a method: (evaluator, params,
+        validation objective).  Each candidate set's grid point is chosen by :meth:`select`; a
+        manifold method then chooses among the candidate sets (heading channels) — a choice that
+        decides much — by the mean of that grid point's screen objective over the cross-fitted
+        splits (:meth:`cross_fitted`), the first within ``TIE_MARGIN`` of the best in candidate
+        order (:func:`heading_choices`: none first)."""
         evaluators = [self, *self._others] if REGISTRY[method].manifolds else [self]
-        best: tuple[Evaluator, dict, float] | None = None
+        picks, halving = [], []
         for ev in evaluators:
             if len(evaluators) > 1:
                 self.progress(f"{method}: heading channels {ev.headings or 'none'}")
-            params, score = ev.select(method)
-            if best is None or score > best[2]:
-                best = (ev, params, score)
+            picks.append(ev.select(method))
+            halving.append(ev._halving)
+        record: dict = {"halving": halving[0] if len(evaluators) == 1 else halving}
+        k = 0
         if len(evaluators) > 1:
-            self.progress(f"{method}: validation chose heading channels {best[0].headings or 'none'} ({best[2]:.3f})")
-        self.chosen[method] = best[0]
-        return best
+            folds = [ev.cross_fitted(method, params) for ev, (params, _) in zip(evaluators, picks)]
+            pooled = [float(np.mean(f)) for f in folds] if len(folds[0]) > 1 else [score for _, score in picks]
+            k = first_of_best(pooled)
+            record["headings"] = [
+                {"channels": ev.headings, "params": params, "validation": score, "folds": f, "pooled": p}
+                for ev, (params, score), f, p in zip(evaluators, picks, folds, pooled)
+            ]
+            self.progress(
+                f"{method}: validation chose heading channels {evaluators[k].headings or 'none'} "
+                f"({pooled[k]:.3f} over {len(folds[k])} split(s); "
+                + ", ".join(f"{ev.headings or 'none'}: {p:.3f}" for ev, p in zip(evaluators, pooled))
+                + ")"
+            )
+        self.chosen[method] = evaluators[k]
+        self.choices[method] = record
+        return evaluators[k], *picks[k]
 
     def evaluate(self, methods: tuple[str, ...] = METHODS) -> dict:
         """Select on validation, report on test: the JSON structure of ``evaluate segmentation``."""
@@ -345,6 +485,7 @@ class Evaluator:
                     "runs": self.protocol.runs,
                     "max_pairs": self.protocol.max_pairs,
                     "selection": self.protocol.selection,
+                    "screen": sorted(self.screen),
                 },
                 "classes": self.classes,
                 "dataset": self.dataset.source,
@@ -352,12 +493,15 @@ class Evaluator:
                 "validation_score": {},
                 "heading_candidates": [self.headings] + [ev.headings for ev in self._others],
                 "heading_channels": {},
+                "selection": {},
+                "timing_s": {},
             },
         }
         for method in methods:
             t0 = time.perf_counter()
             self.progress(f"{method}: selecting parameters on validation")
             ev, params, score = self.choose(method)
+            t1 = time.perf_counter()
             entry = REGISTRY[method]
             runs = self.protocol.runs if entry.repeated_runs else 1
             self.progress(f"{method}: evaluating {params} on test ({runs} run(s) per case)")
@@ -370,7 +514,10 @@ class Evaluator:
                 out["parameters"]["strong_background"] = strong
             out["parameters"]["selected"][method] = params
             out["parameters"]["validation_score"][method] = score
+            out["parameters"]["selection"][method] = self.choices[method]
             if entry.manifolds:
                 out["parameters"]["heading_channels"][method] = ev.headings
-            self.progress(f"{method}: done in {time.perf_counter() - t0:.1f} s")
+            t2 = time.perf_counter()
+            out["parameters"]["timing_s"][method] = {"selection": round(t1 - t0, 2), "test": round(t2 - t1, 2)}
+            self.progress(f"{method}: done in {t2 - t0:.1f} s (selection {t1 - t0:.1f} s)")
         return out

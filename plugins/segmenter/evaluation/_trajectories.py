@@ -40,7 +40,7 @@ from functools import cached_property
 
 import numpy as np
 
-from ..clm import CLMSegmenter
+from ..clm import CLMSegmenter, default_solver
 from ..datasets import LabelledDataset, Trajectory
 from ..models import CandidateSet, Projection
 from ..scorers import PerClassHMM, SlidingDTW1NN
@@ -227,6 +227,7 @@ class Evaluator:
         self._projections: dict[tuple, Projection] = {}
         self._scores: dict[tuple, np.ndarray] = {}
         self._labels: dict[tuple, np.ndarray] = {}
+        self._candidate_layers: dict[tuple, tuple[np.ndarray, float]] = {}
         self._objectives: dict[tuple, float] = {}
         self._folds: list[Evaluator] | None = None
         self.cases = {
@@ -334,14 +335,35 @@ class Evaluator:
         """The CLM's labels before the segment rules (:data:`SEGMENT_RULES`, which only reject after
         the CLM): computed once per case, seed and the other parameters.  The CLM sees H only
         through its neighbourhood ``max(H, min_span)``, so the cases that differ only in H (their
-        seeds are equal, :attr:`Case.draw`) share one run where that span is the same."""
+        seeds are equal, :attr:`Case.draw`) share one run where that span is the same; the
+        candidate layers' bands and largest eigenvalues, which neither the seed nor the background
+        changes, are computed once per case, span and error scale (:meth:`_layers`)."""
         clm = {k: v for k, v in params.items() if k not in SEGMENT_RULES}
         span = max(int(case.history), int(clm.pop("min_span", 0)))
-        key = (split, case.experiment, case.left_out, case.key, span, seed, tuple(sorted(clm.items())))
+        key = (split, case.left_out, case.key, span, seed, tuple(sorted(clm.items())))
         if key not in self._labels:
             seg = CLMSegmenter(cands, history=span, random_state=seed, **clm)
-            self._labels[key] = seg.fit_predict_projected(proj)
+            if set(clm) <= {"background_factor", "error_scale"}:
+                solver = default_solver(cands).set_params(random_state=seed)  # the segmenter's own
+                band, diag, lam = self._layers(split, case, span, seg, solver, proj)
+                self._labels[key] = seg.labels_from(solver.solve(band, diag, lambda_max=lam))
+            else:
+                self._labels[key] = seg.fit_predict_projected(proj)
         return self._labels[key]
+
+    def _layers(
+        self, split: str, case: Case, span: int, seg: CLMSegmenter, solver, proj: Projection
+    ) -> tuple[np.ndarray, np.ndarray, float]:
+        """All layers' bands, diagonals and largest eigenvalue of one CLM problem (the segmenter's
+        :meth:`~CLMSegmenter.layer_compatibilities` and its solver's spectral scale), the
+        candidate layers' part shared by every background and seed."""
+        key = (split, case.left_out, case.key, span, float(seg.error_scale))
+        if key not in self._candidate_layers:
+            band, diag = seg.layer_compatibilities(proj)
+            self._candidate_layers[key] = (band[:-1], solver.spectral_scale(band[:-1], diag[:-1]))
+        cand, lam = self._candidate_layers[key]
+        band, diag = seg.with_background(cand)
+        return band, diag, max(lam, solver.spectral_scale(band[-1:], diag[-1:]))
 
     def run(
         self,

@@ -428,22 +428,36 @@ class Evaluator:
         return any((c.nth, c.history) not in self.screen for c in self.cases["validation"])
 
     def select(self, method: str) -> tuple[dict, float]:
-        """The grid point chosen on validation by successive halving: (params, objective).  Every
-        grid point is *screened* on the cases of :func:`screen_pairs`; the best third
-        (:func:`._selection.survivors`) is *refined* on all validation cases; the first within
-        ``TIE_MARGIN`` of the best refined objective wins (:func:`._selection.first_of_best`, grid
-        order)."""
+        """The grid point chosen on validation by successive halving: (params, objective).  The
+        unit of the halving is a *run*: the grid points that differ only in the segment rules
+        judged after the CLM (:data:`SEGMENT_RULES`) share one, so they are screened and refined
+        together, a run scoring its best rule.  Every run is *screened* on the cases of
+        :func:`screen_pairs`; the best third (:func:`._selection.survivors`) is *refined* on all
+        validation cases; among the refined grid points the first within ``TIE_MARGIN`` of the
+        best objective wins (:func:`._selection.first_of_best`, grid order)."""
         grid = self.grid(method)
-        keep = list(range(len(grid)))
-        if self.screens and len(grid) > 1:
-            screened = [self.validation_objective(method, params, screen=True) for params in grid]
-            keep = survivors(screened)
-        refined = [self.validation_objective(method, grid[i]) for i in keep]
+        groups: dict[str, list[int]] = {}
+        for i, params in enumerate(grid):
+            groups.setdefault(repr(sorted((k, v) for k, v in params.items() if k not in SEGMENT_RULES)), []).append(i)
+        runs = list(groups.values())
+        kept = runs
+        if self.screens and len(runs) > 1:
+            screened = self.objectives(method, [[grid[i] for i in run] for run in runs], screen=True)
+            kept = [runs[k] for k in survivors([max(scores) for scores in screened])]
+        keep = sorted(i for run in kept for i in run)
+        by_run = self.objectives(method, [[grid[i] for i in run] for run in kept])
+        refined_of = {i: score for run, scores in zip(kept, by_run) for i, score in zip(run, scores)}
+        refined = [refined_of[i] for i in keep]
         for i, score in zip(keep, refined):
             self.progress(f"  {method} validation {grid[i]}: {score:.3f}")
         best = first_of_best(refined)
-        self._halving = {"candidates": len(grid), "refined": len(keep)}
+        self._halving = {"candidates": len(grid), "runs": len(runs), "refined_runs": len(kept), "refined": len(keep)}
         return grid[keep[best]], refined[best]
+
+    def objectives(self, method: str, runs: list[list[dict]], screen: bool = False) -> list[list[float]]:
+        """:meth:`validation_objective` of every grid point of every run (lists of grid points
+        sharing one run)."""
+        return [[self.validation_objective(method, params, screen=screen) for params in run] for run in runs]
 
     def folds(self) -> list[Evaluator]:
         """This evaluator on every split of :func:`cross_fitted_splits` (itself first), its

@@ -21,6 +21,7 @@ from ..evaluation import (
     Evaluator,
     TrajectoryProtocol,
     UKROnlyMethod,
+    default_jobs,
     heading_choices,
     methods_to_run,
 )
@@ -374,6 +375,7 @@ def run_evaluate(args) -> int:
             progress=_progress,
             alternatives=tuple(alternatives),
             trainer=trainer,
+            jobs=args.jobs or default_jobs(),
         )
     except (DatasetError, ModelsMissingError, ValueError) as exc:
         print(f"error: {exc}", file=sys.stderr)

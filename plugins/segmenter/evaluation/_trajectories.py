@@ -33,12 +33,15 @@ experiment: ``share_ge_85`` (cases with ≥ 85 % correct), ``share_perfect`` (10
 
 from __future__ import annotations
 
+import multiprocessing
 import time
 from collections.abc import Callable
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field, replace
 from functools import cached_property
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from ..clm import CLMSegmenter, default_solver
 from ..datasets import LabelledDataset, Trajectory
@@ -80,9 +83,12 @@ class TrajectoryProtocol:
 
 def heading_choices(n_channels: int) -> tuple[tuple[int, ...], ...]:
     """The heading channels validation chooses among when ``--headings`` is not given
-    (docs/segmentation.md, heading channels): none, and the first two channels — a pen's
-    position x, y in the layouts of docs/segmentation.md — when there are at least two."""
-    return ((), (0, 1)) if n_channels >= 2 else ((),)
+    (docs/segmentation.md, heading channels), in the order of preference a tie keeps: the first
+    two channels — a pen's position x, y in the layouts of docs/segmentation.md — when there are
+    at least two, then none.  Documented preference: a heading does not depend on the size or
+    place of the motion, which vary between writers and sessions more than a validation split
+    shows, so within the noise the view that is invariant to them wins."""
+    return ((0, 1), ()) if n_channels >= 2 else ((),)
 
 
 @dataclass
@@ -164,6 +170,19 @@ def summarise(correct: list[float]) -> dict:
     }
 
 
+_FORKED: Evaluator | None = None  # the evaluator whose work the forked processes do
+
+
+def _one_thread() -> None:
+    """A worker's start: one BLAS/OpenMP thread, so ``jobs`` workers use ``jobs`` cores."""
+    threadpool_limits(1)
+
+
+def _forked_call(name: str, item: tuple):
+    _FORKED.jobs = 1  # a worker does its share itself
+    return getattr(_FORKED, name)(*item)
+
+
 def screen_pairs(protocol: TrajectoryProtocol) -> set[tuple[int, int]]:
     """The (N^th, H) pairs of the *screen* (docs/segmentation.md, "How the trajectory protocol
     chooses"): the diagonal of the N^th × H design — the k-th sub-sampling with the k-th history,
@@ -218,6 +237,7 @@ class Evaluator:
     progress: Callable[[str], None] = lambda msg: None
     alternatives: tuple[CandidateSet, ...] = ()
     trainer: Callable[[LabelledDataset, tuple[int, ...]], CandidateSet] | None = None
+    jobs: int = 1  # forked processes (docs/segmentation.md, ``--jobs``): the same figures with any number
 
     def __post_init__(self) -> None:
         self.classes = self.candidates.classes
@@ -229,7 +249,8 @@ class Evaluator:
         self._labels: dict[tuple, np.ndarray] = {}
         self._candidate_layers: dict[tuple, tuple[np.ndarray, float]] = {}
         self._objectives: dict[tuple, float] = {}
-        self._folds: list[Evaluator] | None = None
+        self._fold_cache: dict[int, Evaluator] = {}
+        self.timing: dict = {}  # seconds per method and phase (the JSON's parameters.timing_s)
         self.cases = {
             split: build_cases(self.dataset.split(split), self.classes, self.protocol)
             for split in ("validation", "test")
@@ -376,10 +397,32 @@ class Evaluator:
     ) -> dict:
         """Per-experiment summaries and cases of one method and parameter set on one split
         (``screen``: only the cases of :func:`screen_pairs`)."""
+        wanted = [
+            n
+            for n, case in enumerate(self.cases[split])
+            if case.experiment in experiments and not (screen and (case.nth, case.history) not in self.screen)
+        ]
+        if self.jobs > 1:
+            self.warm(method, split)
+            groups = [[n for n in g if n in set(wanted)] for g in self._case_groups(split)]
+            groups = [g for g in groups if g]
+            entries = dict(
+                pair
+                for found in self._parallel("_case_entries", [(method, params, split, runs, g) for g in groups])
+                for pair in found
+            )
+        else:
+            entries = dict(self._case_entries(method, params, split, runs, wanted))
         per_exp: dict[str, list[dict]] = {e: [] for e in experiments}
-        for case in self.cases[split]:
-            if case.experiment not in per_exp or (screen and (case.nth, case.history) not in self.screen):
-                continue
+        for n in wanted:
+            per_exp[self.cases[split][n].experiment].append(entries[n])
+        return {e: dict(summarise([c["correct"] for c in cs]), cases=cs) for e, cs in per_exp.items()}
+
+    def _case_entries(self, method: str, params: dict, split: str, runs: int, indices: list[int]) -> list:
+        """(case index, its JSON entry) of the split's cases ``indices``."""
+        out = []
+        for n in indices:
+            case = self.cases[split][n]
             shares = [
                 float(
                     np.mean(
@@ -389,17 +432,20 @@ class Evaluator:
                 )
                 for r in range(runs)
             ]
-            per_exp[case.experiment].append(
-                {
-                    "name": case.name,
-                    "nth": case.nth,
-                    "H": case.history,
-                    "n_points": int(case.truth.size),
-                    "correct": float(np.mean(shares)),
-                    "std": float(np.std(shares)),
-                }
+            out.append(
+                (
+                    n,
+                    {
+                        "name": case.name,
+                        "nth": case.nth,
+                        "H": case.history,
+                        "n_points": int(case.truth.size),
+                        "correct": float(np.mean(shares)),
+                        "std": float(np.std(shares)),
+                    },
+                )
             )
-        return {e: dict(summarise([c["correct"] for c in cs]), cases=cs) for e, cs in per_exp.items()}
+        return out
 
     def objective(self, res: dict) -> float:
         """The validation score of one grid point's results (``TrajectoryProtocol.selection``)."""
@@ -416,10 +462,14 @@ class Evaluator:
     def validation_objective(self, method: str, params: dict, screen: bool = False) -> float:
         """:meth:`objective` of one grid point on the validation split (one CLM run per case),
         on the screen's cases or on all; computed once."""
-        key = (method, repr(sorted(params.items())), screen)
+        key = self._objective_key(method, params, screen)
         if key not in self._objectives:
             self._objectives[key] = self.objective(self.run(method, params, "validation", screen=screen))
         return self._objectives[key]
+
+    @staticmethod
+    def _objective_key(method: str, params: dict, screen: bool) -> tuple:
+        return (method, repr(sorted(params.items())), bool(screen))
 
     @property
     def screens(self) -> bool:
@@ -456,59 +506,163 @@ class Evaluator:
 
     def objectives(self, method: str, runs: list[list[dict]], screen: bool = False) -> list[list[float]]:
         """:meth:`validation_objective` of every grid point of every run (lists of grid points
-        sharing one run)."""
-        return [[self.validation_objective(method, params, screen=screen) for params in run] for run in runs]
+        sharing one run), the runs over ``jobs`` forked processes."""
+        todo = [run for run in runs if any(self._objective_key(method, p, screen) not in self._objectives for p in run)]
+        if todo and self.jobs > 1:
+            self.warm(method, "validation")
+            for run, scores in zip(todo, self._parallel("_run_objectives", [(method, run, screen) for run in todo])):
+                for params, score in zip(run, scores):
+                    self._objectives[self._objective_key(method, params, screen)] = score
+        return [self._run_objectives(method, run, screen) for run in runs]
 
-    def folds(self) -> list[Evaluator]:
-        """This evaluator on every split of :func:`cross_fitted_splits` (itself first), its
-        candidates' heading channels retrained by ``trainer`` on each fold's train split; only
-        itself without a ``trainer``."""
-        if self._folds is None:
-            self._folds = [self]
-            if self.trainer is not None:
-                for k, ds in enumerate(cross_fitted_splits(self.dataset, self.protocol.heading_folds)[1:], start=1):
-                    self.progress(f"fold {k}: training the class manifolds with heading channels {self.headings or 'none'}")
-                    cands = self.trainer(ds, tuple(self.headings))
-                    self._folds.append(replace(self, dataset=ds, candidates=cands, alternatives=(), trainer=None))
-        return self._folds
+    def _run_objectives(self, method: str, run: list[dict], screen: bool) -> list[float]:
+        return [self.validation_objective(method, params, screen=screen) for params in run]
 
-    def cross_fitted(self, method: str, params: dict) -> list[float]:
-        """The screen objective of ``params`` on the validation split of every fold (:meth:`folds`)."""
-        return [ev.validation_objective(method, params, screen=True) for ev in self.folds()]
+    def _fold(self, k: int) -> Evaluator:
+        """This evaluator on the ``k``-th split of :func:`cross_fitted_splits` (0: itself), its
+        heading channels' candidates retrained by ``trainer`` on that split's train part."""
+        if k == 0:
+            return self
+        if k not in self._fold_cache:
+            ds = cross_fitted_splits(self.dataset, self.protocol.heading_folds)[k]
+            cands = self.trainer(ds, tuple(self.headings))
+            self._fold_cache[k] = replace(self, dataset=ds, candidates=cands, alternatives=(), trainer=None, jobs=1)
+        return self._fold_cache[k]
+
+    def n_folds(self) -> int:
+        """How many cross-fitted splits the heading channels are chosen on (1 without a ``trainer``)."""
+        return len(cross_fitted_splits(self.dataset, self.protocol.heading_folds)) if self.trainer else 1
+
+    def _fold_objectives(self, h: int, k: int, tasks: list[tuple[str, dict]]) -> list[float]:
+        """The screen objective of every (method, params) of ``tasks`` on fold ``k`` with the
+        ``h``-th candidate set's heading channels."""
+        fold = [self, *self._others][h]._fold(k)
+        return [fold.validation_objective(method, params, screen=True) for method, params in tasks]
+
+    def cross_fit(self, tasks: list[list[tuple[str, dict]]]) -> list[list[list[float]]]:
+        """Per candidate set ``h`` and (method, params) of ``tasks[h]``: the screen objective on
+        every cross-fitted split (:meth:`_fold`), each fold trained once for all methods; the
+        (candidate set, fold) pairs over ``jobs`` forked processes."""
+        items = [(h, k, tasks[h]) for k in range(1, self.n_folds()) for h in range(len(tasks))]
+        if items:
+            self.progress(
+                f"heading channels: training and scoring {len(items)} cross-fitted split(s) "
+                f"({self.n_folds() - 1} fold(s) × {len(tasks)} candidate sets)"
+            )
+        done = dict(zip([(h, k) for h, k, _ in items], self._parallel("_fold_objectives", items)))
+        return [
+            [[self._fold_objectives(h, 0, [task])[0]] + [done[h, k][n] for k in range(1, self.n_folds())]
+             for n, task in enumerate(tasks[h])]
+            for h in range(len(tasks))
+        ]
 
     def choose(self, method: str) -> tuple[Evaluator, dict, float]:
-        """The evaluator (heading channels) and grid point of a method: (evaluator, params,
+        """:meth:`choose_all` of one method."""
+        return self.choose_all((method,))[method]
+
+    def choose_all(self, methods: tuple[str, ...]) -> dict[str, tuple[Evaluator, dict, float]]:
+        """Per method the evaluator (heading channels) and grid point: (evaluator, params,
         validation objective).  Each candidate set's grid point is chosen by :meth:`select`; a
         manifold method then chooses among the candidate sets (heading channels) — a choice that
         decides much — by the mean of that grid point's screen objective over the cross-fitted
-        splits (:meth:`cross_fitted`), the first within ``TIE_MARGIN`` of the best in candidate
-        order (:func:`heading_choices`: none first)."""
-        evaluators = [self, *self._others] if REGISTRY[method].manifolds else [self]
-        picks, halving = [], []
-        for ev in evaluators:
-            if len(evaluators) > 1:
-                self.progress(f"{method}: heading channels {ev.headings or 'none'}")
-            picks.append(ev.select(method))
-            halving.append(ev._halving)
-        record: dict = {"halving": halving[0] if len(evaluators) == 1 else halving}
-        k = 0
-        if len(evaluators) > 1:
-            folds = [ev.cross_fitted(method, params) for ev, (params, _) in zip(evaluators, picks)]
-            pooled = [float(np.mean(f)) for f in folds] if len(folds[0]) > 1 else [score for _, score in picks]
-            k = first_of_best(pooled)
-            record["headings"] = [
-                {"channels": ev.headings, "params": params, "validation": score, "folds": f, "pooled": p}
-                for ev, (params, score), f, p in zip(evaluators, picks, folds, pooled)
-            ]
-            self.progress(
-                f"{method}: validation chose heading channels {evaluators[k].headings or 'none'} "
-                f"({pooled[k]:.3f} over {len(folds[k])} split(s); "
-                + ", ".join(f"{ev.headings or 'none'}: {p:.3f}" for ev, p in zip(evaluators, pooled))
-                + ")"
-            )
-        self.chosen[method] = evaluators[k]
-        self.choices[method] = record
-        return evaluators[k], *picks[k]
+        splits (:meth:`cross_fit`; the validation objective without a ``trainer``), the first
+        within ``TIE_MARGIN`` of the best in candidate order (:func:`heading_choices`: heading channels first)."""
+        evaluators = [self, *self._others]
+        picks: dict[str, list[tuple[dict, float]]] = {}
+        for method in methods:
+            t0 = time.perf_counter()
+            self.progress(f"{method}: selecting parameters on validation")
+            evs = evaluators if REGISTRY[method].manifolds else [self]
+            picks[method], halving = [], []
+            for ev in evs:
+                if len(evs) > 1:
+                    self.progress(f"{method}: heading channels {ev.headings or 'none'}")
+                picks[method].append(ev.select(method))
+                halving.append(ev._halving)
+            self.choices[method] = {"halving": halving[0] if len(evs) == 1 else halving}
+            self.timing[method] = {"selection": round(time.perf_counter() - t0, 2)}
+        manifold = [m for m in methods if len(picks[m]) > 1]
+        folds: dict[str, list[list[float]]] = {}
+        if manifold:
+            t0 = time.perf_counter()
+            if self.n_folds() > 1:
+                scores = self.cross_fit([[(m, picks[m][h][0]) for m in manifold] for h in range(len(evaluators))])
+                folds = {m: [scores[h][n] for h in range(len(evaluators))] for n, m in enumerate(manifold)}
+            self.timing["heading_folds"] = round(time.perf_counter() - t0, 2)
+        out = {}
+        for method in methods:
+            k = 0
+            if method in manifold:
+                f = folds.get(method) or [[score] for _, score in picks[method]]
+                pooled = [float(np.mean(x)) for x in f]
+                k = first_of_best(pooled)
+                self.choices[method]["headings"] = [
+                    {"channels": ev.headings, "params": params, "validation": score, "folds": x, "pooled": p}
+                    for ev, (params, score), x, p in zip(evaluators, picks[method], f, pooled)
+                ]
+                self.progress(
+                    f"{method}: validation chose heading channels {evaluators[k].headings or 'none'} "
+                    f"({pooled[k]:.3f} over {len(f[k])} split(s); "
+                    + ", ".join(f"{ev.headings or 'none'}: {p:.3f}" for ev, p in zip(evaluators, pooled))
+                    + ")"
+                )
+            ev = evaluators[k] if method in manifold else self
+            self.chosen[method] = ev
+            out[method] = (ev, *picks[method][k])
+        return out
+
+    # -- processes ----------------------------------------------------------------------------
+    def _parallel(self, name: str, items: list[tuple]) -> list:
+        """``self.<name>(*item)`` for every item, over ``jobs`` forked processes (each with one
+        BLAS thread), in item order; one after the other with ``jobs`` 1."""
+        global _FORKED
+        jobs = min(self.jobs, len(items))
+        if jobs <= 1:
+            return [getattr(self, name)(*item) for item in items]
+        _FORKED = self
+        try:
+            context = multiprocessing.get_context("fork")
+            with ProcessPoolExecutor(jobs, mp_context=context, initializer=_one_thread) as pool:
+                return list(pool.map(_forked_call, [name] * len(items), items))
+        finally:
+            _FORKED = None
+
+    def warm(self, method: str, split: str) -> None:
+        """Before forking: what every process of ``method`` on ``split`` needs and would
+        otherwise compute again — the cases' projections (manifold methods) or baseline scores —
+        computed over ``jobs`` processes and kept here."""
+        entry = REGISTRY[method]
+        if entry.manifolds:
+            todo = sorted({self._projection_key(split, i, idx): (i, idx) for c in self.cases[split] for i, idx in c.parts}.items())
+            todo = [(key, i, idx) for key, (i, idx) in todo if key not in self._projections]
+            for (key, _, _), proj in zip(todo, self._parallel("_projected", [(split, i, idx) for _, i, idx in todo])):
+                self._projections[key] = proj
+        elif hasattr(entry, "trajectory_model"):
+            entry.trajectory_model(self)  # fitted once, here
+            groups = self._case_groups(split)
+            for found in self._parallel("_scored", [(method, split, g) for g in groups]):
+                self._scores.update(found)
+
+    def _projection_key(self, split: str, i: int, idx: np.ndarray) -> tuple:
+        return (split, i) if not self.candidates.stateful else (split, i, idx.tobytes())
+
+    def _projected(self, split: str, i: int, idx: np.ndarray) -> Projection:
+        self._projection(split, i, idx)
+        return self._projections[self._projection_key(split, i, idx)]
+
+    def _scored(self, method: str, split: str, group: list[int]) -> dict:
+        before = set(self._scores)
+        for n in group:
+            self.baseline_scores(method, split, self.cases[split][n])
+        return {k: v for k, v in self._scores.items() if k not in before}
+
+    def _case_groups(self, split: str) -> list[list[int]]:
+        """The split's case indices grouped by trajectory (the cases of one group share projections,
+        scores and CLM runs), in order of first appearance."""
+        groups: dict[int, list[int]] = {}
+        for n, case in enumerate(self.cases[split]):
+            groups.setdefault(case.parts[0][0], []).append(n)
+        return list(groups.values())
 
     def evaluate(self, methods: tuple[str, ...] = METHODS) -> dict:
         """Select on validation, report on test: the JSON structure of ``evaluate segmentation``."""
@@ -533,27 +687,27 @@ class Evaluator:
                 "timing_s": {},
             },
         }
-        for method in methods:
-            t0 = time.perf_counter()
-            self.progress(f"{method}: selecting parameters on validation")
-            ev, params, score = self.choose(method)
-            t1 = time.perf_counter()
-            entry = REGISTRY[method]
-            runs = self.protocol.runs if entry.repeated_runs else 1
-            self.progress(f"{method}: evaluating {params} on test ({runs} run(s) per case)")
-            out["methods"][method] = ev.run(method, params, "test", runs=runs)
-            if entry.strong_background:
-                strong = dict(params, background_factor=STRONG_BACKGROUND)
-                self.progress(f"{method}: rejection experiments with a strong background {strong}")
-                for exp, res in ev.run(method, strong, "test", runs=runs, experiments=REJECTION_EXPERIMENTS).items():
-                    out["methods"][method][exp]["strong_background"] = res
-                out["parameters"]["strong_background"] = strong
-            out["parameters"]["selected"][method] = params
-            out["parameters"]["validation_score"][method] = score
-            out["parameters"]["selection"][method] = self.choices[method]
-            if entry.manifolds:
-                out["parameters"]["heading_channels"][method] = ev.headings
-            t2 = time.perf_counter()
-            out["parameters"]["timing_s"][method] = {"selection": round(t1 - t0, 2), "test": round(t2 - t1, 2)}
-            self.progress(f"{method}: done in {t2 - t0:.1f} s (selection {t1 - t0:.1f} s)")
+        with threadpool_limits(1):  # as in a worker: the same figures whatever ``jobs``
+            chosen = self.choose_all(methods)
+            for method in methods:
+                t0 = time.perf_counter()
+                ev, params, score = chosen[method]
+                entry = REGISTRY[method]
+                runs = self.protocol.runs if entry.repeated_runs else 1
+                self.progress(f"{method}: evaluating {params} on test ({runs} run(s) per case)")
+                out["methods"][method] = ev.run(method, params, "test", runs=runs)
+                if entry.strong_background:
+                    strong = dict(params, background_factor=STRONG_BACKGROUND)
+                    self.progress(f"{method}: rejection experiments with a strong background {strong}")
+                    for exp, res in ev.run(method, strong, "test", runs=runs, experiments=REJECTION_EXPERIMENTS).items():
+                        out["methods"][method][exp]["strong_background"] = res
+                    out["parameters"]["strong_background"] = strong
+                out["parameters"]["selected"][method] = params
+                out["parameters"]["validation_score"][method] = score
+                out["parameters"]["selection"][method] = self.choices[method]
+                if entry.manifolds:
+                    out["parameters"]["heading_channels"][method] = ev.headings
+                self.timing[method]["test"] = round(time.perf_counter() - t0, 2)
+                self.progress(f"{method}: done ({self.timing[method]})")
+        out["parameters"]["timing_s"] = self.timing
         return out

@@ -218,7 +218,8 @@ def register_evaluate(parser: argparse.ArgumentParser) -> None:
         "--jobs",
         type=int,
         help="continuous recordings: folds run over this many processes, one BLAS thread each (default: the "
-        "cores; 1 = one after the other, the same figures either way; docs/segmentation.md)",
+        "cores; 1 = one after the other, the same figures either way; docs/segmentation.md); labelled "
+        "trajectories: the selection's runs, folds and the test cases, likewise",
     )
     parser.add_argument(
         "--verbose",

@@ -43,7 +43,7 @@ from functools import cached_property
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from ..clm import CLMSegmenter, default_solver
+from ..clm import ETA, CLMSegmenter, default_solver
 from ..datasets import LabelledDataset, Trajectory
 from ..models import CandidateSet, Projection
 from ..scorers import PerClassHMM, SlidingDTW1NN
@@ -56,6 +56,9 @@ SELECTION_EXPERIMENTS = ("single", "concatenated", "middle_halves")
 REJECTION_EXPERIMENTS = ("reversed_rejection", "left_out_rejection")
 SELECTIONS = ("open_set", "recognition")
 SEGMENT_RULES = ("min_progress", "max_fit_ratio")  # judged after the CLM: its labels are shared
+SCREEN_ETA = ETA  # the screen's CLM annealing factor: every candidate set's runs anneal as fast as
+# those without heading channels (the slower η of headed ones costs ~3× the sweeps; the screen
+# only has to keep the best third, the refinement and the test run the segmenter's own solver)
 STRONG_BACKGROUND = 3.0  # docs/segmentation.md: a "strong" background is 3 λ_bg (λ_bg = 1 − 10/N)
 
 
@@ -248,6 +251,7 @@ class Evaluator:
         self._scores: dict[tuple, np.ndarray] = {}
         self._labels: dict[tuple, np.ndarray] = {}
         self._candidate_layers: dict[tuple, tuple[np.ndarray, float]] = {}
+        self._screening = False  # whether the cases run now are the screen's (:data:`SCREEN_ETA`)
         self._objectives: dict[tuple, float] = {}
         self._fold_cache: dict[int, Evaluator] = {}
         self.timing: dict = {}  # seconds per method and phase (the JSON's parameters.timing_s)
@@ -354,18 +358,21 @@ class Evaluator:
         self, split: str, case: Case, seed: int, cands: CandidateSet, proj: Projection, params: dict
     ) -> np.ndarray:
         """The CLM's labels before the segment rules (:data:`SEGMENT_RULES`, which only reject after
-        the CLM): computed once per case, seed and the other parameters.  The CLM sees H only
+        the CLM): computed once per case, seed and the other parameters; on the screen
+        (:meth:`run` with ``screen``) with the cheaper annealing :data:`SCREEN_ETA`.  The CLM sees H only
         through its neighbourhood ``max(H, min_span)``, so the cases that differ only in H (their
         seeds are equal, :attr:`Case.draw`) share one run where that span is the same; the
         candidate layers' bands and largest eigenvalues, which neither the seed nor the background
         changes, are computed once per case, span and error scale (:meth:`_layers`)."""
         clm = {k: v for k, v in params.items() if k not in SEGMENT_RULES}
         span = max(int(case.history), int(clm.pop("min_span", 0)))
-        key = (split, case.left_out, case.key, span, seed, tuple(sorted(clm.items())))
+        screen = self._screening and set(clm) <= {"background_factor", "error_scale"}
+        key = (split, case.left_out, case.key, span, seed, tuple(sorted(clm.items())), screen)
         if key not in self._labels:
             seg = CLMSegmenter(cands, history=span, random_state=seed, **clm)
             if set(clm) <= {"background_factor", "error_scale"}:
-                solver = default_solver(cands).set_params(random_state=seed)  # the segmenter's own
+                fidelity = {"eta": SCREEN_ETA} if screen else {}  # else the segmenter's own solver
+                solver = default_solver(cands, **fidelity).set_params(random_state=seed)
                 band, diag, lam = self._layers(split, case, span, seg, solver, proj)
                 self._labels[key] = seg.labels_from(solver.solve(band, diag, lambda_max=lam))
             else:
@@ -394,9 +401,11 @@ class Evaluator:
         runs: int = 1,
         experiments: tuple[str, ...] = EXPERIMENTS,
         screen: bool = False,
+        cheap: bool | None = None,
     ) -> dict:
         """Per-experiment summaries and cases of one method and parameter set on one split
         (``screen``: only the cases of :func:`screen_pairs`)."""
+        self._screening = bool(screen if cheap is None else cheap)
         wanted = [
             n
             for n, case in enumerate(self.cases[split])
@@ -459,17 +468,19 @@ class Evaluator:
             return recognition
         return 0.5 * (recognition + rejection)
 
-    def validation_objective(self, method: str, params: dict, screen: bool = False) -> float:
+    def validation_objective(self, method: str, params: dict, screen: bool = False, cheap: bool | None = None) -> float:
         """:meth:`objective` of one grid point on the validation split (one CLM run per case),
-        on the screen's cases or on all; computed once."""
-        key = self._objective_key(method, params, screen)
+        on the screen's cases or on all, ``cheap`` (default: ``screen``) with the screen's CLM
+        annealing (:data:`SCREEN_ETA`); computed once."""
+        key = self._objective_key(method, params, screen, cheap)
         if key not in self._objectives:
-            self._objectives[key] = self.objective(self.run(method, params, "validation", screen=screen))
+            res = self.run(method, params, "validation", screen=screen, cheap=cheap)
+            self._objectives[key] = self.objective(res)
         return self._objectives[key]
 
     @staticmethod
-    def _objective_key(method: str, params: dict, screen: bool) -> tuple:
-        return (method, repr(sorted(params.items())), bool(screen))
+    def _objective_key(method: str, params: dict, screen: bool, cheap: bool | None = None) -> tuple:
+        return (method, repr(sorted(params.items())), bool(screen), bool(screen if cheap is None else cheap))
 
     @property
     def screens(self) -> bool:
@@ -534,10 +545,11 @@ class Evaluator:
         return len(cross_fitted_splits(self.dataset, self.protocol.heading_folds)) if self.trainer else 1
 
     def _fold_objectives(self, h: int, k: int, tasks: list[tuple[str, dict]]) -> list[float]:
-        """The screen objective of every (method, params) of ``tasks`` on fold ``k`` with the
-        ``h``-th candidate set's heading channels."""
+        """The objective on the screen's cases (at full fidelity: the segmenter's own annealing)
+        of every (method, params) of ``tasks`` on fold ``k`` with the ``h``-th candidate set's
+        heading channels."""
         fold = [self, *self._others][h]._fold(k)
-        return [fold.validation_objective(method, params, screen=True) for method, params in tasks]
+        return [fold.validation_objective(method, params, screen=True, cheap=False) for method, params in tasks]
 
     def cross_fit(self, tasks: list[list[tuple[str, dict]]]) -> list[list[list[float]]]:
         """Per candidate set ``h`` and (method, params) of ``tasks[h]``: the screen objective on

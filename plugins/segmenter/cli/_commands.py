@@ -4,9 +4,12 @@ from __future__ import annotations
 
 import argparse
 import json
+import multiprocessing
 import sys
 import time
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import replace
+from functools import partial
 from pathlib import Path
 
 from ..datasets import DatasetError, is_continuous, load_dataset
@@ -147,6 +150,16 @@ def _train(ds, args, headings: tuple[int, ...]):
         kernel=args.kernel,
         headings=headings,
     )
+
+
+def _train_each(ds, args, choices: tuple[tuple[int, ...], ...]) -> list:
+    """One candidate set per heading channels of ``choices``, the sets trained side by side over
+    ``--jobs`` forked processes (the same models as one after the other)."""
+    jobs = min(args.jobs or default_jobs(), len(choices))
+    if jobs <= 1:
+        return [candidate_set(_train(ds, args, headings)) for headings in choices]
+    with ProcessPoolExecutor(jobs, mp_context=multiprocessing.get_context("fork")) as pool:
+        return [candidate_set(models) for models in pool.map(partial(_train, ds, args), choices)]
 
 
 def _fold_trainer(args):
@@ -362,7 +375,7 @@ def run_evaluate(args) -> int:
                 else (heading_channels(args.headings, ds.columns),)
             )
             _progress(f"training one manifold per class ({len(ds.classes)} classes) per heading channels {choices}")
-            candidates, *alternatives = [candidate_set(_train(ds, args, headings)) for headings in choices]
+            candidates, *alternatives = _train_each(ds, args, choices)
             trainer = _fold_trainer(args) if len(choices) > 1 else None
         protocol = replace(
             TrajectoryProtocol.quick() if args.quick else TrajectoryProtocol(),

@@ -174,6 +174,7 @@ def summarise(correct: list[float]) -> dict:
 
 
 _FORKED: Evaluator | None = None  # the evaluator whose work the forked processes do
+_LOADED: set[str] = set()  # methods whose compiled kernels this process has loaded (before forking)
 
 
 def _one_thread() -> None:
@@ -496,6 +497,8 @@ class Evaluator:
         :func:`screen_pairs`; the best third (:func:`._selection.survivors`) is *refined* on all
         validation cases; among the refined grid points the first within ``TIE_MARGIN`` of the
         best objective wins (:func:`._selection.first_of_best`, grid order)."""
+        if self.jobs > 1:
+            self.warm(method, "validation")  # the baselines' thresholds already need their scores
         grid = self.grid(method)
         groups: dict[str, list[int]] = {}
         for i, params in enumerate(grid):
@@ -644,6 +647,9 @@ class Evaluator:
         otherwise compute again — the cases' projections (manifold methods) or baseline scores —
         computed over ``jobs`` processes and kept here."""
         entry = REGISTRY[method]
+        if method not in _LOADED:  # the compiled kernels, loaded here once instead of in every worker
+            self.predict(method, {}, split, min(self.cases[split], key=lambda c: c.truth.size))
+            _LOADED.add(method)
         if entry.manifolds:
             todo = sorted({self._projection_key(split, i, idx): (i, idx) for c in self.cases[split] for i, idx in c.parts}.items())
             todo = [(key, i, idx) for key, (i, idx) in todo if key not in self._projections]

@@ -10,7 +10,7 @@ import pytest
 from handflow.plugins.segmenter import LetterGenerator, candidate_set
 from handflow.plugins.segmenter.clm import CLMSegmenter
 from handflow.plugins.segmenter.datasets import LabelledDataset
-from handflow.plugins.segmenter.evaluation import Evaluator, TrajectoryProtocol, heading_choices
+from handflow.plugins.segmenter.evaluation import SEGMENT_RULES, Evaluator, TrajectoryProtocol, heading_choices
 from handflow.plugins.segmenter.evaluation._selection import KEEP, TIE_MARGIN, first_of_best
 from handflow.plugins.segmenter.evaluation._trajectories import cross_fitted_splits, screen_pairs
 from handflow.plugins.segmenter.models import train_class_models
@@ -167,3 +167,26 @@ def test_forked_processes_give_the_same_figures(letters, plain):
         out["parameters"].pop("timing_s")
         outs.append(out)
     assert outs[0] == outs[1]
+
+
+def test_grid_points_sharing_a_clm_run_are_screened_and_refined_together(letters, plain, monkeypatch):
+    ev = Evaluator(letters, plain, PROTOCOL)
+    grid = ev.grid("ukr_clm")
+    run_of = lambda p: repr(sorted((k, v) for k, v in p.items() if k not in SEGMENT_RULES))  # noqa: E731
+    runs = sorted({run_of(p) for p in grid})
+    rng = np.random.default_rng(1)
+    value = {repr(sorted(p.items())): float(v) for p, v in zip(grid, rng.uniform(0.2, 0.8, len(grid)))}
+    refined = []
+
+    def fake(method, params, screen=False):
+        if not screen:
+            refined.append(run_of(params))
+        return value[repr(sorted(params.items()))]
+
+    monkeypatch.setattr(ev, "validation_objective", fake)
+    params, _ = ev.select("ukr_clm")
+    best_of_run = {r: max(value[repr(sorted(p.items()))] for p in grid if run_of(p) == r) for r in runs}
+    kept = sorted(runs, key=lambda r: -best_of_run[r])[: math.ceil(len(runs) * KEEP)]
+    assert sorted(set(refined)) == sorted(kept)  # the best third of the runs, by their best rule
+    assert len(refined) == len(kept) * len(grid) // len(runs)  # each with all its segment rules
+    assert ev._halving == {"candidates": 112, "runs": 28, "refined_runs": len(kept), "refined": len(refined)}

@@ -14,15 +14,23 @@ Each case is run for every sub-sampling ``N^th`` and every history/neighbourhood
 Pairs: trajectory ``i`` (sorted by label, then name) is followed by the next trajectory in that
 order with a different label (documented deterministic choice), at most ``max_pairs`` pairs.
 
-Parameter selection: every method has a small grid (:meth:`Evaluator.grid`); each grid point is
-scored on the validation split (the CLM with one run per case).  ``TrajectoryProtocol.selection``:
+Parameter selection: every method has a small grid (:meth:`Evaluator.grid`), searched by
+successive halving on the validation split (:meth:`Evaluator.select`, docs/segmentation.md "How the
+trajectory protocol chooses"): grid points sharing one CLM run (they differ only in the segment
+rules) are screened together on the cases of :func:`screen_pairs` (one CLM run per case, annealed
+at :data:`SCREEN_ETA`), the best third of the runs (``_selection.survivors``) is refined on all
+validation cases, and the first grid point within ``TIE_MARGIN`` of the best wins
+(``_selection.first_of_best``).  ``TrajectoryProtocol.selection``:
 ``"open_set"`` (default) scores the mean of two figures, the mean share correct over the
 *recognition* experiments (``SELECTION_EXPERIMENTS``) and over the *rejection* experiments
 (``REJECTION_EXPERIMENTS``), so the selected operating point has to keep known motions and reject
 unknown ones; ``"recognition"`` scores the recognition experiments only, as in the thesis (the
 background / rejection threshold is tuned to keep the validation motions).  The manifold methods
-also choose, by the same objective, among the ``alternatives`` — candidate sets trained with other
-heading channels (:func:`heading_choices`); ties keep the first.  The best is evaluated on the test split
+also choose among the ``alternatives`` — candidate sets trained with other heading channels
+(:func:`heading_choices`, in their order of preference) — by the mean objective of each set's
+chosen grid point over the cross-fitted splits of :func:`cross_fitted_splits` (every train and
+validation trajectory validated once), the first within ``TIE_MARGIN`` of the best.  The best is
+evaluated on the test split
 (the CLM with ``runs`` runs per case: a case's share is the mean over runs, its ``std`` the
 standard deviation); the UKR/CLM rejection experiments are also reported with a *strong*
 background (``3 λ_bg`` with the thesis rule ``λ_bg = 1 − 10/N``, docs/segmentation.md) under

@@ -574,8 +574,10 @@ class Evaluator:
             )
         done = dict(zip([(h, k) for h, k, _ in items], self._parallel("_fold_objectives", items)))
         return [
-            [[self._fold_objectives(h, 0, [task])[0]] + [done[h, k][n] for k in range(1, self.n_folds())]
-             for n, task in enumerate(tasks[h])]
+            [
+                [self._fold_objectives(h, 0, [task])[0]] + [done[h, k][n] for k in range(1, self.n_folds())]
+                for n, task in enumerate(tasks[h])
+            ]
             for h in range(len(tasks))
         ]
 
@@ -659,7 +661,9 @@ class Evaluator:
             self.predict(method, {}, split, min(self.cases[split], key=lambda c: c.truth.size))
             _LOADED.add(method)
         if entry.manifolds:
-            todo = sorted({self._projection_key(split, i, idx): (i, idx) for c in self.cases[split] for i, idx in c.parts}.items())
+            todo = sorted(
+                {self._projection_key(split, i, idx): (i, idx) for c in self.cases[split] for i, idx in c.parts}.items()
+            )
             todo = [(key, i, idx) for key, (i, idx) in todo if key not in self._projections]
             for (key, _, _), proj in zip(todo, self._parallel("_projected", [(split, i, idx) for _, i, idx in todo])):
                 self._projections[key] = proj
@@ -725,7 +729,9 @@ class Evaluator:
                 if entry.strong_background:
                     strong = dict(params, background_factor=STRONG_BACKGROUND)
                     self.progress(f"{method}: rejection experiments with a strong background {strong}")
-                    for exp, res in ev.run(method, strong, "test", runs=runs, experiments=REJECTION_EXPERIMENTS).items():
+                    for exp, res in ev.run(
+                        method, strong, "test", runs=runs, experiments=REJECTION_EXPERIMENTS
+                    ).items():
                         out["methods"][method][exp]["strong_background"] = res
                     out["parameters"]["strong_background"] = strong
                 out["parameters"]["selected"][method] = params

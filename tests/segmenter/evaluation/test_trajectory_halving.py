@@ -98,8 +98,12 @@ def test_cross_fitted_splits_validate_every_train_and_validation_trajectory_once
 
 
 def _headed_choice(letters, plain, validation_order=None):
-    ds = letters if validation_order is None else LabelledDataset(
-        letters.train, [letters.validation[i] for i in validation_order], letters.test, letters.columns
+    ds = (
+        letters
+        if validation_order is None
+        else LabelledDataset(
+            letters.train, [letters.validation[i] for i in validation_order], letters.test, letters.columns
+        )
     )
     headed = train(ds, (0, 1))
     ev = Evaluator(ds, headed, PROTOCOL, alternatives=(plain,), trainer=train)  # heading_choices' order
@@ -128,7 +132,10 @@ def test_a_tie_of_the_pooled_heading_objectives_keeps_the_first_candidate_set(le
     ev = Evaluator(letters, headed, PROTOCOL, alternatives=(plain,), trainer=train)  # heading_choices' order
     for gain, chosen in ((TIE_MARGIN / 2, [0, 1]), (3 * TIE_MARGIN, [])):
         # the second candidate set (no heading channels) scores ``gain`` more on every split
-        monkeypatch.setattr(ev, "cross_fit", lambda tasks: [[[0.6 + h * gain] * 4 for _ in t] for h, t in enumerate(tasks)])
+        def pooled(tasks, gain=gain):
+            return [[[0.6 + h * gain] * 4 for _ in t] for h, t in enumerate(tasks)]
+
+        monkeypatch.setattr(ev, "cross_fit", pooled)
         ev.choose("ukr_only")
         assert ev.chosen["ukr_only"].headings == chosen
 

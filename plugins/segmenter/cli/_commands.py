@@ -4,9 +4,12 @@ from __future__ import annotations
 
 import argparse
 import json
+import multiprocessing
 import sys
 import time
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import replace
+from functools import partial
 from pathlib import Path
 
 from ..datasets import DatasetError, is_continuous, load_dataset
@@ -21,6 +24,7 @@ from ..evaluation import (
     Evaluator,
     TrajectoryProtocol,
     UKROnlyMethod,
+    default_jobs,
     heading_choices,
     methods_to_run,
 )
@@ -148,6 +152,36 @@ def _train(ds, args, headings: tuple[int, ...]):
     )
 
 
+def _train_each(ds, args, choices: tuple[tuple[int, ...], ...]) -> list:
+    """One candidate set per heading channels of ``choices``, the sets trained side by side over
+    ``--jobs`` forked processes (the same models as one after the other)."""
+    jobs = min(args.jobs or default_jobs(), len(choices))
+    if jobs <= 1:
+        return [candidate_set(_train(ds, args, headings)) for headings in choices]
+    with ProcessPoolExecutor(jobs, mp_context=multiprocessing.get_context("fork")) as pool:
+        return [candidate_set(models) for models in pool.map(partial(_train, ds, args), choices)]
+
+
+def _fold_trainer(args):
+    """The training of the heading choice's cross-fitted splits (docs/segmentation.md): the
+    command's training options on a fold's train split, without the per-class progress lines."""
+
+    def train(ds, headings: tuple[int, ...]):
+        return candidate_set(
+            train_class_models(
+                ds,
+                beta=_beta(args),
+                n_steps=args.steps,
+                init=args.init,
+                random_state=args.seed,
+                kernel=args.kernel,
+                headings=headings,
+            )
+        )
+
+    return train
+
+
 HEADINGS_ON_RECORDINGS = "error: --headings applies to labelled trajectories, not to continuous recordings (drop it)"
 
 
@@ -197,7 +231,8 @@ def register_evaluate(parser: argparse.ArgumentParser) -> None:
         "--jobs",
         type=int,
         help="continuous recordings: folds run over this many processes, one BLAS thread each (default: the "
-        "cores; 1 = one after the other, the same figures either way; docs/segmentation.md)",
+        "cores; 1 = one after the other, the same figures either way; docs/segmentation.md); labelled "
+        "trajectories: the selection's runs, folds and the test cases, likewise",
     )
     parser.add_argument(
         "--scheduler",
@@ -355,7 +390,7 @@ def run_evaluate(args) -> int:
                 raise DatasetError(
                     f"drop --headings: the models in {args.models} keep the heading channels they were trained with"
                 )
-            candidates, alternatives = load_candidates(args.models), ()
+            candidates, alternatives, trainer = load_candidates(args.models), (), None
         else:
             choices = (
                 heading_choices(len(ds.columns))
@@ -363,13 +398,21 @@ def run_evaluate(args) -> int:
                 else (heading_channels(args.headings, ds.columns),)
             )
             _progress(f"training one manifold per class ({len(ds.classes)} classes) per heading channels {choices}")
-            candidates, *alternatives = [candidate_set(_train(ds, args, headings)) for headings in choices]
+            candidates, *alternatives = _train_each(ds, args, choices)
+            trainer = _fold_trainer(args) if len(choices) > 1 else None
         protocol = replace(
             TrajectoryProtocol.quick() if args.quick else TrajectoryProtocol(),
             selection=(args.select or "open-set").replace("-", "_"),
         )
         evaluator = Evaluator(
-            ds, candidates, protocol, random_state=args.seed, progress=_progress, alternatives=tuple(alternatives)
+            ds,
+            candidates,
+            protocol,
+            random_state=args.seed,
+            progress=_progress,
+            alternatives=tuple(alternatives),
+            trainer=trainer,
+            jobs=args.jobs or default_jobs(),
         )
     except (DatasetError, ModelsMissingError, ValueError) as exc:
         print(f"error: {exc}", file=sys.stderr)

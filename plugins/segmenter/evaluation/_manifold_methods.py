@@ -73,13 +73,18 @@ class UKRCLMMethod(UKRMethod):
         return [{"delay": w, "history": h} for w in self.delays[not quick] for h in self.histories[not quick]]
 
     def trajectory_grid(self, evaluator, split: str) -> list[dict]:
+        """In the order of preference a tie keeps (docs/segmentation.md, "How the trajectory
+        protocol chooses"): the spec's background ×1 and error scale 1 first; for the segment
+        rules and the neighbourhood the documented choices (``min_progress`` 0.3,
+        ``max_fit_ratio`` 2, ``min_span`` 20) before the spec's plain CLM, which has to beat
+        them by more than the noise."""
         return [
             {"background_factor": f, "error_scale": e, "min_progress": p, "min_span": s, "max_fit_ratio": r}
             for e in (1.0, 0.1)
             for f in (1.0, 0.5, 0.25, 0.1, 1.5, 2.0, 3.0)
-            for p in MIN_PROGRESS
-            for s in MIN_SPANS
-            for r in MAX_FIT_RATIOS
+            for p in MIN_PROGRESS[::-1]
+            for s in MIN_SPANS[::-1]
+            for r in MAX_FIT_RATIOS[::-1]
         ]
 
     def predict_case(self, evaluator, params: dict, split: str, case, seed: int) -> np.ndarray:

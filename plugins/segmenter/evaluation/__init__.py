@@ -53,7 +53,8 @@ from ._recordings import (
     calibrate_null_score,
 )
 from ._report import half_window
-from ._trajectories import (
+from ._trajectories import Evaluator
+from ._trajectory_cases import (
     EXPERIMENTS,
     METHODS,
     REJECTION_EXPERIMENTS,
@@ -62,7 +63,6 @@ from ._trajectories import (
     SELECTIONS,
     STRONG_BACKGROUND,
     Case,
-    Evaluator,
     TrajectoryProtocol,
     build_cases,
     heading_choices,

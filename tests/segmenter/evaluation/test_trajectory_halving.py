@@ -12,7 +12,7 @@ from handflow.plugins.segmenter.clm import CLMSegmenter
 from handflow.plugins.segmenter.datasets import LabelledDataset
 from handflow.plugins.segmenter.evaluation import SEGMENT_RULES, Evaluator, TrajectoryProtocol, heading_choices
 from handflow.plugins.segmenter.evaluation._selection import KEEP, TIE_MARGIN, first_of_best
-from handflow.plugins.segmenter.evaluation._trajectories import cross_fitted_splits, screen_pairs
+from handflow.plugins.segmenter.evaluation._trajectory_cases import cross_fitted_splits, screen_pairs
 from handflow.plugins.segmenter.models import train_class_models
 
 PROTOCOL = TrajectoryProtocol(nths=(1, 2), histories=(5, 20), runs=2, max_pairs=4)

@@ -87,6 +87,15 @@ class InnerFoldCalibration:
         self.detail(f"    {method.name} {fidelity.name} {params}: reject={value:.4g} objective={score:.3f}")
         return Choice(params, value, score), grid[0], known_acc
 
+    def _ranking(self, choices: list[tuple[Choice, float, Callable]]) -> list[float]:
+        """What :meth:`_rule` ranks ``choices`` by (the screen of :mod:`._selection` too): the
+        objective, or — ``"fallback"``, when none beats rejecting everything by ``FALLBACK_MARGIN``
+        — the known accuracy with every frame kept."""
+        best = max(c.objective for c, *_ in choices)
+        if self.calibration == "strict" or best > REJECT_ALL_OBJECTIVE + FALLBACK_MARGIN:
+            return [c.objective for c, *_ in choices]
+        return [known_acc(first) for _, first, known_acc in choices]
+
     def _rule(self, name: str, choices: list[tuple[Choice, float, Callable]], gate: float | None = None) -> Choice:
         """The calibration rule over a method's calibrated parameter sets: the best objective,
         or — ``"fallback"``, when it does not beat rejecting everything by ``FALLBACK_MARGIN`` —

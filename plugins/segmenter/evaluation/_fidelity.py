@@ -1,11 +1,11 @@
 """What a fit or a calibration of the evaluation may spend (docs/segmentation.md, "successive
 halving"): the full models that label a held-out recording (:data:`FULL`), and the
 cheaper ones the successive halving of :mod:`._selection` screens and refines candidates with
-(:data:`SCREEN`, :data:`REFINE`; documented choices)."""
+(:data:`SCREEN`; the survivors are refined at full fidelity, :data:`REFINE`; documented choices)."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -37,5 +37,5 @@ class Fidelity:
 
 
 FULL = Fidelity("full")
-REFINE = Fidelity("refine", max_points=250, steps=60, statistics_frames=500)
-SCREEN = replace(REFINE, name="screen", pseudo_unknowns="drop", reject_stride=3)
+REFINE = Fidelity("refine")  # the survivors: full models, the whole sweep
+SCREEN = Fidelity("screen", max_points=250, steps=60, statistics_frames=500, pseudo_unknowns="drop", reject_stride=3)

@@ -2,12 +2,13 @@
 "successive halving").
 
 A candidate is one normalisation × derived features × grid point of a method; the CLM over a
-scorer's scores (``clm_minirocket``, ``clm_dtw``) has one, its scorer's best refined candidate,
+scorer's scores (``clm_minirocket``, ``clm_dtw``) has one, the candidate its scorer's rule chose,
 and calibrates only its null class's score there (documented choice: it segments the scores the
 scorer's own selection chose, at a fifth of the CLM runs).  Every candidate
 is first *screened*: calibrated on the inner folds with cheap models (:data:`SCREEN`: UKR
 manifolds on fewer points and steps, pseudo-unknowns by dropped columns, every third value of
-the rejection sweep).  The best third (:func:`survivors`) is then *refined* with the same
+the rejection sweep).  The best third (:func:`survivors`, ranked as the calibration rule ranks:
+by the objective, or by the known accuracy where rejection falls back) is then *refined* with full
 models, refitted pseudo-unknowns and the whole sweep (:data:`REFINE`); the calibration rule
 picks among those (:meth:`._calibration.InnerFoldCalibration._rule`: the best objective, exact
 ties to the first).  Only the chosen candidate is fitted at full fidelity (:data:`FULL`), on all
@@ -80,12 +81,13 @@ class HalvingSelection:
                 for (normalise, derived), train in views.items()
                 for params in method.grid(self.quick)
             ]
-            if method.rejects_with is not None:  # the CLM over a scorer: the scorer's best candidate
-                best = max(self._choices(method.rejects_with, views), key=lambda c: c[0].objective)[0].params
-                candidates = [(train, params) for train, params in candidates if params == best]
+            if method.rejects_with is not None:  # the CLM over a scorer: the scorer's chosen candidate
+                scorer = method.rejects_with
+                chosen = self._rule(scorer.name, self._choices(scorer, views)).params
+                candidates = [(train, params) for train, params in candidates if params == chosen]
             if len(candidates) > 1:
-                screened = [self._calibrated(method, train, params, SCREEN)[0] for train, params in candidates]
-                candidates = [candidates[i] for i in survivors([c.objective for c in screened])]
+                screened = [self._calibrated(method, train, params, SCREEN) for train, params in candidates]
+                candidates = [candidates[i] for i in survivors(self._ranking(screened))]
             self._fold_choices[method.name] = [
                 self._calibrated(method, train, params, REFINE) for train, params in candidates
             ]

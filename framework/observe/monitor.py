@@ -52,14 +52,20 @@ class TopicStats:
         while self.arrivals and self.arrivals[0][0] < now_m - window_s:
             self.arrivals.popleft()
 
+    def _arrivals(self) -> list[tuple[float, int | None]]:
+        """The arrivals now: copied in one step (the transport's thread appends to the deque while
+        a snapshot reads it)."""
+        return list(self.arrivals)
+
     def rate_hz(self) -> float:
-        if len(self.arrivals) < 2:
+        arrivals = self._arrivals()
+        if len(arrivals) < 2:
             return 0.0
-        span = self.arrivals[-1][0] - self.arrivals[0][0]
-        return (len(self.arrivals) - 1) / span if span > 0 else 0.0
+        span = arrivals[-1][0] - arrivals[0][0]
+        return (len(arrivals) - 1) / span if span > 0 else 0.0
 
     def latency_ms(self) -> float | None:
-        known = [lat for _, lat in self.arrivals if lat is not None]
+        known = [lat for _, lat in self._arrivals() if lat is not None]
         return float(np.median(known)) / 1e6 if known else None
 
 

@@ -75,6 +75,7 @@ class MethodFold:
     strict: np.ndarray | None  # its labels at the strict choice where it fell back (lagged)
     enrolled: dict[str, dict[str, np.ndarray]]  # per adaptation, method: labels (lagged)
     timing: dict[str, dict[str, float]]  # method → phase → seconds
+    warnings: dict[str, int] = field(default_factory=dict)  # third-party warnings while computing it
 
 
 @dataclass
@@ -91,7 +92,7 @@ class FoldResult:
     scored_from: int = 0  # the first frame after the enrolment
     seconds: float = 0.0  # the fold's own wall time
     timing: dict[str, dict[str, float]] = field(default_factory=dict)  # method → phase → seconds
-    warnings: dict[str, int] = field(default_factory=dict)  # third-party warnings in the fold: gist → count
+    warnings: dict[str, int] = field(default_factory=dict)  # third-party warnings of its methods: gist → count
 
 
 def timing(folds: list[FoldResult]) -> dict:
@@ -124,10 +125,8 @@ class FoldRunner:
 
     def _announced_fold(self, k: int, held: str) -> FoldResult:
         self.progress(f"fold {k + 1}/{len(self.data.recordings)}: holding out '{held}'")
-        t0, caught = time.perf_counter(), Counter()
-        with counted_warnings(caught):
-            fold = self.run_fold(held)
-        fold = replace(fold, seconds=time.perf_counter() - t0, warnings=dict(caught))
+        t0 = time.perf_counter()
+        fold = replace(self.run_fold(held), seconds=time.perf_counter() - t0)
         if self.enroll:
             self.progress(f"  {fold_note(fold, self.known)}")
         return fold
@@ -189,7 +188,9 @@ class FoldRunner:
         if kept is not None:
             self.progress(f"  {held}: {name} taken from {store.path(held)}")
             return kept
-        part = compute()
+        caught = Counter()
+        with counted_warnings(caught):
+            part = replace(compute(), warnings=dict(caught))
         if store:
             store.save(part)
         return part

@@ -26,6 +26,7 @@ the online node.
 from __future__ import annotations
 
 import time
+from collections import Counter
 from collections.abc import Callable
 
 import numpy as np
@@ -200,6 +201,7 @@ class RecordingsEvaluator(HalvingSelection, InnerFoldCalibration, EnrolmentFits,
             else {},
             scored_from=enrolment_split(truth, self.known, self.enroll)[1] if self.enroll else 0,
             timing={m: x for p in parts for m, x in p.timing.items()},
+            warnings=dict(sum((Counter(p.warnings) for p in parts), Counter())),
         )
 
     def _method_fold(self, held: str, name: str, views, sessions) -> MethodFold:

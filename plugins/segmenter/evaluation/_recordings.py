@@ -39,6 +39,7 @@ from ._calibration import (
     CALIBRATIONS,
     FALLBACK_MARGIN,
     INNER_FOLDS,
+    MIN_TRAINED_CLASSES,  # noqa: F401  (a name of the old path stream_evaluation)
     PSEUDO_UNKNOWNS,
     REJECT_ALL_OBJECTIVE,
     Choice,

@@ -50,11 +50,11 @@ def test_models_of_different_pipelines_are_refused():
         FeaturePipeline.from_provenances([{"delay_window": 2}, {"delay_window": 3}])
 
 
-def test_the_error_metric_comes_from_at_most_the_capped_frames_per_class(monkeypatch):
+def test_the_error_metric_comes_from_at_most_the_capped_frames_per_class():
     """Above ``MAX_STATISTICS_FRAMES`` the models' error statistics come from evenly thinned whole
     segments (docs/segmentation.md, "Class models for real recordings"): the reference is the
     median own-model error of exactly those segments, and the rest of the fit is unchanged."""
-    from handflow.plugins.segmenter.models import _training, thin_pieces
+    from handflow.plugins.segmenter.models import thin_pieces
 
     rng = np.random.default_rng(2)
     t = np.linspace(0, 4 * np.pi, 120)
@@ -63,8 +63,7 @@ def test_the_error_metric_comes_from_at_most_the_capped_frames_per_class(monkeyp
         "b": [np.c_[np.sin(2 * t + k), np.cos(t)] + 0.02 * rng.normal(size=(120, 2)) for k in range(4)],
     }
     full = fit_recording_models(by_class, delay=4, n_steps=20, random_state=0)
-    monkeypatch.setattr(_training, "MAX_STATISTICS_FRAMES", 250)
-    capped = fit_recording_models(by_class, delay=4, n_steps=20, random_state=0)
+    capped = fit_recording_models(by_class, delay=4, n_steps=20, random_state=0, statistics_frames=250)
     kept = {c: thin_pieces(segs, 250) for c, segs in by_class.items()}
     assert all(len(k) == 2 for k in kept.values())  # the cap binds: half the segments per class
     full_reference = full.models["a"].model.provenance_["error_reference"]

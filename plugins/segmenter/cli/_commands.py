@@ -135,6 +135,13 @@ def register_train_classes(parser: argparse.ArgumentParser) -> None:
         help="continuous recordings: the CLM neighbourhood H at which the background level is calibrated on inner "
         "folds for the online node (default 10, the node's default history; docs/segmentation.md)",
     )
+    parser.add_argument(
+        "--params",
+        metavar="RESULT.json",
+        help="continuous recordings: train what an `evaluate segmentation --json` result chose for ukr_clm in most "
+        "folds (ties to the first fold) — its delay, history, derived features and background level — instead of "
+        "--delay, --history, --derived and the calibration (docs/segmentation.md)",
+    )
     parser.set_defaults(func=run_train_classes)
 
 

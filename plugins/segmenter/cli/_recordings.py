@@ -24,6 +24,7 @@ from ..evaluation import (
     RecordingsEvaluator,
     calibrate_background,
     calibrate_null_score,
+    choice_summary,
     default_jobs,
     methods_to_run,
 )
@@ -199,6 +200,10 @@ def run_train_recording_models(args, progress) -> int:
     (:func:`..evaluation.calibrate_background`), reported and stored with the models."""
     t0 = time.perf_counter()
     try:
+        chosen = _chosen_ukr_clm(args.params) if args.params else None
+        if chosen is not None:
+            args.delay, args.history, args.derived = int(chosen["delay"]), int(chosen["history"]), chosen["derived"]
+            progress(f"--params {args.params}: ukr_clm's choice of most folds, {choice_summary(chosen)}")
         by_class = known_segments(args.dataset, args.classes, "--classes")
         if args.delay < 1:
             raise ValueError(f"--delay must be >= 1 frame, got {args.delay}")
@@ -216,7 +221,7 @@ def run_train_recording_models(args, progress) -> int:
     except ValueError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    background = _calibrated_background(args, list(by_class), progress)
+    background = _chosen_background(args, chosen) if chosen else _calibrated_background(args, list(by_class), progress)
     provenance = {"dataset": str(args.dataset), "steps": args.steps, **background}
     out = save_class_models(cands, args.out, provenance=provenance)
     progress(
@@ -249,6 +254,26 @@ def _calibrated_background(args, classes: list[str], progress) -> dict:
             f"(inner-fold objective {choice.objective:.3f}); the online node uses it by default"
         )
     return {"background_factor": float(choice.reject), "background_calibration": report}
+
+
+def _chosen_ukr_clm(path: str) -> dict:
+    """``ukr_clm``'s choice of most folds in the evaluation result at ``path`` (``--params``)."""
+    params = ChosenParameters.load(path)
+    params.check(("ukr_clm",), NORMALISATIONS, DERIVED)
+    return params.most_frequent("ukr_clm")
+
+
+def _chosen_background(args, selected: dict) -> dict:
+    """The background level an evaluation chose (``--params``), as model provenance: rejection off
+    (``background_factor`` 0) where its calibration fell back."""
+    off = selected["rejection"] == "off"
+    report = {
+        "history": args.history,
+        "validation_objective": round(float(selected["validation_objective"]), 4),
+        "rejection": selected["rejection"],
+        "params_from": str(args.params),
+    }
+    return {"background_factor": 0.0 if off else float(selected["reject"]), "background_calibration": report}
 
 
 def _calibration_report(choice) -> dict:

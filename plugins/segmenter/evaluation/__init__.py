@@ -52,7 +52,7 @@ from ._recordings import (
     calibrate_background,
     calibrate_null_score,
 )
-from ._report import half_window
+from ._report import choice_summary, half_window
 from ._trajectories import Evaluator
 from ._trajectory_cases import (
     EXPERIMENTS,
@@ -115,6 +115,7 @@ __all__ = [
     "calibrate",
     "calibrate_background",
     "calibrate_null_score",
+    "choice_summary",
     "default_jobs",
     "frame_metrics",
     "half_window",

@@ -83,6 +83,37 @@ def test_train_classes_on_recordings_calibrates_the_background_of_the_online_nod
     assert given.node.segmenter.background_factor == 3.0  # the parameter overrides the calibrated level
 
 
+def test_train_classes_with_params_trains_ukr_clms_choice_of_most_folds(tmp_path, capsys):
+    folds = [
+        {
+            "recording": r,
+            "selected": {
+                "delay": d,
+                "history": 20,
+                "derived": "velocities",
+                "normalise": "training",
+                "reject": 0.25,
+                "validation_objective": 0.7,
+                "rejection": "calibrated",
+            },
+        }
+        for r, d in (("rec0", 4), ("rec1", 6), ("rec2", 4))
+    ]
+    (tmp_path / "r.json").write_text(json.dumps({"methods": {"ukr_clm": {"folds": folds}}}))
+    out = tmp_path / "m"
+    argv = [str(DEMO), "--steps", "20", "--out", str(out), "--params", str(tmp_path / "r.json")]
+    assert run_command(register_train_classes, argv) == 0
+    index = json.loads((out / "classes.json").read_text())
+    assert index["provenance"]["background_factor"] == 0.25  # the chosen level, not calibrated again
+    assert index["provenance"]["background_calibration"]["params_from"] == str(tmp_path / "r.json")
+    model = np.load(out / index["classes"][next(iter(index["classes"]))])
+    meta = json.loads(str(model["metadata"])) if "metadata" in model.files else {}
+    assert "delay 4, history 20" in capsys.readouterr().err and json.dumps(meta).count('"velocities"') >= 1
+    (tmp_path / "bad.json").write_text(json.dumps({"methods": {"dtw_1nn": {"folds": folds}}}))
+    assert run_command(register_train_classes, [*argv[:-1], str(tmp_path / "bad.json")]) == 2
+    assert "has no parameters for ['ukr_clm']" in capsys.readouterr().err
+
+
 def test_train_classes_says_when_rejection_cannot_be_calibrated(tmp_path, capsys):
     data = _indistinguishable_recordings(tmp_path)  # three 'classes' of one and the same noise
     out = tmp_path / "m"

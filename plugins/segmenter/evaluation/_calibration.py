@@ -91,10 +91,15 @@ class InnerFoldCalibration:
         """What :meth:`_rule` ranks ``choices`` by (the screen of :mod:`._selection` too): the
         objective, or — ``"fallback"``, when none beats rejecting everything by ``FALLBACK_MARGIN``
         — the known accuracy with every frame kept."""
-        best = max(c.objective for c, *_ in choices)
-        if self.calibration == "strict" or best > REJECT_ALL_OBJECTIVE + FALLBACK_MARGIN:
+        if not self._falls_back(max(c.objective for c, *_ in choices)):
             return [c.objective for c, *_ in choices]
         return [known_acc(first) for _, first, known_acc in choices]
+
+    def _falls_back(self, objective: float, gate: float | None = None) -> bool:
+        """Whether the rule switches rejection off: ``"fallback"`` and neither the best ``objective``
+        nor its scorer's ``gate`` beats rejecting everything by ``FALLBACK_MARGIN``."""
+        best = min(objective, np.inf if gate is None else gate)
+        return self.calibration != "strict" and best <= REJECT_ALL_OBJECTIVE + FALLBACK_MARGIN
 
     def _rule(self, name: str, choices: list[tuple[Choice, float, Callable]], gate: float | None = None) -> Choice:
         """The calibration rule over a method's calibrated parameter sets: the best objective,
@@ -103,8 +108,7 @@ class InnerFoldCalibration:
         the best objective of the scorer the method rejects with (``rejects_with``), which must
         beat it too: the method's rejection is off wherever its scorer's is."""
         best = max(choices, key=lambda c: c[0].objective)[0]  # ties: the first
-        separable = min(best.objective, np.inf if gate is None else gate) > REJECT_ALL_OBJECTIVE + FALLBACK_MARGIN
-        if self.calibration == "strict" or separable:
+        if not self._falls_back(best.objective, gate):
             return best
         keep_all = [(known_acc(first), Choice(c.params, first, c.objective)) for c, first, known_acc in choices]
         accuracy, chosen = max(keep_all, key=lambda c: c[0])

@@ -47,6 +47,7 @@ from ..security.credentials import read_credentials, usrpwd_settings
 from ..testkit.harness import allocate_output, check_publish
 from . import forwarding
 from .drops import DropLedger
+from .live_params import NodeParams
 from .wakeup import wakeup_queue
 
 log = logging.getLogger("handflow.runner")
@@ -226,6 +227,7 @@ class GroupRuntime:
         self.set_up = False
         self.started = threading.Event()
         self._report_now = False  # the launcher asked for a heartbeat (keys.report_key)
+        self.live_params = NodeParams(self, node_ids, state_dir)  # before the slots: a restart's new values
         self.slots = [_NodeSlot(self, graph.nodes[nid], state_dir) for nid in node_ids]
         self._subs = []
         self._health_pubs = {
@@ -263,6 +265,7 @@ class GroupRuntime:
         else:
             self._subs.append(self.session.declare_subscriber(keys.start_key(g), lambda _: self.started.set()))
         self._subs.append(self.session.declare_subscriber(keys.report_key(g), self._on_report_request))
+        self.live_params.declare()
 
     def _on_report_request(self, _sample) -> None:
         self._report_now = True
@@ -355,6 +358,7 @@ class GroupRuntime:
             slot = self.slots[i]
             if self.lockstep:
                 self.virtual_ns = due
+            self.live_params.handling(slot.id, self.now_ns())
             try:
                 slot.node.tick()
             except Exception as exc:
@@ -378,6 +382,7 @@ class GroupRuntime:
         slot.note_seq(port, msg.header.seq)
         if self.lockstep:
             self.virtual_ns = max(self.virtual_ns, msg.header.stamp_ns)
+        self.live_params.handling(slot.id, msg.header.stamp_ns)
         slot.ctx.receiving(msg, None if att is None else payload)
         try:
             slot.node.on_message(port, msg)
@@ -416,6 +421,7 @@ class GroupRuntime:
             sub.undeclare()
         with self._lock:
             self._teardown_all()
+            self.live_params.close()
         if self.set_up:  # the last counters, after teardown's last outputs: the launcher's summary and its
             self._publish_health(STOPPED)  # drain (STOPPED); a node that never set up is not ready
         self.session.close()

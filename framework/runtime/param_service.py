@@ -29,7 +29,7 @@ from .live_params import save_override
 
 if TYPE_CHECKING:
     from ..graphs.model import Graph
-    from .launcher import Launcher, Unit
+    from .launcher import Launcher
 
 log = logging.getLogger("handflow.params")
 

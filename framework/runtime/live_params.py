@@ -7,7 +7,7 @@ Each node answers its launcher's requests (:mod:`.param_service`) on
 - ``set`` (``key``, ``value``, ``restart``): the value is validated by the plugin's ``Params`` model as at
   start; a live key is handed to :meth:`handflow.framework.plugin.Node.on_params` under the runtime's
   lock (never while another hook of the process runs); a key not marked live is refused with "needs a
-  restart", or with ``restart`` only checked, for the launcher to restart the node with it.
+  restart"; with ``restart`` any key is only checked, for the launcher to restart the node with it.
 
 An accepted change is kept in the run's state folder (``params-<node>.json``), so the node's next
 process (a restart, also after a crash) starts with it, and is published as a
@@ -30,6 +30,7 @@ from ..messages import Header, ParamChange
 
 if TYPE_CHECKING:
     from ..graphs.model import Graph
+    from ..plugin import Node
     from .runner import GroupRuntime
 
 log = logging.getLogger("handflow.params")
@@ -85,6 +86,24 @@ def validated(params: BaseModel, node: str, key: str, value: Any) -> BaseModel:
         raise ParamRefused(f"{node}.{key} = {json.dumps(value)} refused: {problems}") from None
 
 
+def take(node: Node, node_id: str, plugin: str, key: str, value: Any) -> BaseModel:
+    """Hand ``key = value`` to a running ``node`` (validated; :meth:`Node.on_params`) and return its old
+    params; :class:`ParamRefused` when the key is not live or the value fails, the old params kept."""
+    old = node.params
+    new = validated(old, node_id, key, value)
+    if key not in live_keys(type(old)):
+        raise ParamRefused(
+            f"{node_id}.{key} needs a restart: {plugin} does not take it while running "
+            f"(pass --restart to restart node '{node_id}' with it)"
+        )
+    try:
+        node.on_params(new, frozenset({key}))
+    except (ValueError, OSError) as exc:  # e.g. a calibration file that does not load
+        node.params = old
+        raise ParamRefused(f"{node_id}.{key} = {json.dumps(value)} refused by the node: {exc}") from None
+    return old
+
+
 def describe(params: BaseModel, plugin: str) -> dict[str, Any]:
     """A node's answer to ``get``: its params as JSON, its live keys, its plugin."""
     return {
@@ -138,20 +157,10 @@ class NodeParams:
             raise ParamRefused(f"unknown parameter request {op!r}: get or set", code=2)
         key, value = str(request["key"]), request.get("value")
         with self._rt._lock:
-            old = slot.node.params
-            new = validated(old, slot.id, key, value)
-            if key not in live_keys(type(old)):
-                if not request.get("restart"):
-                    raise ParamRefused(
-                        f"{slot.id}.{key} needs a restart: {slot.rn.spec.plugin} does not take it while running "
-                        f"(pass --restart to restart node '{slot.id}' with it)"
-                    )
+            if request.get("restart"):  # checked only: the launcher restarts the node with it
+                new = validated(slot.node.params, slot.id, key, value)
                 return {**describe(new, slot.rn.spec.plugin), "restart": True}
-            try:
-                slot.node.on_params(new, frozenset({key}))
-            except ValueError as exc:
-                slot.node.params = old
-                raise ParamRefused(f"{slot.id}.{key} = {json.dumps(value)} refused by the node: {exc}") from None
+            old = take(slot.node, slot.id, slot.rn.spec.plugin, key, value)
             slot.rn.params = slot.node.params
             applied = slot.node.params.model_dump(mode="json")
             save_override(self._state_dir, slot.id, key, applied[key])

@@ -150,9 +150,8 @@ class NodeParams:
     def handle(self, slot: Any, request: dict[str, Any]) -> dict[str, Any]:
         """Answer one request (``get`` or ``set``) for the node of ``slot``."""
         op = request.get("op")
-        if op == "get":
-            with self._rt._lock:
-                return describe(slot.node.params, slot.rn.spec.plugin)
+        if op == "get":  # params are replaced whole, never changed in place: no need to wait for the lock
+            return describe(slot.node.params, slot.rn.spec.plugin)
         if op != "set":
             raise ParamRefused(f"unknown parameter request {op!r}: get or set", code=2)
         key, value = str(request["key"]), request.get("value")
@@ -163,7 +162,6 @@ class NodeParams:
             old = take(slot.node, slot.id, slot.rn.spec.plugin, key, value)
             slot.rn.params = slot.node.params
             applied = slot.node.params.model_dump(mode="json")
-            save_override(self._state_dir, slot.id, key, applied[key])
             change = ParamChange(
                 node=slot.id,
                 key=key,
@@ -171,6 +169,7 @@ class NodeParams:
                 previous=json.dumps(old.model_dump(mode="json")[key]),
             )
             self._pending.setdefault(slot.id, []).append(change)
+        save_override(self._state_dir, slot.id, key, applied[key])
         slot.ctx.log.info("%s = %s (was %s)", key, change.value, change.previous)
         return describe(slot.node.params, slot.rn.spec.plugin)
 

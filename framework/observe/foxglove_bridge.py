@@ -6,6 +6,7 @@ and on a recording (docs/foxglove.md).  The CDR payloads are forwarded as receiv
 them itself (``sensor_msgs/Image`` in the Image panel, ``position[3]`` of a joint state in a Plot).
 Runtime-internal topics (``_progress``, ``_clock``) are skipped; heartbeats (``_health``) and runtime
 events are shown.  Payloads that are not valid messages are not forwarded (docs/robustness.md).
+For one graph, the server also offers Foxglove's Parameters capability (:mod:`.foxglove_params`).
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ except ImportError:
 
 from .. import wire
 from ..keys import PREFIX, ros_name
-from ..messages import MessageError
+from ..messages import MessageError, ParamChange
 from ..ros2.types import ros_type, schema_text
 
 log = logging.getLogger("handflow.foxglove")
@@ -36,12 +37,15 @@ class PortInUse(BridgeError):
     """The Foxglove port is taken by another program."""
 
 
-def start_bridge(session: zenoh.Session, graph: str | list[str], host: str, port: int) -> FoxgloveBridge:
-    """A running bridge, or :class:`BridgeError` with what to do."""
+def start_bridge(
+    session: zenoh.Session, graph: str | list[str], host: str, port: int, params_as: str | None = None
+) -> FoxgloveBridge:
+    """A running bridge, or :class:`BridgeError` with what to do; ``params_as``: offer the graph's parameters
+    (one graph), asking the launcher as this certificate name (``local`` on the graph's own host)."""
     if foxglove is None:
         raise BridgeError("the Foxglove live view needs foxglove-sdk: pip install 'handflow[foxglove]'")
     try:
-        return FoxgloveBridge(session, graph, host, port)
+        return FoxgloveBridge(session, graph, host, port, params_as)
     except Exception as exc:  # foxglove-sdk reports bind failures as a generic error
         if "in use" in str(exc).lower() or "address" in str(exc).lower():
             raise PortInUse(
@@ -56,12 +60,26 @@ class FoxgloveBridge:
     WebSocket server."""
 
     def __init__(
-        self, session: zenoh.Session, graph: str | list[str] = "*", host: str = "127.0.0.1", port: int = 8765
+        self,
+        session: zenoh.Session,
+        graph: str | list[str] = "*",
+        host: str = "127.0.0.1",
+        port: int = 8765,
+        params_as: str | None = None,
     ) -> None:
         graphs = [graph] if isinstance(graph, str) else graph
         self.context = foxglove.Context()
         name = f"handflow {', '.join(graphs)}"
-        self.server = foxglove.start_server(name=name, host=host, port=port, context=self.context)
+        self.params = None
+        options: dict = {}
+        if params_as is not None and len(graphs) == 1:
+            from .foxglove_params import ParamsListener
+
+            self.params = ParamsListener(session, graphs[0], params_as)
+            options = {"capabilities": [foxglove.Capability.Parameters], "server_listener": self.params}
+        self.server = foxglove.start_server(name=name, host=host, port=port, context=self.context, **options)
+        if self.params is not None:
+            self.params.server = self.server
         self.port = self.server.port
         self._channels: dict[tuple[str, str], foxglove.Channel] = {}  # (topic, type)
         self._lock = threading.Lock()
@@ -79,6 +97,8 @@ class FoxgloveBridge:
                 payload, att = wire.pack(msg)
         except MessageError:
             return
+        if self.params is not None and isinstance(msg, ParamChange):
+            self.params.changed(msg)
         with self._lock:
             channel = self._channels.get((key, msg.TYPE))
             if channel is None:

@@ -65,7 +65,7 @@ def run(args: argparse.Namespace) -> int:
         if status is not None:
             status.attach(launcher.session)
         if fox is not None:
-            bridge = start_bridge(launcher.session, graph.name, fox.host, fox.port, params_as=LOCAL)
+            bridge = start_bridge(launcher.session, graph.name, fox.host, fox.port, params_as=LOCAL, spec=graph)
         if record_path:
             from ..recorder.graph_recorder import GraphRecorder
 

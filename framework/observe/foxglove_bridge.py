@@ -6,13 +6,15 @@ and on a recording (docs/foxglove.md).  The CDR payloads are forwarded as receiv
 them itself (``sensor_msgs/Image`` in the Image panel, ``position[3]`` of a joint state in a Plot).
 Runtime-internal topics (``_progress``, ``_clock``) are skipped; heartbeats (``_health``) and runtime
 events are shown.  Payloads that are not valid messages are not forwarded (docs/robustness.md).
-For one graph, the server also offers Foxglove's Parameters capability (:mod:`.foxglove_params`).
+For one graph, the server also offers Foxglove's Parameters capability (:mod:`.foxglove_params`), and
+given the graph file the ConnectionGraph capability (:mod:`.foxglove_graph`).
 """
 
 from __future__ import annotations
 
 import logging
 import threading
+from typing import TYPE_CHECKING
 
 import zenoh
 
@@ -26,6 +28,9 @@ from ..keys import PREFIX, ros_name
 from ..messages import MessageError, ParamChange
 from ..ros2.types import ros_type, schema_text
 
+if TYPE_CHECKING:
+    from ..graphs.model import Graph
+
 log = logging.getLogger("handflow.foxglove")
 
 
@@ -38,14 +43,20 @@ class PortInUse(BridgeError):
 
 
 def start_bridge(
-    session: zenoh.Session, graph: str | list[str], host: str, port: int, params_as: str | None = None
+    session: zenoh.Session,
+    graph: str | list[str],
+    host: str,
+    port: int,
+    params_as: str | None = None,
+    spec: Graph | None = None,
 ) -> FoxgloveBridge:
     """A running bridge, or :class:`BridgeError` with what to do; ``params_as``: offer the graph's parameters
-    (one graph), asking the launcher as this certificate name (``local`` on the graph's own host)."""
+    (one graph), asking the launcher as this certificate name (``local`` on the graph's own host);
+    ``spec``: the loaded graph, shown in Foxglove's Topic Graph panel."""
     if foxglove is None:
         raise BridgeError("the Foxglove live view needs foxglove-sdk: pip install 'handflow[foxglove]'")
     try:
-        return FoxgloveBridge(session, graph, host, port, params_as)
+        return FoxgloveBridge(session, graph, host, port, params_as, spec)
     except Exception as exc:  # foxglove-sdk reports bind failures as a generic error
         if "in use" in str(exc).lower() or "address" in str(exc).lower():
             raise PortInUse(
@@ -66,20 +77,30 @@ class FoxgloveBridge:
         host: str = "127.0.0.1",
         port: int = 8765,
         params_as: str | None = None,
+        spec: Graph | None = None,
     ) -> None:
         graphs = [graph] if isinstance(graph, str) else graph
         self.context = foxglove.Context()
         name = f"handflow {', '.join(graphs)}"
         self.params = None
-        options: dict = {}
+        capabilities, options = [], {}
         if params_as is not None and len(graphs) == 1:
             from .foxglove_params import ParamsListener
 
             self.params = ParamsListener(session, graphs[0], params_as)
-            options = {"capabilities": [foxglove.Capability.Parameters], "server_listener": self.params}
-        self.server = foxglove.start_server(name=name, host=host, port=port, context=self.context, **options)
+            capabilities.append(foxglove.Capability.Parameters)
+            options["server_listener"] = self.params
+        if spec is not None:
+            capabilities.append(foxglove.Capability.ConnectionGraph)
+        self.server = foxglove.start_server(
+            name=name, host=host, port=port, context=self.context, capabilities=capabilities, **options
+        )
         if self.params is not None:
             self.params.server = self.server
+        if spec is not None:  # a client that subscribes later receives the current graph
+            from .foxglove_graph import connection_graph
+
+            self.server.publish_connection_graph(connection_graph(spec))
         self.port = self.server.port
         self._channels: dict[tuple[str, str], foxglove.Channel] = {}  # (topic, type)
         self._lock = threading.Lock()

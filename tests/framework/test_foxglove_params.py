@@ -119,3 +119,44 @@ def check_parameters_panel(fox: FoxgloveClient, cli: list[str], env: dict) -> No
     subprocess.run([*cli, "param", "set", "scale.gain", "4.5"], env=env, check=True, capture_output=True)
     update = fox.next("parameterValues")  # a change made elsewhere reaches the subscribed panel
     assert {p["name"]: p["value"] for p in update["parameters"]} == {"/scale/gain": 4.5}
+
+
+def test_topic_graph_shows_every_hosts_nodes_and_edges(tmp_path):
+    """Foxglove's Topic Graph panel (ConnectionGraph) on the launcher of host a of a two-host graph."""
+    graph = tmp_path / "g.yaml"
+    graph.write_text(
+        "name: fxg\nexternal: {glove/raw: Array}\nnodes:\n"
+        "  - {id: source, plugin: basic.signal, host: a, params: {rate_hz: 20}}\n"
+        "  - {id: scale, plugin: basic.transform, host: b, inputs: {in: source/out}}\n"
+        "  - {id: sink, plugin: basic.sink, host: a, inputs: {in: scale/out}}\n"
+        "  - {id: raw, plugin: basic.sink, host: a, inputs: {in: glove/raw}}\n"
+    )
+    port = free_tcp_port()
+    run = subprocess.Popen(
+        [sys.executable, "-m", "handflow.framework.cli", "run", str(graph), "--host", "a"]
+        + ["--duration", "20", "--foxglove", str(port)],
+        cwd=REPO,
+        env=dict(os.environ, HANDFLOW_RUN_DIR=str(tmp_path / "runs")),
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        with FoxgloveClient(port) as fox:
+            assert "connectionGraph" in fox.server_info["capabilities"]
+            fox.send(op="subscribeConnectionGraph")
+            update = fox.next("connectionGraphUpdate")
+    finally:
+        run.terminate()
+        _, err = run.communicate(timeout=60)
+    assert run.returncode == 0, err
+    published = {t["name"]: t["publisherIds"] for t in update["publishedTopics"]}
+    subscribed = {t["name"]: t["subscriberIds"] for t in update["subscribedTopics"]}
+    assert published == {
+        "/handflow/fxg/source/out": ["a/source"],
+        "/handflow/fxg/scale/out": ["b/scale"],  # a node of the other host
+    }
+    assert subscribed == {
+        "/handflow/fxg/source/out": ["b/scale"],
+        "/handflow/fxg/scale/out": ["a/sink"],
+        "/handflow/fxg/glove/raw": ["a/raw"],  # fed from outside the graph: no publisher
+    }

@@ -14,6 +14,7 @@ from ..files.mcap_reader import ReadReport, iter_recording
 from ..files.mcap_writer import RecordingError
 from ..graphs.model import Graph, GraphError, load_graph
 from ..recorder.graph_recorder import GraphRecorder
+from ..recorder.param_replay import RecordedChanges, read_changes
 from ..recorder.replay import (
     GraphWatcher,
     LockstepReplayer,
@@ -46,6 +47,11 @@ def register(parser: argparse.ArgumentParser) -> None:
         "--lockstep",
         action="store_true",
         help="with --into: virtual time, each message fully processed before the next (deterministic)",
+    )
+    parser.add_argument(
+        "--no-param-changes",
+        action="store_true",
+        help="with --lockstep: do not apply the parameter changes the recording holds (docs/tuning.md)",
     )
     parser.add_argument(
         "--record",
@@ -185,7 +191,8 @@ def _replay_into(args: argparse.Namespace, recorded: str | None, stop: threading
             replayer = LockstepReplayer(
                 launcher.session, graph, graph.nodes, watcher, step_timeout_s=args.step_timeout, stop=stop, poll=poll
             )
-            work = lambda: replayer.run(plan)  # noqa: E731
+            changes = None if args.no_param_changes else _recorded_changes(args.file, recorded, launcher, graph)
+            work = lambda: replayer.run(plan, changes)  # noqa: E731
         else:
             timed = TimedReplayer(launcher.session, plan, speed=args.speed, loop=args.loop, stop=stop)
             timed.pubs.prepare([keys.topic_key(graph.name, *s.split("/", 1)) for s in sources], args.ready_timeout)
@@ -215,6 +222,21 @@ def _replay_into(args: argparse.Namespace, recorded: str | None, stop: threading
             file=sys.stderr,
         )
     return 0
+
+
+def _recorded_changes(path: str, recorded: str | None, launcher: Launcher, graph: Graph) -> RecordedChanges | None:
+    """The recording's parameter changes, to apply in lock-step (docs/tuning.md); restarts are reported."""
+    live, restarts = read_changes(path, recorded) if recorded else ([], [])
+    for change in restarts:
+        log.warning(
+            "not applied: %s.%s = %s was set with a restart (a replay restarts no node)",
+            change.node,
+            change.key,
+            change.value,
+        )
+    if live:
+        log.info("applying %d recorded parameter change(s) at their stamps", len(live))
+    return RecordedChanges(launcher.session, graph, live) if live else None
 
 
 def _capture(work, result: dict[str, object]) -> None:

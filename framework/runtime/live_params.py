@@ -9,6 +9,10 @@ Each node answers its launcher's requests (:mod:`.param_service`) on
   lock (never while another hook of the process runs); a key not marked live is refused with "needs a
   restart"; with ``restart`` any key is only checked, for the launcher to restart the node with it.
 
+Requests arrive on a Zenoh session of their own, so they do not queue behind the data the node's
+session is busy delivering (a segmenter fed 40 frames a second answered a request only after
+seconds on the shared link); a ``set`` waits at most for the hook running at that moment.
+
 An accepted change is kept in the run's state folder (``params-<node>.json``), so the node's next
 process (a restart, also after a crash) starts with it, and is published as a
 :class:`~handflow.framework.messages.ParamChange` on ``handflow/<graph>/_params/changes`` stamped with
@@ -19,6 +23,7 @@ from __future__ import annotations
 
 import json
 import logging
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -117,9 +122,13 @@ def describe(params: BaseModel, plugin: str) -> dict[str, Any]:
 class NodeParams:
     """The parameter service of one node process (see the module docstring)."""
 
-    def __init__(self, rt: GroupRuntime, node_ids: list[str], state_dir: Path | None) -> None:
+    def __init__(
+        self, rt: GroupRuntime, node_ids: list[str], state_dir: Path | None, open_session: Callable[[], Any]
+    ) -> None:
         self._rt = rt
         self._state_dir = state_dir
+        self._open_session = open_session
+        self._session = None
         self._pending: dict[str, list[ParamChange]] = {}
         self._seq = 0
         self._queryables: list[Any] = []
@@ -130,9 +139,10 @@ class NodeParams:
         """Answer requests (once the nodes are set up)."""
         g = self._rt.graph.name
         self._pub = self._rt.session.declare_publisher(keys.params_key(g))
+        self._session = self._open_session()
         for slot in self._rt.slots:
             self._queryables.append(
-                self._rt.session.declare_queryable(
+                self._session.declare_queryable(
                     keys.node_params_key(g, slot.id), lambda query, s=slot: self._on_query(s, query)
                 )
             )
@@ -192,5 +202,7 @@ class NodeParams:
             self.handling(node, self._rt.now_ns())
         for queryable in self._queryables:
             queryable.undeclare()
+        if self._session is not None:
+            self._session.close()
         if self._pub is not None:
             self._pub.undeclare()

@@ -218,7 +218,8 @@ class GroupRuntime:
         self.stop_requested = False
         self.closed = False  # inputs are no longer handled (after the stop's settling)
         self._last_input = 0.0  # monotonic time of the last input handled
-        self.session = transport.open_node_session(graph.spec.zenoh, hub, _login(graph, user))
+        login = _login(graph, user)
+        self.session = transport.open_node_session(graph.spec.zenoh, hub, login)
         self.shared = SharedPayloads(graph.spec.zenoh.shared_memory)
         self.inbox = wakeup_queue()  # lock-step clock events; None wakes the loop
         self._lock = threading.Lock()
@@ -227,7 +228,9 @@ class GroupRuntime:
         self.set_up = False
         self.started = threading.Event()
         self._report_now = False  # the launcher asked for a heartbeat (keys.report_key)
-        self.live_params = NodeParams(self, node_ids, state_dir)  # before the slots: a restart's new values
+        self.live_params = NodeParams(  # before the slots: a restart's new values
+            self, node_ids, state_dir, lambda: transport.open_node_session(graph.spec.zenoh, hub, login)
+        )
         self.slots = [_NodeSlot(self, graph.nodes[nid], state_dir) for nid in node_ids]
         self._subs = []
         self._health_pubs = {

@@ -8,8 +8,8 @@ from handflow.framework.plugin import Node
 
 
 class GainOffsetParams(StrictModel):
-    gain: float = live(1.0, description="factor applied to every value (live: `handflow param set`)")
-    offset: float = live(0.0, description="added after the gain (live)")
+    gain: float = live(1.0, description="factor applied to every value")
+    offset: float = live(0.0, description="added after the gain")
 
 
 class GainOffset(Node):

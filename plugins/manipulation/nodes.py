@@ -43,7 +43,7 @@ class _ControllerParams(StrictModel):
         description="manifold file (.npz, from `handflow train`), relative to the graph"
     )
     rate_hz: float = Field(30.0, gt=0, description="control rate (one command per tick)")
-    delta: float = live(0.02, gt=0, description="latent time step per control tick (speed; live)")
+    delta: float = live(0.02, gt=0, description="latent time step per control tick (speed)")
     safe_posture: dict[str, float] = Field(
         default_factory=dict, description="joint overrides of the open-hand fail-safe posture"
     )
@@ -130,7 +130,7 @@ class FeedbackInitParams(_ControllerParams):
         description="navigation: grasp by closing along the radius (5.5.2); grasp: "
         "project the posture on input 'grasp' (5.5.1)",
     )
-    radius_step: float = live(0.01, gt=0, description="latent radius per tick while closing (live)")
+    radius_step: float = live(0.01, gt=0, description="latent radius per tick while closing")
     required_fingers: list[str] = Field(
         default_factory=lambda: ["TH", "FF", "MF"], description="segment-name prefixes that must touch"
     )
@@ -199,7 +199,7 @@ class FeedbackInitNode(_ManifoldController):
 
 
 class ClosedLoopParams(_ControllerParams):
-    k: int = live(5, ge=1, description="planned steps per observation (horizon k·delta; live)")
+    k: int = live(5, ge=1, description="planned steps per observation (horizon k·delta)")
     mask: Literal[MASKS] = Field("ball1", description="partial projection on ball-1 dims (thesis) or both balls")
     tolerance: float = Field(
         0.05,

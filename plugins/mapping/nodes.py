@@ -35,7 +35,8 @@ class HumanHandMappingNode(Node):
     class Params(StrictModel):
         profile: Annotated[str, InputPath(what="glove profile", check=load_profile)] = str(DEFAULT_PROFILE)
         calibration: Annotated[str, InputPath(what="session calibration", check=load_calibration)] = live(
-            str(DEFAULT_CALIBRATION), description="session calibration file (live: `handflow calibrate` anew, then set)"
+            str(DEFAULT_CALIBRATION),
+            description="session calibration file (after `handflow calibrate`, set it while running)",
         )
         handedness: Literal["right", "left"] = "right"
 

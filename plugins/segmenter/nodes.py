@@ -144,18 +144,18 @@ class OnlineCLMNode(_RecognizerNode):
             "intensity: gentler or more vigorous than their training) is rejected",
         )
         novelty: float = live(
-            0.25, gt=0, description="novelty weight < 1 beyond 1/novelty times a manifold's own typical error (live)"
+            0.25, gt=0, description="novelty weight < 1 beyond 1/novelty times a manifold's own typical error"
         )
         distance_z: float | None = live(
             None,
             description="source minirocket: scale the evidence down where the window's features lie beyond this "
-            "robust z-score from every training window (docs/segmentation.md, feature novelty; null = off; live)",
+            "robust z-score from every training window (docs/segmentation.md, feature novelty; null = off)",
         )
         window: int = Field(200, ge=2, description="observations in the sliding window")
         background_factor: float | None = live(
             None,
             ge=0,
-            description="multiplies λ_bg (3 = strong background; 0 = none; live); null = the level `train-classes` "
+            description="multiplies λ_bg (3 = strong background; 0 = none); null = the level `train-classes` "
             "calibrated for the models (source ukr), the null class of null_score (source minirocket/dtw, when "
             "there is one and neither novelty_models nor distance_z is set), else 1",
         )
@@ -410,7 +410,7 @@ class UKROnlyNode(_RecognizerNode):
         lam: float = Field(0.3, ge=0, le=1, description="λ: weight of C_rec")
         gamma: float = Field(0.9, ge=0, le=1, description="γ: history discount")
         order_rating: Literal["cos", "sign"] = "cos"
-        threshold: float | None = live(None, description="reject when max C < threshold (live)")
+        threshold: float | None = live(None, description="reject when max C < threshold")
 
     def setup(self) -> None:
         p = self.params

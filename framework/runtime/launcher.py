@@ -7,7 +7,8 @@ setup with the same error as the one before, is a crash loop, reported with the 
 lines, after which it stays down), publishes every restart and crash loop as a
 :class:`RuntimeEvent`, and on Ctrl-C, SIGTERM or the end of ``--duration`` stops the units
 upstream first, each once the units it feeds have drained (their teardown runs; see
-:meth:`Launcher.stop`), and reports which nodes failed and why (docs/reliability.md).
+:meth:`Launcher.stop`), and reports which nodes failed and why (docs/reliability.md).  It also
+serves ``handflow param`` for its nodes (:mod:`.param_service`, docs/tuning.md).
 """
 
 from __future__ import annotations

@@ -130,7 +130,6 @@ class NodeParams:
         self._open_session = open_session
         self._session = None
         self._pending: dict[str, list[ParamChange]] = {}
-        self._seq = 0
         self._queryables: list[Any] = []
         self._pub = None
         apply_overrides(rt.graph, node_ids, state_dir)
@@ -191,8 +190,7 @@ class NodeParams:
                 self._publish(change, stamp_ns)
 
     def _publish(self, change: ParamChange, stamp_ns: int) -> None:
-        self._seq += 1
-        change.header = Header(change.node, self._seq, stamp_ns)
+        change.header = Header(change.node, 0, stamp_ns)  # seq 0: several processes publish on the topic
         payload, att = wire.pack(change)
         self._pub.put(payload, attachment=att)
 

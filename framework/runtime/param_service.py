@@ -56,7 +56,6 @@ class ParamService:
         self._graph = launcher.graph.name
         self._setters = setters(launcher.graph)
         self._changes = self._session.declare_publisher(keys.params_key(self._graph))
-        self._seq = 0
         self._work: queue.SimpleQueue = queue.SimpleQueue()  # answered in order, off Zenoh's threads
         self._worker = threading.Thread(target=self._serve, name="param-service", daemon=True)
         self._worker.start()
@@ -127,8 +126,7 @@ class ParamService:
         return reply
 
     def _publish(self, change: ParamChange) -> None:
-        self._seq += 1
-        change.header = Header("_launcher", self._seq, time.time_ns())
+        change.header = Header("_launcher", 0, time.time_ns())  # seq 0: the nodes publish on the topic too
         payload, att = wire.pack(change)
         self._changes.put(payload, attachment=att)
 

@@ -14,6 +14,10 @@ type, or that makes ``on_message`` raise :class:`MessageError`, is dropped, coun
 (``dropped.<port>`` in the heartbeat), logged at a limited rate and reported as a ``dropped``
 :class:`RuntimeEvent` on ``handflow/<graph>/_runtime/events``; the node keeps running.
 
+Live parameters (docs/tuning.md): each node answers its launcher's parameter requests
+(:mod:`.live_params`) on a session of its own and takes a new value through ``Node.on_params``
+under the same lock.
+
 Lock-step mode (``--lockstep``): no wall-clock ticks; the replayer publishes the virtual time on
 ``_clock``, nodes run the ticks due up to it and report their per-port counters on ``_progress``
 after every event, so the replayer can release the next message only when the graph is quiet.

@@ -44,6 +44,17 @@ def show(value: Any) -> str:
     return value if isinstance(value, str) else json.dumps(value)
 
 
+def scalar(text: str) -> Any:
+    """VALUE read as a YAML scalar (``3``, ``0.5``, ``null``, ``[1, 2]``); text that YAML reads as something
+    JSON cannot carry (a date) or cannot read at all stays the text itself."""
+    try:
+        value = yaml.safe_load(text)
+        json.dumps(value)
+    except (yaml.YAMLError, TypeError, ValueError):
+        return text
+    return value
+
+
 def _request(args: argparse.Namespace) -> tuple[str, str, dict[str, Any]] | str:
     """(node or ``*``, key, request), or what is wrong with the arguments."""
     node, _, key = (args.target or "").partition(".")
@@ -55,11 +66,7 @@ def _request(args: argparse.Namespace) -> tuple[str, str, dict[str, Any]] | str:
         return node, key, {"op": "get"}
     if not key or args.value is None:
         return "param set needs NODE.KEY VALUE, e.g. `handflow param set scale.gain 3`"
-    try:
-        value = yaml.safe_load(args.value)
-    except yaml.YAMLError:
-        value = args.value
-    return node, key, {"op": "set", "key": key, "value": value, "restart": args.restart}
+    return node, key, {"op": "set", "key": key, "value": scalar(args.value), "restart": args.restart}
 
 
 def run(args: argparse.Namespace) -> int:

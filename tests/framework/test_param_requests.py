@@ -126,3 +126,27 @@ def test_the_nodes_next_process_starts_with_the_values_set_while_running(runtime
         assert again.slots[0].node.params.offset == 0.25
     finally:
         again.session.close()
+
+
+@settings(max_examples=500, deadline=None)
+@given(text=st.text(max_size=30) | st.dates().map(str))
+def test_any_command_line_value_becomes_a_value_json_carries(text):
+    """`handflow param set N.K VALUE`: VALUE from the command line is read as YAML, and what the request
+    carries is always JSON; a date (which JSON cannot carry) or unreadable YAML stays the text."""
+    from handflow.framework.commands.param import scalar
+
+    json.dumps(scalar(text))
+
+
+def test_command_line_values_are_yaml_scalars():
+    from handflow.framework.commands.param import scalar
+
+    assert [scalar(t) for t in ("3", "0.5", "null", "sine", "[1, 2]", "2026-11-28", "a: [")] == [
+        3,
+        0.5,
+        None,
+        "sine",
+        [1, 2],
+        "2026-11-28",
+        "a: [",
+    ]

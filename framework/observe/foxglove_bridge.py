@@ -30,6 +30,7 @@ from ..ros2.types import ros_type, schema_text
 
 if TYPE_CHECKING:
     from ..graphs.model import Graph
+    from ..recorder.playback import Playback
 
 log = logging.getLogger("handflow.foxglove")
 
@@ -49,14 +50,16 @@ def start_bridge(
     port: int,
     params_as: str | None = None,
     spec: Graph | None = None,
+    playback: Playback | None = None,
 ) -> FoxgloveBridge:
     """A running bridge, or :class:`BridgeError` with what to do; ``params_as``: offer the graph's parameters
     (one graph), asking the launcher as this certificate name (``local`` on the graph's own host);
-    ``spec``: the loaded graph, shown in Foxglove's Topic Graph panel."""
+    ``spec``: the loaded graph, shown in Foxglove's Topic Graph panel; ``playback``: a replay driven from
+    Foxglove's playback bar (:mod:`handflow.framework.recorder.playback`)."""
     if foxglove is None:
         raise BridgeError("the Foxglove live view needs foxglove-sdk: pip install 'handflow[foxglove]'")
     try:
-        return FoxgloveBridge(session, graph, host, port, params_as, spec)
+        return FoxgloveBridge(session, graph, host, port, params_as, spec, playback)
     except Exception as exc:  # foxglove-sdk reports bind failures as a generic error
         if "in use" in str(exc).lower() or "address" in str(exc).lower():
             raise PortInUse(
@@ -78,6 +81,7 @@ class FoxgloveBridge:
         port: int = 8765,
         params_as: str | None = None,
         spec: Graph | None = None,
+        playback: Playback | None = None,
     ) -> None:
         graphs = [graph] if isinstance(graph, str) else graph
         self.context = foxglove.Context()
@@ -92,6 +96,12 @@ class FoxgloveBridge:
             options["server_listener"] = self.params
         if spec is not None:
             capabilities.append(foxglove.Capability.ConnectionGraph)
+        if playback is not None:
+            from ..recorder.playback import PlaybackListener
+
+            capabilities += [foxglove.Capability.PlaybackControl, foxglove.Capability.Time]
+            options["server_listener"] = PlaybackListener(playback)
+            options["playback_time_range"] = (playback.start_ns, playback.end_ns)
         self.server = foxglove.start_server(
             name=name, host=host, port=port, context=self.context, capabilities=capabilities, **options
         )

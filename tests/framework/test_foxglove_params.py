@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import json
 import os
+import signal
+import struct
 import subprocess
 import sys
 import time
@@ -13,6 +15,8 @@ from pathlib import Path
 import pytest
 from websockets.sync.client import connect
 
+from handflow.framework.files.mcap_writer import McapWriter
+from handflow.framework.messages import Array, Header
 from handflow.framework.network.sessions import free_tcp_port
 
 pytest.importorskip("foxglove")
@@ -59,6 +63,18 @@ class FoxgloveClient:
                 if msg.get("op") == op and all(msg.get(k) == v for k, v in match.items()):
                     return msg
         raise AssertionError(f"no {op} {match} within {timeout}s")
+
+    def binary(self, opcode: int, seconds: float) -> list[bytes]:
+        """The binary frames with ``opcode`` received within ``seconds`` (message data 1, playback state 5)."""
+        frames, deadline = [], time.time() + seconds
+        while (left := deadline - time.time()) > 0:
+            try:
+                frame = self.ws.recv(timeout=left)
+            except TimeoutError:
+                break
+            if isinstance(frame, bytes) and frame[0] == opcode:
+                frames.append(frame)
+        return frames
 
     def values(self, **request) -> dict[str, object]:
         msg = self.next("parameterValues", id=request.get("id"))
@@ -160,3 +176,75 @@ def test_topic_graph_shows_every_hosts_nodes_and_edges(tmp_path):
         "/handflow/fxg/scale/out": ["a/sink"],
         "/handflow/fxg/glove/raw": ["a/raw"],  # fed from outside the graph: no publisher
     }
+
+
+def _playback_request(command: int, speed: float, seek_ns: int | None, request_id: str) -> bytes:
+    """Foxglove's binary PlaybackControlRequest (opcode 3): command (0 play, 1 pause), speed, seek, id."""
+    head = struct.pack("<BBfB", 3, command, speed, seek_ns is not None) + struct.pack("<Q", seek_ns or 0)
+    return head + struct.pack("<I", len(request_id)) + request_id.encode()
+
+
+def _playback_state(frame: bytes) -> dict:
+    """The server's binary PlaybackState (opcode 5)."""
+    status, current, speed, did_seek, n = struct.unpack_from("<BQfBI", frame, 1)
+    return {"status": status, "time": current, "speed": speed, "did_seek": bool(did_seek), "id": frame[19 : 19 + n]}
+
+
+def test_replay_is_driven_from_the_playback_bar(tmp_path):
+    """`handflow replay F.mcap --into G.yaml --foxglove`: pause, seek and speed from a real Foxglove client;
+    the replayed topic and the graph's node follow."""
+    start = 1_700_000_000_000_000_000
+    with McapWriter(tmp_path / "take.mcap") as writer:
+        for i in range(1000):  # 20 s at 50 Hz, data = the index
+            msg = Array(data=[float(i)])
+            msg.header = Header("source", i + 1, start + i * 20_000_000)
+            writer.write("handflow/pb/source/out", msg, log_time_ns=msg.header.stamp_ns)
+    graph = tmp_path / "g.yaml"
+    graph.write_text(
+        "name: pb\nexternal: {source/out: Array}\nnodes:\n  - id: sink\n    plugin: basic.sink\n"
+        f"    params: {{jsonl: {tmp_path / 'sink.jsonl'}}}\n    inputs: {{in: source/out}}\n"
+    )
+    port = free_tcp_port()
+    replay = subprocess.Popen(
+        [sys.executable, "-m", "handflow.framework.cli", "replay", str(tmp_path / "take.mcap"), "--into", str(graph)]
+        + ["--foxglove", str(port)],
+        cwd=REPO,
+        env=dict(os.environ, HANDFLOW_RUN_DIR=str(tmp_path / "runs")),
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        with FoxgloveClient(port) as fox:
+            assert "playbackControl" in fox.server_info["capabilities"]
+            channel = None
+            while channel is None:  # the sink's heartbeat may be advertised first
+                advertised = fox.next("advertise")["channels"]
+                channel = next((c for c in advertised if c["topic"] == "/handflow/pb/source/out"), None)
+            fox.send(op="subscribe", subscriptions=[{"id": 7, "channelId": channel["id"]}])
+            playing = len(fox.binary(opcode=1, seconds=1.0))
+            fox.ws.send(_playback_request(1, 1.0, None, "pause"))
+            paused = fox.binary(opcode=5, seconds=0.5)
+            held = len(fox.binary(opcode=1, seconds=1.0))
+            seek = start + 12 * 10**9  # message 600
+            fox.ws.send(_playback_request(0, 4.0, seek, "seek"))
+            state = _playback_state(fox.binary(opcode=5, seconds=0.5)[0])
+            fast = len(fox.binary(opcode=1, seconds=1.0))
+    finally:
+        replay.send_signal(signal.SIGINT)
+        _, err = replay.communicate(timeout=60)
+    assert replay.returncode == 0, err
+    assert 30 <= playing <= 70  # 50 Hz
+    assert _playback_state(paused[0]) | {"time": 0} == {
+        "status": 1,
+        "time": 0,
+        "speed": 1.0,
+        "did_seek": False,
+        "id": b"pause",
+    }
+    assert held <= 2  # paused: nothing more (a message in flight at most)
+    assert (state["status"], state["did_seek"], state["speed"]) == (0, True, 4.0)
+    assert seek <= state["time"] < seek + 10**8  # the target (playing on from it)
+    assert 130 <= fast <= 250  # 4× speed: 200 a second
+    handled = [json.loads(line)["msg"]["data"][0] for line in (tmp_path / "sink.jsonl").read_text().splitlines()]
+    jump = next(i for i in range(1, len(handled)) if handled[i] != handled[i - 1] + 1)
+    assert handled[jump] == 600.0 and handled[:jump] == list(range(jump))  # the graph's node followed the seek

@@ -31,6 +31,22 @@ def events_key(graph: str) -> str:
     return f"{PREFIX}/{graph}/_runtime/events"
 
 
+def params_key(graph: str) -> str:
+    """The graph's parameter topic: every accepted change as a ParamChange (docs/tuning.md)."""
+    return f"{PREFIX}/{graph}/_params/changes"
+
+
+def node_params_key(graph: str, node: str) -> str:
+    """Where a node process answers its launcher's parameter requests (docs/tuning.md)."""
+    return topic_key(graph, node, "_params")
+
+
+def param_request_key(graph: str, who: str, node: str) -> str:
+    """Where a launcher answers ``handflow param`` for ``node`` (``*``: every node); ``who`` is the
+    asker's certificate name in a TLS graph (the hub's access control holds it to its own), else ``local``."""
+    return f"{PREFIX}/{graph}/_params/{who}/{node}"
+
+
 def ros_name(key: str) -> str:
     """The ROS 2 topic name of a Zenoh key: a leading ``/`` (recordings and the live view, docs/recording.md)."""
     return key if key.startswith("/") else "/" + key

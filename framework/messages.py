@@ -582,6 +582,23 @@ class RuntimeEvent(Message):
             raise MessageError(f"kind must be one of {', '.join(EVENT_KINDS)}, got {self.kind!r}")
 
 
+@dataclass
+class ParamChange(Message):
+    """A parameter change a running node accepted, on ``handflow/<graph>/_params/changes`` and recorded.
+
+    ``value`` and ``previous`` are JSON texts; the header's source is the node, its stamp the one of the
+    first input (or tick) the node handled with the new value, so lock-step replay can apply it at the
+    same point (docs/tuning.md).  ``restart``: the node was restarted to take it.
+    """
+
+    TYPE: ClassVar[str] = "handflow.ParamChange"
+    node: str = ""
+    key: str = ""
+    value: str = "null"
+    previous: str = "null"
+    restart: bool = False
+
+
 # --------------------------------------------------------------------------------------------
 # Codec
 # --------------------------------------------------------------------------------------------

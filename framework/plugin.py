@@ -1,7 +1,8 @@
 """The plugin base class every node derives from (docs/architecture.md).
 
 A plugin declares typed input and output ports, a pydantic ``Params`` model, and any of the hooks
-``setup`` / ``on_message`` / ``tick`` / ``teardown``.  The runtime never runs two hooks of a node
+``setup`` / ``on_message`` / ``tick`` / ``teardown`` (and ``on_params`` for parameters it takes while
+running, docs/tuning.md).  The runtime never runs two hooks of a node
 (or of nodes sharing a process) at the same time, so a node never needs locks.  Everything the node may do to the outside world goes through its
 :class:`Context`: publish on an output port, read the clock (virtual during lock-step replay), log,
 resolve a path relative to the graph file.
@@ -98,6 +99,14 @@ class Node:
 
     def teardown(self) -> None:
         """Release resources; also called on Ctrl-C / SIGTERM and at the end of ``--duration``."""
+
+    def on_params(self, params: BaseModel, changed: frozenset[str]) -> None:
+        """Take new ``params`` while running: the ``changed`` keys are parameters marked
+        :func:`~handflow.framework.files.params.live`, already validated by ``Params``.  Default: use them
+        from now on (``self.params = params``); override to rebuild what was derived from them, calling
+        ``super().on_params(...)``.  Raising ``ValueError`` refuses the change (the old params stay);
+        docs/tuning.md."""
+        self.params = params
 
     def safe_output(self) -> dict[str, Message]:
         """Messages to publish when the node stops or its inputs go stale (port → message). Default: none."""

@@ -10,6 +10,7 @@ import time
 from ..observe.foxglove_bridge import BridgeError, start_bridge
 from ..observe.monitor import WINDOW_S, Monitor, render
 from ..runtime.discovery import DiscoveryError, add_auth_arguments, join_graphs
+from ..runtime.param_service import LOCAL
 
 
 def register(parser: argparse.ArgumentParser) -> None:
@@ -57,7 +58,8 @@ def run(args: argparse.Namespace) -> int:
     bridge = None
     if args.foxglove is not None:
         try:
-            bridge = start_bridge(session, graphs, "127.0.0.1", args.foxglove)
+            who = args.cert_name if args.certs else LOCAL  # the graph's parameters, asked as this certificate
+            bridge = start_bridge(session, graphs, "127.0.0.1", args.foxglove, params_as=who)
         except BridgeError as exc:
             session.close()
             print(f"error: {exc}", file=sys.stderr)

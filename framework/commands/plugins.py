@@ -6,6 +6,7 @@ import argparse
 import json
 import sys
 
+from ..files.params import live_keys
 from ..registry import PluginError, plugin_entries, unknown_plugin
 
 
@@ -23,10 +24,17 @@ def _describe(name: str) -> dict:
     except PluginError as exc:
         return {"name": name, "target": entry.target, "error": str(exc)}
     params = {}
+    live = live_keys(cls.Params)
     for fname, f in cls.Params.model_fields.items():
         ann = getattr(f.annotation, "__name__", None) or str(f.annotation).replace("typing.", "")
         default = None if f.is_required() else f.get_default(call_default_factory=True)
-        params[fname] = {"type": ann, "default": default, "required": f.is_required(), "help": f.description or ""}
+        params[fname] = {
+            "type": ann,
+            "default": default,
+            "required": f.is_required(),
+            "live": fname in live,  # takes a new value while running (docs/tuning.md)
+            "help": f.description or "",
+        }
     return {
         "name": name,
         "target": entry.target,
@@ -59,6 +67,6 @@ def run(args: argparse.Namespace) -> int:
             if info[kind]:
                 print(f"    {kind}: " + ", ".join(f"{p} [{t}]" for p, t in info[kind].items()))
         for pname, p in info["params"].items():
-            default = "required" if p["required"] else f"default {p['default']!r}"
+            default = ("required" if p["required"] else f"default {p['default']!r}") + (", live" if p["live"] else "")
             print(f"    param {pname}: {p['type']} ({default}){'  ' + p['help'] if p['help'] else ''}")
     return 0

@@ -13,7 +13,9 @@ from .. import keys
 from ..files.mcap_reader import ReadReport, iter_recording
 from ..files.mcap_writer import RecordingError
 from ..graphs.model import Graph, GraphError, load_graph
+from ..observe.foxglove_bridge import BridgeError, start_bridge
 from ..recorder.graph_recorder import GraphRecorder
+from ..recorder.param_replay import RecordedChanges, read_changes
 from ..recorder.replay import (
     GraphWatcher,
     LockstepReplayer,
@@ -48,9 +50,23 @@ def register(parser: argparse.ArgumentParser) -> None:
         help="with --into: virtual time, each message fully processed before the next (deterministic)",
     )
     parser.add_argument(
+        "--no-param-changes",
+        action="store_true",
+        help="with --lockstep: do not apply the parameter changes the recording holds (docs/tuning.md)",
+    )
+    parser.add_argument(
         "--record",
         metavar="FILE.mcap",
         help="with --into: record the launched graph's topics (and the replayed inputs) to MCAP",
+    )
+    parser.add_argument(
+        "--foxglove",
+        nargs="?",
+        const=8765,
+        type=int,
+        metavar="PORT",
+        help="serve the replay to Foxglove on ws://127.0.0.1:PORT (default 8765), driven from its playback bar: "
+        "play, pause, seek, speed; runs until Ctrl-C (not with --lockstep)",
     )
     parser.add_argument("--graph", help="replay into this running graph (default: the recording's graph, if running)")
     parser.add_argument("--connect", metavar="ENDPOINT", help="join this Zenoh endpoint instead of a run-file")
@@ -83,6 +99,10 @@ def _check_args(args: argparse.Namespace) -> str | None:
         return (
             "--lockstep needs --into GRAPH.yaml: the replayer launches the graph in lock-step mode to know its wiring"
         )
+    if args.lockstep and args.foxglove is not None:
+        return "--foxglove drives a timed replay; leave out --lockstep (a lock-step replay is not driven from Foxglove yet)"
+    if args.foxglove is not None and args.loop:
+        return "--foxglove replays until Ctrl-C (seek back from Foxglove's playback bar); leave out --loop"
     if args.lockstep and args.loop:
         return "--lockstep cannot --loop (a lock-step replay is a finite, deterministic run)"
     if not Path(args.file).is_file():
@@ -102,7 +122,7 @@ def run(args: argparse.Namespace) -> int:
         if args.into:
             return _replay_into(args, recorded, stop)
         return _replay_join(args, recorded, stop)
-    except (RecordingError, DiscoveryError) as exc:
+    except (RecordingError, DiscoveryError, BridgeError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     except ReplayError as exc:
@@ -146,7 +166,12 @@ def _replay_join(args: argparse.Namespace, recorded: str | None, stop: threading
                 f"(docs/security.md)?"
             )
         plan = ReplayPlan(Path(args.file), args.topics, target)
-        stats = TimedReplayer(session, plan, speed=args.speed, loop=args.loop, stop=stop).run()
+        bridge, replayer = _timed(args, session, plan, target, stop)
+        try:
+            stats = replayer.run()
+        finally:
+            if bridge is not None:
+                bridge.close()
         watcher.close()
     finally:
         session.close()
@@ -176,6 +201,7 @@ def _replay_into(args: argparse.Namespace, recorded: str | None, stop: threading
         recorder = GraphRecorder.for_graph(graph, args.record)
         recorder.attach(launcher.session)
     result: dict[str, object] = {}
+    bridge = None
     try:
         launcher.start()
         watcher = GraphWatcher(launcher.session, graph.name)
@@ -185,11 +211,12 @@ def _replay_into(args: argparse.Namespace, recorded: str | None, stop: threading
             replayer = LockstepReplayer(
                 launcher.session, graph, graph.nodes, watcher, step_timeout_s=args.step_timeout, stop=stop, poll=poll
             )
-            work = lambda: replayer.run(plan)  # noqa: E731
+            changes = None if args.no_param_changes else _recorded_changes(args.file, recorded, launcher, graph)
+            work = lambda: replayer.run(plan, changes)  # noqa: E731
         else:
-            timed = TimedReplayer(launcher.session, plan, speed=args.speed, loop=args.loop, stop=stop)
-            timed.pubs.prepare([keys.topic_key(graph.name, *s.split("/", 1)) for s in sources], args.ready_timeout)
-            work = timed.run
+            bridge, replayer = _timed(args, launcher.session, plan, graph.name, stop)
+            work = replayer.run
+            replayer.pubs.prepare([keys.topic_key(graph.name, *s.split("/", 1)) for s in sources], args.ready_timeout)
         thread = threading.Thread(target=_capture, args=(work, result), name="replay", daemon=True)
         thread.start()
         while thread.is_alive():  # supervise the graph while the replay runs
@@ -206,6 +233,8 @@ def _replay_into(args: argparse.Namespace, recorded: str | None, stop: threading
         launcher.stop()
         if recorder is not None:
             recorder.close()
+        if bridge is not None:
+            bridge.close()
         launcher.close()
     _print_stats(stats, f"graph '{graph.name}'" + (" (lock-step)" if args.lockstep else ""))
     if stats.total == 0:
@@ -215,6 +244,39 @@ def _replay_into(args: argparse.Namespace, recorded: str | None, stop: threading
             file=sys.stderr,
         )
     return 0
+
+
+def _recorded_changes(path: str, recorded: str | None, launcher: Launcher, graph: Graph) -> RecordedChanges | None:
+    """The recording's parameter changes, to apply in lock-step (docs/tuning.md); restarts are reported."""
+    live, restarts = read_changes(path, recorded) if recorded else ([], [])
+    for change in restarts:
+        log.warning(
+            "not applied: %s.%s = %s was set with a restart (a replay restarts no node)",
+            change.node,
+            change.key,
+            change.value,
+        )
+    if live:
+        log.info("applying %d recorded parameter change(s) at their stamps", len(live))
+    return RecordedChanges(launcher.session, graph, live) if live else None
+
+
+def _timed(args: argparse.Namespace, session, plan: ReplayPlan, graph: str, stop: threading.Event):
+    """(Foxglove bridge or None, replayer): a timed replay, driven from Foxglove's playback bar with
+    ``--foxglove`` (:mod:`..recorder.playback`; the replay serves Foxglove itself)."""
+    if args.foxglove is None:
+        return None, TimedReplayer(session, plan, speed=args.speed, loop=args.loop, stop=stop)
+    try:
+        from ..recorder.playback import ControlledReplayer, Playback, time_range
+    except ImportError as exc:  # without the extra, or an SDK without PlaybackControl
+        raise BridgeError(
+            f"replay --foxglove needs foxglove-sdk 0.30 or newer ({exc}): pip install -U 'handflow[foxglove]'"
+        ) from None
+
+    playback = Playback(*time_range(plan.path), speed=args.speed)
+    bridge = start_bridge(session, graph, "127.0.0.1", args.foxglove, playback=playback)
+    print(f"Foxglove playback on ws://127.0.0.1:{bridge.port} (Ctrl-C to stop)", file=sys.stderr)
+    return bridge, ControlledReplayer(session, plan, playback, stop, bridge.server)
 
 
 def _capture(work, result: dict[str, object]) -> None:

@@ -10,6 +10,7 @@ from ..graphs.model import FoxgloveSettings, GraphError, load_graph
 from ..network.sessions import EndpointInUse
 from ..observe.foxglove_bridge import BridgeError, start_bridge
 from ..runtime.launcher import run_graph
+from ..runtime.param_service import LOCAL
 from ..runtime.status import StatusLine
 from ..runtime.zygote import start_unless_disabled
 
@@ -64,7 +65,7 @@ def run(args: argparse.Namespace) -> int:
         if status is not None:
             status.attach(launcher.session)
         if fox is not None:
-            bridge = start_bridge(launcher.session, graph.name, fox.host, fox.port)
+            bridge = start_bridge(launcher.session, graph.name, fox.host, fox.port, params_as=LOCAL, spec=graph)
         if record_path:
             from ..recorder.graph_recorder import GraphRecorder
 

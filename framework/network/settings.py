@@ -20,6 +20,11 @@ class TlsSettings(StrictModel):
     readers: list[str] = Field(
         default_factory=list, description="certificate names that may read every topic (monitor, record, replay)"
     )
+    operators: list[str] = Field(
+        default_factory=list,
+        description="certificate names that may change parameters while the graph runs, besides its hosts "
+        "(`handflow param set`, docs/tuning.md)",
+    )
     publishers: dict[str, list[str]] = Field(
         default_factory=dict, description="external topic (node/port) → certificate names that may publish it"
     )

@@ -6,12 +6,15 @@ and on a recording (docs/foxglove.md).  The CDR payloads are forwarded as receiv
 them itself (``sensor_msgs/Image`` in the Image panel, ``position[3]`` of a joint state in a Plot).
 Runtime-internal topics (``_progress``, ``_clock``) are skipped; heartbeats (``_health``) and runtime
 events are shown.  Payloads that are not valid messages are not forwarded (docs/robustness.md).
+For one graph, the server also offers Foxglove's Parameters capability (:mod:`.foxglove_params`), and
+given the graph file the ConnectionGraph capability (:mod:`.foxglove_graph`).
 """
 
 from __future__ import annotations
 
 import logging
 import threading
+from typing import TYPE_CHECKING
 
 import zenoh
 
@@ -22,8 +25,12 @@ except ImportError:
 
 from .. import wire
 from ..keys import PREFIX, ros_name
-from ..messages import MessageError
+from ..messages import MessageError, ParamChange
 from ..ros2.types import ros_type, schema_text
+
+if TYPE_CHECKING:
+    from ..graphs.model import Graph
+    from ..recorder.playback import Playback
 
 log = logging.getLogger("handflow.foxglove")
 
@@ -36,12 +43,23 @@ class PortInUse(BridgeError):
     """The Foxglove port is taken by another program."""
 
 
-def start_bridge(session: zenoh.Session, graph: str | list[str], host: str, port: int) -> FoxgloveBridge:
-    """A running bridge, or :class:`BridgeError` with what to do."""
+def start_bridge(
+    session: zenoh.Session,
+    graph: str | list[str],
+    host: str,
+    port: int,
+    params_as: str | None = None,
+    spec: Graph | None = None,
+    playback: Playback | None = None,
+) -> FoxgloveBridge:
+    """A running bridge, or :class:`BridgeError` with what to do; ``params_as``: offer the graph's parameters
+    (one graph), asking the launcher as this certificate name (``local`` on the graph's own host);
+    ``spec``: the loaded graph, shown in Foxglove's Topic Graph panel; ``playback``: a replay driven from
+    Foxglove's playback bar (:mod:`handflow.framework.recorder.playback`)."""
     if foxglove is None:
         raise BridgeError("the Foxglove live view needs foxglove-sdk: pip install 'handflow[foxglove]'")
     try:
-        return FoxgloveBridge(session, graph, host, port)
+        return FoxgloveBridge(session, graph, host, port, params_as, spec, playback)
     except Exception as exc:  # foxglove-sdk reports bind failures as a generic error
         if "in use" in str(exc).lower() or "address" in str(exc).lower():
             raise PortInUse(
@@ -56,12 +74,43 @@ class FoxgloveBridge:
     WebSocket server."""
 
     def __init__(
-        self, session: zenoh.Session, graph: str | list[str] = "*", host: str = "127.0.0.1", port: int = 8765
+        self,
+        session: zenoh.Session,
+        graph: str | list[str] = "*",
+        host: str = "127.0.0.1",
+        port: int = 8765,
+        params_as: str | None = None,
+        spec: Graph | None = None,
+        playback: Playback | None = None,
     ) -> None:
         graphs = [graph] if isinstance(graph, str) else graph
         self.context = foxglove.Context()
         name = f"handflow {', '.join(graphs)}"
-        self.server = foxglove.start_server(name=name, host=host, port=port, context=self.context)
+        self.params = None
+        capabilities, options = [], {}
+        if params_as is not None and len(graphs) == 1:
+            from .foxglove_params import ParamsListener
+
+            self.params = ParamsListener(session, graphs[0], params_as)
+            capabilities.append(foxglove.Capability.Parameters)
+            options["server_listener"] = self.params
+        if spec is not None:
+            capabilities.append(foxglove.Capability.ConnectionGraph)
+        if playback is not None:
+            from ..recorder.playback import PlaybackListener
+
+            capabilities += [foxglove.Capability.PlaybackControl, foxglove.Capability.Time]
+            options["server_listener"] = PlaybackListener(playback)
+            options["playback_time_range"] = (playback.start_ns, playback.end_ns)
+        self.server = foxglove.start_server(
+            name=name, host=host, port=port, context=self.context, capabilities=capabilities, **options
+        )
+        if self.params is not None:
+            self.params.server = self.server
+        if spec is not None:  # a client that subscribes later receives the current graph
+            from .foxglove_graph import connection_graph
+
+            self.server.publish_connection_graph(connection_graph(spec))
         self.port = self.server.port
         self._channels: dict[tuple[str, str], foxglove.Channel] = {}  # (topic, type)
         self._lock = threading.Lock()
@@ -79,6 +128,8 @@ class FoxgloveBridge:
                 payload, att = wire.pack(msg)
         except MessageError:
             return
+        if self.params is not None and isinstance(msg, ParamChange):
+            self.params.changed(msg)
         with self._lock:
             channel = self._channels.get((key, msg.TYPE))
             if channel is None:

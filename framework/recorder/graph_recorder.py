@@ -91,7 +91,8 @@ class GraphRecorder:
 
     ``GraphRecorder.for_graph(graph, path)`` also stores the graph's provenance
     (:func:`graph_provenance`); ``attach(session)`` subscribes to ``handflow/<graph>/**`` and keeps
-    the topics matching the ``record.topics`` globs; ``close()`` finalises the file.
+    the topics matching the ``record.topics`` globs, and the parameter changes
+    (``handflow/<graph>/_params/changes``) whatever the globs; ``close()`` finalises the file.
     Payloads are validated by :func:`decode` and stored as received (never re-encoded); invalid
     payloads are counted in ``skipped`` and logged once per topic.  The first :class:`Text` document
     of each topic (e.g. a robot description) is also attached as a file named after the topic
@@ -105,6 +106,7 @@ class GraphRecorder:
         self.skipped: dict[str, int] = {}
         self._subscriber = None
         self._documents: set[str] = set()
+        self._params_key = keys.params_key(graph_name)
 
     @classmethod
     def for_graph(
@@ -125,7 +127,7 @@ class GraphRecorder:
 
     def _on_sample(self, sample: Any) -> None:
         key = str(sample.key_expr)
-        if not self.filter(key):
+        if not (self.filter(key) or key == self._params_key):  # parameter changes always (docs/tuning.md)
             return
         data, att = wire.sample_parts(sample)
         try:

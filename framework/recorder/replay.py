@@ -303,7 +303,8 @@ class LockstepReplayer:
         return out
 
     def _clock_acked(self, t_ns: int) -> bool:
-        return all((self.watcher.progress.get(n, {}).get("clock") or -1) >= t_ns for n in self.node_ids)
+        clocks = [self.watcher.progress.get(n, {}).get("clock") for n in self.node_ids]
+        return all(c is not None and c >= t_ns for c in clocks)  # a recording may start at stamp 0
 
     def _settle(self, what: str, extra: Callable[[], bool] = lambda: True) -> None:
         if not self.watcher.wait_for(lambda: extra() and not self._unsettled(), self.step_timeout_s, self.poll):
@@ -326,13 +327,17 @@ class LockstepReplayer:
             self.clock_pub.put(payload)
         self._settle(f"clock {t_ns}", lambda: self._clock_acked(t_ns))
 
-    def run(self, plan: ReplayPlan) -> ReplayStats:
+    def run(self, plan: ReplayPlan, changes: Any = None) -> ReplayStats:
+        """Replay ``plan``; ``changes`` (:class:`.param_replay.RecordedChanges`) are applied before the
+        first message stamped at or after each of them."""
         stats = ReplayStats(report=ReadReport(plan.path))
         t_ns: int | None = None
         for key, rm in plan.messages(stats.report):
             if self.stop.is_set():
                 break
             stamp = rm.publish_time_ns
+            if changes is not None:
+                changes.before(stamp)
             if t_ns is None or stamp > t_ns:
                 t_ns = stamp
                 self.advance_clock(t_ns)

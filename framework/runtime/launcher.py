@@ -7,7 +7,8 @@ setup with the same error as the one before, is a crash loop, reported with the 
 lines, after which it stays down), publishes every restart and crash loop as a
 :class:`RuntimeEvent`, and on Ctrl-C, SIGTERM or the end of ``--duration`` stops the units
 upstream first, each once the units it feeds have drained (their teardown runs; see
-:meth:`Launcher.stop`), and reports which nodes failed and why (docs/reliability.md).
+:meth:`Launcher.stop`), and reports which nodes failed and why (docs/reliability.md).  It also
+serves ``handflow param`` for its nodes (:mod:`.param_service`, docs/tuning.md).
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ from __future__ import annotations
 import collections
 import json
 import logging
+import queue
 import signal
 import subprocess
 import sys
@@ -22,6 +24,7 @@ import tempfile
 import threading
 import time
 from dataclasses import dataclass, field
+from pathlib import Path
 
 from .. import keys, wire
 from ..graphs.model import Graph, RestartPolicy
@@ -29,6 +32,7 @@ from ..messages import Header, MessageError, RuntimeEvent, Status
 from ..network import hub_info
 from ..network import sessions as transport
 from . import discovery
+from .param_service import ParamService
 from .ros2_bridge import Ros2Bridge
 from .runner import START_WAIT_S, STOPPED, failure_file
 from .zygote import ForkedProcess, Zygote, start_unless_disabled
@@ -115,6 +119,8 @@ class Launcher:
         self._event_seq = 0
         self._info = hub_info.declare_info(self.session, graph.name, host, list(graph.nodes))
         self.ros2 = Ros2Bridge(self.session, graph, host) if graph.spec.ros2 is not None else None
+        self._calls: queue.SimpleQueue = queue.SimpleQueue()  # run by poll(), the supervising thread
+        self.params = ParamService(self)
 
     def _secure_settings(self, host: str | None) -> dict[str, object]:
         """The hub's TLS, access-control and user/password settings (docs/security.md)."""
@@ -139,16 +145,25 @@ class Launcher:
             return
         self.health[status.header.source] = status
 
-    def _ready(self, unit: Unit) -> bool:
+    @property
+    def state_dir(self) -> Path:
+        """The run's folder of node state (sequence numbers, failures, parameters set while running)."""
+        return Path(self._state_dir.name)
+
+    def call_soon(self, call) -> None:
+        """Run ``call()`` in the supervising thread, at its next :meth:`poll` (from other threads)."""
+        self._calls.put(call)
+
+    def ready(self, unit: Unit) -> bool:
         """The unit runs and each of its nodes has reported since its start (set up, inputs subscribed)."""
         return unit.proc is not None and all(nid in self.health for nid in unit.node_ids)
 
     def all_ready(self) -> bool:
-        return all(self._ready(u) for u in self.units)
+        return all(self.ready(u) for u in self.units)
 
     def settled(self) -> bool:
         """Every unit is ready or down for good (crash loop, restart policy 'never', exited)."""
-        return all(self._ready(u) or (u.proc is None and u.restart_at is None) for u in self.units)
+        return all(self.ready(u) or (u.proc is None and u.restart_at is None) for u in self.units)
 
     def signal_start(self) -> None:
         """Let the nodes tick; repeated while running so that a restarted unit starts too."""
@@ -240,7 +255,9 @@ class Launcher:
         return failure if isinstance(failure, dict) else {"phase": "running", "reason": why}
 
     def poll(self) -> None:
-        """Reap exited units and restart them per policy."""
+        """Run the calls asked for (:meth:`call_soon`), reap exited units and restart them per policy."""
+        while not self._calls.empty():
+            self._calls.get()()
         now = time.monotonic()
         for unit in self.units:
             if unit.proc is not None and (code := unit.proc.poll()) is not None:
@@ -285,6 +302,12 @@ class Launcher:
                 unit.restart_at = None
                 unit.restarts += 1
                 self._spawn(unit)
+
+    def restart(self, unit: Unit, why: str) -> None:
+        """Stop ``unit`` in order and start it again at once (a parameter it takes only at start changed)."""
+        self._terminate([unit])
+        self.event("restart", unit, why)
+        self._spawn(unit)
 
     def alive(self) -> bool:
         return any(u.proc is not None or u.restart_at is not None for u in self.units)
@@ -376,6 +399,7 @@ class Launcher:
 
     def close(self) -> None:
         discovery.remove_run_file(self.run_file)
+        self.params.close()
         if self.ros2 is not None:
             self.ros2.close()
         self._health_sub.undeclare()

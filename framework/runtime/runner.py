@@ -14,6 +14,10 @@ type, or that makes ``on_message`` raise :class:`MessageError`, is dropped, coun
 (``dropped.<port>`` in the heartbeat), logged at a limited rate and reported as a ``dropped``
 :class:`RuntimeEvent` on ``handflow/<graph>/_runtime/events``; the node keeps running.
 
+Live parameters (docs/tuning.md): each node answers its launcher's parameter requests
+(:mod:`.live_params`) on a session of its own and takes a new value through ``Node.on_params``
+under the same lock.
+
 Lock-step mode (``--lockstep``): no wall-clock ticks; the replayer publishes the virtual time on
 ``_clock``, nodes run the ticks due up to it and report their per-port counters on ``_progress``
 after every event, so the replayer can release the next message only when the graph is quiet.
@@ -47,6 +51,7 @@ from ..security.credentials import read_credentials, usrpwd_settings
 from ..testkit.harness import allocate_output, check_publish
 from . import forwarding
 from .drops import DropLedger
+from .live_params import NodeParams
 from .wakeup import wakeup_queue
 
 log = logging.getLogger("handflow.runner")
@@ -217,7 +222,8 @@ class GroupRuntime:
         self.stop_requested = False
         self.closed = False  # inputs are no longer handled (after the stop's settling)
         self._last_input = 0.0  # monotonic time of the last input handled
-        self.session = transport.open_node_session(graph.spec.zenoh, hub, _login(graph, user))
+        login = _login(graph, user)
+        self.session = transport.open_node_session(graph.spec.zenoh, hub, login)
         self.shared = SharedPayloads(graph.spec.zenoh.shared_memory)
         self.inbox = wakeup_queue()  # lock-step clock events; None wakes the loop
         self._lock = threading.Lock()
@@ -226,6 +232,9 @@ class GroupRuntime:
         self.set_up = False
         self.started = threading.Event()
         self._report_now = False  # the launcher asked for a heartbeat (keys.report_key)
+        self.live_params = NodeParams(  # before the slots: a restart's new values
+            self, node_ids, state_dir, lambda: transport.open_node_session(graph.spec.zenoh, hub, login)
+        )
         self.slots = [_NodeSlot(self, graph.nodes[nid], state_dir) for nid in node_ids]
         self._subs = []
         self._health_pubs = {
@@ -263,6 +272,7 @@ class GroupRuntime:
         else:
             self._subs.append(self.session.declare_subscriber(keys.start_key(g), lambda _: self.started.set()))
         self._subs.append(self.session.declare_subscriber(keys.report_key(g), self._on_report_request))
+        self.live_params.declare()
 
     def _on_report_request(self, _sample) -> None:
         self._report_now = True
@@ -355,6 +365,7 @@ class GroupRuntime:
             slot = self.slots[i]
             if self.lockstep:
                 self.virtual_ns = due
+            self.live_params.handling(slot.id, self.now_ns())
             try:
                 slot.node.tick()
             except Exception as exc:
@@ -378,6 +389,7 @@ class GroupRuntime:
         slot.note_seq(port, msg.header.seq)
         if self.lockstep:
             self.virtual_ns = max(self.virtual_ns, msg.header.stamp_ns)
+        self.live_params.handling(slot.id, msg.header.stamp_ns)
         slot.ctx.receiving(msg, None if att is None else payload)
         try:
             slot.node.on_message(port, msg)
@@ -416,6 +428,7 @@ class GroupRuntime:
             sub.undeclare()
         with self._lock:
             self._teardown_all()
+            self.live_params.close()
         if self.set_up:  # the last counters, after teardown's last outputs: the launcher's summary and its
             self._publish_health(STOPPED)  # drain (STOPPED); a node that never set up is not ready
         self.session.close()

@@ -6,7 +6,10 @@ common name of their certificate (= the host name of ``handflow certs add-host``
 publish only the outputs of its own nodes (and the external topics naming it in
 ``zenoh.tls.publishers``) and receives only what its nodes consume plus the runtime's health and
 progress topics; ``zenoh.tls.readers`` receive everything and publish nothing, and may ask which
-graphs the hub serves (:mod:`handflow.framework.network.hub_info`).  A graph with readers lets every host
+graphs the hub serves (:mod:`handflow.framework.network.hub_info`).  ``zenoh.tls.operators`` may ask that
+too; readers, operators and the other hosts may send parameter requests to the hub, each only under its own
+certificate name (``handflow/<graph>/_params/<name>/*``), so the hub's parameter service knows who asks and
+lets only hosts and operators set (:mod:`handflow.framework.runtime.param_service`).  A graph with readers lets every host
 receive every topic of the graph, since a reader may join any hub and that hub relays the other
 machines' topics to it; Zenoh routes by declared subscriptions, so a topic still crosses a link only
 while someone on the far side subscribes to it.  Everything else, including a valid certificate of
@@ -18,7 +21,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..graphs.model import Graph
-from ..keys import PREFIX, events_key, topic_key
+from ..keys import PREFIX, events_key, param_request_key, topic_key
 from ..network.hub_info import ANY_GRAPH, info_key
 from .certs import check_host_files
 
@@ -110,4 +113,21 @@ def access_control(graph: Graph, host: str | None) -> dict[str, object]:
         policies.append(
             {"rules": [f"readers-{r}" for r in ("declare", "receive", "ask", "answer")], "subjects": ["readers"]}
         )
+    if tls.operators:
+        rules += [
+            _rule("operators-ask", ["query"], "ingress", [info_key(ANY_GRAPH)]),
+            _rule("operators-answer", ["reply"], "egress", [info_key(g)]),
+        ]
+        subjects.append(
+            {"id": "operators", "cert_common_names": sorted(tls.operators), "link_protocols": ["tls", "quic"]}
+        )
+        policies.append({"rules": ["operators-ask", "operators-answer"], "subjects": ["operators"]})
+    for name in sorted(set(hosts) | set(tls.readers) | set(tls.operators)):  # parameter requests under one's name
+        own = [param_request_key(g, name, "*")]
+        rules += [
+            _rule(f"params-{name}-ask", ["query"], "ingress", own),
+            _rule(f"params-{name}-answer", ["reply"], "egress", own),
+        ]
+        subjects.append({"id": f"params-{name}", "cert_common_names": [name], "link_protocols": ["tls", "quic"]})
+        policies.append({"rules": [f"params-{name}-ask", f"params-{name}-answer"], "subjects": [f"params-{name}"]})
     return {"enabled": True, "default_permission": "deny", "rules": rules, "subjects": subjects, "policies": policies}

@@ -31,6 +31,7 @@ from ..messages import (
     LatentState,
     Markers,
     Message,
+    ParamChange,
     Points2D,
     RuntimeEvent,
     SegmentEvent,
@@ -89,6 +90,7 @@ def sample_messages() -> list[Message]:
         SegmentEvent(kind="revision", label="wave", start_index=3, end_index=9, previous_label="grasp"),
         Status(state="connected", counters={"corrupt": 2.0}, text="ok"),
         RuntimeEvent(kind="dropped", node="human", topic="handflow/demo/glove/frames", count=3, detail="bad"),
+        ParamChange(node="segmenter", key="threshold", value="0.4", previous="null", restart=True),
         CompressedImage(format="jpeg", data=b"\xff\xd8\xff\xe0 not really a jpeg", frame_id="cap_camera"),
         Transforms(
             parents=["world", "sim/forearm"],

@@ -118,6 +118,13 @@ class NodeHarness:
             self.dropped.append((port, str(exc)))
             self.ctx.log.warning("dropped a payload on input '%s': %s", port, exc)
 
+    def set_param(self, key: str, value: Any) -> None:
+        """Change a live parameter as ``handflow param set`` does: validated by the node's model, then
+        :meth:`Node.on_params`; ``ParamRefused`` (the old params kept) otherwise (docs/tuning.md)."""
+        from ..runtime.live_params import take
+
+        take(self.node, self.ctx.node_id, type(self.node).__name__, key, value)
+
     def tick(self, n: int = 1, advance_ns: int | None = None) -> None:
         rate = self.node.tick_rate_hz()
         step = advance_ns if advance_ns is not None else int(1e9 / rate) if rate else 0

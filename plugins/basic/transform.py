@@ -2,14 +2,14 @@
 
 from __future__ import annotations
 
-from handflow.framework.files.params import StrictModel
+from handflow.framework.files.params import StrictModel, live
 from handflow.framework.messages import Array
 from handflow.framework.plugin import Node
 
 
 class GainOffsetParams(StrictModel):
-    gain: float = 1.0
-    offset: float = 0.0
+    gain: float = live(1.0, description="factor applied to every value")
+    offset: float = live(0.0, description="added after the gain")
 
 
 class GainOffset(Node):

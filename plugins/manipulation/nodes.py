@@ -19,7 +19,7 @@ from pydantic import Field
 
 from handflow.framework.files.inputs import InputPath
 from handflow.framework.files.npz import format_check
-from handflow.framework.files.params import StrictModel
+from handflow.framework.files.params import StrictModel, live
 from handflow.framework.messages import Contacts, JointState, LatentState, Points2D
 from handflow.framework.plugin import Node
 from handflow.plugins.manifold.io import FORMAT, FORMAT_VERSION
@@ -43,7 +43,7 @@ class _ControllerParams(StrictModel):
         description="manifold file (.npz, from `handflow train`), relative to the graph"
     )
     rate_hz: float = Field(30.0, gt=0, description="control rate (one command per tick)")
-    delta: float = Field(0.02, gt=0, description="latent time step per control tick (speed)")
+    delta: float = live(0.02, gt=0, description="latent time step per control tick (speed)")
     safe_posture: dict[str, float] = Field(
         default_factory=dict, description="joint overrides of the open-hand fail-safe posture"
     )
@@ -59,6 +59,17 @@ class _ManifoldController(Node):
         self.last_input_ns: Optional[int] = None
         self.last_x = None
         self.stale = False
+
+    def on_params(self, params, changed) -> None:
+        """Speed (``delta``), closing step (``radius_step``) and horizon (``k``) while running (docs/tuning.md)."""
+        super().on_params(params, changed)
+        c = self.controller
+        if "delta" in changed:
+            c.delta = float(params.delta) * self.manifold.time_sign
+        if "radius_step" in changed:  # keeps its direction (towards the small radius)
+            c.radius_step = abs(float(params.radius_step)) * (1.0 if c.radius_step >= 0 else -1.0)
+        if "k" in changed:
+            c.k = int(params.k)
 
     def safe_output(self):
         return {"targets": open_hand(self.manifold.hand, self.params.safe_posture)} if hasattr(self, "manifold") else {}
@@ -119,7 +130,7 @@ class FeedbackInitParams(_ControllerParams):
         description="navigation: grasp by closing along the radius (5.5.2); grasp: "
         "project the posture on input 'grasp' (5.5.1)",
     )
-    radius_step: float = Field(0.01, gt=0, description="latent radius per tick while closing")
+    radius_step: float = live(0.01, gt=0, description="latent radius per tick while closing")
     required_fingers: list[str] = Field(
         default_factory=lambda: ["TH", "FF", "MF"], description="segment-name prefixes that must touch"
     )
@@ -188,7 +199,7 @@ class FeedbackInitNode(_ManifoldController):
 
 
 class ClosedLoopParams(_ControllerParams):
-    k: int = Field(5, ge=1, description="planned steps per observation (horizon k·delta)")
+    k: int = live(5, ge=1, description="planned steps per observation (horizon k·delta)")
     mask: Literal[MASKS] = Field("ball1", description="partial projection on ball-1 dims (thesis) or both balls")
     tolerance: float = Field(
         0.05,

@@ -18,7 +18,7 @@ from typing import Annotated, Literal
 import numpy as np
 
 from handflow.framework.files.inputs import InputPath
-from handflow.framework.files.params import StrictModel
+from handflow.framework.files.params import StrictModel, live
 from handflow.framework.messages import GloveFrame, JointState, MessageError
 from handflow.framework.plugin import Node
 from handflow.plugins.hands.joints import HUMAN
@@ -34,8 +34,9 @@ class HumanHandMappingNode(Node):
 
     class Params(StrictModel):
         profile: Annotated[str, InputPath(what="glove profile", check=load_profile)] = str(DEFAULT_PROFILE)
-        calibration: Annotated[str, InputPath(what="session calibration", check=load_calibration)] = str(
-            DEFAULT_CALIBRATION
+        calibration: Annotated[str, InputPath(what="session calibration", check=load_calibration)] = live(
+            str(DEFAULT_CALIBRATION),
+            description="session calibration file (after `handflow calibrate`, set it while running)",
         )
         handedness: Literal["right", "left"] = "right"
 
@@ -43,10 +44,18 @@ class HumanHandMappingNode(Node):
     outputs = {"joints": JointState}
 
     def setup(self) -> None:
-        p = self.params
-        self.mapping = HumanHandMapping(
+        self.mapping = self._mapping(self.params)
+
+    def _mapping(self, p: Params) -> HumanHandMapping:
+        return HumanHandMapping(
             load_profile(self.ctx.resolve_path(p.profile)), load_calibration(self.ctx.resolve_path(p.calibration))
         )
+
+    def on_params(self, params: Params, changed: frozenset[str]) -> None:
+        """A new calibration file while running (docs/tuning.md); one that does not load is refused."""
+        mapping = self._mapping(params)
+        super().on_params(params, changed)
+        self.mapping = mapping
 
     def on_message(self, port: str, msg: GloveFrame) -> None:
         if msg.sensors.size != N_SENSORS:  # the runtime drops and counts it (docs/robustness.md)

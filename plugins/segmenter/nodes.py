@@ -19,7 +19,7 @@ from pydantic import Field, model_validator
 
 from handflow.framework.files.inputs import InputPath
 from handflow.framework.files.npz import format_check
-from handflow.framework.files.params import StrictModel
+from handflow.framework.files.params import StrictModel, live
 from handflow.framework.messages import Array, JointState, Label, Message, MessageError, SegmentEvent
 from handflow.framework.plugin import Node
 from handflow.plugins.manifold.io import FORMAT as UKR
@@ -143,16 +143,16 @@ class OnlineCLMNode(_RecognizerNode):
             "whose novelty weight scales the scorer's evidence, so motion they do not explain (in shape, or in "
             "intensity: gentler or more vigorous than their training) is rejected",
         )
-        novelty: float = Field(
+        novelty: float = live(
             0.25, gt=0, description="novelty weight < 1 beyond 1/novelty times a manifold's own typical error"
         )
-        distance_z: float | None = Field(
+        distance_z: float | None = live(
             None,
             description="source minirocket: scale the evidence down where the window's features lie beyond this "
             "robust z-score from every training window (docs/segmentation.md, feature novelty; null = off)",
         )
         window: int = Field(200, ge=2, description="observations in the sliding window")
-        background_factor: float | None = Field(
+        background_factor: float | None = live(
             None,
             ge=0,
             description="multiplies λ_bg (3 = strong background; 0 = none); null = the level `train-classes` "
@@ -288,9 +288,10 @@ class OnlineCLMNode(_RecognizerNode):
                 models = self.enrolled(models)
             channels = models.n_channels
             reconstruction = models.reconstruction if p.reconstruction == "auto" else p.reconstruction
+            self.background_default = _first_set(models.background_factor, 1.0)
             self.segmenter = OnlineCLMSegmenter(
                 models,
-                background_factor=_first_set(p.background_factor, models.background_factor, 1.0),
+                background_factor=_first_set(p.background_factor, self.background_default),
                 reconstruction=reconstruction,
                 min_span=p.min_span,
                 min_progress=p.min_progress,
@@ -313,6 +314,7 @@ class OnlineCLMNode(_RecognizerNode):
                     f"novelty_models were trained on {novelty_models.n_channels} channels, the scorer "
                     f"on {scorer.n_features_in_}; train both on the same recordings"
                 )
+            self.background_default = 1.0
             self.segmenter = OnlineScoreCLMSegmenter(
                 scorer,
                 background_factor=_first_set(p.background_factor, 1.0),
@@ -324,6 +326,20 @@ class OnlineCLMNode(_RecognizerNode):
             )
         self.classes = self.segmenter.classes_
         self.warm_up(channels)
+
+    def on_params(self, params: Params, changed: frozenset[str]) -> None:
+        """``background_factor``, ``novelty`` and ``distance_z`` while running, the stream kept (docs/tuning.md).
+        Turning a score source's ``background_factor`` or ``distance_z`` on or off changes how it rejects
+        (its null class): that needs a restart."""
+        if self.params.source != "ukr":
+            for key in {"background_factor", "distance_z"} & changed:
+                if (getattr(params, key) is None) != (getattr(self.params, key) is None):
+                    raise ValueError(f"{key} turned on or off changes how the node rejects: pass --restart")
+        super().on_params(params, changed)
+        seg = self.segmenter
+        seg.background_factor = _first_set(params.background_factor, self.background_default)
+        if hasattr(seg, "novelty"):
+            seg.novelty, seg.distance_z = params.novelty, params.distance_z
 
     def warm_up(self, channels: int) -> None:
         """Build and compile what the first update needs (batched projector, numba solvers) here in
@@ -394,7 +410,7 @@ class UKROnlyNode(_RecognizerNode):
         lam: float = Field(0.3, ge=0, le=1, description="λ: weight of C_rec")
         gamma: float = Field(0.9, ge=0, le=1, description="γ: history discount")
         order_rating: Literal["cos", "sign"] = "cos"
-        threshold: float | None = Field(None, description="reject when max C < threshold")
+        threshold: float | None = live(None, description="reject when max C < threshold")
 
     def setup(self) -> None:
         p = self.params
@@ -409,6 +425,10 @@ class UKROnlyNode(_RecognizerNode):
         self.classes = self.recognizer.classes_
         self.segments = SegmentTracker()
         self.index = 0
+
+    def on_params(self, params: Params, changed: frozenset[str]) -> None:
+        super().on_params(params, changed)
+        self.recognizer.threshold = params.threshold  # read at every decision (docs/tuning.md)
 
     def recognise(self, y: np.ndarray, stamp: int) -> None:
         label, C = self.recognizer.push(y)

@@ -70,7 +70,7 @@ BENCHMARKS = {
             f"{name}.py"
             for name in "calibration_curve clm_score_grouping enrolment_bound evaluation_cache evaluation_fold evaluation_scaling flagship"
             " glove_reader grasp"
-            " manipulation projection_kernel"
+            " manipulation param_roundtrip projection_kernel"
             " mapping_cost novelty_probe online_score_segmenter online_segmenter recording scorer_fit sim startup"
             " transport ukr_speed ukr_toy viewer".split()
         ),

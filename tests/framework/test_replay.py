@@ -59,6 +59,8 @@ def _args(**kw) -> argparse.Namespace:
         cert_name=None,
         credentials=None,
         user=None,
+        foxglove=None,
+        no_param_changes=False,
     )
     return argparse.Namespace(**{**base, **kw})
 
@@ -70,6 +72,8 @@ def _args(**kw) -> argparse.Namespace:
         ({"lockstep": True}, "--lockstep needs --into"),
         ({"record": "out.mcap"}, "--record needs --into"),
         ({"file": "/nonexistent/x.mcap"}, "not found"),
+        ({"into": "g.yaml", "lockstep": True, "foxglove": 8765}, "--foxglove drives a timed replay"),
+        ({"foxglove": 8765, "loop": True}, "leave out --loop"),
     ],
 )
 def test_bad_arguments_exit_2_with_what_to_change(kw, message, recording, capsys):

@@ -117,3 +117,21 @@ def test_closed_loop_node_actuates_the_plan_in_order_then_fails_safe(ball_manifo
     h.send("balls", Points2D(points=np.full((2, 2), np.nan), valid=[False, False]))
     h.tick(4)  # plan used up, no valid balls
     assert _open_hand(h.published["targets"][-1], GIFU)
+
+
+def test_controllers_take_speed_closing_step_and_horizon_while_running(cap_manifold, ball_manifold, manifold_file):
+    """docs/tuning.md: delta, radius_step and k are live; the latent advances by the new delta at once."""
+    h = NodeHarness(
+        OpenLoopNode, {"manifold": str(manifold_file(cap_manifold)), "latent": [0.3, 2.0], "delta": 0.01, "rate_hz": 50}
+    ).setup()
+    h.tick(2)
+    h.set_param("delta", 0.03)
+    h.tick(2)
+    assert np.allclose([x.coords[0] for x in h.published["latent"]], [0.31, 0.32, 0.35, 0.38])
+    closing = NodeHarness(FeedbackInitNode, {"manifold": str(manifold_file(cap_manifold)), "radius_step": 0.05}).setup()
+    direction = np.sign(closing.node.controller.radius_step)
+    closing.set_param("radius_step", 0.02)
+    assert closing.node.controller.radius_step == pytest.approx(0.02 * direction)
+    closed = NodeHarness(ClosedLoopNode, {"manifold": str(manifold_file(ball_manifold, "b.npz")), "k": 3}).setup()
+    closed.set_param("k", 6)
+    assert closed.node.controller.k == 6

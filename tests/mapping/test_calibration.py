@@ -109,3 +109,26 @@ def test_missing_and_broken_profile(tmp_path):
     (tmp_path / "p.json").write_text('{"thumb_m13": 1, "thumb_m24": 1, "zero_abduction": {}}')
     with pytest.raises(CalibrationFileError, match="must differ|zero_abduction"):
         load_profile(tmp_path / "p.json")
+
+
+def test_the_mapping_node_takes_a_new_calibration_file_while_running(tmp_path):
+    """docs/tuning.md: a session calibrated anew is set live; one that does not load is refused."""
+    from handflow.framework.messages import GloveFrame
+    from handflow.framework.runtime.live_params import ParamRefused
+    from handflow.framework.testkit.harness import NodeHarness
+    from handflow.plugins.mapping.nodes import HumanHandMappingNode
+
+    frames, _, _ = _session(1)
+    save(calibrate_session(frames, load_profile(DEFAULT_PROFILE)), tmp_path / "today.yaml")
+    (tmp_path / "broken.yaml").write_text("min: [1, 2]\n")
+    h = NodeHarness(HumanHandMappingNode, {}, base_dir=tmp_path).setup()
+    raw = GloveFrame(sensors=frames[0].astype(np.int64))
+    h.send("raw", raw)
+    h.set_param("calibration", "today.yaml")
+    h.send("raw", raw)
+    with pytest.raises(ParamRefused, match=r"(?s)refused by the node: .*broken.yaml:1: s_min"):
+        h.set_param("calibration", "broken.yaml")
+    h.send("raw", raw)
+    before, after, kept = (m.positions for m in h.published["joints"])
+    assert not np.allclose(before, after) and np.array_equal(after, kept)
+    assert h.node.params.calibration == "today.yaml"

@@ -182,3 +182,37 @@ def test_online_clm_node_adapts_its_models_to_the_session_of_an_enrolment_record
         own_error({"enroll": session, "enroll_segments": 3})
     with pytest.raises(ValueError, match="enroll needs source 'ukr'"):
         NodeHarness(OnlineCLMNode, {"source": "dtw", "scorer": "s.npz", "enroll": "e.npz"})
+
+
+def _labels_with_a_change_halfway(model_dir, Y, cls, params, key, value):
+    h = NodeHarness(cls, {"models": str(model_dir), **params}).setup()
+    for i, y in enumerate(Y):
+        if i == len(Y) // 2 and key is not None:
+            h.set_param(key, value)
+        h.send("array", Array(data=y), stamp_ns=i)
+    return [m.label for m in h.published["labels"]]
+
+
+@pytest.mark.parametrize(
+    ("cls", "params", "key", "value"),
+    [(OnlineCLMNode, {"window": 100, "history": 10}, "background_factor", 50.0), (UKROnlyNode, {}, "threshold", 2.0)],
+)
+def test_a_live_rejection_level_rejects_from_the_next_observation_on(model_dir, two_letters, cls, params, key, value):
+    """docs/tuning.md: the stream is kept (same labels up to the change), the new level rejects after it."""
+    Y, _ = two_letters
+    half = len(Y) // 2
+    unchanged = _labels_with_a_change_halfway(model_dir, Y, cls, params, None, None)
+    changed = _labels_with_a_change_halfway(model_dir, Y, cls, params, key, value)
+    assert changed[:half] == unchanged[:half]
+    assert changed[half:].count(UNKNOWN) > unchanged[half:].count(UNKNOWN) + half // 2
+
+
+def test_a_start_only_or_invalid_segmenter_parameter_is_refused_while_running(model_dir):
+    from handflow.framework.runtime.live_params import ParamRefused
+
+    h = NodeHarness(OnlineCLMNode, {"models": str(model_dir), "window": 100}).setup()
+    with pytest.raises(ParamRefused, match="window needs a restart"):
+        h.set_param("window", 50)
+    with pytest.raises(ParamRefused, match="greater than or equal to 0"):
+        h.set_param("background_factor", -1)
+    assert h.node.params.window == 100 and h.node.params.background_factor is None

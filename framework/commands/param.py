@@ -1,0 +1,124 @@
+"""``handflow param list|get|set [--graph G] NODE[.KEY] [VALUE] [--restart]``: a running graph's parameters
+(docs/tuning.md)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from typing import Any
+
+import yaml
+
+from ..keys import param_request_key
+from ..runtime.discovery import DiscoveryError, add_auth_arguments, join_graphs
+from ..runtime.param_service import LOCAL, NODE_TIMEOUT_S, RESTART_TIMEOUT_S
+
+
+def register(parser: argparse.ArgumentParser) -> None:
+    """List, read or change the parameters of a running graph's nodes (live, or with --restart)."""
+    parser.add_argument(
+        "action", choices=["list", "get", "set"], help="list NODE's (or every node's) parameters; get; set"
+    )
+    parser.add_argument("target", nargs="?", metavar="NODE[.KEY]", help="a node, or one of its parameters")
+    parser.add_argument(
+        "value", nargs="?", metavar="VALUE", help="with set: the new value, a YAML scalar (3, 0.5, sine, null)"
+    )
+    parser.add_argument(
+        "--restart", action="store_true", help="with set: restart the node when it takes KEY only at start"
+    )
+    parser.add_argument("--graph", help="name of the running graph (default: the only one running)")
+    parser.add_argument("--connect", metavar="ENDPOINT", help="join this Zenoh endpoint (the hub running the node)")
+    add_auth_arguments(parser)
+    parser.epilog = (
+        "exit codes: 0 done, 1 the node refused the value (its message says why; the old value stays), "
+        "2 no such graph, node or parameter, bad arguments, or no permission (docs/tuning.md)"
+    )
+    parser.set_defaults(func=run)
+
+
+def show(value: Any) -> str:
+    """A parameter value as one would write it in the graph file (``3`` for 3.0)."""
+    if isinstance(value, float) and value.is_integer():
+        return str(int(value))
+    return value if isinstance(value, str) else json.dumps(value)
+
+
+def scalar(text: str) -> Any:
+    """VALUE read as a YAML scalar (``3``, ``0.5``, ``null``, ``[1, 2]``); text that YAML reads as something
+    JSON cannot carry (a date) or cannot read at all stays the text itself."""
+    try:
+        value = yaml.safe_load(text)
+        json.dumps(value)
+    except (yaml.YAMLError, TypeError, ValueError):
+        return text
+    return value
+
+
+def _request(args: argparse.Namespace) -> tuple[str, str, dict[str, Any]] | str:
+    """(node or ``*``, key, request), or what is wrong with the arguments."""
+    node, _, key = (args.target or "").partition(".")
+    if args.action == "list":
+        return node or "*", key, {"op": "get"}
+    if not node:
+        return f"param {args.action} needs NODE{'.KEY VALUE' if args.action == 'set' else '[.KEY]'}"
+    if args.action == "get":
+        return node, key, {"op": "get"}
+    if not key or args.value is None:
+        return "param set needs NODE.KEY VALUE, e.g. `handflow param set scale.gain 3`"
+    return node, key, {"op": "set", "key": key, "value": scalar(args.value), "restart": args.restart}
+
+
+def run(args: argparse.Namespace) -> int:
+    asked = _request(args)
+    if isinstance(asked, str):
+        print(f"error: {asked}", file=sys.stderr)
+        return 2
+    node, key, request = asked
+    try:
+        session, _, found = join_graphs(
+            args.graph, args.connect, args.certs, args.cert_name, args.credentials, args.user
+        )
+    except DiscoveryError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    try:
+        if len(found) > 1:
+            print(
+                f"error: several graphs run there ({', '.join(sorted(found))}); name one with --graph", file=sys.stderr
+            )
+            return 2
+        graph, info = next(iter(found.items()))
+        who = args.cert_name if args.certs else LOCAL
+        timeout = RESTART_TIMEOUT_S + 10 if request.get("restart") else NODE_TIMEOUT_S + 3
+        replies = [
+            json.loads(r.ok.payload.to_bytes())
+            for r in session.get(param_request_key(graph, who, node), payload=json.dumps(request), timeout=timeout)
+            if r.ok is not None
+        ]
+    finally:
+        session.close()
+    if not replies:
+        nodes = ", ".join(info.get("nodes", []))
+        print(f"error: no node '{node}' answered in graph '{graph}' (its nodes: {nodes})", file=sys.stderr)
+        return 2
+    return _print(sorted(replies, key=lambda r: r.get("node", "")), key, request)
+
+
+def _print(replies: list[dict[str, Any]], key: str, request: dict[str, Any]) -> int:
+    failed = [r for r in replies if not r.get("ok")]
+    for r in failed:
+        print(f"error: {r.get('error', 'refused')}", file=sys.stderr)
+    if failed:
+        return max(int(r.get("code", 1)) for r in failed)
+    for r in replies:
+        params, live = r["params"], set(r.get("live", []))
+        if key and key not in params:
+            print(f"error: node '{r['node']}' has no parameter '{key}' (it has: {', '.join(params)})", file=sys.stderr)
+            return 2
+        if key and request["op"] == "get":
+            print(show(params[key]))
+            continue
+        for k in [key] if key else sorted(params):
+            print(f"{r['node']}.{k} = {show(params[k])}{'  (live)' if k in live else ''}")
+    return 0

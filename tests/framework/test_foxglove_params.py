@@ -1,0 +1,250 @@
+"""Foxglove's Parameters panel on a running graph (docs/tuning.md): a real ``foxglove.websocket.v1`` client
+gets, sets and is refused parameters of `handflow run --foxglove`, and sees changes made by `handflow param`."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import struct
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+from websockets.sync.client import connect
+
+from handflow.framework.files.mcap_writer import McapWriter
+from handflow.framework.messages import Array, Header
+from handflow.framework.network.sessions import free_tcp_port
+
+pytest.importorskip("foxglove")
+pytestmark = pytest.mark.slow
+REPO = Path(__file__).resolve().parents[2]
+
+
+class FoxgloveClient:
+    """The Foxglove app's side of the protocol: JSON requests, replies picked by their ``op``."""
+
+    def __init__(self, port: int, timeout: float = 30.0) -> None:
+        deadline = time.time() + timeout
+        while True:
+            try:
+                self.ws = connect(
+                    f"ws://127.0.0.1:{port}", subprotocols=["foxglove.sdk.v1", "foxglove.websocket.v1"], open_timeout=2
+                )
+                break
+            except OSError:
+                if time.time() > deadline:
+                    raise
+                time.sleep(0.3)
+
+    def __enter__(self) -> FoxgloveClient:
+        self.ws.__enter__()
+        self.server_info = self.next("serverInfo")
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.ws.__exit__(*exc)
+
+    def send(self, **msg) -> None:
+        self.ws.send(json.dumps(msg))
+
+    def next(self, op: str, timeout: float = 15.0, **match) -> dict:
+        deadline = time.time() + timeout
+        while time.time() < deadline:
+            try:
+                frame = self.ws.recv(timeout=1)
+            except TimeoutError:
+                continue
+            if isinstance(frame, str):
+                msg = json.loads(frame)
+                if msg.get("op") == op and all(msg.get(k) == v for k, v in match.items()):
+                    return msg
+        raise AssertionError(f"no {op} {match} within {timeout}s")
+
+    def binary(self, opcode: int, seconds: float) -> list[bytes]:
+        """The binary frames with ``opcode`` received within ``seconds`` (message data 1, playback state 5)."""
+        frames, deadline = [], time.time() + seconds
+        while (left := deadline - time.time()) > 0:
+            try:
+                frame = self.ws.recv(timeout=left)
+            except TimeoutError:
+                break
+            if isinstance(frame, bytes) and frame[0] == opcode:
+                frames.append(frame)
+        return frames
+
+    def values(self, **request) -> dict[str, object]:
+        msg = self.next("parameterValues", id=request.get("id"))
+        return {p["name"]: p.get("value") for p in msg["parameters"]}
+
+
+def test_parameters_panel_gets_sets_and_is_refused_with_the_models_message(tmp_path):
+    graph = tmp_path / "g.yaml"
+    graph.write_text(
+        "name: fxp\nnodes:\n  - id: source\n    plugin: basic.signal\n    params: {rate_hz: 20}\n"
+        "  - id: scale\n    plugin: basic.transform\n    params: {gain: 2.0}\n    inputs: {in: source/out}\n"
+    )
+    env = dict(os.environ, HANDFLOW_RUN_DIR=str(tmp_path / "runs"))
+    port = free_tcp_port()
+    cli = [sys.executable, "-m", "handflow.framework.cli"]
+    run = subprocess.Popen(
+        [*cli, "run", str(graph), "--duration", "40", "--foxglove", str(port)],
+        cwd=REPO,
+        env=env,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        with FoxgloveClient(port) as fox:
+            check_parameters_panel(fox, cli, env)
+    finally:
+        run.terminate()
+        _, err = run.communicate(timeout=60)
+    assert run.returncode == 0, err
+
+
+def check_parameters_panel(fox: FoxgloveClient, cli: list[str], env: dict) -> None:
+    """What the Parameters panel does, and `handflow param` beside it."""
+    assert "parameters" in fox.server_info["capabilities"]
+    params: dict = {}
+    for attempt in range(60):  # until the nodes are up
+        fox.send(op="getParameters", parameterNames=[], id=f"all{attempt}")
+        if "/scale/gain" in (params := fox.values(id=f"all{attempt}")):
+            break
+        time.sleep(0.5)
+    assert params["/scale/gain"] == 2.0 and params["/source/kind"] == "sine" and params["/source/rate_hz"] == 20
+
+    fox.send(op="subscribeParameterUpdates", parameterNames=["/scale/gain"])
+    fox.send(op="setParameters", parameters=[{"name": "/scale/gain", "value": 3.0}], id="set")
+    assert fox.values(id="set") == {"/scale/gain": 3.0}
+    cli_get = subprocess.run([*cli, "param", "get", "scale.gain"], env=env, capture_output=True, text=True)
+    assert cli_get.stdout.strip() == "3"
+
+    fox.send(op="setParameters", parameters=[{"name": "/scale/gain", "value": "notanumber"}], id="bad")
+    status = fox.next("status")
+    assert status["level"] == 2 and "/scale/gain not set" in status["message"]
+    assert "valid number" in status["message"]  # the model's message
+    assert fox.values(id="bad") == {"/scale/gain": 3.0}  # the old value kept
+    fox.send(op="setParameters", parameters=[{"name": "/source/rate_hz", "value": 5.0}], id="start-only")
+    assert "needs a restart" in fox.next("status")["message"]
+    assert fox.values(id="start-only") == {"/source/rate_hz": 20.0}
+
+    subprocess.run([*cli, "param", "set", "scale.gain", "4.5"], env=env, check=True, capture_output=True)
+    update = fox.next("parameterValues")  # a change made elsewhere reaches the subscribed panel
+    assert {p["name"]: p["value"] for p in update["parameters"]} == {"/scale/gain": 4.5}
+
+
+def test_topic_graph_shows_every_hosts_nodes_and_edges(tmp_path):
+    """Foxglove's Topic Graph panel (ConnectionGraph) on the launcher of host a of a two-host graph."""
+    graph = tmp_path / "g.yaml"
+    graph.write_text(
+        "name: fxg\nexternal: {glove/raw: Array}\nnodes:\n"
+        "  - {id: source, plugin: basic.signal, host: a, params: {rate_hz: 20}}\n"
+        "  - {id: scale, plugin: basic.transform, host: b, inputs: {in: source/out}}\n"
+        "  - {id: sink, plugin: basic.sink, host: a, inputs: {in: scale/out}}\n"
+        "  - {id: raw, plugin: basic.sink, host: a, inputs: {in: glove/raw}}\n"
+    )
+    port = free_tcp_port()
+    run = subprocess.Popen(
+        [sys.executable, "-m", "handflow.framework.cli", "run", str(graph), "--host", "a"]
+        + ["--duration", "20", "--foxglove", str(port)],
+        cwd=REPO,
+        env=dict(os.environ, HANDFLOW_RUN_DIR=str(tmp_path / "runs")),
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        with FoxgloveClient(port) as fox:
+            assert "connectionGraph" in fox.server_info["capabilities"]
+            fox.send(op="subscribeConnectionGraph")
+            update = fox.next("connectionGraphUpdate")
+    finally:
+        run.terminate()
+        _, err = run.communicate(timeout=60)
+    assert run.returncode == 0, err
+    published = {t["name"]: t["publisherIds"] for t in update["publishedTopics"]}
+    subscribed = {t["name"]: t["subscriberIds"] for t in update["subscribedTopics"]}
+    assert published == {
+        "/handflow/fxg/source/out": ["a/source"],
+        "/handflow/fxg/scale/out": ["b/scale"],  # a node of the other host
+    }
+    assert subscribed == {
+        "/handflow/fxg/source/out": ["b/scale"],
+        "/handflow/fxg/scale/out": ["a/sink"],
+        "/handflow/fxg/glove/raw": ["a/raw"],  # fed from outside the graph: no publisher
+    }
+
+
+def _playback_request(command: int, speed: float, seek_ns: int | None, request_id: str) -> bytes:
+    """Foxglove's binary PlaybackControlRequest (opcode 3): command (0 play, 1 pause), speed, seek, id."""
+    head = struct.pack("<BBfB", 3, command, speed, seek_ns is not None) + struct.pack("<Q", seek_ns or 0)
+    return head + struct.pack("<I", len(request_id)) + request_id.encode()
+
+
+def _playback_state(frame: bytes) -> dict:
+    """The server's binary PlaybackState (opcode 5)."""
+    status, current, speed, did_seek, n = struct.unpack_from("<BQfBI", frame, 1)
+    return {"status": status, "time": current, "speed": speed, "did_seek": bool(did_seek), "id": frame[19 : 19 + n]}
+
+
+def test_replay_is_driven_from_the_playback_bar(tmp_path):
+    """`handflow replay F.mcap --into G.yaml --foxglove`: pause, seek and speed from a real Foxglove client;
+    the replayed topic and the graph's node follow."""
+    start = 1_700_000_000_000_000_000
+    with McapWriter(tmp_path / "take.mcap") as writer:
+        for i in range(1000):  # 20 s at 50 Hz, data = the index
+            msg = Array(data=[float(i)])
+            msg.header = Header("source", i + 1, start + i * 20_000_000)
+            writer.write("handflow/pb/source/out", msg, log_time_ns=msg.header.stamp_ns)
+    graph = tmp_path / "g.yaml"
+    graph.write_text(
+        "name: pb\nexternal: {source/out: Array}\nnodes:\n  - id: sink\n    plugin: basic.sink\n"
+        f"    params: {{jsonl: {tmp_path / 'sink.jsonl'}}}\n    inputs: {{in: source/out}}\n"
+    )
+    port = free_tcp_port()
+    replay = subprocess.Popen(
+        [sys.executable, "-m", "handflow.framework.cli", "replay", str(tmp_path / "take.mcap"), "--into", str(graph)]
+        + ["--foxglove", str(port)],
+        cwd=REPO,
+        env=dict(os.environ, HANDFLOW_RUN_DIR=str(tmp_path / "runs")),
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        with FoxgloveClient(port) as fox:
+            assert "playbackControl" in fox.server_info["capabilities"]
+            channel = None
+            while channel is None:  # the sink's heartbeat may be advertised first
+                advertised = fox.next("advertise")["channels"]
+                channel = next((c for c in advertised if c["topic"] == "/handflow/pb/source/out"), None)
+            fox.send(op="subscribe", subscriptions=[{"id": 7, "channelId": channel["id"]}])
+            playing = len(fox.binary(opcode=1, seconds=1.0))
+            fox.ws.send(_playback_request(1, 1.0, None, "pause"))
+            paused = fox.binary(opcode=5, seconds=0.5)
+            held = len(fox.binary(opcode=1, seconds=1.0))
+            seek = start + 12 * 10**9  # message 600
+            fox.ws.send(_playback_request(0, 4.0, seek, "seek"))
+            state = _playback_state(fox.binary(opcode=5, seconds=0.5)[0])
+            fast = len(fox.binary(opcode=1, seconds=1.0))
+    finally:
+        replay.send_signal(signal.SIGINT)
+        _, err = replay.communicate(timeout=60)
+    assert replay.returncode == 0, err
+    assert 30 <= playing <= 70  # 50 Hz
+    assert _playback_state(paused[0]) | {"time": 0} == {
+        "status": 1,
+        "time": 0,
+        "speed": 1.0,
+        "did_seek": False,
+        "id": b"pause",
+    }
+    assert held <= 2  # paused: nothing more (a message in flight at most)
+    assert (state["status"], state["did_seek"], state["speed"]) == (0, True, 4.0)
+    assert seek <= state["time"] < seek + 10**8  # the target (playing on from it)
+    assert 130 <= fast <= 250  # 4× speed: 200 a second
+    handled = [json.loads(line)["msg"]["data"][0] for line in (tmp_path / "sink.jsonl").read_text().splitlines()]
+    jump = next(i for i in range(1, len(handled)) if handled[i] != handled[i - 1] + 1)
+    assert handled[jump] == 600.0 and handled[:jump] == list(range(jump))  # the graph's node followed the seek

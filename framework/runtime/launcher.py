@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 from .. import keys, wire
 from ..graphs.model import Graph, RestartPolicy
 from ..messages import Header, MessageError, RuntimeEvent, Status
-from ..network import hub_info
+from ..network import hub_info, local_transport
 from ..network import sessions as transport
 from . import discovery
 from .ros2_bridge import Ros2Bridge
@@ -387,6 +387,7 @@ class Launcher:
         if self.zygote is not None:
             self.zygote.close()
         self._state_dir.cleanup()
+        local_transport.remove_leftovers()
 
     def summary(self) -> dict[str, dict[str, object]]:
         """Per unit: nodes, restarts, exit codes, and per node the input gaps of its last heartbeat."""

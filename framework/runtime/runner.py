@@ -45,7 +45,7 @@ from ..network.shm import SharedPayloads
 from ..plugin import Node
 from ..security.credentials import read_credentials, usrpwd_settings
 from ..testkit.harness import allocate_output, check_publish
-from . import forwarding
+from . import forwarding, local_routes
 from .drops import DropLedger
 from .wakeup import wakeup_queue
 
@@ -108,11 +108,11 @@ class NodeContext:
         self._state = state
         self.restarted = state.resumed
         self._pubs = {
-            port: runtime.session.declare_publisher(keys.topic_key(self.graph_name, self.node_id, port))
-            for port in self._outputs
+            port: runtime.output_port(keys.topic_key(self.graph_name, self.node_id, port)) for port in self._outputs
         }
         self.published = dict.fromkeys(self._outputs, 0)
         self.shared = dict.fromkeys(self._outputs, 0)  # published from shared memory
+        self.paths = dict.fromkeys(self._outputs, 0)  # the paths of the last message (local_routes)
         self._received: tuple[Message, bytes, tuple] | None = None  # being handled: message, CDR body, snapshot
 
     def receiving(self, msg: Message | None, body: bytes | None = None) -> None:
@@ -128,10 +128,9 @@ class NodeContext:
         self._state.set("out:" + port, seq)
         msg.header = Header(self.node_id, seq, self.now_ns() if stamp_ns is None else int(stamp_ns))
         payload, att = (forwarded and wire.repack(msg, received[1])) or wire.pack(msg)
-        sent = self._rt.shared.wrap(payload)
-        self._pubs[port].put(sent, attachment=att)
+        self.paths[port], pooled = self._pubs[port].send(payload, att, self._rt.shared.wrap)
         self.published[port] += 1
-        self.shared[port] += sent is not payload
+        self.shared[port] += pooled
 
     def allocate(self, port: str, nbytes: int) -> np.ndarray:
         return allocate_output(self.node_id, self._outputs, port, nbytes)
@@ -186,6 +185,7 @@ class _NodeSlot:
         counters.update({f"dropped.{p}": n for p, n in self.drops.counts().items()})
         counters.update({f"published.{p}": n for p, n in self.ctx.published.items()})
         counters.update({f"shm.{p}": n for p, n in self.ctx.shared.items()})
+        counters.update({f"path.{p}": n for p, n in self.ctx.paths.items()})
         counters.update({f"seq.{k.replace(':', '.')}": self.state.get(k) for k in self.state.index})
         return Status(state=state, counters=counters, text=f"pid {os.getpid()}")
 
@@ -219,6 +219,8 @@ class GroupRuntime:
         self._last_input = 0.0  # monotonic time of the last input handled
         self.session = transport.open_node_session(graph.spec.zenoh, hub, _login(graph, user))
         self.shared = SharedPayloads(graph.spec.zenoh.shared_memory)
+        self.local = local_routes.open_for(graph, hub, node_ids)
+        self._local_sources = local_routes.local_sources(graph, node_ids) if self.local else set()
         self.inbox = wakeup_queue()  # lock-step clock events; None wakes the loop
         self._lock = threading.Lock()
         self.failure: str | None = None
@@ -243,17 +245,27 @@ class GroupRuntime:
         return self.virtual_ns if self.lockstep else time.time_ns()
 
     # -- wiring -----------------------------------------------------------------------------
+    def output_port(self, key: str) -> local_routes.OutputPort:
+        return local_routes.OutputPort(
+            self.session.declare_publisher(key), self.local.publisher(key) if self.local else None
+        )
+
     def _subscribe(self) -> None:
         g = self.graph.name
         for slot in self.slots:
             for port, source in slot.rn.spec.inputs.items():
                 node, _, out = source.partition("/")
                 key = keys.topic_key(g, node, out)
+                if node in self._local_sources:
+                    self.local.subscribe(key, lambda payload, att, s=slot, p=port: self._on_sample(s, p, payload, att))
+                    continue
                 self._subs.append(
                     self.session.declare_subscriber(
                         key, lambda sample, s=slot, p=port: self._on_sample(s, p, *wire.sample_parts(sample))
                     )
                 )
+        if self.local:
+            self.local.start()
         if self.lockstep:
             self._subs.append(
                 self.session.declare_subscriber(
@@ -279,7 +291,7 @@ class GroupRuntime:
             self.started.wait(HEARTBEAT_S / 5)
 
     def _on_sample(self, slot: _NodeSlot, port: str, payload: bytes, att: bytes | None) -> None:
-        """Zenoh callback: handle the message right here, serialised with ticks by the lock."""
+        """Zenoh or iceoryx2 callback: handle the message right here, serialised with ticks by the lock."""
         with self._lock:
             if self.closed or self.failure is not None:
                 return
@@ -414,10 +426,14 @@ class GroupRuntime:
             self.closed = True
         for sub in self._subs:
             sub.undeclare()
+        if self.local:
+            self.local.stop()
         with self._lock:
             self._teardown_all()
         if self.set_up:  # the last counters, after teardown's last outputs: the launcher's summary and its
             self._publish_health(STOPPED)  # drain (STOPPED); a node that never set up is not ready
+        if self.local:
+            self.local.close()
         self.session.close()
 
     def _let_inputs_settle(self) -> None:

@@ -1,0 +1,290 @@
+"""Zero-copy messages between the node processes of one graph host through iceoryx2 (docs/shared_memory.md).
+
+One :class:`LocalTransport` per node process.  A topic is an iceoryx2 publish-subscribe service of
+``uint8`` slices plus an event service of the same name, both named after the launcher's run
+(:func:`service_name`), so two runs of a graph on one machine never share a topic.  A published
+sample holds one frame::
+
+    uint32 len(attachment)   attachment (the handflow wire attachment)   padding   CDR payload
+
+The padding puts the payload 4 bytes before a 16-byte boundary, so the CDR body after its 4-byte
+encapsulation header is 16-byte aligned and decoded arrays are aligned numpy views.  The publisher
+copies the encoded message once into a loaned sample and notifies the topic's listeners; a
+subscriber process wakes on the notification (a :class:`WaitSet` in a thread, no polling) and hands
+the callback a read-only ``memoryview`` straight into the sample.  The sample is given back to the
+publisher when the last view of it (the memoryview, numpy arrays decoded from it) is gone.  A
+subscriber may hold at most :data:`BORROWED` samples: once a process holds ``BORROWED - 1``, the
+next message is copied out and its sample given back at once, so a node that keeps many messages
+never blocks the transport.
+
+A subscriber whose buffer of :data:`BUFFER` samples is full loses the oldest (iceoryx2's safe
+overflow): the runner counts it as a sequence gap.  Files live under :func:`root_dir` and carry
+:func:`prefix` in ``/dev/shm``; :func:`remove_leftovers` deletes them once no node of this user is
+alive, and every :class:`LocalTransport` reclaims what dead processes left (iceoryx2's dead-node
+cleanup at node creation).  When iceoryx2 cannot be used (not installed, no ``/dev/shm``, a
+sandbox), :func:`open_local` logs one notice and returns ``None``: the caller uses Zenoh.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import logging
+import os
+import shutil
+import struct
+import tempfile
+import threading
+import weakref
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+log = logging.getLogger("handflow.local")
+
+BUFFER = 4
+"""Samples a subscriber buffers before it loses the oldest (drop-oldest, counted as a gap)."""
+BORROWED = 4
+"""Samples a subscriber process may hold at once (views kept by its nodes); beyond, messages are copied."""
+MAX_SUBSCRIBERS = 16
+"""Subscriber processes per topic."""
+INITIAL_BYTES = 4096
+"""A publisher's first sample size; its segment grows by powers of two for larger messages."""
+POLL_S = 0.2
+"""How often the waiting thread looks whether it should stop (wake-ups for messages are events)."""
+_LEN = struct.Struct("<I")
+_notice_given = False
+Callback = Callable[[memoryview | bytes, bytes], None]
+
+
+def _iox() -> Any:
+    import iceoryx2
+
+    return iceoryx2
+
+
+def prefix() -> str:
+    """The prefix of this user's handflow files in ``/dev/shm`` and :func:`root_dir`."""
+    return f"hf{os.getuid()}_"
+
+
+def root_dir() -> Path:
+    """iceoryx2's directory for this user's handflow nodes and services (mode 0700)."""
+    return Path(tempfile.gettempdir()) / f"handflow-iox2-{os.getuid()}"
+
+
+def _config(iox: Any) -> Any:
+    root = root_dir()
+    root.mkdir(mode=0o700, exist_ok=True)
+    cfg = iox.config.default()
+    cfg.global_cfg.prefix = iox.FileName.new(prefix())
+    cfg.global_cfg.root_path = iox.Path.new(f"{root}/")
+    return cfg
+
+
+def service_name(run: str, topic: str) -> str:
+    """The iceoryx2 service of a topic key in the launcher run ``run`` (its hub port)."""
+    return f"{run}/{topic}"
+
+
+def payload_offset(att_len: int) -> int:
+    """Where the CDR payload starts in a frame whose attachment has ``att_len`` bytes (see the module doc)."""
+    return -(-(_LEN.size + att_len + 4) // 16) * 16 - 4
+
+
+def open_local(run: str, name: str) -> LocalTransport | None:
+    """This process's transport for the launcher run ``run``; ``None`` (one notice) when iceoryx2 is unusable."""
+    global _notice_given
+    try:
+        return LocalTransport(run, name)
+    except Exception as exc:  # ImportError, a missing /dev/shm, a sandbox: whatever iceoryx2 raises
+        if not _notice_given:
+            _notice_given = True
+            log.warning("iceoryx2 is not usable here (%s: %s); local topics use Zenoh", type(exc).__name__, exc)
+        return None
+
+
+class LocalPublisher:
+    """One output port's iceoryx2 publisher and notifier."""
+
+    def __init__(self, publisher: Any, notifier: Any) -> None:
+        self._pub, self._notifier = publisher, notifier
+
+    def send(self, payload: bytes | bytearray | memoryview, att: bytes) -> int:
+        """Copy one message into a loaned sample and send it; returns how many subscribers received it."""
+        off = payload_offset(len(att))
+        sample = self._pub.loan_slice_uninit(off + len(payload))
+        view = sample.payload().as_memory_view().cast("B")
+        _LEN.pack_into(view, 0, len(att))
+        view[_LEN.size : _LEN.size + len(att)] = att
+        view[off:] = payload
+        receivers = sample.assume_init().send()
+        if receivers:
+            self._notifier.notify()
+        return receivers
+
+
+class _Topic:
+    """A subscribed topic: its iceoryx2 subscriber, listener and the callbacks of this process."""
+
+    def __init__(self, subscriber: Any, listener: Any) -> None:
+        self.subscriber, self.listener = subscriber, listener
+        self.callbacks: list[Callback] = []
+
+
+class LocalTransport:
+    """A node process's iceoryx2 node: publishers, subscriptions and the thread that delivers messages."""
+
+    def __init__(self, run: str, name: str) -> None:
+        iox = self._iox = _iox()
+        iox.set_log_level(iox.LogLevel.Error)
+        self.run = run
+        self._node = (
+            iox.NodeBuilder.new()
+            .config(_config(iox))
+            .name(iox.NodeName.new(name[:100]))
+            .signal_handling_mode(iox.SignalHandlingMode.Disabled)
+            .create(iox.ServiceType.Ipc)
+        )
+        self._topics: dict[str, _Topic] = {}
+        self._pubs: list[Any] = []
+        self._borrowed = 0  # samples of this process still referenced by a view
+        self._count_lock = threading.Lock()
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+
+    def _services(self, topic: str) -> tuple[Any, Any]:
+        iox = self._iox
+        name = iox.ServiceName.new(service_name(self.run, topic))
+        pubsub = (
+            self._node.service_builder(name)
+            .publish_subscribe(iox.Slice[ctypes.c_uint8])
+            .payload_alignment(iox.Alignment.new(16))
+            .enable_safe_overflow(True)
+            .history_size(0)
+            .subscriber_max_buffer_size(BUFFER)
+            .subscriber_max_borrowed_samples(BORROWED)
+            .max_subscribers(MAX_SUBSCRIBERS)
+            .max_publishers(2)  # a restarted node's publisher while the dead one is cleaned up
+            .open_or_create()
+        )
+        event = self._node.service_builder(name).event().open_or_create()
+        return pubsub, event
+
+    def publisher(self, topic: str) -> LocalPublisher:
+        pubsub, event = self._services(topic)
+        pub = (
+            pubsub.publisher_builder()
+            .initial_max_slice_len(INITIAL_BYTES)
+            .allocation_strategy(self._iox.AllocationStrategy.PowerOfTwo)
+            .create()
+        )
+        notifier = event.notifier_builder().create()
+        self._pubs.append((pub, notifier))
+        return LocalPublisher(pub, notifier)
+
+    def subscribe(self, topic: str, callback: Callback) -> None:
+        """Call ``callback(payload, attachment)`` for each message of ``topic`` (from :meth:`start` on)."""
+        if topic not in self._topics:
+            pubsub, event = self._services(topic)
+            self._topics[topic] = _Topic(pubsub.subscriber_builder().create(), event.listener_builder().create())
+        self._topics[topic].callbacks.append(callback)
+
+    def start(self) -> None:
+        """Start delivering the subscribed topics (in a thread that waits for their events)."""
+        if self._topics and self._thread is None:
+            self._thread = threading.Thread(target=self._wait, name="handflow-local", daemon=True)
+            self._thread.start()
+
+    def _wait(self) -> None:
+        iox = self._iox
+        waitset = (
+            iox.WaitSetBuilder.new().signal_handling_mode(iox.SignalHandlingMode.Disabled).create(iox.ServiceType.Ipc)
+        )
+        guards = [waitset.attach_notification(t.listener) for t in self._topics.values()]
+        timeout = iox.Duration.from_secs_f64(POLL_S)
+        while not self._stop.is_set():
+            waitset.wait_and_process_with_timeout(timeout)
+            for topic in self._topics.values():
+                topic.listener.try_wait()
+                self._drain(topic)
+        del guards
+
+    def _drain(self, topic: _Topic) -> None:
+        while not self._stop.is_set():
+            sample = topic.subscriber.receive()
+            if sample is None:
+                return
+            payload, att = self._frame(sample)
+            del sample  # only the views keep it from here on: BORROWED counts on that
+            for callback in topic.callbacks:
+                callback(payload, att)
+            del payload
+
+    def _frame(self, sample: Any) -> tuple[memoryview | bytes, bytes]:
+        """The frame's payload (a read-only view keeping ``sample`` alive, or a copy) and attachment."""
+        slice_ = sample.payload()
+        raw = (ctypes.c_uint8 * slice_.len()).from_address(slice_.as_ptr())
+        (n,) = _LEN.unpack_from(raw, 0)
+        att = bytes(raw[_LEN.size : _LEN.size + n])
+        off = payload_offset(n)
+        with self._count_lock:
+            keep = self._borrowed < BORROWED - 1
+            self._borrowed += keep
+        if not keep:
+            return bytes(memoryview(raw)[off:]), att
+        raw.sample = sample  # the view's owner chain: numpy array → memoryview → raw → sample
+        weakref.finalize(raw, self._given_back)
+        return memoryview(raw).cast("B").toreadonly()[off:], att
+
+    def _given_back(self) -> None:
+        with self._count_lock:
+            self._borrowed -= 1
+
+    @property
+    def borrowed(self) -> int:
+        """Samples this process holds through views right now."""
+        return self._borrowed
+
+    def stop(self) -> None:
+        """Stop delivering (views still held stay valid until dropped)."""
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=5 * POLL_S)
+
+    def close(self) -> None:
+        """:meth:`stop`, then release every port and the node, which removes their files (a process
+        that ends without this, e.g. killed, leaves them to the dead-node cleanup)."""
+        self.stop()
+        ports = [p for t in self._topics.values() for p in (t.subscriber, t.listener)]
+        ports += [p for pair in self._pubs for p in pair]
+        for port in ports:
+            port.delete()
+        self._topics.clear()
+        self._pubs.clear()
+        self._node = None  # dropping the last reference releases the node
+
+
+def remove_leftovers() -> list[str]:
+    """Reclaim dead nodes' resources and, when no handflow node of this user is alive, delete this
+    user's iceoryx2 files (``/dev/shm/<prefix>*`` and :func:`root_dir`); returns what was deleted."""
+    try:
+        iox = _iox()
+        iox.set_log_level(iox.LogLevel.Error)
+        cfg = _config(iox)
+        alive = 0
+        for state in iox.Node.list(iox.ServiceType.Ipc, cfg):
+            if isinstance(state, iox.NodeState.Dead):
+                state._0.try_remove_stale_resources()
+            alive += isinstance(state, iox.NodeState.Alive)
+    except Exception as exc:  # not usable: nothing of ours can be there
+        log.debug("no iceoryx2 cleanup: %s", exc)
+        return []
+    if alive:
+        return []
+    removed = [str(p) for p in Path("/dev/shm").glob(f"{prefix()}*")]
+    for p in removed:
+        Path(p).unlink(missing_ok=True)
+    if root_dir().exists():
+        shutil.rmtree(root_dir(), ignore_errors=True)
+        removed.append(str(root_dir()))
+    return removed

@@ -51,6 +51,11 @@ INITIAL_BYTES = 4096
 """A publisher's first sample size; its segment grows by powers of two for larger messages."""
 POLL_S = 0.2
 """How often the waiting thread looks whether it should stop (wake-ups for messages are events)."""
+ZENOH = 1
+"""A message went over Zenoh (the ``path.<port>`` heartbeat counter is a sum of these flags)."""
+LOCAL = 2
+"""A message went to at least one local subscriber through iceoryx2."""
+PATH_NAMES = {0: "-", ZENOH: "zenoh", LOCAL: "iceoryx2", ZENOH | LOCAL: "iceoryx2+zenoh"}
 _LEN = struct.Struct("<I")
 _notice_given = False
 Callback = Callable[[memoryview | bytes, bytes], None]

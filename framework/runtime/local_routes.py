@@ -22,13 +22,7 @@ from typing import Any
 
 from ..graphs.model import Graph
 from ..network import local_transport
-from ..network.local_transport import LocalPublisher, LocalTransport
-
-ZENOH = 1
-"""The message went over Zenoh."""
-LOCAL = 2
-"""The message went to at least one local subscriber through iceoryx2."""
-PATH_NAMES = {0: "-", ZENOH: "zenoh", LOCAL: "iceoryx2", ZENOH | LOCAL: "iceoryx2+zenoh"}
+from ..network.local_transport import LOCAL, ZENOH, LocalPublisher, LocalTransport
 
 
 def run_of(hub: str) -> str:

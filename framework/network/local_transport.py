@@ -19,10 +19,11 @@ never blocks the transport.
 
 A subscriber whose buffer of :data:`BUFFER` samples is full loses the oldest (iceoryx2's safe
 overflow): the runner counts it as a sequence gap.  Files live under :func:`root_dir` and carry
-:func:`prefix` in ``/dev/shm``; :func:`remove_leftovers` deletes them once no node of this user is
-alive, and every :class:`LocalTransport` reclaims what dead processes left (iceoryx2's dead-node
-cleanup at node creation).  When iceoryx2 cannot be used (not installed, no ``/dev/shm``, a
-sandbox), :func:`open_local` logs one notice and returns ``None``: the caller uses Zenoh.
+:func:`prefix` in ``/dev/shm``.  A launcher calls :func:`prepare` at its start (reclaims what dead
+processes left, iceoryx2's dead-node cleanup, and says whether iceoryx2 is usable here) and
+:func:`remove_leftovers` at its end (deletes the files once no node of the namespace is alive).
+When iceoryx2 cannot be used (not installed, no ``/dev/shm``, a sandbox), the launcher logs one
+notice and :func:`open_local` returns ``None`` in every node process: the caller uses Zenoh.
 """
 
 from __future__ import annotations
@@ -35,6 +36,7 @@ import struct
 import tempfile
 import threading
 import weakref
+import zlib
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -57,7 +59,6 @@ LOCAL = 2
 """A message went to at least one local subscriber through iceoryx2."""
 PATH_NAMES = {0: "-", ZENOH: "zenoh", LOCAL: "iceoryx2", ZENOH | LOCAL: "iceoryx2+zenoh"}
 _LEN = struct.Struct("<I")
-_notice_given = False
 Callback = Callable[[memoryview | bytes, bytes], None]
 
 
@@ -67,14 +68,14 @@ def _iox() -> Any:
     return iceoryx2
 
 
-def prefix() -> str:
-    """The prefix of this user's handflow files in ``/dev/shm`` and :func:`root_dir`."""
-    return f"hf{os.getuid()}_"
-
-
 def root_dir() -> Path:
-    """iceoryx2's directory for this user's handflow nodes and services (mode 0700)."""
+    """iceoryx2's directory for this user's handflow nodes and services (mode 0700), in ``$TMPDIR``."""
     return Path(tempfile.gettempdir()) / f"handflow-iox2-{os.getuid()}"
+
+
+def prefix() -> str:
+    """The prefix of the files that go with :func:`root_dir` in ``/dev/shm`` (one namespace per user and ``$TMPDIR``)."""
+    return f"hf{os.getuid()}x{zlib.crc32(str(root_dir()).encode()):08x}_"
 
 
 def _config(iox: Any) -> Any:
@@ -96,15 +97,35 @@ def payload_offset(att_len: int) -> int:
     return -(-(_LEN.size + att_len + 4) // 16) * 16 - 4
 
 
+def write_frame(view: memoryview, payload: bytes | bytearray | memoryview, att: bytes) -> None:
+    """Lay out one message in a sample of ``frame_size(len(payload), len(att))`` bytes (module doc)."""
+    _LEN.pack_into(view, 0, len(att))
+    view[_LEN.size : _LEN.size + len(att)] = att
+    view[payload_offset(len(att)) :] = payload
+
+
+def frame_size(payload_len: int, att_len: int) -> int:
+    return payload_offset(att_len) + payload_len
+
+
+def read_frame(view: memoryview) -> tuple[int, bytes]:
+    """``(payload offset, attachment)`` of a frame; ``ValueError`` when the bytes are no frame."""
+    if len(view) < _LEN.size:
+        raise ValueError(f"a frame needs at least {_LEN.size} bytes, got {len(view)}")
+    (n,) = _LEN.unpack_from(view, 0)
+    off = payload_offset(n)
+    if off > len(view):
+        raise ValueError(f"a frame of {len(view)} bytes cannot hold an attachment of {n} bytes")
+    return off, bytes(view[_LEN.size : _LEN.size + n])
+
+
 def open_local(run: str, name: str) -> LocalTransport | None:
-    """This process's transport for the launcher run ``run``; ``None`` (one notice) when iceoryx2 is unusable."""
-    global _notice_given
+    """This process's transport for the launcher run ``run``; ``None`` when iceoryx2 is unusable (the
+    launcher gave the notice, :func:`prepare`)."""
     try:
         return LocalTransport(run, name)
     except Exception as exc:  # ImportError, a missing /dev/shm, a sandbox: whatever iceoryx2 raises
-        if not _notice_given:
-            _notice_given = True
-            log.warning("iceoryx2 is not usable here (%s: %s); local topics use Zenoh", type(exc).__name__, exc)
+        log.debug("iceoryx2 is not usable here (%s: %s); local topics use Zenoh", type(exc).__name__, exc)
         return None
 
 
@@ -116,12 +137,8 @@ class LocalPublisher:
 
     def send(self, payload: bytes | bytearray | memoryview, att: bytes) -> int:
         """Copy one message into a loaned sample and send it; returns how many subscribers received it."""
-        off = payload_offset(len(att))
-        sample = self._pub.loan_slice_uninit(off + len(payload))
-        view = sample.payload().as_memory_view().cast("B")
-        _LEN.pack_into(view, 0, len(att))
-        view[_LEN.size : _LEN.size + len(att)] = att
-        view[off:] = payload
+        sample = self._pub.loan_slice_uninit(frame_size(len(payload), len(att)))
+        write_frame(sample.payload().as_memory_view().cast("B"), payload, att)
         receivers = sample.assume_init().send()
         if receivers:
             self._notifier.notify()
@@ -131,8 +148,8 @@ class LocalPublisher:
 class _Topic:
     """A subscribed topic: its iceoryx2 subscriber, listener and the callbacks of this process."""
 
-    def __init__(self, subscriber: Any, listener: Any) -> None:
-        self.subscriber, self.listener = subscriber, listener
+    def __init__(self, name: str, subscriber: Any, listener: Any) -> None:
+        self.name, self.subscriber, self.listener = name, subscriber, listener
         self.callbacks: list[Callback] = []
 
 
@@ -191,7 +208,7 @@ class LocalTransport:
         """Call ``callback(payload, attachment)`` for each message of ``topic`` (from :meth:`start` on)."""
         if topic not in self._topics:
             pubsub, event = self._services(topic)
-            self._topics[topic] = _Topic(pubsub.subscriber_builder().create(), event.listener_builder().create())
+            self._topics[topic] = _Topic(topic, pubsub.subscriber_builder().create(), event.listener_builder().create())
         self._topics[topic].callbacks.append(callback)
 
     def start(self) -> None:
@@ -219,8 +236,13 @@ class LocalTransport:
             sample = topic.subscriber.receive()
             if sample is None:
                 return
-            payload, att = self._frame(sample)
-            del sample  # only the views keep it from here on: BORROWED counts on that
+            try:
+                payload, att = self._frame(sample)
+            except ValueError as exc:
+                log.warning("dropped a malformed sample on %s: %s", topic.name, exc)
+                continue
+            finally:
+                del sample  # only the views keep it from here on: BORROWED counts on that
             for callback in topic.callbacks:
                 callback(payload, att)
             del payload
@@ -229,9 +251,7 @@ class LocalTransport:
         """The frame's payload (a read-only view keeping ``sample`` alive, or a copy) and attachment."""
         slice_ = sample.payload()
         raw = (ctypes.c_uint8 * slice_.len()).from_address(slice_.as_ptr())
-        (n,) = _LEN.unpack_from(raw, 0)
-        att = bytes(raw[_LEN.size : _LEN.size + n])
-        off = payload_offset(n)
+        off, att = read_frame(memoryview(raw).cast("B"))
         with self._count_lock:
             keep = self._borrowed < BORROWED - 1
             self._borrowed += keep
@@ -269,22 +289,36 @@ class LocalTransport:
         self._node = None  # dropping the last reference releases the node
 
 
-def remove_leftovers() -> list[str]:
-    """Reclaim dead nodes' resources and, when no handflow node of this user is alive, delete this
-    user's iceoryx2 files (``/dev/shm/<prefix>*`` and :func:`root_dir`); returns what was deleted."""
+def _reclaim_dead_nodes() -> int:
+    """Remove what dead handflow nodes of this namespace left; returns how many nodes are alive."""
+    iox = _iox()
+    iox.set_log_level(iox.LogLevel.Error)
+    alive = 0
+    for state in iox.Node.list(iox.ServiceType.Ipc, _config(iox)):
+        if isinstance(state, iox.NodeState.Dead):
+            state._0.try_remove_stale_resources()
+        alive += isinstance(state, iox.NodeState.Alive)
+    return alive
+
+
+def prepare() -> str | None:
+    """At a launcher's start: reclaim dead nodes' resources; ``None`` when iceoryx2 is usable, else why not."""
     try:
-        iox = _iox()
-        iox.set_log_level(iox.LogLevel.Error)
-        cfg = _config(iox)
-        alive = 0
-        for state in iox.Node.list(iox.ServiceType.Ipc, cfg):
-            if isinstance(state, iox.NodeState.Dead):
-                state._0.try_remove_stale_resources()
-            alive += isinstance(state, iox.NodeState.Alive)
+        _reclaim_dead_nodes()
+        LocalTransport("probe", "handflow/probe").close()
+    except Exception as exc:  # ImportError, a missing /dev/shm, a sandbox: whatever iceoryx2 raises
+        return f"{type(exc).__name__}: {exc}"
+    return None
+
+
+def remove_leftovers() -> list[str]:
+    """Reclaim dead nodes' resources and, when no handflow node of this namespace is alive, delete its
+    files (``/dev/shm/<prefix>*`` and :func:`root_dir`); returns what was deleted."""
+    try:
+        if _reclaim_dead_nodes():
+            return []
     except Exception as exc:  # not usable: nothing of ours can be there
         log.debug("no iceoryx2 cleanup: %s", exc)
-        return []
-    if alive:
         return []
     removed = [str(p) for p in Path("/dev/shm").glob(f"{prefix()}*")]
     for p in removed:

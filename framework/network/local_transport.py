@@ -43,12 +43,17 @@ from typing import Any
 
 log = logging.getLogger("handflow.local")
 
-BUFFER = 4
+BUFFER = 2
 """Samples a subscriber buffers before it loses the oldest (drop-oldest, counted as a gap)."""
-BORROWED = 4
+BORROWED = 3
 """Samples a subscriber process may hold at once (views kept by its nodes); beyond, messages are copied."""
-MAX_SUBSCRIBERS = 16
+MAX_SUBSCRIBERS = 8
 """Subscriber processes per topic."""
+SAMPLES = 16
+"""Samples a publisher owns (iceoryx2 would preallocate ``MAX_SUBSCRIBERS × (BUFFER + BORROWED)`` and more;
+each is as large as the largest message, and each is touched once it is used): enough for three
+subscriber processes that each hold everything they may.  When more hold every sample, a message
+cannot be loaned: it is not sent locally (:attr:`LocalPublisher.unsent`, a gap for the subscribers)."""
 INITIAL_BYTES = 4096
 """A publisher's first sample size; its segment grows by powers of two for larger messages."""
 POLL_S = 0.2
@@ -132,12 +137,19 @@ def open_local(run: str, name: str) -> LocalTransport | None:
 class LocalPublisher:
     """One output port's iceoryx2 publisher and notifier."""
 
-    def __init__(self, publisher: Any, notifier: Any) -> None:
-        self._pub, self._notifier = publisher, notifier
+    def __init__(self, publisher: Any, notifier: Any, loan_error: type[Exception]) -> None:
+        self._pub, self._notifier, self._loan_error = publisher, notifier, loan_error
+        self.unsent = 0  # messages no sample could be loaned for (every sample held, SAMPLES)
 
     def send(self, payload: bytes | bytearray | memoryview, att: bytes) -> int:
         """Copy one message into a loaned sample and send it; returns how many subscribers received it."""
-        sample = self._pub.loan_slice_uninit(frame_size(len(payload), len(att)))
+        try:
+            sample = self._pub.loan_slice_uninit(frame_size(len(payload), len(att)))
+        except self._loan_error as exc:
+            self.unsent += 1
+            if self.unsent == 1 or self.unsent % 1000 == 0:
+                log.warning("no free sample (%s): %d message(s) not sent through iceoryx2", exc, self.unsent)
+            return 0
         write_frame(sample.payload().as_memory_view().cast("B"), payload, att)
         receivers = sample.assume_init().send()
         if receivers:
@@ -198,11 +210,12 @@ class LocalTransport:
             pubsub.publisher_builder()
             .initial_max_slice_len(INITIAL_BYTES)
             .allocation_strategy(self._iox.AllocationStrategy.PowerOfTwo)
+            .override_sample_preallocation(SAMPLES)
             .create()
         )
         notifier = event.notifier_builder().create()
         self._pubs.append((pub, notifier))
-        return LocalPublisher(pub, notifier)
+        return LocalPublisher(pub, notifier, self._iox.LoanError)
 
     def subscribe(self, topic: str, callback: Callback) -> None:
         """Call ``callback(payload, attachment)`` for each message of ``topic`` (from :meth:`start` on)."""

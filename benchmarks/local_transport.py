@@ -20,7 +20,8 @@ docs/shared_memory.md); alone: ``python benchmarks/local_transport.py [--pairs 3
   the bare relay.
 * ``joint_state_vs_bare_zenoh``: ``benchmarks/transport.py``'s 24-joint chain at 1 kHz as a graph
   (three node processes, the default ``transport: {local: iceoryx2}``) against the bare Zenoh relay
-  chain carrying the same CDR bytes; the median of the pairs' ratios.
+  chain carrying the same CDR bytes; the median of the pairs' ratios.  ``--hogs N`` measures only
+  this, with N busy-looping processes running (one per core: the loaded case).
 """
 
 from __future__ import annotations
@@ -170,8 +171,6 @@ def run_chain(size: int, mode: str, hops: int, seconds: float, rate: float = RAT
 
 def run_local(pairs: int, seconds: float, hd_seconds: float, joint_seconds: float) -> dict:
     """The ``local`` section (module docstring)."""
-    from transport import _paired, run_handflow, run_raw
-
     one_hop = {}
     for name, size in ONE_HOP.items():
         runs = [{m: run_chain(size, m, 1, seconds) for m in ("handflow", "bare")} for _ in range(pairs)]
@@ -187,11 +186,7 @@ def run_local(pairs: int, seconds: float, hd_seconds: float, joint_seconds: floa
         )
     chain = {m: run_chain(ONE_HOP["4MiB"], m, 2, seconds) for m in ("handflow", "bare")}
     frames = {name: run_chain(size, "handflow", 2, hd_seconds) for name, size in FRAMES.items()}
-    joint = _paired(
-        pairs,
-        lambda: run_handflow(1000.0, joint_seconds, 2, "joint_state"),
-        lambda: run_raw(1000.0, joint_seconds, 2, "joint_state", mode="raw"),
-    )
+    joint = joint_state_pairs(pairs, joint_seconds)
     return {
         "one_hop": one_hop,
         "chain_4MiB": {**chain, "vs_bare_iceoryx2_relay": chain["handflow"]["median_us"] / chain["bare"]["median_us"]},
@@ -206,6 +201,28 @@ def run_local(pairs: int, seconds: float, hd_seconds: float, joint_seconds: floa
         **{f"{n}_lost": frames[n]["lost"] for n in FRAMES},
         **{f"{n}_cpu_percent": frames[n]["cpu_percent"] for n in FRAMES},
     }
+
+
+def with_hogs(n: int, fn):
+    """``fn()`` while ``n`` processes spin (a CPU hog per core), stopped afterwards."""
+    hogs = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(n)]
+    try:
+        return fn()
+    finally:
+        for h in hogs:
+            h.kill()
+            h.wait()
+
+
+def joint_state_pairs(pairs: int, seconds: float) -> dict:
+    """The 24-joint chain at 1 kHz, graph (local transport) against the bare Zenoh relay chain."""
+    from transport import _paired, run_handflow, run_raw
+
+    return _paired(
+        pairs,
+        lambda: run_handflow(1000.0, seconds, 2, "joint_state"),
+        lambda: run_raw(1000.0, seconds, 2, "joint_state", mode="raw"),
+    )
 
 
 KEYS = (
@@ -227,6 +244,7 @@ def main() -> None:
     ap.add_argument("--hd-seconds", type=float, default=60.0, help="per 1080p and 4K stream")
     ap.add_argument("--joint-seconds", type=float, default=6.0, help="per 24-joint chain run")
     ap.add_argument("--json", action="store_true", help="everything, not only the headline keys")
+    ap.add_argument("--hogs", type=int, default=0, help="only the 24-joint pairs, with this many CPU hogs")
     ap.add_argument("--_role", action="store_true", help=argparse.SUPPRESS)
     for name in ("--role", "--run", "--mode", "--out"):
         ap.add_argument(name, help=argparse.SUPPRESS)
@@ -237,6 +255,12 @@ def main() -> None:
     args = ap.parse_args()
     if args._role:
         _role(args)
+        return
+    if args.hogs:
+        res = with_hogs(args.hogs, lambda: joint_state_pairs(args.pairs, args.joint_seconds))
+        pairs = [(p["handflow_chain"]["median_us"], p["raw_chain"]["median_us"], p["ratio"]) for p in res["pairs"]]
+        lost = [p["handflow_chain"]["lost"] for p in res["pairs"]]
+        print(json.dumps({"joint_state_vs_bare_zenoh": res["ratio_median"], "pairs_us": pairs, "lost": lost}))
         return
     res = run_local(args.pairs, args.seconds, args.hd_seconds, args.joint_seconds)
     print(json.dumps(res if args.json else {k: res[k] for k in KEYS}))

@@ -320,3 +320,20 @@ def test_killed_processes_are_replaced_and_leave_no_file(tmp_path, namespace):
         session.close()
     assert proc.returncode == 0, err
     assert _files() == [], "iceoryx2 files left after the launcher ended"
+
+
+def test_segments_are_readable_by_the_same_user_only(namespace):
+    """docs/security.md, "Shared memory on a shared host"."""
+    pub_side, sub_side = lt.LocalTransport("runperm", "test/pub"), lt.LocalTransport("runperm", "test/sub")
+    got = []
+    sub_side.subscribe("handflow/t/src/out", lambda payload, att: got.append(bytes(payload)))
+    sub_side.start()
+    publisher = pub_side.publisher("handflow/t/src/out")
+    wait_until(lambda: publisher.send(b"secret", b"att") == 1 and got, timeout=10, what="a message")
+    modes = {f: os.stat(f).st_mode & 0o777 for f in _files() if f.startswith("/dev/shm/")}
+    data = {f: m for f, m in modes.items() if not f.endswith(".global_mgmt")}  # 16 bytes, no content
+    assert data and set(data.values()) == {0o600}, modes
+    assert os.stat(lt.root_dir()).st_mode & 0o777 == 0o700
+    sub_side.close()
+    pub_side.close()
+    assert lt.remove_leftovers() and _files() == []

@@ -4,11 +4,13 @@ The ``local`` section of ``python benchmarks/transport.py --json`` (docs/benchma
 docs/shared_memory.md); alone: ``python benchmarks/local_transport.py [--pairs 3] [--seconds 3]
 [--hd-seconds 60]``.
 
-* One hop, publisher process → subscriber process, ``Image`` payloads of 4 KiB, 4 MiB and 32 MiB at
-  30 Hz, as back-to-back (handflow, bare) pairs.  handflow: the node runtime's path
-  (``NodeContext.publish``: header, check, ``wire.pack``, :class:`LocalPublisher.send`; the subscriber
+* One hop, publisher process → subscriber process (latency from the stamp, taken once the frame
+  is in the sample, to the subscriber's callback), ``Image`` payloads of 4 KiB, 4 MiB and 32 MiB at
+  30 Hz, as back-to-back (handflow, bare) pairs.  handflow: the node runtime's path (a source
+  fills a ``ctx.allocate`` array, here a copy of the frame's pixels, then ``NodeContext.publish``:
+  header, check, ``OutputPort.publish``, which sends the sample the pixels are in; the subscriber
   decodes and validates, ``wire.unpack`` on the view into the sample).  Bare iceoryx2: the same CDR
-  bytes (stamp patched in place) copied into a loaned sample with the raw iceoryx2 API, the stamp
+  bytes written into a loaned sample with the raw iceoryx2 API (stamp and seq patched in), the stamp
   read on the subscriber without decoding; both wake on an iceoryx2 event.  Keys ``flat_ratio``
   (handflow p50 at 32 MiB / 4 KiB) and ``vs_bare_iceoryx2`` (handflow / bare at 4 MiB), medians of
   the pairs.
@@ -59,6 +61,7 @@ def _role(args: argparse.Namespace) -> None:
     from handflow.framework import wire
     from handflow.framework.messages import Header, Image
     from handflow.framework.network import local_transport as lt
+    from handflow.framework.runtime.local_routes import OutputPort
 
     transport, services, iox = _bare(args.run)
     rows: list[tuple[int, int]] = []
@@ -80,9 +83,9 @@ def _role(args: argparse.Namespace) -> None:
         notifier.notify()
 
     if args.role == "pub":
-        handflow_pub = transport.publisher(dst) if args.mode == "handflow" else None
+        handflow_pub = OutputPort(None, transport.publisher(dst)) if args.mode == "handflow" else None
         bare_pub = bare_publisher(dst) if args.mode == "bare" else None
-        data = np.empty(args.size, np.uint8)  # stands for a ctx.allocate buffer the source filled in place
+        data = np.empty(args.size, np.uint8)  # the pixels a source has to publish (a camera's frame)
         data[:] = np.arange(args.size) % 251
         frame = Image(width=args.size, height=1, encoding="mono8", step=args.size, data=data)
         body = bytearray(wire.pack(frame)[0])
@@ -92,16 +95,22 @@ def _role(args: argparse.Namespace) -> None:
             t_next += period
             while (d := t_next - time.perf_counter()) > 0:
                 time.sleep(d if d > 2e-4 else 0)
-            now = time.time_ns()
-            if handflow_pub is not None:  # NodeContext.publish: header, check, pack, local send
-                frame.header = Header("pub", seq, now)
-                frame.check()
-                payload, att = wire.pack(frame)
-                handflow_pub.send(payload, att)
+            if handflow_pub is not None:  # the source fills a ctx.allocate array, then NodeContext.publish
+                pixels = handflow_pub.allocate(args.size)
+                pixels[:] = data
+                msg = Image(width=args.size, height=1, encoding="mono8", step=args.size, data=pixels)
+                msg.header = Header("pub", seq, time.time_ns())
+                msg.check()
+                handflow_pub.publish(msg, None, lambda payload: payload)
                 continue
-            struct.pack_into("<iI", body, 4, now // 1_000_000_000, now % 1_000_000_000)
-            struct.pack_into("<q", body, len(body) - 8, seq)  # the bare subscriber reads seq from here
-            bare_send(bare_pub, body)
+            sample = bare_pub[0].loan_slice_uninit(len(body))  # the frame written into a loaned sample
+            view = sample.payload().as_memory_view().cast("B")
+            view[:] = body
+            now = time.time_ns()
+            struct.pack_into("<iI", view, 4, now // 1_000_000_000, now % 1_000_000_000)
+            struct.pack_into("<q", view, len(body) - 8, seq)  # the bare subscriber reads seq from here
+            sample.assume_init().send()
+            bare_pub[1].notify()
         time.sleep(1.0)
     elif args.mode == "handflow":
         out = transport.publisher(dst) if args.role == "relay" else None

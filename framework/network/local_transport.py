@@ -41,19 +41,23 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 log = logging.getLogger("handflow.local")
 
-BUFFER = 2
-"""Samples a subscriber buffers before it loses the oldest (drop-oldest, counted as a gap)."""
+BUFFER = 32
+"""Samples a subscriber buffers before it loses the oldest (drop-oldest, counted as a gap): 32 ms at 1 kHz
+for a subscriber process the machine's load holds up."""
 BORROWED = 3
 """Samples a subscriber process may hold at once (views kept by its nodes); beyond, messages are copied."""
 MAX_SUBSCRIBERS = 8
 """Subscriber processes per topic."""
-SAMPLES = 16
-"""Samples a publisher owns (iceoryx2 would preallocate ``MAX_SUBSCRIBERS × (BUFFER + BORROWED)`` and more;
-each is as large as the largest message, and each is touched once it is used): enough for three
-subscriber processes that each hold everything they may.  When more hold every sample, a message
-cannot be loaned: it is not sent locally (:attr:`LocalPublisher.unsent`, a gap for the subscribers)."""
+SAMPLES = 48
+"""Samples a publisher owns (iceoryx2 would preallocate ``MAX_SUBSCRIBERS × (BUFFER + BORROWED)`` and more),
+each as large as its largest message.  Freed samples are reused first, so while subscribers keep up
+only a few are ever touched; a subscriber that falls behind pins up to ``BUFFER + BORROWED - 1``.
+When subscribers hold every sample, a message cannot be loaned: it is not sent locally
+(:attr:`LocalPublisher.unsent`, a gap for the subscribers) and the publisher never waits."""
 INITIAL_BYTES = 4096
 """A publisher's first sample size; its segment grows by powers of two for larger messages."""
 POLL_S = 0.2
@@ -63,7 +67,12 @@ ZENOH = 1
 LOCAL = 2
 """A message went to at least one local subscriber through iceoryx2."""
 PATH_NAMES = {0: "-", ZENOH: "zenoh", LOCAL: "iceoryx2", ZENOH | LOCAL: "iceoryx2+zenoh"}
-_LEN = struct.Struct("<I")
+LOAN_RESERVE = 1024
+"""Bytes before the data of a loaned array (:meth:`LocalPublisher.loan`): frame header, attachment
+and the CDR of the message's other fields."""
+MAX_LOANS = 3
+"""Arrays a publisher lends at once; beyond, ``ctx.allocate`` returns an ordinary array."""
+_HEAD = struct.Struct("<II")  # attachment length, payload offset
 Callback = Callable[[memoryview | bytes, bytes], None]
 
 
@@ -98,14 +107,19 @@ def service_name(run: str, topic: str) -> str:
 
 
 def payload_offset(att_len: int) -> int:
-    """Where the CDR payload starts in a frame whose attachment has ``att_len`` bytes (see the module doc)."""
-    return -(-(_LEN.size + att_len + 4) // 16) * 16 - 4
+    """Where :func:`write_frame` puts the CDR payload after an attachment of ``att_len`` bytes (module doc)."""
+    return -(-(_HEAD.size + att_len + 4) // 16) * 16 - 4
+
+
+def write_head(view: memoryview, att: bytes, offset: int) -> None:
+    """The frame header and attachment of a frame whose payload starts at ``offset``."""
+    _HEAD.pack_into(view, 0, len(att), offset)
+    view[_HEAD.size : _HEAD.size + len(att)] = att
 
 
 def write_frame(view: memoryview, payload: bytes | bytearray | memoryview, att: bytes) -> None:
     """Lay out one message in a sample of ``frame_size(len(payload), len(att))`` bytes (module doc)."""
-    _LEN.pack_into(view, 0, len(att))
-    view[_LEN.size : _LEN.size + len(att)] = att
+    write_head(view, att, payload_offset(len(att)))
     view[payload_offset(len(att)) :] = payload
 
 
@@ -115,13 +129,12 @@ def frame_size(payload_len: int, att_len: int) -> int:
 
 def read_frame(view: memoryview) -> tuple[int, bytes]:
     """``(payload offset, attachment)`` of a frame; ``ValueError`` when the bytes are no frame."""
-    if len(view) < _LEN.size:
-        raise ValueError(f"a frame needs at least {_LEN.size} bytes, got {len(view)}")
-    (n,) = _LEN.unpack_from(view, 0)
-    off = payload_offset(n)
-    if off > len(view):
-        raise ValueError(f"a frame of {len(view)} bytes cannot hold an attachment of {n} bytes")
-    return off, bytes(view[_LEN.size : _LEN.size + n])
+    if len(view) < _HEAD.size:
+        raise ValueError(f"a frame needs at least {_HEAD.size} bytes, got {len(view)}")
+    n, off = _HEAD.unpack_from(view, 0)
+    if not _HEAD.size + n <= off <= len(view):
+        raise ValueError(f"a frame of {len(view)} bytes cannot hold an attachment of {n} bytes and a payload at {off}")
+    return off, bytes(view[_HEAD.size : _HEAD.size + n])
 
 
 def open_local(run: str, name: str) -> LocalTransport | None:
@@ -140,6 +153,48 @@ class LocalPublisher:
     def __init__(self, publisher: Any, notifier: Any, loan_error: type[Exception]) -> None:
         self._pub, self._notifier, self._loan_error = publisher, notifier, loan_error
         self.unsent = 0  # messages no sample could be loaned for (every sample held, SAMPLES)
+        self._loans: dict[int, tuple[Any, memoryview, weakref.ref]] = {}  # id(array) → sample, its view, array
+
+    def loan(self, nbytes: int) -> np.ndarray | None:
+        """A writable ``uint8`` array of ``nbytes`` inside a loaned sample (``ctx.allocate``), or ``None``
+        when :data:`MAX_LOANS` are out or no sample is free.  Published with :meth:`send_loaned`; an
+        array dropped unpublished gives its sample back."""
+        if len(self._loans) >= MAX_LOANS:
+            return None
+        try:
+            sample = self._pub.loan_slice_uninit(LOAN_RESERVE + nbytes)
+        except self._loan_error:
+            return None
+        view = sample.payload().as_memory_view().cast("B")
+        arr = np.frombuffer(view, np.uint8, count=nbytes, offset=LOAN_RESERVE)
+        key = id(arr)
+        self._loans[key] = (sample, view, weakref.ref(arr))
+        weakref.finalize(arr, self._loans.pop, key, None)
+        return arr
+
+    def lent(self, data: Any) -> bool:
+        """Whether ``data`` is an array of :meth:`loan` not yet sent."""
+        loan = self._loans.get(id(data))
+        return loan is not None and loan[2]() is data
+
+    def send_loaned(
+        self, data: np.ndarray, prefix: bytes, att: bytes, copy_out: bool
+    ) -> tuple[int, bytes | None] | None:
+        """Send the sample holding ``data`` with the CDR ``prefix`` (the message up to ``data``) before
+        it: no copy of the data.  Returns the subscribers reached and, with ``copy_out``, the payload's
+        bytes (for Zenoh); ``None`` when ``prefix`` and ``att`` do not fit :data:`LOAN_RESERVE`."""
+        sample, view, _ = self._loans[id(data)]
+        offset = LOAN_RESERVE - len(prefix)
+        if offset < _HEAD.size + len(att):
+            return None
+        del self._loans[id(data)]
+        write_head(view, att, offset)
+        view[offset:LOAN_RESERVE] = prefix
+        payload = bytes(view[offset:]) if copy_out else None
+        receivers = sample.assume_init().send()
+        if receivers:
+            self._notifier.notify()
+        return receivers, payload
 
     def send(self, payload: bytes | bytearray | memoryview, att: bytes) -> int:
         """Copy one message into a loaned sample and send it; returns how many subscribers received it."""
@@ -211,6 +266,7 @@ class LocalTransport:
             .initial_max_slice_len(INITIAL_BYTES)
             .allocation_strategy(self._iox.AllocationStrategy.PowerOfTwo)
             .override_sample_preallocation(SAMPLES)
+            .max_loaned_samples(MAX_LOANS + 1)
             .create()
         )
         notifier = event.notifier_builder().create()

@@ -127,13 +127,15 @@ class NodeContext:
         seq = self._state.get("out:" + port) + 1
         self._state.set("out:" + port, seq)
         msg.header = Header(self.node_id, seq, self.now_ns() if stamp_ns is None else int(stamp_ns))
-        payload, att = (forwarded and wire.repack(msg, received[1])) or wire.pack(msg)
-        self.paths[port], pooled = self._pubs[port].send(payload, att, self._rt.shared.wrap)
+        body = received[1] if forwarded else None
+        self.paths[port], pooled = self._pubs[port].publish(msg, body, self._rt.shared.wrap)
         self.published[port] += 1
         self.shared[port] += pooled
 
     def allocate(self, port: str, nbytes: int) -> np.ndarray:
-        return allocate_output(self.node_id, self._outputs, port, nbytes)
+        if port not in self._pubs:
+            return allocate_output(self.node_id, self._outputs, port, nbytes)  # raises, naming the ports
+        return self._pubs[port].allocate(nbytes)
 
     def now_ns(self) -> int:
         return self._rt.now_ns()

@@ -337,3 +337,50 @@ def test_segments_are_readable_by_the_same_user_only(namespace):
     sub_side.close()
     pub_side.close()
     assert lt.remove_leftovers() and _files() == []
+
+
+def test_an_allocated_image_is_published_in_place_and_zenoh_readers_get_its_bytes(namespace):
+    """``ctx.allocate`` on the local transport: the pixels are written into the sample once; a Zenoh
+    reader gets the same payload bytes, and the subscriber's decoded image views the sample."""
+    from handflow.framework.messages import Header, Image
+    from handflow.framework.runtime.local_routes import LOCAL, ZENOH, OutputPort
+
+    conf = zenoh.Config()
+    conf.insert_json5("scouting/multicast/enabled", "false")
+    port = free_tcp_port()
+    conf.insert_json5("listen/endpoints", json.dumps([f"tcp/127.0.0.1:{port}"]))
+    pub_session, reader = zenoh.open(conf), _peer(port)
+    pub_side, sub_side = lt.LocalTransport("runimg", "test/pub"), lt.LocalTransport("runimg", "test/sub")
+    local_got, zenoh_got, paths = [], [], []
+    try:
+        sub_side.subscribe(
+            "handflow/t/cam/image", lambda payload, att: local_got.append((wire.unpack(payload, att), bytes(payload)))
+        )
+        sub_side.start()
+        reader.declare_subscriber("handflow/t/cam/image", lambda s: zenoh_got.append(s.payload.to_bytes()))
+        key = "handflow/t/cam/image"
+        out = OutputPort(pub_session.declare_publisher(key), pub_side.publisher(key))
+        wait_until(lambda: out.zenoh.matching_status.matching, timeout=10, what="the Zenoh reader")
+        for seq in range(1, 4):
+            pixels = out.allocate(640 * 480 * 3)
+            assert pixels.flags.writeable
+            pixels[:] = seq
+            msg = Image(width=640, height=480, encoding="rgb8", step=640 * 3, data=pixels)
+            msg.header = Header("cam", seq, 1000 + seq)
+            paths.append(out.publish(msg, None, lambda payload: payload)[0])
+        wait_until(lambda: len(local_got) == 3 and len(zenoh_got) == 3, timeout=10, what="three images each way")
+    finally:
+        sub_side.close()
+        pub_side.close()
+        reader.close()
+        pub_session.close()
+    assert paths == [LOCAL | ZENOH] * 3
+    for seq, ((img, payload), zbytes) in enumerate(zip(local_got, zenoh_got), 1):
+        expected = Image(width=640, height=480, encoding="rgb8", step=640 * 3, data=bytes([seq]) * (640 * 480 * 3))
+        expected.header = Header("cam", seq, 1000 + seq)
+        assert payload == zbytes == wire.pack(expected)[0]  # the encoder's bytes, the pixels never copied
+        assert (img.to_array() == seq).all()
+    # the subscriber holds the first two in place (read-only views of their samples); holding
+    # BORROWED - 1 already, it got the third as a copy
+    assert [type(img.data) for img, _ in local_got] == [np.ndarray, np.ndarray, bytes]
+    assert not any(img.data.flags.writeable for img, _ in local_got[:2])

@@ -87,6 +87,14 @@ def root_dir() -> Path:
     return Path(tempfile.gettempdir()) / f"handflow-iox2-{os.getuid()}"
 
 
+def preload() -> None:
+    """Import iceoryx2 ahead (the zygote, before it forks node processes: it starts no thread)."""
+    try:
+        _iox()
+    except ImportError:
+        pass
+
+
 def prefix() -> str:
     """The prefix of the files that go with :func:`root_dir` in ``/dev/shm`` (one namespace per user and ``$TMPDIR``)."""
     return f"hf{os.getuid()}x{zlib.crc32(str(root_dir()).encode()):08x}_"

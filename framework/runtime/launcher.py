@@ -115,8 +115,8 @@ class Launcher:
         self._event_seq = 0
         self._info = hub_info.declare_info(self.session, graph.name, host, list(graph.nodes))
         self.ros2 = Ros2Bridge(self.session, graph, host) if graph.spec.ros2 is not None else None
-        if graph.spec.transport.local == "iceoryx2" and (why := local_transport.prepare()) is not None:
-            log.warning("iceoryx2 is not usable here (%s); this host's topics travel over Zenoh", why)
+        if graph.spec.transport.local == "iceoryx2":  # beside the start-up: importing iceoryx2 takes 0.2-0.6 s
+            threading.Thread(target=_prepare_local, name="handflow-iox2", daemon=True).start()
 
     def _secure_settings(self, host: str | None) -> dict[str, object]:
         """The hub's TLS, access-control and user/password settings (docs/security.md)."""
@@ -409,6 +409,12 @@ class Launcher:
             }
             for u in self.units
         }
+
+
+def _prepare_local() -> None:
+    """Reclaim what dead processes left in iceoryx2; one notice when it is not usable (docs/shared_memory.md)."""
+    if (why := local_transport.prepare()) is not None:
+        log.warning("iceoryx2 is not usable here (%s); this host's topics travel over Zenoh", why)
 
 
 def _why(failure: dict) -> str:

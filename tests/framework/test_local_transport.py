@@ -43,6 +43,8 @@ def namespace(tmp_path, monkeypatch):
     monkeypatch.setenv("HANDFLOW_RUN_DIR", str(tmp_path / "runs"))
     monkeypatch.setattr("tempfile.tempdir", None)  # gettempdir() reads TMPDIR again
     yield tmp
+    for f in Path("/dev/shm").glob(f"{lt.prefix()}*"):  # the namespace is this test's alone
+        f.unlink(missing_ok=True)
     monkeypatch.setattr("tempfile.tempdir", None)
     shutil.rmtree(tmp, ignore_errors=True)
 
@@ -72,15 +74,25 @@ PUBLISHER = textwrap.dedent(
 def _publisher(run: str, count: int) -> subprocess.Popen:
     """A process publishing ``count`` messages, each once the test asks for it (:func:`_next`)."""
     proc = subprocess.Popen(
-        [sys.executable, "-c", PUBLISHER, run, str(count)], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True
+        [sys.executable, "-c", PUBLISHER, run, str(count)],
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
     )
-    assert proc.stdout.readline().strip() == "ready"
+    assert proc.stdout.readline().strip() == "ready", proc.stderr.read()
     return proc
 
 
 def _next(proc: subprocess.Popen) -> None:
     proc.stdin.write("next\n")
     proc.stdin.flush()
+
+
+def _end(proc: subprocess.Popen) -> None:
+    """Let the publisher finish (its last read sees the end of its input) and wait for it."""
+    proc.stdin.close()
+    assert proc.wait(timeout=30) == 0, proc.stderr.read()
 
 
 def test_views_keep_their_sample_alive_across_thousands_of_later_messages(namespace):
@@ -104,8 +116,7 @@ def test_views_keep_their_sample_alive_across_thousands_of_later_messages(namesp
         _next(pub)
         wait_until(lambda: len(received) == 3000, timeout=60, what=f"3000 messages, got {len(received)}")
     finally:
-        _next(pub)
-        pub.wait(timeout=30)
+        _end(pub)
     assert received == list(range(3000))  # each once, in order
     for seq, arr in held.items():
         assert arr.size == 1000 + seq % 50 and (arr == seq).all(), f"message {seq} was overwritten"
@@ -128,8 +139,7 @@ def test_a_view_outlives_the_closed_transport(namespace):
     _next(pub)
     wait_until(lambda: got, timeout=30, what="a message")
     transport.close()
-    _next(pub)
-    pub.wait(timeout=30)
+    _end(pub)
     assert (got[0] == 0).all() and got[0].size == 1000
 
 
@@ -368,7 +378,11 @@ def test_an_allocated_image_is_published_in_place_and_zenoh_readers_get_its_byte
             msg = Image(width=640, height=480, encoding="rgb8", step=640 * 3, data=pixels)
             msg.header = Header("cam", seq, 1000 + seq)
             paths.append(out.publish(msg, None, lambda payload: payload)[0])
-        wait_until(lambda: len(local_got) == 3 and len(zenoh_got) == 3, timeout=10, what="three images each way")
+        wait_until(
+            lambda: len(local_got) == 3 and len(zenoh_got) == 3,
+            timeout=30,
+            what=f"three images each way, got {len(local_got)} in place and {len(zenoh_got)} over Zenoh",
+        )
     finally:
         sub_side.close()
         pub_side.close()

@@ -45,19 +45,23 @@ import numpy as np
 
 log = logging.getLogger("handflow.local")
 
-BUFFER = 32
-"""Samples a subscriber buffers before it loses the oldest (drop-oldest, counted as a gap): 32 ms at 1 kHz
-for a subscriber process the machine's load holds up."""
+BUFFER = 256
+"""Messages a subscriber buffers before it loses the oldest (drop-oldest, counted as a gap): a node
+process that the machine's load or a long tick holds up catches up afterwards, as over Zenoh."""
+FRAME_BUFFER = 32
+"""The same for bulky topics (images): about a second at 30 fps."""
 BORROWED = 3
 """Samples a subscriber process may hold at once (views kept by its nodes); beyond, messages are copied."""
 MAX_SUBSCRIBERS = 8
 """Subscriber processes per topic."""
-SAMPLES = 48
+SAMPLES = BUFFER + 2 * BORROWED
 """Samples a publisher owns (iceoryx2 would preallocate ``MAX_SUBSCRIBERS × (BUFFER + BORROWED)`` and more),
 each as large as its largest message.  Freed samples are reused first, so while subscribers keep up
 only a few are ever touched; a subscriber that falls behind pins up to ``BUFFER + BORROWED - 1``.
 When subscribers hold every sample, a message cannot be loaned: it is not sent locally
 (:attr:`LocalPublisher.unsent`, a gap for the subscribers) and the publisher never waits."""
+FRAME_SAMPLES = FRAME_BUFFER + 16
+"""The same for bulky topics, whose samples are megabytes each: at most 48 × the largest frame."""
 INITIAL_BYTES = 4096
 """A publisher's first sample size; its segment grows by powers of two for larger messages."""
 POLL_S = 0.2
@@ -267,13 +271,14 @@ class LocalTransport:
         event = self._node.service_builder(name).event().open_or_create()
         return pubsub, event
 
-    def publisher(self, topic: str) -> LocalPublisher:
+    def publisher(self, topic: str, bulky: bool = False) -> LocalPublisher:
+        """The topic's publisher; ``bulky`` (images) owns :data:`FRAME_SAMPLES` samples, else :data:`SAMPLES`."""
         pubsub, event = self._services(topic)
         pub = (
             pubsub.publisher_builder()
             .initial_max_slice_len(INITIAL_BYTES)
             .allocation_strategy(self._iox.AllocationStrategy.PowerOfTwo)
-            .override_sample_preallocation(SAMPLES)
+            .override_sample_preallocation(FRAME_SAMPLES if bulky else SAMPLES)
             .max_loaned_samples(MAX_LOANS + 1)
             .create()
         )
@@ -281,11 +286,13 @@ class LocalTransport:
         self._pubs.append((pub, notifier))
         return LocalPublisher(pub, notifier, self._iox.LoanError)
 
-    def subscribe(self, topic: str, callback: Callback) -> None:
-        """Call ``callback(payload, attachment)`` for each message of ``topic`` (from :meth:`start` on)."""
+    def subscribe(self, topic: str, callback: Callback, bulky: bool = False) -> None:
+        """Call ``callback(payload, attachment)`` for each message of ``topic`` (from :meth:`start` on);
+        ``bulky`` (images) buffers :data:`FRAME_BUFFER` messages, else :data:`BUFFER`."""
         if topic not in self._topics:
             pubsub, event = self._services(topic)
-            self._topics[topic] = _Topic(topic, pubsub.subscriber_builder().create(), event.listener_builder().create())
+            subscriber = pubsub.subscriber_builder().buffer_size(FRAME_BUFFER if bulky else BUFFER).create()
+            self._topics[topic] = _Topic(topic, subscriber, event.listener_builder().create())
         self._topics[topic].callbacks.append(callback)
 
     def start(self) -> None:

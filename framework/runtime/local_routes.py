@@ -26,7 +26,7 @@ import numpy as np
 
 from .. import wire
 from ..graphs.model import Graph
-from ..messages import Image, Message
+from ..messages import CompressedImage, Image, Message
 from ..network import local_transport
 from ..network.local_transport import LOCAL, ZENOH, LocalPublisher, LocalTransport
 
@@ -41,6 +41,14 @@ def open_for(graph: Graph, hub: str, node_ids: list[str]) -> LocalTransport | No
     if graph.spec.transport.local != "iceoryx2":
         return None
     return local_transport.open_local(run_of(hub), f"handflow/{graph.name}/{','.join(node_ids)}")
+
+
+BULKY = (Image, CompressedImage)
+"""Message types whose topics get the small sample budgets of the local transport (megabytes each)."""
+
+
+def is_bulky(cls: type[Message]) -> bool:
+    return issubclass(cls, BULKY)
 
 
 def local_sources(graph: Graph, node_ids: list[str]) -> set[str]:

@@ -108,7 +108,8 @@ class NodeContext:
         self._state = state
         self.restarted = state.resumed
         self._pubs = {
-            port: runtime.output_port(keys.topic_key(self.graph_name, self.node_id, port)) for port in self._outputs
+            port: runtime.output_port(keys.topic_key(self.graph_name, self.node_id, port), cls)
+            for port, cls in self._outputs.items()
         }
         self.published = dict.fromkeys(self._outputs, 0)
         self.shared = dict.fromkeys(self._outputs, 0)  # published from shared memory
@@ -247,10 +248,9 @@ class GroupRuntime:
         return self.virtual_ns if self.lockstep else time.time_ns()
 
     # -- wiring -----------------------------------------------------------------------------
-    def output_port(self, key: str) -> local_routes.OutputPort:
-        return local_routes.OutputPort(
-            self.session.declare_publisher(key), self.local.publisher(key) if self.local else None
-        )
+    def output_port(self, key: str, cls: type[Message]) -> local_routes.OutputPort:
+        local = self.local.publisher(key, local_routes.is_bulky(cls)) if self.local else None
+        return local_routes.OutputPort(self.session.declare_publisher(key), local)
 
     def _subscribe(self) -> None:
         g = self.graph.name
@@ -259,7 +259,10 @@ class GroupRuntime:
                 node, _, out = source.partition("/")
                 key = keys.topic_key(g, node, out)
                 if node in self._local_sources:
-                    self.local.subscribe(key, lambda payload, att, s=slot, p=port: self._on_sample(s, p, payload, att))
+                    bulky = local_routes.is_bulky(slot.rn.cls.input_types(slot.rn.params).get(port, Message))
+                    self.local.subscribe(
+                        key, lambda payload, att, s=slot, p=port: self._on_sample(s, p, payload, att), bulky
+                    )
                     continue
                 self._subs.append(
                     self.session.declare_subscriber(

@@ -83,7 +83,7 @@ def _role(args: argparse.Namespace) -> None:
         notifier.notify()
 
     if args.role == "pub":
-        handflow_pub = OutputPort(None, transport.publisher(dst)) if args.mode == "handflow" else None
+        handflow_pub = OutputPort(None, transport.publisher(dst, bulky=True)) if args.mode == "handflow" else None
         bare_pub = bare_publisher(dst) if args.mode == "bare" else None
         data = np.empty(args.size, np.uint8)  # the pixels a source has to publish (a camera's frame)
         data[:] = np.arange(args.size) % 251
@@ -113,7 +113,7 @@ def _role(args: argparse.Namespace) -> None:
             bare_pub[1].notify()
         time.sleep(1.0)
     elif args.mode == "handflow":
-        out = transport.publisher(dst) if args.role == "relay" else None
+        out = transport.publisher(dst, bulky=True) if args.role == "relay" else None
 
         def on(payload, att):
             msg = wire.unpack(payload, att)
@@ -122,7 +122,7 @@ def _role(args: argparse.Namespace) -> None:
             else:
                 rows.append((msg.header.seq, time.time_ns() - msg.header.stamp_ns))
 
-        transport.subscribe(src, on)
+        transport.subscribe(src, on, bulky=True)  # image topics, as the runtime makes them
         transport.start()
         sys.stdin.read()  # until run_chain closes it, after the publisher ended
         transport.stop()

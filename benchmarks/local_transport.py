@@ -72,7 +72,8 @@ def _role(args: argparse.Namespace) -> None:
     def bare_publisher(topic):
         pubsub, event = services(topic)
         pub = pubsub.publisher_builder().initial_max_slice_len(lt.INITIAL_BYTES)
-        pub = pub.allocation_strategy(iox.AllocationStrategy.PowerOfTwo).create()
+        pub = pub.allocation_strategy(iox.AllocationStrategy.PowerOfTwo).override_sample_preallocation(lt.FRAME_SAMPLES)
+        pub = pub.create()
         return pub, event.notifier_builder().create()
 
     def bare_send(ports, data: memoryview | bytes):

@@ -33,6 +33,10 @@ because the pool ran short (``shm_fallbacks``) and each process's RSS growth fro
 to its end, whole (``VmRSS``) and split into private memory (``RssAnon``) and touched pages of the mapped
 shared-memory pools (``RssShmem``).
 
+``--json`` adds the ``local`` section: the local transport (iceoryx2 between the processes of one
+graph host) against bare iceoryx2 and bare Zenoh, from ``benchmarks/local_transport.py`` (its
+docstring names the keys); ``--local`` runs that section alone.
+
 ``overhead_ratio`` = median latency of the handflow chain / median of the bare-Zenoh chain with
 the same number of hops at the top rate, measured as ``--pairs`` back-to-back (handflow, bare)
 pairs and reported as the median of the pairs' ratios (``chain_pairs``);
@@ -481,6 +485,13 @@ def _stats(lat_ns: list[int], seqs: list[int], expected: int | None) -> dict:
     }
 
 
+def _local(args: argparse.Namespace) -> dict:
+    """The ``local`` section (``benchmarks/local_transport.py``), with this run's pairs and seconds."""
+    from local_transport import run_local
+
+    return run_local(args.pairs, min(args.seconds, 3.0), 60.0, args.seconds)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--json", action="store_true")
@@ -506,6 +517,9 @@ def main() -> None:
     ap.add_argument("--shm", action="store_true", help="only the shared-memory payload sweep and the 1080p30 stream")
     ap.add_argument("--hd-seconds", type=float, default=20.0, help="length of the 1080p30 stream (--shm)")
     ap.add_argument("--shm-soak", type=float, metavar="SECONDS", help="only the 1080p30 soak of that length")
+    ap.add_argument(
+        "--local", action="store_true", help="only the local-transport section (benchmarks/local_transport.py)"
+    )
     ap.add_argument("--_shm_role", action="store_true", help=argparse.SUPPRESS)
     ap.add_argument("--size", type=int, help=argparse.SUPPRESS)
     args = ap.parse_args()
@@ -522,6 +536,9 @@ def main() -> None:
     if args.shm:
         res = run_shm(args.pairs, args.seconds, args.hd_seconds)
         print(json.dumps(res) if args.json else json.dumps({k: v for k, v in res.items() if k.startswith("shm.")}))
+        return
+    if args.local:
+        print(json.dumps(_local(args)))
         return
     results: dict = {"payload_floats": WIDTH, "seconds_per_run": args.seconds, "by_rate": {}}
     for rate in args.rates:
@@ -597,6 +614,7 @@ def main() -> None:
         max_ok = rate
     results["max_rate_hz_no_loss"] = max_ok
     if args.json:
+        results["local"] = _local(args)
         print(json.dumps(results))
     else:
         for k in (

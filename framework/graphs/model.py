@@ -21,7 +21,7 @@ from ..files.inputs import node_input_problems
 from ..files.params import StrictModel
 from ..files.yaml import Problem, YamlFileError, line_of, parse, pydantic_problems
 from ..messages import Message, message_types
-from ..network.settings import UsrPwdSettings, ZenohSettings, is_loopback_endpoint
+from ..network.settings import TransportSettings, UsrPwdSettings, ZenohSettings, is_loopback_endpoint
 from ..plugin import Node
 from ..registry import PluginError, load_plugin, plugin_entries
 from ..ros2.rmw_zenoh import check_name
@@ -106,6 +106,7 @@ class GraphSpec(StrictModel):
     name: str
     description: str = ""
     zenoh: ZenohSettings = Field(default_factory=ZenohSettings)
+    transport: TransportSettings = Field(default_factory=TransportSettings)
     external: dict[str, str] = Field(default_factory=dict, description="node/port → message type fed from outside")
     nodes: list[NodeSpec]
     record: RecordSpec | None = None

@@ -1,4 +1,4 @@
-"""Zenoh settings of a graph file: endpoints, TLS and user/password (docs/architecture.md, docs/security.md).
+"""Zenoh and local-transport settings of a graph file: endpoints, TLS and user/password (docs/architecture.md, docs/security.md).
 
 The graph model and the sessions both use them, so neither imports the other.
 """
@@ -55,6 +55,14 @@ class ZenohSettings(StrictModel):
     insecure: bool = Field(False, description="allow plain endpoints beyond loopback (anyone who reaches them joins)")
     shared_memory: bool = Field(
         True, description="large payloads between processes on this host through shared memory (docs/shared_memory.md)"
+    )
+
+
+class TransportSettings(StrictModel):
+    """How node processes of one graph host reach each other (docs/shared_memory.md)."""
+
+    local: Literal["iceoryx2", "zenoh"] = Field(
+        "iceoryx2", description="iceoryx2: zero-copy shared memory between this host's processes; zenoh: Zenoh only"
     )
 
 

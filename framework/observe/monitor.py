@@ -25,6 +25,7 @@ import numpy as np
 
 from .. import keys, wire
 from ..messages import Array, Message, MessageError, RuntimeEvent, Status
+from ..network.local_transport import PATH_NAMES
 from ..network.shm import via_shm
 
 ALIVE_S = 2.0  # a node is alive if its last heartbeat is younger than this
@@ -181,6 +182,7 @@ class Monitor:
             topics = list(self.topics.values())
             nodes = list(self.nodes.values())
             lasts = {t.key: t.last_data for t in topics}
+            paths = {t.key: self._path(t.key) for t in topics}
         out_topics = []
         for t in sorted(topics, key=lambda t: t.key):
             try:
@@ -198,6 +200,7 @@ class Monitor:
                     "dropped": t.dropped,
                     "count": t.count,
                     "shm": t.shm,
+                    "path": paths[t.key],
                     "last": last,
                 }
             )
@@ -219,6 +222,13 @@ class Monitor:
                 }
             )
         return {"topics": out_topics, "nodes": out_nodes}
+
+    def _path(self, key: str) -> str:
+        """How the topic's last message left its node (its heartbeat's ``path.<port>``): ``iceoryx2``,
+        ``zenoh``, both, or ``-`` when unknown (docs/shared_memory.md)."""
+        graph, node, port = keys.split_key(key) or ("", "", "")
+        health = self.nodes.get((graph, node))
+        return PATH_NAMES.get(int(health.counters.get(f"path.{port}", 0)), "-") if health else "-"
 
     def close(self) -> None:
         for sub in self._subs:
@@ -256,6 +266,7 @@ def render(
         column("gaps/dropped", "lost", lost, 3, "right"),
         column("count", "n", [t["count"] for t in ts], 5, "right"),
         column("shm", "shm", ["yes" if t["shm"] else "-" for t in ts], 7),
+        column("path", "path", [t["path"] for t in ts], 8),
         column("last value", "last", [t["last"] for t in ts], 4, flexible=True),
     ]
     ns = snapshot["nodes"]

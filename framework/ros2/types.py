@@ -29,6 +29,7 @@ type as rosbag2 writes it (the definition followed by its dependencies).
 
 from __future__ import annotations
 
+import ctypes
 import functools
 import struct
 from collections.abc import Callable
@@ -193,8 +194,15 @@ def _image_from(v: dict[str, Any]) -> dict[str, Any]:
     return {
         "frame_id": v["header"][1],
         **{k: v[k] for k in ("height", "width", "encoding", "step")},
-        "data": v["data"].tobytes(),
+        "data": _pixels(v["data"]),
     }
+
+
+def _pixels(data: np.ndarray) -> bytes | np.ndarray:
+    """An image's ``data``: ``bytes``, but decoded in place from a shared-memory sample of the local
+    transport a read-only view that keeps the sample alive (docs/shared_memory.md)."""
+    owner = getattr(data.base, "obj", None)  # what the decoded buffer views
+    return data if isinstance(owner, ctypes.Array) and not data.flags.writeable else data.tobytes()
 
 
 def _status_to(m: Status) -> dict[str, Any]:

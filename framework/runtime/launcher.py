@@ -29,7 +29,7 @@ from pathlib import Path
 from .. import keys, wire
 from ..graphs.model import Graph, RestartPolicy
 from ..messages import Header, MessageError, RuntimeEvent, Status
-from ..network import hub_info
+from ..network import hub_info, local_transport
 from ..network import sessions as transport
 from . import discovery
 from .param_service import ParamService
@@ -121,6 +121,8 @@ class Launcher:
         self.ros2 = Ros2Bridge(self.session, graph, host) if graph.spec.ros2 is not None else None
         self._calls: queue.SimpleQueue = queue.SimpleQueue()  # run by poll(), the supervising thread
         self.params = ParamService(self)
+        if graph.spec.transport.local == "iceoryx2":  # beside the start-up: importing iceoryx2 takes 0.2-0.6 s
+            threading.Thread(target=_prepare_local, name="handflow-iox2", daemon=True).start()
 
     def _secure_settings(self, host: str | None) -> dict[str, object]:
         """The hub's TLS, access-control and user/password settings (docs/security.md)."""
@@ -411,6 +413,7 @@ class Launcher:
         if self.zygote is not None:
             self.zygote.close()
         self._state_dir.cleanup()
+        local_transport.remove_leftovers()
 
     def summary(self) -> dict[str, dict[str, object]]:
         """Per unit: nodes, restarts, exit codes, and per node the input gaps of its last heartbeat."""
@@ -430,6 +433,12 @@ class Launcher:
             }
             for u in self.units
         }
+
+
+def _prepare_local() -> None:
+    """Reclaim what dead processes left in iceoryx2; one notice when it is not usable (docs/shared_memory.md)."""
+    if (why := local_transport.prepare()) is not None:
+        log.warning("iceoryx2 is not usable here (%s); this host's topics travel over Zenoh", why)
 
 
 def _why(failure: dict) -> str:

@@ -49,7 +49,7 @@ from ..network.shm import SharedPayloads
 from ..plugin import Node
 from ..security.credentials import read_credentials, usrpwd_settings
 from ..testkit.harness import allocate_output, check_publish
-from . import forwarding
+from . import forwarding, local_routes
 from .drops import DropLedger
 from .live_params import NodeParams
 from .wakeup import wakeup_queue
@@ -113,11 +113,12 @@ class NodeContext:
         self._state = state
         self.restarted = state.resumed
         self._pubs = {
-            port: runtime.session.declare_publisher(keys.topic_key(self.graph_name, self.node_id, port))
-            for port in self._outputs
+            port: runtime.output_port(keys.topic_key(self.graph_name, self.node_id, port), cls)
+            for port, cls in self._outputs.items()
         }
         self.published = dict.fromkeys(self._outputs, 0)
         self.shared = dict.fromkeys(self._outputs, 0)  # published from shared memory
+        self.paths = dict.fromkeys(self._outputs, 0)  # the paths of the last message (local_routes)
         self._received: tuple[Message, bytes, tuple] | None = None  # being handled: message, CDR body, snapshot
 
     def receiving(self, msg: Message | None, body: bytes | None = None) -> None:
@@ -132,14 +133,15 @@ class NodeContext:
         seq = self._state.get("out:" + port) + 1
         self._state.set("out:" + port, seq)
         msg.header = Header(self.node_id, seq, self.now_ns() if stamp_ns is None else int(stamp_ns))
-        payload, att = (forwarded and wire.repack(msg, received[1])) or wire.pack(msg)
-        sent = self._rt.shared.wrap(payload)
-        self._pubs[port].put(sent, attachment=att)
+        body = received[1] if forwarded else None
+        self.paths[port], pooled = self._pubs[port].publish(msg, body, self._rt.shared.wrap)
         self.published[port] += 1
-        self.shared[port] += sent is not payload
+        self.shared[port] += pooled
 
     def allocate(self, port: str, nbytes: int) -> np.ndarray:
-        return allocate_output(self.node_id, self._outputs, port, nbytes)
+        if port not in self._pubs:
+            return allocate_output(self.node_id, self._outputs, port, nbytes)  # raises, naming the ports
+        return self._pubs[port].allocate(nbytes)
 
     def now_ns(self) -> int:
         return self._rt.now_ns()
@@ -191,6 +193,7 @@ class _NodeSlot:
         counters.update({f"dropped.{p}": n for p, n in self.drops.counts().items()})
         counters.update({f"published.{p}": n for p, n in self.ctx.published.items()})
         counters.update({f"shm.{p}": n for p, n in self.ctx.shared.items()})
+        counters.update({f"path.{p}": n for p, n in self.ctx.paths.items()})
         counters.update({f"seq.{k.replace(':', '.')}": self.state.get(k) for k in self.state.index})
         return Status(state=state, counters=counters, text=f"pid {os.getpid()}")
 
@@ -225,6 +228,8 @@ class GroupRuntime:
         login = _login(graph, user)
         self.session = transport.open_node_session(graph.spec.zenoh, hub, login)
         self.shared = SharedPayloads(graph.spec.zenoh.shared_memory)
+        self.local = local_routes.open_for(graph, hub, node_ids)
+        self._local_sources = local_routes.local_sources(graph, node_ids) if self.local else set()
         self.inbox = wakeup_queue()  # lock-step clock events; None wakes the loop
         self._lock = threading.Lock()
         self.failure: str | None = None
@@ -252,17 +257,29 @@ class GroupRuntime:
         return self.virtual_ns if self.lockstep else time.time_ns()
 
     # -- wiring -----------------------------------------------------------------------------
+    def output_port(self, key: str, cls: type[Message]) -> local_routes.OutputPort:
+        local = self.local.publisher(key, local_routes.is_bulky(cls)) if self.local else None
+        return local_routes.OutputPort(self.session.declare_publisher(key), local)
+
     def _subscribe(self) -> None:
         g = self.graph.name
         for slot in self.slots:
             for port, source in slot.rn.spec.inputs.items():
                 node, _, out = source.partition("/")
                 key = keys.topic_key(g, node, out)
+                if node in self._local_sources:
+                    bulky = local_routes.is_bulky(slot.rn.cls.input_types(slot.rn.params).get(port, Message))
+                    self.local.subscribe(
+                        key, lambda payload, att, s=slot, p=port: self._on_sample(s, p, payload, att), bulky
+                    )
+                    continue
                 self._subs.append(
                     self.session.declare_subscriber(
                         key, lambda sample, s=slot, p=port: self._on_sample(s, p, *wire.sample_parts(sample))
                     )
                 )
+        if self.local:
+            self.local.start()
         if self.lockstep:
             self._subs.append(
                 self.session.declare_subscriber(
@@ -289,7 +306,7 @@ class GroupRuntime:
             self.started.wait(HEARTBEAT_S / 5)
 
     def _on_sample(self, slot: _NodeSlot, port: str, payload: bytes, att: bytes | None) -> None:
-        """Zenoh callback: handle the message right here, serialised with ticks by the lock."""
+        """Zenoh or iceoryx2 callback: handle the message right here, serialised with ticks by the lock."""
         with self._lock:
             if self.closed or self.failure is not None:
                 return
@@ -426,11 +443,15 @@ class GroupRuntime:
             self.closed = True
         for sub in self._subs:
             sub.undeclare()
+        if self.local:
+            self.local.stop()
         with self._lock:
             self._teardown_all()
             self.live_params.close()
         if self.set_up:  # the last counters, after teardown's last outputs: the launcher's summary and its
             self._publish_health(STOPPED)  # drain (STOPPED); a node that never set up is not ready
+        if self.local:
+            self.local.close()
         self.session.close()
 
     def _let_inputs_settle(self) -> None:

@@ -79,7 +79,10 @@ def _child(sock: socket.socket, request: dict, stderr_fd: int, zygote: int) -> N
 def _preload(graph_source: str) -> None:
     """Import what the graph's nodes import; a graph that does not load is the launcher's to report."""
     from ..graphs import model as graph
+    from ..network import local_transport
     from . import runner  # noqa: F401  (the node runtime itself)
+
+    local_transport.preload()
 
     try:
         graph.load_graph(graph_source)

@@ -134,7 +134,7 @@ def test_the_runtime_forwards_the_received_body_and_encodes_edited_messages(tmp_
     sub = hub.declare_subscriber(keys.topic_key(name, "sel", "out"), on)
     rt.slots[0].node.setup()
     try:
-        assert wait_matching([rt.slots[0].ctx._pubs["out"]], 10)
+        assert wait_matching([rt.slots[0].ctx._pubs["out"].zenoh], 10)
         msg = _joint_state([f"j{i}" for i in range(24)], np.linspace(-1, 1, 24))
         payload, att = wire.pack(msg)
         payload += b"\0\0\0"  # trailing padding a reader accepts and a fresh encoding does not write
@@ -157,5 +157,7 @@ def test_the_runtime_forwards_the_received_body_and_encodes_edited_messages(tmp_
         assert got[1] == wire.pack(edited)[0]  # encoded anew
     finally:
         sub.undeclare()
+        if rt.local:
+            rt.local.close()
         rt.session.close()
         hub.close()

@@ -74,6 +74,11 @@ BAD = {
         "handflow.Array has no such scalar field",
     ),
     "missing_field": ("name: x\nnodes:\n  - plugin: basic.sink\n", 3, "id: required field"),
+    "transport_local": (
+        "name: x\ntransport:\n  local: shm\nnodes:\n  - id: a\n    plugin: basic.sink\n",
+        3,
+        "transport.local: Input should be 'iceoryx2' or 'zenoh'",
+    ),
 }
 
 

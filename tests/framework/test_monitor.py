@@ -121,6 +121,7 @@ def _demo_like_snapshot() -> dict:
             "dropped": 0,
             "count": 1000 + i,
             "shm": i == 3,
+            "path": "iceoryx2+zenoh" if i % 2 else "zenoh",
             "last": "names=[24] positions=[0.0741, 0.0133, -0.305, 0.977, …] (24) velocities=[0] hand='shadow'",
         }
         for i in range(20)
@@ -155,7 +156,7 @@ def test_wide_shows_every_column_in_full():
     lines = _printed(None)
     assert len(lines) == (3 + 20) + (3 + 10)
     header = lines[1]
-    for col in ("type", "rate Hz", "latency ms", "gaps/dropped", "count", "shm", "last value"):
+    for col in ("type", "rate Hz", "latency ms", "gaps/dropped", "count", "shm", "path", "last value"):
         assert col in header, header
     assert "hand='shadow'" in lines[3]  # the last value uncut
 
@@ -183,6 +184,7 @@ def test_monitor_once_json_on_a_running_graph(tmp_path, monkeypatch):
     for t in topics.values():
         assert {"topic", "rate_hz", "latency_ms", "gaps"} <= set(t)
         assert t["rate_hz"] == pytest.approx(50, rel=0.3) and t["gaps"] == 0 and t["latency_ms"] is not None
+        assert t["path"] == "iceoryx2+zenoh"  # to the next node in place, to the monitor over Zenoh
     assert sorted((n["id"], n["alive"]) for n in snap["nodes"]) == [("scale", True), ("sink", True), ("source", True)]
     assert text.returncode == 0 and "source/out" in text.stdout and "sink" in text.stdout
     lines = text.stdout.splitlines()

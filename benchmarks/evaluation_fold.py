@@ -94,8 +94,9 @@ BASELINES = {
 }
 
 
-def timed_fold(data, held: str, methods: tuple[str, ...], quick: bool) -> tuple[dict, object]:
-    """Seconds per method (from the evaluator's own progress lines) and the fold's result."""
+def timed_fold(data, held: str, methods: tuple[str, ...], quick: bool, **views) -> tuple[dict, object]:
+    """Seconds per method (from the evaluator's own progress lines) and the fold's result;
+    ``views``: the evaluator's ``normalise`` and ``derived`` (default its own, one view)."""
     marks: dict[str, float] = {}
     start = time.perf_counter()
 
@@ -104,7 +105,7 @@ def timed_fold(data, held: str, methods: tuple[str, ...], quick: bool) -> tuple[
         if len(words) > 1 and words[0] == f"{held}:" and words[1] in methods:
             marks[words[1]] = time.perf_counter()
 
-    ev = RecordingsEvaluator(data, methods=methods, quick=quick, progress=progress)
+    ev = RecordingsEvaluator(data, methods=methods, quick=quick, progress=progress, **views)
     fold = ev.run_fold(held)
     seconds, last = {}, start
     for name in methods:

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..compatibility import evidence_temperature
-from ..scorers import MiniRocketScorer, PerClassHMM, SlidingDTW1NN
+from ..scorers import MiniRocketScorer, PerClassHMM, SlidingDTW1NN, dtw_references
 from ._fidelity import FULL
 from ._method_base import Fitted, ScoreMethod, ThresholdOnTrajectories
 
@@ -21,7 +21,7 @@ class DTWMethod(ThresholdOnTrajectories, ScoreMethod):
 
     def fit(self, segments, params, seed, fidelity=FULL) -> Fitted:
         classes = sorted(segments)
-        model = SlidingDTW1NN(window=params["window"]).fit({c: _thin(segments[c], 4) for c in classes})
+        model = SlidingDTW1NN(window=params["window"]).fit({c: dtw_references(segments[c]) for c in classes})
         return Fitted(model, classes, params, training=[s for c in classes for s in segments[c]])
 
     def prepare(self, fitted, X):
@@ -94,8 +94,3 @@ class MiniRocketMethod(ScoreMethod):
         None with two known classes: a ridge needs two, so the column is dropped then."""
         rest = {c: s for c, s in segments.items() if c != drop}
         return self.fit(rest, fitted.params, seed) if len(rest) >= 2 else None
-
-
-def _thin(seqs: list[np.ndarray], k: int) -> list[np.ndarray]:
-    """Every k-th frame of long references (documented choice: keeps DTW affordable; ≥ 8 frames)."""
-    return [s[::k] if len(s) >= 8 * k else s for s in seqs]

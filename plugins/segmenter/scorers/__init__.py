@@ -2,8 +2,10 @@
 scorer files (docs/segmentation.md)."""
 
 from ._dtw import (
+    MAX_REFERENCE_FRAMES,
     DTWScorer,
     SlidingDTW1NN,
+    dtw_references,
 )
 from ._files import (
     SCORERS,
@@ -37,10 +39,12 @@ __all__ = [
     "SCORERS",
     "ScorerFileError",
     "SlidingDTW1NN",
+    "MAX_REFERENCE_FRAMES",
     "MAX_TRAINING_WINDOWS",
     "WINDOWS_PER_SEGMENT",
     "WindowScorer",
     "causal_windows",
     "decide",
+    "dtw_references",
     "load_scorer",
 ]

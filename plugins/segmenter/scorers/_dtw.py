@@ -7,8 +7,21 @@ import numba
 import numpy as np
 from sklearn.utils.validation import check_is_fitted
 
+from ..models import thin_pieces
 from ._scores import _check_window, _Standardiser, decide
 from ._window import WindowScorer
+
+MAX_REFERENCE_FRAMES = 2000  # thinned reference frames per class (documented choice, docs/segmentation.md)
+
+
+def dtw_references(
+    segments: list[np.ndarray], thin: int = 4, max_frames: int = MAX_REFERENCE_FRAMES
+) -> list[np.ndarray]:
+    """A class's references: every ``thin``-th frame of a segment where at least 8 remain, and
+    beyond ``max_frames`` of those, evenly spaced whole segments (:func:`..models.thin_pieces`;
+    documented choice: labelling then costs time linear in the recording, however much trains)."""
+    k = int(thin)
+    return thin_pieces([s[::k] if len(s) >= 8 * k else s for s in segments], int(max_frames))
 
 
 @numba.njit(cache=True)
@@ -125,7 +138,8 @@ class SlidingDTW1NN(_Standardiser):
 class DTWScorer(WindowScorer):
     """Sliding-window subsequence DTW 1-NN (:class:`SlidingDTW1NN`): score of class c =
     − the smallest length-normalised DTW cost of the window inside one of c's training segments.
-    References are thinned to every ``thin``-th frame when at least 8 of them remain.
+    References are thinned to every ``thin``-th frame when at least 8 of them remain, and to at
+    most :data:`MAX_REFERENCE_FRAMES` thinned frames per class (:func:`dtw_references`).
 
     Parameters
     ----------
@@ -162,8 +176,7 @@ class DTWScorer(WindowScorer):
         self.thin = thin
 
     def _fit(self, segments: dict) -> None:
-        k = int(self.thin)
-        refs = {c: [s[::k] if len(s) >= 8 * k else s for s in segs] for c, segs in segments.items()}
+        refs = {c: dtw_references(segs, int(self.thin)) for c, segs in segments.items()}
         self.model_ = SlidingDTW1NN(window=int(self.window)).fit(refs)
         return np.vstack([self.model_.scores(s) for segs in segments.values() for s in segs])
 

@@ -252,6 +252,15 @@ class LocalTransport:
         self._count_lock = threading.Lock()
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
+        self._probe()
+
+    def _probe(self) -> None:
+        """Create and release a publisher of an ordinary topic's size: raises where its shared-memory
+        segment cannot be made (a full ``/dev/shm``, a file-size limit), so that the process takes the
+        Zenoh path (:func:`open_local`) instead of failing at its first output port."""
+        self.publisher(f"_probe/{os.getpid()}")
+        for port in self._pubs.pop():  # the probe's publisher and notifier
+            port.delete()
 
     def _services(self, topic: str) -> tuple[Any, Any]:
         iox = self._iox

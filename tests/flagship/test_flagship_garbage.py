@@ -1,4 +1,9 @@
-"""Garbage from an outside Zenoh peer onto every input of the flagship: every node stays alive (docs/robustness.md)."""
+"""Garbage from an outside Zenoh peer onto every input of the flagship: every node stays alive (docs/robustness.md).
+
+The graph runs with ``transport: {local: zenoh}``: over the default local transport (iceoryx2) a
+node reads its same-host inputs from shared memory only, so an outside Zenoh peer cannot reach
+them at all (docs/shared_memory.md); the frames of that path are property-tested in
+tests/framework/test_local_transport.py."""
 
 from __future__ import annotations
 
@@ -27,15 +32,31 @@ def _wait(pred, timeout: float, what: str) -> None:
         time.sleep(0.2)
 
 
+def _with_absolute_paths(value, base):
+    """``value`` (a graph file's params) with every string naming a file under ``base`` made absolute."""
+    if isinstance(value, dict):
+        return {k: _with_absolute_paths(v, base) for k, v in value.items()}
+    if isinstance(value, list):
+        return [_with_absolute_paths(v, base) for v in value]
+    return str(base / value) if isinstance(value, str) and (base / value).exists() else value
+
+
 def test_every_node_survives_garbage_on_every_input(tmp_path, monkeypatch):
     monkeypatch.setenv("HANDFLOW_RUN_DIR", str(tmp_path / "runs"))
     spec = yaml.safe_load((REPO / "configs/demo.yaml").read_text())
+    spec["nodes"] = [
+        {**n, "params": _with_absolute_paths(n.get("params") or {}, REPO / "configs")} for n in spec["nodes"]
+    ]
+    spec["transport"] = {"local": "zenoh"}
+    spec.pop("record", None)
+    graph_file = tmp_path / "demo.yaml"
+    graph_file.write_text(yaml.safe_dump(spec))
     graph = spec["name"]
     inputs = sorted({f"handflow/{graph}/{src}" for n in spec["nodes"] for src in (n.get("inputs") or {}).values()})
     node_ids = [n["id"] for n in spec["nodes"]]
     rec = tmp_path / "demo.mcap"
     proc = subprocess.Popen(
-        [sys.executable, "-m", "handflow.framework.cli", "run", "configs/demo.yaml", "--record", str(rec)],
+        [sys.executable, "-m", "handflow.framework.cli", "run", str(graph_file), "--record", str(rec)],
         cwd=REPO,
         text=True,
         stdout=subprocess.PIPE,

@@ -9,8 +9,9 @@ import time
 
 from ..observe.foxglove_bridge import BridgeError, start_bridge
 from ..observe.monitor import WINDOW_S, Monitor, render
-from ..runtime.discovery import DiscoveryError, add_auth_arguments, join_graphs
+from ..runtime.discovery import add_auth_arguments
 from ..runtime.param_service import LOCAL
+from ._shared import add_foxglove_option, joined_graphs
 
 
 def register(parser: argparse.ArgumentParser) -> None:
@@ -31,13 +32,9 @@ def register(parser: argparse.ArgumentParser) -> None:
         action="store_true",
         help="every column at full width (default: one line per topic within the terminal's width, COLUMNS when piped)",
     )
-    parser.add_argument(
-        "--foxglove",
-        nargs="?",
-        const=8765,
-        type=int,
-        metavar="PORT",
-        help="also stream every topic live to Foxglove on ws://127.0.0.1:PORT (default 8765)",
+    add_foxglove_option(
+        parser,
+        "also stream every topic live to Foxglove on ws://127.0.0.1:PORT (default 8765)",
     )
     parser.set_defaults(func=run)
 
@@ -46,13 +43,9 @@ def run(args: argparse.Namespace) -> int:
     if args.json and not args.once:
         print("error: --json needs --once (the live view is a table)", file=sys.stderr)
         return 2
-    try:
-        session, _, found = join_graphs(
-            args.graph, args.connect, args.certs, args.cert_name, args.credentials, args.user
-        )
-    except DiscoveryError as exc:
-        print(f"error: {exc}", file=sys.stderr)
+    if (joined := joined_graphs(args)) is None:
         return 2
+    session, found = joined
     graphs = sorted(found)
     graph = graphs[0] if len(graphs) == 1 else None
     bridge = None

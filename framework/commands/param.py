@@ -11,8 +11,9 @@ from typing import Any
 import yaml
 
 from ..keys import param_request_key
-from ..runtime.discovery import DiscoveryError, add_auth_arguments, join_graphs
+from ..runtime.discovery import add_auth_arguments
 from ..runtime.param_service import LOCAL, NODE_TIMEOUT_S, RESTART_TIMEOUT_S
+from ._shared import joined_graphs
 
 
 def register(parser: argparse.ArgumentParser) -> None:
@@ -75,13 +76,9 @@ def run(args: argparse.Namespace) -> int:
         print(f"error: {asked}", file=sys.stderr)
         return 2
     node, key, request = asked
-    try:
-        session, _, found = join_graphs(
-            args.graph, args.connect, args.certs, args.cert_name, args.credentials, args.user
-        )
-    except DiscoveryError as exc:
-        print(f"error: {exc}", file=sys.stderr)
+    if (joined := joined_graphs(args)) is None:
         return 2
+    session, found = joined
     try:
         if len(found) > 1:
             print(

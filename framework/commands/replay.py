@@ -27,6 +27,7 @@ from ..recorder.replay import (
 )
 from ..runtime.discovery import DiscoveryError, add_auth_arguments, join
 from ..runtime.launcher import Launcher
+from ._shared import add_foxglove_option
 
 log = logging.getLogger("handflow.replay")
 
@@ -59,13 +60,9 @@ def register(parser: argparse.ArgumentParser) -> None:
         metavar="FILE.mcap",
         help="with --into: record the launched graph's topics (and the replayed inputs) to MCAP",
     )
-    parser.add_argument(
-        "--foxglove",
-        nargs="?",
-        const=8765,
-        type=int,
-        metavar="PORT",
-        help="serve the replay to Foxglove on ws://127.0.0.1:PORT (default 8765), driven from its playback bar: "
+    add_foxglove_option(
+        parser,
+        "serve the replay to Foxglove on ws://127.0.0.1:PORT (default 8765), driven from its playback bar: "
         "play, pause, seek, speed; runs until Ctrl-C (not with --lockstep)",
     )
     parser.add_argument("--graph", help="replay into this running graph (default: the recording's graph, if running)")

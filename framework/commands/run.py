@@ -13,6 +13,7 @@ from ..runtime.launcher import run_graph
 from ..runtime.param_service import LOCAL
 from ..runtime.status import StatusLine
 from ..runtime.zygote import start_unless_disabled
+from ._shared import add_foxglove_option
 
 
 def register(parser: argparse.ArgumentParser) -> None:
@@ -23,13 +24,9 @@ def register(parser: argparse.ArgumentParser) -> None:
         "--record", metavar="FILE.mcap", help="record the graph's 'record.topics' (default all) to MCAP"
     )
     parser.add_argument("--host", help="run only the nodes whose 'host' is NAME (a graph spread over machines)")
-    parser.add_argument(
-        "--foxglove",
-        nargs="?",
-        const=8765,
-        type=int,
-        metavar="PORT",
-        help="live view: stream every topic to Foxglove on ws://127.0.0.1:PORT (default 8765)",
+    add_foxglove_option(
+        parser,
+        "live view: stream every topic to Foxglove on ws://127.0.0.1:PORT (default 8765)",
     )
     parser.add_argument(
         "--summary-json", metavar="FILE", help="write per-process restarts, exit codes and failures as JSON"

@@ -10,9 +10,9 @@ import time
 from pathlib import Path
 
 import pytest
-from websockets.sync.client import connect
 
 from handflow.framework.network.sessions import free_tcp_port
+from tests.framework._foxglove_client import connect_foxglove
 
 pytestmark = pytest.mark.slow
 REPO = Path(__file__).resolve().parents[2]
@@ -21,16 +21,7 @@ REPO = Path(__file__).resolve().parents[2]
 def advertised_topics(port: int, graph: str, timeout: float = 20.0) -> set[str]:
     """Topics a real Foxglove WebSocket client sees advertised, once the graph's source and sink showed up."""
     deadline = time.time() + timeout
-    while True:
-        try:
-            ws = connect(
-                f"ws://127.0.0.1:{port}", subprotocols=["foxglove.sdk.v1", "foxglove.websocket.v1"], open_timeout=2
-            )
-            break
-        except OSError:
-            if time.time() > deadline:
-                raise
-            time.sleep(0.3)
+    ws = connect_foxglove(port, timeout)
     topics: set[str] = set()
     with ws:
         while (

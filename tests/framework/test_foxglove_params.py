@@ -13,11 +13,11 @@ import time
 from pathlib import Path
 
 import pytest
-from websockets.sync.client import connect
 
 from handflow.framework.files.mcap_writer import McapWriter
 from handflow.framework.messages import Array, Header
 from handflow.framework.network.sessions import free_tcp_port
+from tests.framework._foxglove_client import connect_foxglove
 
 pytest.importorskip("foxglove")
 pytestmark = pytest.mark.slow
@@ -28,17 +28,7 @@ class FoxgloveClient:
     """The Foxglove app's side of the protocol: JSON requests, replies picked by their ``op``."""
 
     def __init__(self, port: int, timeout: float = 30.0) -> None:
-        deadline = time.time() + timeout
-        while True:
-            try:
-                self.ws = connect(
-                    f"ws://127.0.0.1:{port}", subprotocols=["foxglove.sdk.v1", "foxglove.websocket.v1"], open_timeout=2
-                )
-                break
-            except OSError:
-                if time.time() > deadline:
-                    raise
-                time.sleep(0.3)
+        self.ws = connect_foxglove(port, timeout)
 
     def __enter__(self) -> FoxgloveClient:
         self.ws.__enter__()

@@ -100,9 +100,9 @@ def check_parameters_panel(fox: FoxgloveClient, cli: list[str], env: dict) -> No
     """What the Parameters panel does, and `handflow param` beside it."""
     assert "parameters" in fox.server_info["capabilities"]
     params: dict = {}
-    for attempt in range(60):  # until the nodes are up
+    for attempt in range(60):  # until both nodes are up and answer
         fox.send(op="getParameters", parameterNames=[], id=f"all{attempt}")
-        if "/scale/gain" in (params := fox.values(id=f"all{attempt}")):
+        if {"/scale/gain", "/source/kind"} <= (params := fox.values(id=f"all{attempt}")).keys():
             break
         time.sleep(0.5)
     assert params["/scale/gain"] == 2.0 and params["/source/kind"] == "sine" and params["/source/rate_hz"] == 20

@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 from handflow.framework.network.sessions import free_tcp_port
-from tests.framework._foxglove_client import connect_foxglove
+from tests.foxglove_client import connect_foxglove
 
 pytestmark = pytest.mark.slow
 REPO = Path(__file__).resolve().parents[2]

@@ -17,7 +17,7 @@ import pytest
 from handflow.framework.files.mcap_writer import McapWriter
 from handflow.framework.messages import Array, Header
 from handflow.framework.network.sessions import free_tcp_port
-from tests.framework._foxglove_client import connect_foxglove
+from tests.foxglove_client import connect_foxglove
 
 pytest.importorskip("foxglove")
 pytestmark = pytest.mark.slow

@@ -10,11 +10,11 @@ import sys
 import time
 
 import pytest
-from websockets.sync.client import connect
 
 from handflow.framework.network.sessions import free_tcp_port
 from handflow.framework.ros2.types import decode_cdr
 from tests.conftest import REPO
+from tests.foxglove_client import connect_foxglove
 from tests.simulator.test_viewer import assert_tree_matches_urdf
 
 pytestmark = pytest.mark.slow
@@ -44,18 +44,6 @@ def _subscribe(ws, sub: int, channel_id: int) -> None:
     ws.send(json.dumps({"op": "subscribe", "subscriptions": [{"id": sub, "channelId": channel_id}]}))
 
 
-def _connect(port: int, deadline: float):
-    while True:
-        try:
-            return connect(
-                f"ws://127.0.0.1:{port}", subprotocols=["foxglove.sdk.v1", "foxglove.websocket.v1"], open_timeout=2
-            )
-        except OSError:
-            if time.time() > deadline:
-                raise
-            time.sleep(0.3)
-
-
 def test_live_bridge_serves_the_hand_description_tf_markers_and_jpeg(tmp_path):
     graph = tmp_path / "g.yaml"
     graph.write_text(GRAPH)
@@ -80,7 +68,7 @@ def test_live_bridge_serves_the_hand_description_tf_markers_and_jpeg(tmp_path):
     received: dict[str, bytes] = {}
     try:
         deadline = time.time() + 35
-        with _connect(port, deadline) as ws:
+        with connect_foxglove(port, deadline - time.time()) as ws:
             subscribed: dict[int, str] = {}
             while time.time() < deadline and len(received) < len(WANTED):
                 try:

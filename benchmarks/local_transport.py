@@ -41,6 +41,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from timing import paced
 
 ONE_HOP = {"4KiB": 4 << 10, "4MiB": 4 << 20, "32MiB": 32 << 20}
 FRAMES = {"hd": 1920 * 1080 * 3, "uhd": 3840 * 2160 * 3}
@@ -91,11 +92,7 @@ def _role(args: argparse.Namespace) -> None:
         frame = Image(width=args.size, height=1, encoding="mono8", step=args.size, data=data)
         body = bytearray(wire.pack(frame)[0])
         time.sleep(args.warmup)
-        period, t_next = 1.0 / args.rate, time.perf_counter()
-        for seq in range(1, int(args.seconds * args.rate) + 1):
-            t_next += period
-            while (d := t_next - time.perf_counter()) > 0:
-                time.sleep(d if d > 2e-4 else 0)
+        for seq in paced(args.rate, args.seconds):
             if handflow_pub is not None:  # the source fills a ctx.allocate array, then NodeContext.publish
                 pixels = handflow_pub.allocate(args.size)
                 pixels[:] = data

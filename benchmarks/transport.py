@@ -60,6 +60,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from timing import paced
 
 WIDTH = 24
 IMAGE_SHAPE = (480, 640, 3)
@@ -92,16 +93,11 @@ def _role(args: argparse.Namespace) -> None:
     if args.role == "pub":
         pub = session.declare_publisher("bench/a")
         time.sleep(args.warmup)
-        period = 1.0 / args.rate
-        t_next = time.perf_counter()
         data = np.zeros(WIDTH)
         frames = [_image(i) for i in range(4)] if args.payload == "image" else []
         if frames and args.mode == "raw":  # the same CDR bytes every time; only the stamp is patched in
             body = bytearray(wire.pack(frames[0])[0])
-        for seq in range(1, int(args.seconds * args.rate) + 1):
-            t_next += period
-            while (d := t_next - time.perf_counter()) > 0:
-                time.sleep(d if d > 2e-4 else 0)
+        for seq in paced(args.rate, args.seconds):
             now = time.time_ns()
             if frames and args.mode == "raw":
                 struct.pack_into("<iI", body, 4, now // 1_000_000_000, now % 1_000_000_000)
@@ -168,11 +164,7 @@ def _shm_role(args: argparse.Namespace) -> None:
         frame = Image(width=args.size, height=1, encoding="mono8", step=args.size, data=data)
         body = bytearray(wire.pack(frame)[0])
         time.sleep(args.warmup)
-        period, t_next = 1.0 / args.rate, time.perf_counter()
-        for seq in range(1, int(args.seconds * args.rate) + 1):
-            t_next += period
-            while (d := t_next - time.perf_counter()) > 0:
-                time.sleep(d if d > 2e-4 else 0)
+        for seq in paced(args.rate, args.seconds):
             now = time.time_ns()
             if args.mode == "handflow":  # NodeContext.publish: header, check, pack, pool
                 frame.header = Header("pub", seq, now)

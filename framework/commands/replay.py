@@ -263,12 +263,12 @@ def _timed(args: argparse.Namespace, session, plan: ReplayPlan, graph: str, stop
     ``--foxglove`` (:mod:`..recorder.playback`; the replay serves Foxglove itself)."""
     if args.foxglove is None:
         return None, TimedReplayer(session, plan, speed=args.speed, loop=args.loop, stop=stop)
-    try:
-        from ..recorder.playback import ControlledReplayer, Playback, time_range
-    except ImportError as exc:  # without the extra, or an SDK without PlaybackControl
+    from ..recorder.playback import SDK_MISSING, ControlledReplayer, Playback, time_range
+
+    if SDK_MISSING:  # without the extra, or an SDK without PlaybackControl
         raise BridgeError(
-            f"replay --foxglove needs foxglove-sdk 0.30 or newer ({exc}): pip install -U 'handflow[foxglove]'"
-        ) from None
+            f"replay --foxglove needs foxglove-sdk 0.30 or newer ({SDK_MISSING}): pip install -U 'handflow[foxglove]'"
+        )
 
     playback = Playback(*time_range(plan.path), speed=args.speed)
     bridge = start_bridge(session, graph, "127.0.0.1", args.foxglove, playback=playback)

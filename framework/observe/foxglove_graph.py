@@ -12,16 +12,17 @@ from __future__ import annotations
 from collections import defaultdict
 from typing import TYPE_CHECKING
 
-from foxglove.websocket import ConnectionGraph
-
 from ..keys import ros_name, topic_key
 
 if TYPE_CHECKING:
+    from foxglove.websocket import ConnectionGraph
+
     from ..graphs.model import Graph
 
 
 def connection_graph(graph: Graph) -> ConnectionGraph:
     """Publishers and subscribers of every data topic of ``graph``."""
+    from foxglove.websocket import ConnectionGraph  # the optional extra, checked by the bridge
 
     def who(nid: str) -> str:
         host = graph.nodes[nid].spec.host

@@ -12,13 +12,18 @@ from __future__ import annotations
 
 import json
 import logging
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import foxglove
-from foxglove.websocket import Parameter, ServerListener, StatusLevel
+try:  # the optional extra 'foxglove'; the bridge says how to install it
+    from foxglove.websocket import Parameter, ServerListener, StatusLevel
+except ImportError:
+    ServerListener = object
 
 from ..keys import param_request_key
 from ..messages import ParamChange
+
+if TYPE_CHECKING:
+    import foxglove
 
 log = logging.getLogger("handflow.foxglove")
 TIMEOUT_S = 5.0

@@ -13,7 +13,13 @@ import threading
 import time
 from typing import Any
 
-from foxglove.websocket import PlaybackCommand, PlaybackState, PlaybackStatus, ServerListener
+try:  # the optional extra 'foxglove', 0.30 or newer for PlaybackControl
+    from foxglove.websocket import PlaybackCommand, PlaybackState, PlaybackStatus, ServerListener
+except ImportError as exc:
+    SDK_MISSING: str | None = str(exc)
+    ServerListener = object
+else:
+    SDK_MISSING = None
 
 from ..files.mcap_reader import ReadReport, iter_recording
 from .replay import ReplayPlan, ReplayStats, _Publishers

@@ -24,6 +24,10 @@ docs/shared_memory.md); alone: ``python benchmarks/local_transport.py [--pairs 3
   (three node processes, the default ``transport: {local: iceoryx2}``) against the bare Zenoh relay
   chain carrying the same CDR bytes; the median of the pairs' ratios.  ``--hogs N`` measures only
   this, with N busy-looping processes running (one per core: the loaded case).
+* ``--soak SECONDS``: 1080p RGB at 30 fps through the three handflow processes for that long; lost
+  frames, and the growth from a quarter of the run to its end of each process's RSS (whole, private
+  and mapped shared-memory pages, as ``transport.py --shm-soak`` reports them) and of the
+  shared-memory files the chain maps (bytes allocated in ``/dev/shm``).
 """
 
 from __future__ import annotations
@@ -57,6 +61,21 @@ def _bare(run: str):
     return t, t._services, t._iox
 
 
+def _mapped_shm() -> dict[str, int]:
+    """The ``/dev/shm`` files this process maps, with the bytes allocated to each."""
+    paths = {
+        line.split(maxsplit=5)[5] for line in Path("/proc/self/maps").read_text().splitlines() if " /dev/shm/" in line
+    }
+    return {p: Path(p).stat().st_blocks * 512 for p in paths if Path(p).exists()}
+
+
+def _memory() -> dict:
+    """RSS parts and mapped shared-memory files, sampled for ``--soak``."""
+    from transport import _rss_kb
+
+    return {"rss_kb": _rss_kb(), "shm": _mapped_shm()}
+
+
 def _role(args: argparse.Namespace) -> None:
     """One process: ``args.role`` pub/relay/sub, ``args.mode`` handflow/bare."""
     from handflow.framework import wire
@@ -67,6 +86,8 @@ def _role(args: argparse.Namespace) -> None:
     transport, services, iox = _bare(args.run)
     rows: list[tuple[int, int]] = []
     cpu0 = time.process_time()
+    memory = []  # a quarter into the run and at its end
+    threading.Timer(args.warmup + args.seconds / 4, lambda: memory.append(_memory())).start()
     src = TOPICS[0] if args.role == "relay" else TOPICS[args.hops - 1]  # what a relay or subscriber reads
     dst = TOPICS[1] if args.role == "relay" else TOPICS[0]  # what a relay or publisher writes
 
@@ -148,7 +169,8 @@ def _role(args: argparse.Namespace) -> None:
         sys.stdin.read()  # until run_chain closes it, after the publisher ended
         stop.set()
         thread.join()
-    Path(args.out).write_text(json.dumps({"rows": rows, "cpu_s": time.process_time() - cpu0}))
+    memory.append(_memory())
+    Path(args.out).write_text(json.dumps({"rows": rows, "cpu_s": time.process_time() - cpu0, "memory": memory}))
 
 
 def run_chain(size: int, mode: str, hops: int, seconds: float, rate: float = RATE_HZ) -> dict:
@@ -173,7 +195,22 @@ def run_chain(size: int, mode: str, hops: int, seconds: float, rate: float = RAT
         res = {r: json.loads(o.read_text()) for r, o in outs.items()}
     rows = res["sub"]["rows"]
     stats = _stats([lat for _, lat in rows], [s for s, _ in rows], int(seconds * rate))
-    return {**stats, "cpu_percent": 100 * sum(r["cpu_s"] for r in res.values()) / seconds}
+    return {**stats, "cpu_percent": 100 * sum(r["cpu_s"] for r in res.values()) / seconds, "memory": _soak(res)}
+
+
+def _soak(res: dict) -> dict:
+    """Growth from a quarter of the run to its end: each process's RSS parts, and the chain's shared memory."""
+    from transport import _growth
+
+    def shm(i: int) -> int:
+        return sum({p: b for r in res.values() for p, b in r["memory"][i]["shm"].items()}.values())
+
+    return {
+        "rss_growth": {r: _growth([m["rss_kb"] for m in v["memory"]]) for r, v in res.items()},
+        "rss_kb": {r: v["memory"][-1]["rss_kb"] for r, v in res.items()},
+        "shm_bytes": [shm(0), shm(-1)],
+        "shm_growth": shm(-1) / max(shm(0), 1) - 1,
+    }
 
 
 def run_local(pairs: int, seconds: float, hd_seconds: float, joint_seconds: float) -> dict:
@@ -252,6 +289,7 @@ def main() -> None:
     ap.add_argument("--joint-seconds", type=float, default=6.0, help="per 24-joint chain run")
     ap.add_argument("--json", action="store_true", help="everything, not only the headline keys")
     ap.add_argument("--hogs", type=int, default=0, help="only the 24-joint pairs, with this many CPU hogs")
+    ap.add_argument("--soak", type=float, metavar="SECONDS", help="only the 1080p30 soak of that length")
     ap.add_argument("--_role", action="store_true", help=argparse.SUPPRESS)
     for name in ("--role", "--run", "--mode", "--out"):
         ap.add_argument(name, help=argparse.SUPPRESS)
@@ -262,6 +300,10 @@ def main() -> None:
     args = ap.parse_args()
     if args._role:
         _role(args)
+        return
+    if args.soak:
+        res = run_chain(FRAMES["hd"], "handflow", 2, args.soak)
+        print(json.dumps({k: res[k] for k in ("received", "lost", "median_us", "cpu_percent", "memory")}))
         return
     if args.hogs:
         res = with_hogs(args.hogs, lambda: joint_state_pairs(args.pairs, args.joint_seconds))

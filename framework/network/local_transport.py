@@ -10,7 +10,8 @@ sample holds one frame::
 The padding puts the payload 4 bytes before a 16-byte boundary, so the CDR body after its 4-byte
 encapsulation header is 16-byte aligned and decoded arrays are aligned numpy views.  The publisher
 copies the encoded message once into a loaned sample and notifies the topic's listeners; a
-subscriber process wakes on the notification (a :class:`WaitSet` in a thread, no polling) and hands
+subscriber process wakes on the notification (a thread per subscribed topic blocked in its listener's
+wait, no polling: an iceoryx2 ``WaitSet`` over all topics in one thread took twice as long) and hands
 the callback a read-only ``memoryview`` straight into the sample.  The sample is given back to the
 publisher when the last view of it (the memoryview, numpy arrays decoded from it) is gone.  A
 subscriber may hold at most :data:`BORROWED` samples: once a process holds ``BORROWED - 1``, the
@@ -251,7 +252,7 @@ class LocalTransport:
         self._borrowed = 0  # samples of this process still referenced by a view
         self._count_lock = threading.Lock()
         self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
+        self._threads: list[threading.Thread] = []
         self._probe()
 
     def _probe(self) -> None:
@@ -305,24 +306,21 @@ class LocalTransport:
         self._topics[topic].callbacks.append(callback)
 
     def start(self) -> None:
-        """Start delivering the subscribed topics (in a thread that waits for their events)."""
-        if self._topics and self._thread is None:
-            self._thread = threading.Thread(target=self._wait, name="handflow-local", daemon=True)
-            self._thread.start()
+        """Start delivering the subscribed topics (a thread per topic waits for its events)."""
+        if self._threads:
+            return
+        for topic in self._topics.values():
+            thread = threading.Thread(
+                target=self._wait, args=(topic,), name=f"handflow-local {topic.name}", daemon=True
+            )
+            thread.start()
+            self._threads.append(thread)
 
-    def _wait(self) -> None:
-        iox = self._iox
-        waitset = (
-            iox.WaitSetBuilder.new().signal_handling_mode(iox.SignalHandlingMode.Disabled).create(iox.ServiceType.Ipc)
-        )
-        guards = [waitset.attach_notification(t.listener) for t in self._topics.values()]
-        timeout = iox.Duration.from_secs_f64(POLL_S)
+    def _wait(self, topic: _Topic) -> None:
+        timeout = self._iox.Duration.from_secs_f64(POLL_S)
         while not self._stop.is_set():
-            waitset.wait_and_process_with_timeout(timeout)
-            for topic in self._topics.values():
-                topic.listener.try_wait()
-                self._drain(topic)
-        del guards
+            topic.listener.timed_wait(timeout)
+            self._drain(topic)
 
     def _drain(self, topic: _Topic) -> None:
         while not self._stop.is_set():
@@ -366,8 +364,8 @@ class LocalTransport:
     def stop(self) -> None:
         """Stop delivering (views still held stay valid until dropped)."""
         self._stop.set()
-        if self._thread is not None:
-            self._thread.join(timeout=5 * POLL_S)
+        for thread in self._threads:
+            thread.join(timeout=5 * POLL_S)
 
     def close(self) -> None:
         """:meth:`stop`, then release every port and the node, which removes their files (a process

@@ -366,7 +366,7 @@ class Launcher:
         self.params.serve([nid for u in self.units for nid in u.node_ids])
         self._info.undeclare()
         self._info = hub_info.declare_info(self.session, graph.name, self.host, list(graph.nodes))
-        return [f"{verb} {u.name}" for verb, u in done]
+        return [f"{verb} {', '.join(u.node_ids)}" for verb, u in done]
 
     def alive(self) -> bool:
         return any(u.proc is not None or u.restart_at is not None for u in self.units)

@@ -38,7 +38,7 @@ if TYPE_CHECKING:
 
 log = logging.getLogger("handflow.watch")
 
-POLL_S = 0.25
+POLL_S = 0.1  # a change is taken 0.1-0.2 s after the save (files are stat-ed, read only when changed)
 CHECK_TIMEOUT_S = 60.0  # importing the graph's plugins takes this long at most
 READY_TIMEOUT_S = 60.0  # a restarted node reports ready within this
 LIVE_KEYS = frozenset({"nodes", "description", "external"})  # top-level keys an edit may change while running
@@ -169,7 +169,7 @@ class Watcher:
         launcher = self.launcher
         candidate = launcher.state_dir / "graph-edit.yaml"
         candidate.write_text(text)
-        args = [str(self.path), "--graph-text", str(candidate), *(["--host", launcher.host] if launcher.host else [])]
+        args = [_shown(self.path), "--graph-text", str(candidate), *(["--host", launcher.host] if launcher.host else [])]
         proc = launcher.start_process(CHECK, args, "the check of the edit", edited)
         output: list[str] = []
         reader = threading.Thread(target=lambda: output.append(proc.stderr.read()), daemon=True)

@@ -62,7 +62,8 @@ class Watcher:
         self.text = text  # the graph file's running version
         self._digests: dict[Path, tuple[tuple[int, int], str]] = {}
         self.sources = self._sources(launcher.graph)
-        self.running = self._contents()  # the files' running versions
+        # the files' running versions: the graph file's as the launcher read it (an edit since then is one)
+        self.running = {**self._contents(), self.path: hashlib.sha1(text.encode()).hexdigest()}
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name="handflow-watch", daemon=True)
         self._thread.start()
@@ -169,7 +170,12 @@ class Watcher:
         launcher = self.launcher
         candidate = launcher.state_dir / "graph-edit.yaml"
         candidate.write_text(text)
-        args = [_shown(self.path), "--graph-text", str(candidate), *(["--host", launcher.host] if launcher.host else [])]
+        args = [
+            _shown(self.path),
+            "--graph-text",
+            str(candidate),
+            *(["--host", launcher.host] if launcher.host else []),
+        ]
         proc = launcher.start_process(CHECK, args, "the check of the edit", edited)
         output: list[str] = []
         reader = threading.Thread(target=lambda: output.append(proc.stderr.read()), daemon=True)

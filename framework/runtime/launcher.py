@@ -8,7 +8,8 @@ lines, after which it stays down), publishes every restart and crash loop as a
 :class:`RuntimeEvent`, and on Ctrl-C, SIGTERM or the end of ``--duration`` stops the units
 upstream first, each once the units it feeds have drained (their teardown runs; see
 :meth:`Launcher.stop`), and reports which nodes failed and why (docs/reliability.md).  It also
-serves ``handflow param`` for its nodes (:mod:`.param_service`, docs/tuning.md).
+serves ``handflow param`` for its nodes (:mod:`.param_service`, docs/tuning.md) and, with
+``--watch``, restarts the nodes an edit of the graph file or of a plugin concerns (:mod:`.watch`).
 """
 
 from __future__ import annotations
@@ -344,17 +345,17 @@ class Launcher:
         Returns one line per unit started or stopped."""
         forget_edited_params(self.state_dir, self.graph, graph)
         self.graph_text.write_text(text)  # what every node process started from now on runs
-        old = {(u.name, tuple(u.node_ids)): u for u in self.units}
+        old = {_key(u): u for u in self.units}
         new = plan_units(graph, self.host)
-        kept = {key for u in new if (key := (u.name, tuple(u.node_ids))) in old and touched.isdisjoint(u.node_ids)}
+        kept = {_key(u) for u in new if _key(u) in old and touched.isdisjoint(u.node_ids)}
         stopped = [u for key, u in old.items() if key not in kept]
         self._terminate([u for u in stopped if u.proc is not None], RESTART_SIGNAL)
         for u in stopped:
             for nid in u.node_ids:
                 self.health.pop(nid, None)
         self.graph = graph
-        self.units = [old[key] if key in kept else u for u in new if (key := (u.name, tuple(u.node_ids)))]
-        started = [u for u in self.units if (u.name, tuple(u.node_ids)) not in kept]
+        self.units = [old[_key(u)] if _key(u) in kept else u for u in new]
+        started = [u for u in self.units if _key(u) not in kept]
         for u in started:
             self._spawn(u)
         before = {nid for u in stopped for nid in u.node_ids}
@@ -490,6 +491,11 @@ class Launcher:
             }
             for u in self.units
         }
+
+
+def _key(unit: Unit) -> tuple[str, tuple[str, ...]]:
+    """What makes a unit the same process in two versions of a graph: its name and its nodes."""
+    return unit.name, tuple(unit.node_ids)
 
 
 def _prepare_local() -> None:

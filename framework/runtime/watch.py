@@ -127,6 +127,9 @@ class Watcher:
         old = self.launcher.graph
         if fixed := _fixed_keys(old.spec, new.spec, text, self.path):
             return self._refuse(why, "\n".join(fixed))
+        if all(rn.spec.host != self.launcher.host for rn in new.nodes.values()):
+            where = f" for host '{self.launcher.host}'" if self.launcher.host else ""
+            return self._refuse(why, f"{_shown(self.path)}:1: the edit leaves no node to run{where}")
         touched = {
             nid
             for nid, rn in new.nodes.items()

@@ -213,12 +213,13 @@ def test_edits_restart_only_the_nodes_they_concern(watched):
     assert output().count("started source") == 1
 
 
-def test_a_graph_edit_wins_over_the_values_set_while_running_for_the_keys_it_changed(tmp_path):
+def test_an_edit_wins_over_the_values_set_while_running_for_the_keys_it_changed_or_refuses(tmp_path):
     old = load_graph(REPO / "configs/basic_chain.yaml")
     new = load_graph(REPO / "configs/basic_chain.yaml", text=old.path.read_text().replace("gain: 2.0", "gain: 4.0"))
     save_override(tmp_path, "scale", "gain", 3.0)
     save_override(tmp_path, "scale", "offset", 1.0)
     save_override(tmp_path, "source", "rate_hz", 20)
+    save_override(tmp_path, "source", "amplitude", "loud")  # one the (edited) plugin refuses
     forget_edited_params(tmp_path, old, new)
     assert overrides_file(tmp_path, "scale").read_text() == '{"offset": 1.0}'
     assert overrides_file(tmp_path, "source").read_text() == '{"rate_hz": 20}'

@@ -557,7 +557,7 @@ class Text(Message):
     data: str = ""
 
 
-EVENT_KINDS = ("restart", "crash_loop", "gap", "dropped", "outage", "recovered")
+EVENT_KINDS = ("restart", "crash_loop", "gap", "dropped", "outage", "recovered", "reload")
 
 
 @dataclass
@@ -566,7 +566,8 @@ class RuntimeEvent(Message):
 
     ``kind``: ``restart`` (a node process was restarted), ``crash_loop`` (restarts given up),
     ``gap`` (``count`` messages missed on ``topic``), ``dropped`` (``count`` payloads on ``topic``
-    failed validation), ``outage`` / ``recovered`` (a remote peer left / came back).
+    failed validation), ``outage`` / ``recovered`` (a remote peer left / came back), ``reload`` (``handflow
+    run --watch`` restarted, started or stopped a node process after an edit; ``detail``: which and why).
     See docs/monitoring.md.
     """
 

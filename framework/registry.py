@@ -8,6 +8,9 @@ names the current one in ``plugin_name`` and loading it by the old name warns (d
 from __future__ import annotations
 
 import difflib
+import sys
+import sysconfig
+import traceback
 import warnings
 from dataclasses import dataclass
 from functools import cache
@@ -37,12 +40,31 @@ class PluginEntry:
         try:
             cls = self.entry_point.load()
         except Exception as exc:  # an import error inside a plugin must not hide the others
+            at = failing_line(exc)
             raise PluginError(
                 f"plugin '{self.name}' ({self.target}) failed to load: {type(exc).__name__}: {exc}"
+                + (f" (at {at})" if at else "")
             ) from exc
         if not (isinstance(cls, type) and issubclass(cls, Node)):
             raise PluginError(f"plugin '{self.name}' ({self.target}) is not a handflow.framework.plugin.Node subclass")
         return cls
+
+
+def failing_line(exc: BaseException) -> str | None:
+    """``file:line`` of the code that made a plugin's import fail: the line of a syntax error, else the
+    deepest frame of the traceback in code not installed (the plugin being written), else the first
+    frame outside the standard library (the installed plugin's module); None for a module not found."""
+    if isinstance(exc, SyntaxError) and exc.filename:
+        return f"{exc.filename}:{exc.lineno}"
+    stdlib = sysconfig.get_paths()["stdlib"]
+    frames = [
+        f
+        for f in traceback.extract_tb(exc.__traceback__)
+        if not f.filename.startswith(("<", stdlib)) and f.filename != __file__
+    ]
+    own = [f for f in frames if not f.filename.startswith(sys.prefix)]
+    at = own[-1] if own else frames[0] if frames else None
+    return f"{at.filename}:{at.lineno}" if at else None
 
 
 @cache

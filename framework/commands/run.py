@@ -1,4 +1,4 @@
-"""``handflow run GRAPH.yaml [--duration S] [--record FILE.mcap] [--host NAME]``."""
+"""``handflow run GRAPH.yaml [--duration S] [--record FILE.mcap] [--host NAME] [--watch]``."""
 
 from __future__ import annotations
 
@@ -27,6 +27,12 @@ def register(parser: argparse.ArgumentParser) -> None:
     add_foxglove_option(
         parser,
         "live view: stream every topic to Foxglove on ws://127.0.0.1:PORT (default 8765)",
+    )
+    parser.add_argument(
+        "--watch",
+        action="store_true",
+        help="restart a node when its plugin's source or its entry in the graph file changes; the others keep "
+        "running (docs/tuning.md)",
     )
     parser.add_argument(
         "--summary-json", metavar="FILE", help="write per-process restarts, exit codes and failures as JSON"
@@ -70,7 +76,7 @@ def run(args: argparse.Namespace) -> int:
             recorder.attach(launcher.session)
 
     try:
-        launcher = run_graph(graph, args.duration, args.host, on_ready=attach, zygote=zygote)
+        launcher = run_graph(graph, args.duration, args.host, on_ready=attach, zygote=zygote, watch=args.watch)
     except (ValueError, BridgeError, EndpointInUse) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

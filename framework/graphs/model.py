@@ -476,11 +476,19 @@ def validate_file(
 
 
 def load_graph(
-    path: str | Path, only: Collection[str] | None = None, preflight: bool = False, host: str | None = None
+    path: str | Path,
+    only: Collection[str] | None = None,
+    preflight: bool = False,
+    host: str | None = None,
+    text: str | None = None,
 ) -> Graph:
     """A validated :class:`Graph` (plugins of the ``only`` node ids, or all; inputs checked with
-    ``preflight``, see :func:`read_graph_text`), or :class:`GraphError`."""
-    graph, problems = validate_file(path, only, preflight, host)
+    ``preflight``, see :func:`read_graph_text`), or :class:`GraphError`.  With ``text``, that is the
+    file's content (a version of it kept while the file changes, docs/tuning.md)."""
+    if text is not None:
+        graph, problems = read_graph_text(text, graph_path(path).resolve(), only, preflight, host)
+    else:
+        graph, problems = validate_file(path, only, preflight, host)
     if problems or graph is None:
         raise GraphError(graph_path(path), problems)
     return graph

@@ -8,7 +8,8 @@ lines, after which it stays down), publishes every restart and crash loop as a
 :class:`RuntimeEvent`, and on Ctrl-C, SIGTERM or the end of ``--duration`` stops the units
 upstream first, each once the units it feeds have drained (their teardown runs; see
 :meth:`Launcher.stop`), and reports which nodes failed and why (docs/reliability.md).  It also
-serves ``handflow param`` for its nodes (:mod:`.param_service`, docs/tuning.md).
+serves ``handflow param`` for its nodes (:mod:`.param_service`, docs/tuning.md) and, with
+``--watch``, restarts the nodes an edit of the graph file or of a plugin concerns (:mod:`.watch`).
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ import sys
 import tempfile
 import threading
 import time
+from collections.abc import Collection
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -32,10 +34,12 @@ from ..messages import Header, MessageError, RuntimeEvent, Status
 from ..network import hub_info, local_transport
 from ..network import sessions as transport
 from . import discovery
+from .live_params import forget_edited_params
 from .param_service import ParamService
 from .ros2_bridge import Ros2Bridge
-from .runner import START_WAIT_S, STOPPED, failure_file
-from .zygote import ForkedProcess, Zygote, start_unless_disabled
+from .runner import RESTART_SIGNAL, START_WAIT_S, STOPPED, failure_file
+from .watch import Watcher
+from .zygote import RUNNER, ForkedProcess, Zygote, start_unless_disabled
 
 log = logging.getLogger("handflow.launcher")
 
@@ -87,12 +91,18 @@ class Launcher:
         lockstep: bool = False,
         log_level: str = "INFO",
         zygote: Zygote | None = None,
+        graph_text: str | None = None,
     ) -> None:
         self.graph = graph
+        self.host = host
         self.units = plan_units(graph, host)
         if not self.units:
             where = f" for host '{host}'" if host else ""
             raise ValueError(f"graph '{graph.name}' has no nodes to run{where}; check the nodes' 'host' fields")
+        if lockstep and graph_text is not None:
+            raise ValueError(
+                "--watch cannot be used in lock-step mode: a lock-step replay is a fixed, deterministic run"
+            )
         self.lockstep = lockstep
         self.log_level = log_level
         # before any Zenoh session: it forks the node processes (docs/architecture.md, "Process start-up")
@@ -108,6 +118,11 @@ class Launcher:
             self._state_dir.cleanup()
             raise
         self.stopping = False
+        self.edited: set[Path] = set()  # plugin source files edited during the run (`--watch`, docs/tuning.md)
+        self.graph_text: Path | None = None  # the version of the graph file the nodes run (`--watch`)
+        if graph_text is not None:
+            self.graph_text = self.state_dir / "graph.yaml"
+            self.graph_text.write_text(graph_text)
         self.run_file = discovery.write_run_file(
             graph.name, self.hub_endpoint, graph.path, lockstep, usrpwd=self.user is not None
         )
@@ -172,8 +187,29 @@ class Launcher:
         self._start_pub.put(b"start")
 
     # -- processes --------------------------------------------------------------------------
+    def start_process(
+        self, module: str, args: list[str], what: str, edited: Collection[Path] = ()
+    ) -> subprocess.Popen | ForkedProcess:
+        """A process running ``module.main(args)``: forked from the zygote (its plugins already imported;
+        those edited during the run, or in ``edited``, imported afresh: :mod:`.plugin_sources`), else a
+        new interpreter."""
+        forget = {str(f) for f in (*self.edited, *edited)}
+        proc = self.zygote.spawn(args, module, forget) if self.zygote is not None else None
+        if proc is not None:
+            return proc
+        if self.zygote is not None:
+            log.warning("the zygote cannot fork %s; starting it as a new interpreter", what)
+        return subprocess.Popen(
+            [sys.executable, "-m", module, *args],
+            start_new_session=True,
+            stderr=subprocess.PIPE,
+            text=True,
+            errors="replace",
+            bufsize=1,
+        )
+
     def _spawn(self, unit: Unit) -> None:
-        """Fork the unit's process from the zygote (its plugins already imported), or start it afresh."""
+        """Start the unit's process (:meth:`start_process`), its log forwarded to ours."""
         args = [
             str(self.graph.path),
             "--nodes",
@@ -189,20 +225,11 @@ class Launcher:
             args.append("--lockstep")
         if self.user is not None:  # the node reads its password from the graph's credentials file
             args += ["--user", self.user]
+        if self.graph_text is not None:
+            args += ["--graph-text", str(self.graph_text)]
         for nid in unit.node_ids:  # ready again only once the new process reports
             self.health.pop(nid, None)
-        unit.proc = self.zygote.spawn(args) if self.zygote is not None else None
-        if unit.proc is None:
-            if self.zygote is not None:
-                log.warning("the zygote cannot fork %s; starting it as a new interpreter", unit.name)
-            unit.proc = subprocess.Popen(
-                [sys.executable, "-m", "handflow.framework.runtime.runner", *args],
-                start_new_session=True,
-                stderr=subprocess.PIPE,
-                text=True,
-                errors="replace",
-                bufsize=1,
-            )
+        unit.proc = self.start_process(RUNNER, args, unit.name)
         threading.Thread(target=_forward_log, args=(unit.proc.stderr, unit.log_tail), daemon=True).start()
         log.info("started %s (pid %d)", unit.name, unit.proc.pid)
 
@@ -311,6 +338,37 @@ class Launcher:
         self.event("restart", unit, why)
         self._spawn(unit)
 
+    def reload(self, graph: Graph, text: str, touched: set[str], why: str) -> list[str]:
+        """Run ``graph``, an edit of the running one (``handflow run --watch``, docs/tuning.md): stop the
+        units hosting a node of ``touched`` (its entry or plugin changed) or a node the edit removed, and
+        start the units of the new plan that are not running unchanged; the other units keep running.
+        Returns one line per unit started or stopped."""
+        forget_edited_params(self.state_dir, self.graph, graph)
+        self.graph_text.write_text(text)  # what every node process started from now on runs
+        old = {_key(u): u for u in self.units}
+        new = plan_units(graph, self.host)
+        kept = {_key(u) for u in new if _key(u) in old and touched.isdisjoint(u.node_ids)}
+        stopped = [u for key, u in old.items() if key not in kept]
+        self._terminate([u for u in stopped if u.proc is not None], RESTART_SIGNAL)
+        for u in stopped:
+            for nid in u.node_ids:
+                self.health.pop(nid, None)
+        self.graph = graph
+        self.units = [old[_key(u)] if _key(u) in kept else u for u in new]
+        started = [u for u in self.units if _key(u) not in kept]
+        for u in started:
+            self._spawn(u)
+        before = {nid for u in stopped for nid in u.node_ids}
+        running = {nid for u in self.units for nid in u.node_ids}
+        done = [("restarted" if before & set(u.node_ids) else "started", u) for u in started]
+        done += [("stopped", u) for u in stopped if running.isdisjoint(u.node_ids)]
+        for verb, u in done:
+            self.event("reload", u, f"{verb}: {why}")
+        self.params.serve([nid for u in self.units for nid in u.node_ids])
+        self._info.undeclare()
+        self._info = hub_info.declare_info(self.session, graph.name, self.host, list(graph.nodes))
+        return [f"{verb} {', '.join(u.node_ids)}" for verb, u in done]
+
     def alive(self) -> bool:
         return any(u.proc is not None or u.restart_at is not None for u in self.units)
 
@@ -341,12 +399,12 @@ class Launcher:
     def _inputs(self, nid: str) -> dict[str, str]:
         return self.graph.nodes[nid].spec.inputs
 
-    def _terminate(self, units: list[Unit]) -> None:
+    def _terminate(self, units: list[Unit], sig: int = signal.SIGTERM) -> None:
         for u in units:
             for nid in u.node_ids:  # a last heartbeat of an earlier process must not count as this one's
                 if nid in self.health and self.health[nid].state == STOPPED:
                     del self.health[nid]
-            u.proc.send_signal(signal.SIGTERM)
+            u.proc.send_signal(sig)
         deadline = time.monotonic() + STOP_GRACE_S
         for u in units:
             while u.proc.poll() is None and time.monotonic() < deadline:
@@ -435,6 +493,11 @@ class Launcher:
         }
 
 
+def _key(unit: Unit) -> tuple[str, tuple[str, ...]]:
+    """What makes a unit the same process in two versions of a graph: its name and its nodes."""
+    return unit.name, tuple(unit.node_ids)
+
+
 def _prepare_local() -> None:
     """Reclaim what dead processes left in iceoryx2; one notice when it is not usable (docs/shared_memory.md)."""
     if (why := local_transport.prepare()) is not None:
@@ -460,14 +523,19 @@ def run_graph(
     on_ready=None,
     lockstep: bool = False,
     zygote: Zygote | None = None,
+    watch: bool = False,
 ) -> Launcher:
     """Run ``graph`` until Ctrl-C/SIGTERM or ``duration_s``; returns the stopped launcher (for its summary).
 
     ``on_ready(launcher)`` runs once the hub session is open and before any node starts (attach a
     recorder or a live view there, so they miss nothing); if it raises, nothing is started.  A
     ``zygote`` started before the graph was loaded imports the plugins meanwhile (one is started otherwise).
+    With ``watch``, edits of the graph file and of its plugins' sources restart the nodes they
+    concern (:mod:`.watch`, docs/tuning.md).
     """
-    launcher = Launcher(graph, host, lockstep, logging.getLevelName(logging.getLogger().level), zygote)
+    text = graph.path.read_text() if watch else None
+    level = logging.getLevelName(logging.getLogger().level)
+    launcher = Launcher(graph, host, lockstep, level, zygote, graph_text=text)
     if on_ready is not None:
         try:
             on_ready(launcher)
@@ -480,8 +548,10 @@ def run_graph(
         stop["flag"] = True
 
     old = {s: signal.signal(s, _stop) for s in (signal.SIGINT, signal.SIGTERM)}
+    watcher = None
     try:
         launcher.start()
+        watcher = Watcher(launcher, text) if text is not None else None
         t_launch = time.monotonic()
         t_end = None  # the duration counts from the moment every node is ready (or down for good)
         started = False
@@ -505,6 +575,8 @@ def run_graph(
             if settled and not lockstep:
                 launcher.signal_start()
             time.sleep(0.05)
+        if watcher is not None:
+            watcher.close()
         launcher.stop()
     finally:
         for s, h in old.items():

@@ -61,9 +61,40 @@ def save_override(state_dir: Path | None, node: str, key: str, value: Any) -> No
     path = overrides_file(state_dir, node)
     values = json.loads(path.read_text()) if path.exists() else {}
     values[key] = value
+    _write_overrides(path, values)
+
+
+def _write_overrides(path: Path, values: dict[str, Any]) -> None:
     tmp = path.with_suffix(".tmp")
     tmp.write_text(json.dumps(values))
     tmp.replace(path)
+
+
+def forget_edited_params(state_dir: Path, old: Graph, new: Graph) -> None:
+    """After an edit of the graph file or of a plugin (``handflow run --watch``): the file's value wins for
+    every key the edit changed in a node's ``params:``, and for a value the edited plugin's ``Params``
+    refuses (logged); the changes set while running are kept for the other keys; a node the edit
+    removed forgets them all (docs/tuning.md, "Editing a running graph")."""
+    for nid, rn in old.nodes.items():
+        path = overrides_file(state_dir, nid)
+        if not path.exists():
+            continue
+        if nid not in new.nodes:
+            path.unlink()
+            continue
+        before, after = rn.spec.params, new.nodes[nid].spec.params
+        edited = {k for k in before.keys() | after.keys() if before.get(k) != after.get(k)}
+        values = {}
+        for key, value in json.loads(path.read_text()).items():
+            if key in edited:
+                continue
+            try:
+                validated(new.nodes[nid].params, nid, key, value)
+            except ParamRefused as exc:
+                log.warning("%s by the edited plugin; node '%s' starts with the graph file's value", exc, nid)
+                continue
+            values[key] = value
+        _write_overrides(path, values)
 
 
 def apply_overrides(graph: Graph, node_ids: list[str], state_dir: Path | None) -> None:

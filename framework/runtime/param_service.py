@@ -59,13 +59,18 @@ class ParamService:
         self._work: queue.SimpleQueue = queue.SimpleQueue()  # answered in order, off Zenoh's threads
         self._worker = threading.Thread(target=self._serve, name="param-service", daemon=True)
         self._worker.start()
-        self._queryables = [
-            self._session.declare_queryable(
-                keys.param_request_key(self._graph, "*", nid), lambda query, nid=nid: self._work.put((nid, query))
-            )
-            for unit in launcher.units
-            for nid in unit.node_ids
-        ]
+        self._queryables: dict[str, Any] = {}
+        self.serve([nid for unit in launcher.units for nid in unit.node_ids])
+
+    def serve(self, node_ids: list[str]) -> None:
+        """Answer for these nodes (the ones the launcher runs; they change with ``handflow run --watch``)."""
+        for nid in self._queryables.keys() - set(node_ids):
+            self._queryables.pop(nid).undeclare()
+        for nid in node_ids:
+            if nid not in self._queryables:
+                self._queryables[nid] = self._session.declare_queryable(
+                    keys.param_request_key(self._graph, "*", nid), lambda query, nid=nid: self._work.put((nid, query))
+                )
 
     def _serve(self) -> None:
         while (item := self._work.get()) is not None:
@@ -131,7 +136,7 @@ class ParamService:
         self._changes.put(payload, attachment=att)
 
     def close(self) -> None:
-        for queryable in self._queryables:
+        for queryable in self._queryables.values():
             queryable.undeclare()
         self._work.put(None)
         self._worker.join(timeout=NODE_TIMEOUT_S)

@@ -63,6 +63,7 @@ STOPPED = "stopped"  # the state of a node's last heartbeat, sent after everythi
 START_WAIT_S = 60.0  # without a start signal (no launcher), tick anyway after this long
 SETTLE_QUIET_S = 0.2  # at a stop, inputs are still handled until none came for this long …
 SETTLE_MAX_S = 1.0  # … or for at most this long (below ORPHAN_GRACE_S)
+RESTART_SIGNAL = signal.SIGUSR2  # stop at once: the launcher restarts this process alone, its inputs keep flowing
 _STATE_SLOTS = 128
 EXPECTED_ERRORS = (OSError, ValueError, RuntimeError, ImportError)
 """Errors a node raises on purpose with a message saying what to do: logged without a traceback."""
@@ -223,6 +224,7 @@ class GroupRuntime:
         self.lockstep = lockstep
         self.virtual_ns = 0
         self.stop_requested = False
+        self.settle = True  # at the stop, handle inputs until they go quiet (not for a restart of this process alone)
         self.closed = False  # inputs are no longer handled (after the stop's settling)
         self._last_input = 0.0  # monotonic time of the last input handled
         login = _login(graph, user)
@@ -437,7 +439,7 @@ class GroupRuntime:
     # -- shutdown ---------------------------------------------------------------------------
     def shutdown(self) -> None:
         self.stop_requested = True
-        if self.set_up and self.failure is None:
+        if self.set_up and self.failure is None and self.settle:
             self._let_inputs_settle()
         with self._lock:
             self.closed = True
@@ -497,19 +499,21 @@ def main(argv: list[str] | None = None, parent: int | None = None) -> int:
     ap.add_argument("--state-dir", type=Path)
     ap.add_argument("--log-level", default="INFO")
     ap.add_argument("--user", help="login of a 'zenoh.usrpwd' graph (password from its credentials file)")
+    ap.add_argument("--graph-text", type=Path, help="the graph file's content to run (kept by `handflow run --watch`)")
     args = ap.parse_args(argv)
     logging.basicConfig(
         level=args.log_level, stream=sys.stderr, format="%(asctime)s %(levelname)s [%(name)s] %(message)s"
     )
     node_ids = args.nodes.split(",")
-    graph = load_graph(args.graph, only=node_ids)
+    graph = load_graph(args.graph, only=node_ids, text=args.graph_text.read_text() if args.graph_text else None)
     rt = GroupRuntime(graph, node_ids, args.hub, args.lockstep, args.state_dir, args.user)
 
     def _stop(signum, frame):
         rt.stop_requested = True
+        rt.settle = signum != RESTART_SIGNAL
 
-    signal.signal(signal.SIGTERM, _stop)
-    signal.signal(signal.SIGINT, _stop)
+    for sig in (signal.SIGTERM, signal.SIGINT, RESTART_SIGNAL):
+        signal.signal(sig, _stop)
     threading.Thread(target=_exit_with_parent, args=(parent,), daemon=True).start()
     faulthandler.register(signal.SIGUSR1, all_threads=True)  # the launcher asks for stacks before a kill
     code, failure = 0, None

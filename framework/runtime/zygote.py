@@ -5,7 +5,10 @@ GRAPH FD``); it loads the graph (which imports every plugin module the graph nam
 scikit-learn, numba and pybullet), then forks one child per spawn request.  A child starts its own
 session (setsid), takes the stderr pipe the launcher passed with the request, the launcher's working
 directory and environment, and runs :func:`handflow.framework.runtime.runner.main` as a node process started
-with ``python -m handflow.framework.runtime.runner`` would.  The zygote reports each child's pid and, when it
+with ``python -m handflow.framework.runtime.runner`` would (or the ``main`` of another module the request
+names, e.g. the check of an edit by ``handflow run --watch``).  A request may name source files
+edited since the zygote imported them: the child forgets their modules first, so it imports their
+current code (:func:`.plugin_sources.forget`, docs/tuning.md "Editing a running graph").  The zygote reports each child's pid and, when it
 exits, its exit status (negative: killed by that signal, as :class:`subprocess.Popen` reports it).
 It exits when the launcher's end of the socket closes (the launcher stopped or was killed); its
 children then see their parent gone and stop (docs/architecture.md, "Process start-up").
@@ -17,6 +20,7 @@ child's stderr pipe as ``SCM_RIGHTS``.
 from __future__ import annotations
 
 import atexit
+import importlib
 import io
 import json
 import os
@@ -29,9 +33,12 @@ import sys
 import threading
 import time
 import traceback
+from collections.abc import Collection
 
+from .plugin_sources import forget
 from .wakeup import wakeup_queue
 
+RUNNER = "handflow.framework.runtime.runner"
 MAX_REQUEST = 1 << 16
 REAP_S = 0.05
 SPAWN_TIMEOUT_S = 60.0  # the zygote answers a spawn request once it has imported the graph's plugins
@@ -47,7 +54,8 @@ def _child(sock: socket.socket, request: dict, stderr_fd: int, zygote: int) -> N
     try:
         sock.close()
         os.setsid()
-        _set_title(request["argv"])
+        module = request.get("module", RUNNER)
+        _set_title(module, request["argv"])
         os.dup2(stderr_fd, 2)
         os.close(stderr_fd)
         for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGCHLD):
@@ -58,10 +66,9 @@ def _child(sock: socket.socket, request: dict, stderr_fd: int, zygote: int) -> N
         os.environ.update(request["env"])
         if "numpy" in sys.modules:  # each node process draws its own unseeded randomness, as a fresh one would
             sys.modules["numpy"].random.seed()
-        from . import runner
-
-        sys.argv = ["handflow.framework.runtime.runner", *request["argv"]]
-        code = runner.main(request["argv"], parent=zygote)
+        forget(request.get("forget", ()))
+        sys.argv = [module, *request["argv"]]
+        code = importlib.import_module(module).main(request["argv"], parent=zygote)
     except SystemExit as exc:
         code = exc.code if isinstance(exc.code, int) else 1
     except BaseException:
@@ -90,13 +97,13 @@ def _preload(graph_source: str) -> None:
         pass
 
 
-def _set_title(argv: list[str]) -> None:
+def _set_title(module: str, argv: list[str]) -> None:
     """Show the node process in ``ps`` as the command that would start it afresh."""
     try:
         import setproctitle
     except ImportError:  # pragma: no cover (a declared dependency)
         return
-    setproctitle.setproctitle(" ".join([sys.executable, "-m", "handflow.framework.runtime.runner", *argv]))
+    setproctitle.setproctitle(" ".join([sys.executable, "-m", module, *argv]))
 
 
 def serve(sock: socket.socket) -> None:
@@ -210,6 +217,7 @@ class Zygote:
         self._changed = threading.Condition()
         self.closed = False
         self.usable = True
+        self._spawning = threading.Lock()  # one request at a time: replies come in the order of the requests
         threading.Thread(target=self._read, name="zygote-replies", daemon=True).start()
 
     @classmethod
@@ -242,15 +250,23 @@ class Zygote:
             self._exits[reply["exited"]] = reply["code"]
             self._changed.notify_all()
 
-    def spawn(self, argv: list[str]) -> ForkedProcess | None:
-        """Fork a node process running ``runner.main(argv)``; None if the zygote cannot (then spawn one afresh)."""
+    def spawn(self, argv: list[str], module: str = RUNNER, edited: Collection[str] = ()) -> ForkedProcess | None:
+        """Fork a process running ``module.main(argv)`` (a node process by default) that imports the
+        ``edited`` source files afresh; None if the zygote cannot (then start one as a new interpreter)."""
         if self.closed or not self.usable:
             return None
         read_fd, write_fd = os.pipe()
-        request = {"argv": argv, "cwd": os.getcwd(), "env": dict(os.environ)}
+        request = {
+            "argv": argv,
+            "module": module,
+            "forget": sorted(edited),
+            "cwd": os.getcwd(),
+            "env": dict(os.environ),
+        }
         try:
-            socket.send_fds(self.sock, [json.dumps(request).encode() + b"\n"], [write_fd])
-            pid = self._spawned.get(timeout=SPAWN_TIMEOUT_S)
+            with self._spawning:
+                socket.send_fds(self.sock, [json.dumps(request).encode() + b"\n"], [write_fd])
+                pid = self._spawned.get(timeout=SPAWN_TIMEOUT_S)
         except (OSError, queue.Empty):
             pid = None
         finally:
@@ -260,7 +276,7 @@ class Zygote:
             os.close(read_fd)
             return None
         stderr = open(read_fd, encoding="utf-8", errors="replace", buffering=1)
-        return ForkedProcess(self, pid, stderr, ["handflow.framework.runtime.runner", *argv])
+        return ForkedProcess(self, pid, stderr, [module, *argv])
 
     def exit_code(self, pid: int) -> int | None:
         """The child's exit status once it has exited; a child whose zygote is gone is asked directly."""

@@ -29,7 +29,8 @@ language that holds commands must be ```bash or ```text (a synopsis).
 Commands run in order, per document, with ``bash`` in a scratch copy of ``configs/``, ``docs/``
 and ``recordings/`` (so nothing in the repository changes); ``handflow`` and ``python`` are this
 interpreter.  ``CMD &`` starts a background job (waited for until its graph's run-file appears),
-``kill -INT %N`` stops job N and requires exit code 0.
+``kill -INT %N`` stops job N (numbered as bash numbers jobs: after the highest one still running) and
+requires exit code 0.
 """
 
 from __future__ import annotations
@@ -427,8 +428,8 @@ def test_documented_commands_run(doc, workspace):
 
 def run_page(doc: Path, workspace: Path) -> None:
     """Run a page's commands in order in ``workspace``, checking each one's stated outcome."""
-    jobs: list[subprocess.Popen] = []
-    started: dict[str, int] = {}
+    jobs: list[subprocess.Popen | None] = []  # by job number - 1, as bash numbers them (None: stopped)
+    started: dict[str, int] = {}  # running jobs per graph name
     shipped = set(workspace.glob("configs/*.yaml"))  # the installed package's graphs: `handflow run NAME`
     try:
         for block in doc_blocks(doc):
@@ -440,7 +441,7 @@ def run_page(doc: Path, workspace: Path) -> None:
                 _run_block(doc, block, workspace, jobs, started)
     finally:
         for job in jobs:
-            if job.poll() is None:
+            if job is not None and job.poll() is None:
                 job.kill()
                 job.communicate()
     added = sorted(p.name for p in set(workspace.glob("configs/*.yaml")) - shipped)
@@ -449,7 +450,9 @@ def run_page(doc: Path, workspace: Path) -> None:
     )
 
 
-def _run_block(doc: Path, block: Block, workspace: Path, jobs: list[subprocess.Popen], started: dict[str, int]) -> None:
+def _run_block(
+    doc: Path, block: Block, workspace: Path, jobs: list[subprocess.Popen | None], started: dict[str, int]
+) -> None:
     """Run one block's commands in ``workspace``: background jobs into ``jobs``, checking each outcome."""
     for original, cmd in block.runnable():
         where = f"{doc.name}:{block.line}: {cmd}"
@@ -458,6 +461,10 @@ def _run_block(doc: Path, block: Block, workspace: Path, jobs: list[subprocess.P
             job.send_signal(signal.SIGINT)
             out, err = job.communicate(timeout=60)
             _check(block, original, Outcome(workspace, out, err, job.returncode, job.since), where)
+            started[job.graph] -= 1
+            jobs[int(kill.group(1)) - 1] = None
+            while jobs and jobs[-1] is None:  # a new job is numbered after the highest one still running
+                jobs.pop()
         elif cmd.endswith("&"):
             name = _graph_name(workspace, cmd)
             started[name] = started.get(name, 0) + 1
@@ -470,7 +477,7 @@ def _run_block(doc: Path, block: Block, workspace: Path, jobs: list[subprocess.P
                     stderr=subprocess.PIPE,
                 )
             )
-            jobs[-1].since = time.time()
+            jobs[-1].since, jobs[-1].graph = time.time(), name
             _wait_started(name, started[name])
         else:
             since = time.time()

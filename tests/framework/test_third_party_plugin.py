@@ -3,12 +3,12 @@
 from __future__ import annotations
 
 import json
-import os
 import re
-import sys
 from pathlib import Path
 
 import pytest
+
+from tests.plugin_dist import register_plugins
 
 DOC = Path(__file__).resolve().parents[2] / "docs" / "pipelines.md"
 
@@ -20,12 +20,9 @@ def install_doc_plugin(tmp_path: Path) -> dict[str, str]:
     pkg.mkdir()
     (pkg / "__init__.py").write_text("")
     (pkg / "threshold.py").write_text(code)
-    dist = tmp_path / "my_plugins-0.1.dist-info"
-    dist.mkdir()
-    (dist / "METADATA").write_text("Metadata-Version: 2.1\nName: my-plugins\nVersion: 0.1\n")
     toml = re.search(r'```toml\n\[project.entry-points."handflow.plugins"\]\n(.*?)```', DOC.read_text(), re.S).group(1)
-    (dist / "entry_points.txt").write_text("[handflow.plugins]\n" + toml.replace('"', ""))
-    return dict(os.environ, PYTHONPATH=os.pathsep.join([str(tmp_path), *sys.path]))
+    entries = dict(line.replace('"', "").split(" = ") for line in toml.splitlines() if line.strip())
+    return register_plugins(tmp_path, "my_plugins", entries)
 
 
 def test_doc_plugin_is_listed_and_runs(tmp_path, run_handflow):

@@ -76,6 +76,11 @@ class SetupError(Exception):
         super().__init__(f"node '{node_id}' failed during setup: {cause}")
 
 
+def seq_file(state_dir: Path, node_id: str) -> Path:
+    """Where a node keeps its sequence numbers across restarts within a run (:class:`SeqState`)."""
+    return Path(state_dir) / f"{node_id}.seq"
+
+
 def failure_file(state_dir: Path, node_ids: list[str]) -> Path:
     """Where a node process leaves why it failed, for the launcher's report (docs/reliability.md)."""
     return Path(state_dir) / f"failure-{','.join(node_ids)}.json"
@@ -165,7 +170,7 @@ class _NodeSlot:
         slot_keys = [f"out:{p}" for p in sorted(rn.cls.output_types(rn.params))] + [
             f"in:{p}" for p in sorted(rn.spec.inputs)
         ]
-        self.state = SeqState(state_dir / f"{self.id}.seq" if state_dir else None, slot_keys)
+        self.state = SeqState(seq_file(state_dir, self.id) if state_dir else None, slot_keys)
         self.ctx = NodeContext(rt, rn, self.state)
         self.node: Node = rn.cls(rn.params, self.ctx)
         self.handled = dict.fromkeys(rn.spec.inputs, 0)

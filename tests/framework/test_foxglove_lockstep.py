@@ -1,9 +1,11 @@
 """A lock-step replay driven from Foxglove's playback bar (docs/recording.md, "Replay from Foxglove's playback
-bar"): a real ``foxglove.websocket.v1`` client pauses, changes the speed and seeks back into the flagship's
-segmenter; after the seek back, the labels it receives equal those of an uninterrupted lock-step replay."""
+bar"): a real ``foxglove.websocket.v1`` client pauses, changes the speed and seeks back a tuned recording
+replayed into the flagship's segmenter; after the seek back, the labels it receives equal those of an
+uninterrupted lock-step replay (the recorded parameter changes applied again in order)."""
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import subprocess
@@ -13,9 +15,10 @@ from pathlib import Path
 
 import pytest
 
+from handflow.framework import keys
 from handflow.framework.files.mcap_reader import iter_recording
 from handflow.framework.files.mcap_writer import McapWriter
-from handflow.framework.messages import Header
+from handflow.framework.messages import Header, ParamChange
 from handflow.framework.network.sessions import free_tcp_port
 from tests.foxglove_client import FoxgloveClient, playback_request, playback_state
 
@@ -26,16 +29,22 @@ GRAPH = REPO / "configs" / "demo_segment_only.yaml"  # the segmenter: its labels
 JOINTS = "handflow/gestures/shadow/joints"
 LABELS = "/handflow/demo_segment_only/segmenter/labels"
 FRAMES, MIDDLE = 400, 200  # 10 s of the shipped gesture recording; the seek goes back to frame 200
+CHANGES = {100: 4.0, 300: 0.5}  # background_factor set while it was recorded, at these frames
 PLAY, PAUSE, PLAYING, PAUSED, ENDED = 0, 1, 0, 1, 3  # request commands, state statuses
 
 
 def _take(path: Path) -> list[int]:
-    """The first FRAMES joint frames of the gesture recording; their stamps (= log times)."""
+    """The first FRAMES joint frames of the gesture recording, tuned at frames 100 and 300 (CHANGES); their
+    stamps (= log times)."""
     stamps = []
     with McapWriter(path) as writer:
         for i, rm in enumerate(iter_recording(REPO / "recordings" / "gestures.mcap", [JOINTS])):
             if i == FRAMES:
                 break
+            if i in CHANGES:
+                change = ParamChange(node="segmenter", key="background_factor", value=json.dumps(CHANGES[i]))
+                change.header = Header("segmenter", i, rm.publish_time_ns)
+                writer.write(keys.params_key("gestures"), change, log_time_ns=rm.publish_time_ns)
             msg = rm.decode()
             msg.header = Header("shadow", i + 1, rm.publish_time_ns)
             writer.write(JOINTS, msg, log_time_ns=rm.publish_time_ns)
@@ -53,17 +62,21 @@ def _stamp(cdr: bytes) -> int:
     return int.from_bytes(cdr[4:8], "little", signed=True) * 10**9 + int.from_bytes(cdr[8:12], "little")
 
 
-def _until_ended(fox: FoxgloveClient, timeout: float) -> tuple[list[bytes], float | None]:
-    """The label payloads received until the playback state says the replay ended, and when the first came."""
-    labels, first, deadline = [], None, time.time() + timeout
-    while time.time() < deadline:
-        frame = fox.ws.recv(timeout=deadline - time.time())
-        if isinstance(frame, bytes) and frame[0] == 1 and int.from_bytes(frame[1:5], "little") == 1:
+def _seek(fox: FoxgloveClient, speed: float, seek_ns: int, request: str) -> tuple[dict, list[bytes], float]:
+    """Seek and play: the playback state answering, the label payloads received after it until the replay ends,
+    and how long after the request the first came."""
+    fox.ws.send(playback_request(PLAY, speed, seek_ns, request))
+    sent, answer, labels, first = time.monotonic(), None, [], 0.0
+    while True:
+        frame = fox.ws.recv(timeout=60)
+        if isinstance(frame, bytes) and frame[0] == 5:
+            state = playback_state(frame)
+            if answer is not None and state["status"] == ENDED:
+                return answer, labels, first
+            answer = answer or state
+        elif isinstance(frame, bytes) and frame[0] == 1 and answer is not None:  # sent before the seek otherwise
             labels.append(frame[13:])
-            first = first or time.monotonic()
-        elif isinstance(frame, bytes) and frame[0] == 5 and playback_state(frame)["status"] == ENDED:
-            return labels, first
-    raise AssertionError(f"the replay did not end within {timeout}s")
+            first = first or time.monotonic() - sent
 
 
 def test_lockstep_replay_follows_the_playback_bar_and_a_seek_back_gives_the_uninterrupted_labels(tmp_path):
@@ -78,6 +91,7 @@ def test_lockstep_replay_follows_the_playback_bar_and_a_seek_back_gives_the_unin
         text=True,
     )
     assert reference.returncode == 0, reference.stderr
+    assert "applying 2 recorded parameter change(s)" in reference.stderr  # they change 103 of the last 200 labels
     uninterrupted = [rm.data for rm in iter_recording(tmp_path / "uninterrupted.mcap", ["segmenter/labels"])]
     assert [_stamp(cdr) for cdr in uninterrupted] == stamps  # one label per frame, stamped with it
 
@@ -101,12 +115,9 @@ def test_lockstep_replay_follows_the_playback_bar_and_a_seek_back_gives_the_unin
             slow = [_stamp(cdr) for cdr in _received(fox, 1.5)]
             fox.ws.send(playback_request(PLAY, 2.0, None, "fast"))
             fast = [_stamp(cdr) for cdr in _received(fox, 1.5)]
-            assert _until_ended(fox, timeout=30)[0]
-
-            fox.ws.send(playback_request(PLAY, 4.0, stamps[MIDDLE], "back"))
-            sought = time.monotonic()
-            seek = playback_state(fox.binary(opcode=5, seconds=0.2)[0])
-            after, first = _until_ended(fox, timeout=60)
+            ahead = next(i for i, t in enumerate(stamps) if t > fast[-1] + 10**9)  # a second ahead
+            forward, after_forward, _ = _seek(fox, 2.0, stamps[ahead], "ahead")
+            back, after_back, cost = _seek(fox, 4.0, stamps[MIDDLE], "back")  # from the end
     finally:
         replay.send_signal(signal.SIGINT)
         _, err = replay.communicate(timeout=60)
@@ -116,8 +127,17 @@ def test_lockstep_replay_follows_the_playback_bar_and_a_seek_back_gives_the_unin
     assert len(held) <= 1  # paused: no label advances (one in flight at most)
     assert 0.5 <= (slow[-1] - slow[0]) / 1e9 <= 1.0  # 1.5 s at half speed: 0.75 s of the recording
     assert (fast[-1] - fast[0]) / 1e9 >= 4 * (slow[-1] - slow[0]) / 1e9 * 0.6  # four times faster
-    assert (seek["status"], seek["did_seek"], seek["time"], seek["id"]) == (PLAYING, True, stamps[MIDDLE], b"back")
-    # the catch-up from the start is not shown; from the target on, exactly the uninterrupted labels
-    assert [_stamp(cdr) for cdr in after] == stamps[MIDDLE:]
-    assert after == uninterrupted[MIDDLE:]
-    assert first - sought < 15  # restarting the nodes and replaying 200 frames: about 2-3 s here
+    assert ahead < FRAMES - 20
+    for state, target, request in ((forward, ahead, b"ahead"), (back, MIDDLE, b"back")):
+        assert (state["status"], state["did_seek"], state["time"], state["id"]) == (
+            PLAYING,
+            True,
+            stamps[target],
+            request,
+        )
+    # what the graph handled to reach the target is not shown; from the target on, the uninterrupted labels
+    assert [_stamp(cdr) for cdr in after_forward] == stamps[ahead:]
+    assert after_forward == uninterrupted[ahead:]
+    assert [_stamp(cdr) for cdr in after_back] == stamps[MIDDLE:]
+    assert after_back == uninterrupted[MIDDLE:]
+    assert cost < 15  # restarting the nodes and replaying 200 frames: about 2-3 s here

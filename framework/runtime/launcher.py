@@ -316,6 +316,8 @@ class Launcher:
         """Stop every unit and start it afresh, as at the graph's start: its nodes' sequence numbers and
         parameters set while running are forgotten (a lock-step replay seeking back, docs/recording.md)."""
         self._terminate([u for u in self.units if u.proc is not None])
+        for unit in self.units:  # one waiting to be restarted starts now, once
+            unit.restart_at = None
         for nid in self.graph.nodes:
             seq_file(self.state_dir, nid).unlink(missing_ok=True)
             overrides_file(self.state_dir, nid).unlink(missing_ok=True)

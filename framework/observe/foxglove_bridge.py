@@ -7,7 +7,7 @@ them itself (``sensor_msgs/Image`` in the Image panel, ``position[3]`` of a join
 Runtime-internal topics (``_progress``, ``_clock``) are skipped; heartbeats (``_health``) and runtime
 events are shown.  Payloads that are not valid messages are not forwarded (docs/robustness.md).
 Serving a replay driven from the playback bar, it forwards nothing from a seek until the replay
-reaches the target (:attr:`handflow.framework.recorder.playback.Playback.seeking`).
+reaches the target (:meth:`handflow.framework.recorder.playback.Playback.shows`).
 For one graph, the server also offers Foxglove's Parameters capability (:mod:`.foxglove_params`), and
 given the graph file the ConnectionGraph capability (:mod:`.foxglove_graph`).
 """
@@ -122,7 +122,7 @@ class FoxgloveBridge:
 
     def _on_sample(self, sample: zenoh.Sample) -> None:
         key = str(sample.key_expr)
-        if key.endswith(("/_progress", "/_clock")) or (self.playback is not None and self.playback.seeking):
+        if key.endswith(("/_progress", "/_clock")):
             return
         payload, att = wire.sample_parts(sample)
         try:
@@ -130,6 +130,8 @@ class FoxgloveBridge:
             if att is None:  # a JSON-speaking peer: forward its message as CDR
                 payload, att = wire.pack(msg)
         except MessageError:
+            return
+        if self.playback is not None and not self.playback.shows(key, msg.header.seq):
             return
         if self.params is not None and isinstance(msg, ParamChange):
             self.params.changed(msg)

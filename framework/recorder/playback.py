@@ -8,8 +8,9 @@ start).  :class:`ControlledLockstep` releases the messages of a :class:`.replay.
 on that clock, each once the graph handled the one before: a seek forward releases the messages
 up to the target as fast as the graph handles them, a seek back first restarts the graph's nodes
 (their start state) and replays from the start up to the target the same way.  Until the replay
-reaches the target, the Foxglove bridge forwards nothing (:attr:`Playback.seeking`) and the bar
-shows the target.  :class:`PlaybackListener` answers Foxglove's PlaybackControl requests.
+reaches the target, the Foxglove bridge forwards nothing, not even what the graph published on the
+way and delivers late (:meth:`Playback.shows`), and the bar shows the target, status Buffering.  :class:`PlaybackListener` answers Foxglove's PlaybackControl
+requests.
 """
 
 from __future__ import annotations
@@ -57,6 +58,7 @@ class Playback:
         self.playing, self.speed, self.ended = True, float(speed), False
         self.seek_to: int | None = None  # a seek the replay has not taken yet
         self.seeking = False  # from a seek until the replay reaches its target
+        self.hidden: dict[str, int] = {}  # topic key → the last sequence number published on the way there
         self.next_ns = start_ns  # the message waited for (a lock-step graph may lag behind the clock)
         self._anchor = (time.monotonic(), start_ns)  # wall time ↔ recording time at the last change
 
@@ -77,12 +79,19 @@ class Playback:
                 self.seek_to, self.ended, self.seeking, self.next_ns = now, False, True, now
             self.cond.notify_all()
 
-    def arrived(self) -> None:
-        """The replay reached the seek target: the clock runs on from the target, from now."""
+    def arrived(self, hidden: dict[str, int]) -> bool:
+        """The replay reached the seek target: the clock runs on from the target, from now, and messages up to
+        the sequence numbers in ``hidden`` (topic key → number) stay hidden; True if it was seeking."""
         with self.cond:
-            if self.seeking:
-                self.seeking = False
-                self._anchor = (time.monotonic(), self._anchor[1])
+            if not self.seeking:
+                return False
+            self.seeking, self.hidden = False, hidden
+            self._anchor = (time.monotonic(), self._anchor[1])
+            return True
+
+    def shows(self, key: str, seq: int) -> bool:
+        """Whether Foxglove is shown message ``seq`` on ``key``: not while seeking, nor one published on the way."""
+        return not self.seeking and seq > self.hidden.get(key, 0)
 
     def wait_for(self, log_ns: int, stop: threading.Event) -> bool:
         """Wait until the replay reaches ``log_ns``; False when a seek (or stop) came first."""
@@ -100,9 +109,12 @@ class Playback:
             return False
 
     def state(self, did_seek: bool = False, request_id: str | None = None) -> PlaybackState:
-        status = (
-            PlaybackStatus.Ended if self.ended else PlaybackStatus.Playing if self.playing else PlaybackStatus.Paused
-        )
+        if self.ended:
+            status = PlaybackStatus.Ended
+        elif self.seeking:  # "performing a prerequisite operation" (the protocol): reaching the target
+            status = PlaybackStatus.Buffering
+        else:
+            status = PlaybackStatus.Playing if self.playing else PlaybackStatus.Paused
         return PlaybackState(
             status=status,
             current_time=self.position(),
@@ -153,7 +165,8 @@ class _BarDriven(ABC):
                 continue
             paced = rm.log_time_ns >= target
             if paced:
-                self.playback.arrived()
+                if self._arrive():  # the bar plays (or holds) from the target now
+                    self.server.broadcast_playback_state(self.playback.state())
                 if not self.playback.wait_for(rm.log_time_ns, self.stop):
                     return False
             elif self.stop.is_set() or self.playback.seek_to is not None:
@@ -164,8 +177,16 @@ class _BarDriven(ABC):
                 self._time_due = time.monotonic() + TIME_EVERY_S
         return True
 
+    def _arrive(self) -> bool:
+        """At the seek target, if seeking: the bar runs on from it; True if it was seeking."""
+        return self.playback.seeking and self.playback.arrived(self._published())
+
+    def _published(self) -> dict[str, int]:
+        """Topic key → the last sequence number the graph published (none known in a timed replay)."""
+        return {}
+
     def _wait_at_end(self) -> None:
-        self.playback.arrived()  # a seek past the last message
+        self._arrive()  # a seek past the last message
         with self.playback.cond:
             self.playback.ended, self.playback.next_ns = True, self.playback.end_ns
         self.server.broadcast_playback_state(self.playback.state())
@@ -245,6 +266,9 @@ class ControlledLockstep(_BarDriven):
 
     def _skip(self, index: int, rm: RecordedMessage, target: int) -> bool:
         return index < self.released
+
+    def _published(self) -> dict[str, int]:
+        return self.lockstep.published()
 
     def _release(self, index: int, key: str, rm: RecordedMessage, stats: ReplayStats) -> None:
         self.lockstep.step(key, rm, stats, self.changes)

@@ -334,6 +334,16 @@ class LockstepReplayer:
             self.clock_pub.put(payload)
         self._settle(f"clock {t_ns}", lambda: self._clock_acked(t_ns))
 
+    def published(self) -> dict[str, int]:
+        """Topic key → messages each node output published since the node's (re)start: the last sequence
+        number, as a graph started afresh numbers them from 1 (:meth:`..runtime.launcher.Launcher.reset`)."""
+        with self.watcher.cond:
+            return {
+                keys.topic_key(self.graph.name, nid, port): int(n)
+                for nid, report in self.watcher.progress.items()
+                for port, n in report["published"].items()
+            }
+
     def step(self, key: str, rm: RecordedMessage, stats: ReplayStats, changes: Any = None) -> None:
         """Release one message: the recorded changes due, the clock, the message; return once the graph is quiet."""
         stamp = rm.publish_time_ns

@@ -30,7 +30,7 @@ JOINTS = "handflow/gestures/shadow/joints"
 LABELS = "/handflow/demo_segment_only/segmenter/labels"
 FRAMES, MIDDLE = 400, 200  # 10 s of the shipped gesture recording; the seek goes back to frame 200
 CHANGES = {100: 4.0, 300: 0.5}  # background_factor set while it was recorded, at these frames
-PLAY, PAUSE, PLAYING, PAUSED, ENDED = 0, 1, 0, 1, 3  # request commands, state statuses
+PLAY, PAUSE, PLAYING, PAUSED, BUFFERING, ENDED = 0, 1, 0, 1, 2, 3  # request commands, state statuses
 
 
 def _take(path: Path) -> list[int]:
@@ -62,21 +62,20 @@ def _stamp(cdr: bytes) -> int:
     return int.from_bytes(cdr[4:8], "little", signed=True) * 10**9 + int.from_bytes(cdr[8:12], "little")
 
 
-def _seek(fox: FoxgloveClient, speed: float, seek_ns: int, request: str) -> tuple[dict, list[bytes], float]:
-    """Seek and play: the playback state answering, the label payloads received after it until the replay ends,
-    and how long after the request the first came."""
+def _seek(fox: FoxgloveClient, speed: float, seek_ns: int, request: str) -> tuple[list[dict], list[bytes], float]:
+    """Seek and play: the playback states from the answer until the replay ends, the label payloads received
+    once the bar plays from the target, and how long after the request the first came."""
     fox.ws.send(playback_request(PLAY, speed, seek_ns, request))
-    sent, answer, labels, first = time.monotonic(), None, [], 0.0
-    while True:
+    sent, states, labels, first = time.monotonic(), [], [], 0.0
+    while not states or states[-1]["status"] != ENDED:
         frame = fox.ws.recv(timeout=60)
         if isinstance(frame, bytes) and frame[0] == 5:
-            state = playback_state(frame)
-            if answer is not None and state["status"] == ENDED:
-                return answer, labels, first
-            answer = answer or state
-        elif isinstance(frame, bytes) and frame[0] == 1 and answer is not None:  # sent before the seek otherwise
+            states.append(playback_state(frame))
+        elif isinstance(frame, bytes) and frame[0] == 1 and states:  # before the answer: sent before the seek
+            assert len(states) == 2, "a label before the bar played from the target"  # the answer, then playing
             labels.append(frame[13:])
             first = first or time.monotonic() - sent
+    return states, labels, first
 
 
 def test_lockstep_replay_follows_the_playback_bar_and_a_seek_back_gives_the_uninterrupted_labels(tmp_path):
@@ -128,16 +127,16 @@ def test_lockstep_replay_follows_the_playback_bar_and_a_seek_back_gives_the_unin
     assert 0.5 <= (slow[-1] - slow[0]) / 1e9 <= 1.0  # 1.5 s at half speed: 0.75 s of the recording
     assert (fast[-1] - fast[0]) / 1e9 >= 4 * (slow[-1] - slow[0]) / 1e9 * 0.6  # four times faster
     assert ahead < FRAMES - 20
-    for state, target, request in ((forward, ahead, b"ahead"), (back, MIDDLE, b"back")):
-        assert (state["status"], state["did_seek"], state["time"], state["id"]) == (
-            PLAYING,
-            True,
-            stamps[target],
-            request,
-        )
+    for states, target, request in ((forward, ahead, b"ahead"), (back, MIDDLE, b"back")):
+        # the answer: at the target, reaching it; then playing from it; then the end
+        assert [(st["status"], st["did_seek"], st["time"], st["id"]) for st in states[:2]] == [
+            (BUFFERING, True, stamps[target], request),
+            (PLAYING, False, stamps[target], b""),
+        ]
+        assert [st["status"] for st in states[2:]] == [ENDED]
     # what the graph handled to reach the target is not shown; from the target on, the uninterrupted labels
     assert [_stamp(cdr) for cdr in after_forward] == stamps[ahead:]
     assert after_forward == uninterrupted[ahead:]
     assert [_stamp(cdr) for cdr in after_back] == stamps[MIDDLE:]
     assert after_back == uninterrupted[MIDDLE:]
-    assert cost < 15  # restarting the nodes and replaying 200 frames: about 2-3 s here
+    assert cost < 15  # restarting the nodes and replaying 200 frames: 1.5-2 s here

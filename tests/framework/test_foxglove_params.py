@@ -159,7 +159,7 @@ def test_replay_is_driven_from_the_playback_bar(tmp_path):
             held = len(fox.binary(opcode=1, seconds=1.0))
             seek = start + 12 * 10**9  # message 600
             fox.ws.send(playback_request(0, 4.0, seek, "seek"))
-            state = playback_state(fox.binary(opcode=5, seconds=0.5)[0])
+            answer, state = (playback_state(f) for f in fox.binary(opcode=5, seconds=0.5))  # reaching it, playing
             fast = len(fox.binary(opcode=1, seconds=1.0))
             with pytest.raises(OSError):  # one server: the replay's, not the graph's
                 connect_foxglove(own_port, timeout=0)
@@ -176,7 +176,8 @@ def test_replay_is_driven_from_the_playback_bar(tmp_path):
         "id": b"pause",
     }
     assert held <= 2  # paused: nothing more (a message in flight at most)
-    assert (state["status"], state["did_seek"], state["speed"]) == (0, True, 4.0)
+    assert (answer["status"], answer["did_seek"], answer["speed"], answer["time"]) == (2, True, 4.0, seek)  # buffering
+    assert (state["status"], state["did_seek"], state["speed"]) == (0, False, 4.0)
     assert seek <= state["time"] < seek + 10**8  # the target (playing on from it)
     assert 130 <= fast <= 250  # 4× speed: 200 a second
     handled = [json.loads(line)["msg"]["data"][0] for line in (tmp_path / "sink.jsonl").read_text().splitlines()]

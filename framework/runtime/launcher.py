@@ -32,10 +32,9 @@ from ..messages import Header, MessageError, RuntimeEvent, Status
 from ..network import hub_info, local_transport
 from ..network import sessions as transport
 from . import discovery
-from .live_params import overrides_file
 from .param_service import ParamService
 from .ros2_bridge import Ros2Bridge
-from .runner import START_WAIT_S, STOPPED, failure_file, seq_file
+from .runner import START_WAIT_S, STOPPED, failure_file, node_state_files
 from .zygote import ForkedProcess, Zygote, start_unless_disabled
 
 log = logging.getLogger("handflow.launcher")
@@ -211,6 +210,17 @@ class Launcher:
         for unit in self.units:
             self._spawn(unit)
 
+    def reset(self) -> None:
+        """Stop every unit and start it afresh, as at the graph's start: its nodes' sequence numbers and
+        parameters set while running are forgotten (a lock-step replay seeking back, docs/recording.md)."""
+        self._terminate([u for u in self.units if u.proc is not None])
+        for unit in self.units:  # one waiting to be restarted starts now, once
+            unit.restart_at = None
+        for nid in self.graph.nodes:
+            for path in node_state_files(self.state_dir, nid):
+                path.unlink(missing_ok=True)
+        self.start()
+
     def event(self, kind: str, unit: Unit, detail: str) -> None:
         """Publish a :class:`RuntimeEvent` (seen by monitor, written into recordings)."""
         msg = RuntimeEvent(kind=kind, node=",".join(unit.node_ids), detail=detail)
@@ -311,17 +321,6 @@ class Launcher:
         self._terminate([unit])
         self.event("restart", unit, why)
         self._spawn(unit)
-
-    def reset(self) -> None:
-        """Stop every unit and start it afresh, as at the graph's start: its nodes' sequence numbers and
-        parameters set while running are forgotten (a lock-step replay seeking back, docs/recording.md)."""
-        self._terminate([u for u in self.units if u.proc is not None])
-        for unit in self.units:  # one waiting to be restarted starts now, once
-            unit.restart_at = None
-        for nid in self.graph.nodes:
-            seq_file(self.state_dir, nid).unlink(missing_ok=True)
-            overrides_file(self.state_dir, nid).unlink(missing_ok=True)
-        self.start()
 
     def alive(self) -> bool:
         return any(u.proc is not None or u.restart_at is not None for u in self.units)

@@ -51,7 +51,7 @@ from ..security.credentials import read_credentials, usrpwd_settings
 from ..testkit.harness import allocate_output, check_publish
 from . import forwarding, local_routes
 from .drops import DropLedger
-from .live_params import NodeParams
+from .live_params import NodeParams, overrides_file
 from .wakeup import wakeup_queue
 
 log = logging.getLogger("handflow.runner")
@@ -79,6 +79,11 @@ class SetupError(Exception):
 def seq_file(state_dir: Path, node_id: str) -> Path:
     """Where a node keeps its sequence numbers across restarts within a run (:class:`SeqState`)."""
     return Path(state_dir) / f"{node_id}.seq"
+
+
+def node_state_files(state_dir: Path, node_id: str) -> list[Path]:
+    """What a node keeps across restarts within a run: its sequence numbers and parameters set while running."""
+    return [seq_file(state_dir, node_id), overrides_file(state_dir, node_id)]
 
 
 def failure_file(state_dir: Path, node_ids: list[str]) -> Path:

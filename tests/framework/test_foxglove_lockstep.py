@@ -64,7 +64,8 @@ def _stamp(cdr: bytes) -> int:
 
 def _seek(fox: FoxgloveClient, speed: float, seek_ns: int, request: str) -> tuple[list[dict], list[bytes], float]:
     """Seek and play: the playback states from the answer until the replay ends, the label payloads received
-    once the bar plays from the target, and how long after the request the first came."""
+    once the bar plays from the target (until shortly after the end), and how long after the request the first
+    came."""
     fox.ws.send(playback_request(PLAY, speed, seek_ns, request))
     sent, states, labels, first = time.monotonic(), [], [], 0.0
     while not states or states[-1]["status"] != ENDED:
@@ -75,7 +76,7 @@ def _seek(fox: FoxgloveClient, speed: float, seek_ns: int, request: str) -> tupl
             assert len(states) == 2, "a label before the bar played from the target"  # the answer, then playing
             labels.append(frame[13:])
             first = first or time.monotonic() - sent
-    return states, labels, first
+    return states, labels + _received(fox, 0.5), first  # the last labels may follow the end's state
 
 
 def test_lockstep_replay_follows_the_playback_bar_and_a_seek_back_gives_the_uninterrupted_labels(tmp_path):

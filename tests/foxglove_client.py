@@ -1,7 +1,10 @@
-"""A real Foxglove WebSocket client's connection (the ``foxglove.websocket.v1`` protocol over ``websockets``)."""
+"""A real Foxglove WebSocket client (the ``foxglove.websocket.v1`` protocol over ``websockets``): its connection,
+the Foxglove app's side of the protocol, and the binary frames of the playback bar."""
 
 from __future__ import annotations
 
+import json
+import struct
 import time
 
 from websockets.sync.client import connect
@@ -19,3 +22,62 @@ def connect_foxglove(port: int, timeout: float):
             if time.time() > deadline:
                 raise
             time.sleep(0.3)
+
+
+class FoxgloveClient:
+    """The Foxglove app's side of the protocol: JSON requests, replies picked by their ``op``."""
+
+    def __init__(self, port: int, timeout: float = 30.0) -> None:
+        self.ws = connect_foxglove(port, timeout)
+
+    def __enter__(self) -> FoxgloveClient:
+        self.ws.__enter__()
+        self.server_info = self.next("serverInfo")
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.ws.__exit__(*exc)
+
+    def send(self, **msg) -> None:
+        self.ws.send(json.dumps(msg))
+
+    def next(self, op: str, timeout: float = 15.0, **match) -> dict:
+        deadline = time.time() + timeout
+        while time.time() < deadline:
+            try:
+                frame = self.ws.recv(timeout=1)
+            except TimeoutError:
+                continue
+            if isinstance(frame, str):
+                msg = json.loads(frame)
+                if msg.get("op") == op and all(msg.get(k) == v for k, v in match.items()):
+                    return msg
+        raise AssertionError(f"no {op} {match} within {timeout}s")
+
+    def binary(self, opcode: int, seconds: float) -> list[bytes]:
+        """The binary frames with ``opcode`` received within ``seconds`` (message data 1, playback state 5)."""
+        frames, deadline = [], time.time() + seconds
+        while (left := deadline - time.time()) > 0:
+            try:
+                frame = self.ws.recv(timeout=left)
+            except TimeoutError:
+                break
+            if isinstance(frame, bytes) and frame[0] == opcode:
+                frames.append(frame)
+        return frames
+
+    def values(self, **request) -> dict[str, object]:
+        msg = self.next("parameterValues", id=request.get("id"))
+        return {p["name"]: p.get("value") for p in msg["parameters"]}
+
+
+def playback_request(command: int, speed: float, seek_ns: int | None, request_id: str) -> bytes:
+    """Foxglove's binary PlaybackControlRequest (opcode 3): command (0 play, 1 pause), speed, seek, id."""
+    head = struct.pack("<BBfB", 3, command, speed, seek_ns is not None) + struct.pack("<Q", seek_ns or 0)
+    return head + struct.pack("<I", len(request_id)) + request_id.encode()
+
+
+def playback_state(frame: bytes) -> dict:
+    """The server's binary PlaybackState (opcode 5)."""
+    status, current, speed, did_seek, n = struct.unpack_from("<BQfBI", frame, 1)
+    return {"status": status, "time": current, "speed": speed, "did_seek": bool(did_seek), "id": frame[19 : 19 + n]}

@@ -1,4 +1,4 @@
-"""``handflow replay FILE.mcap [--speed X] [--loop] [--topics GLOB ...] [--into GRAPH.yaml [--lockstep]]``."""
+"""``handflow replay FILE.mcap [--speed X] [--loop] [--topics GLOB ...] [--into G.yaml [--lockstep]] [--foxglove]``."""
 
 from __future__ import annotations
 
@@ -63,7 +63,8 @@ def register(parser: argparse.ArgumentParser) -> None:
     add_foxglove_option(
         parser,
         "serve the replay to Foxglove on ws://127.0.0.1:PORT (default 8765), driven from its playback bar: "
-        "play, pause, seek, speed; runs until Ctrl-C (not with --lockstep)",
+        "play, pause, seek, speed (with --lockstep: a seek back restarts the graph's nodes and catches up); "
+        "runs until Ctrl-C",
     )
     parser.add_argument("--graph", help="replay into this running graph (default: the recording's graph, if running)")
     parser.add_argument("--connect", metavar="ENDPOINT", help="join this Zenoh endpoint instead of a run-file")
@@ -96,8 +97,6 @@ def _check_args(args: argparse.Namespace) -> str | None:
         return (
             "--lockstep needs --into GRAPH.yaml: the replayer launches the graph in lock-step mode to know its wiring"
         )
-    if args.lockstep and args.foxglove is not None:
-        return "--foxglove drives a timed replay; leave out --lockstep (a lock-step replay is not driven from Foxglove yet)"
     if args.foxglove is not None and args.loop:
         return "--foxglove replays until Ctrl-C (seek back from Foxglove's playback bar); leave out --loop"
     if args.lockstep and args.loop:
@@ -209,7 +208,16 @@ def _replay_into(args: argparse.Namespace, recorded: str | None, stop: threading
                 launcher.session, graph, graph.nodes, watcher, step_timeout_s=args.step_timeout, stop=stop, poll=poll
             )
             changes = None if args.no_param_changes else _recorded_changes(args.file, recorded, launcher, graph)
-            work = lambda: replayer.run(plan, changes)  # noqa: E731
+            if args.foxglove is None:
+                work = lambda: replayer.run(plan, changes)  # noqa: E731
+            else:
+                from ..recorder.playback import ControlledLockstep
+
+                bridge, playback = _serve_playback(args, launcher.session, plan, graph.name)
+                restart = lambda: _in_supervisor(launcher, launcher.reset)  # noqa: E731
+                work = ControlledLockstep(
+                    replayer, plan, playback, stop, bridge.server, restart, changes, args.ready_timeout
+                ).run
         else:
             bridge, replayer = _timed(args, launcher.session, plan, graph.name, stop)
             work = replayer.run
@@ -260,20 +268,48 @@ def _recorded_changes(path: str, recorded: str | None, launcher: Launcher, graph
 
 def _timed(args: argparse.Namespace, session, plan: ReplayPlan, graph: str, stop: threading.Event):
     """(Foxglove bridge or None, replayer): a timed replay, driven from Foxglove's playback bar with
-    ``--foxglove`` (:mod:`..recorder.playback`; the replay serves Foxglove itself)."""
+    ``--foxglove`` (:mod:`..recorder.playback`)."""
     if args.foxglove is None:
         return None, TimedReplayer(session, plan, speed=args.speed, loop=args.loop, stop=stop)
-    from ..recorder.playback import SDK_MISSING, ControlledReplayer, Playback, time_range
+    from ..recorder.playback import ControlledReplayer
+
+    bridge, playback = _serve_playback(args, session, plan, graph)
+    return bridge, ControlledReplayer(session, plan, playback, stop, bridge.server)
+
+
+def _serve_playback(args: argparse.Namespace, session, plan: ReplayPlan, graph: str):
+    """(Foxglove bridge, :class:`..recorder.playback.Playback`): the replay serves Foxglove itself, with the
+    PlaybackControl capability (a graph started by ``--into`` opens no server of its own)."""
+    from ..recorder.playback import SDK_MISSING, Playback, time_range
 
     if SDK_MISSING:  # without the extra, or an SDK without PlaybackControl
         raise BridgeError(
             f"replay --foxglove needs foxglove-sdk 0.30 or newer ({SDK_MISSING}): pip install -U 'handflow[foxglove]'"
         )
-
     playback = Playback(*time_range(plan.path), speed=args.speed)
     bridge = start_bridge(session, graph, "127.0.0.1", args.foxglove, playback=playback)
     print(f"Foxglove playback on ws://127.0.0.1:{bridge.port} (Ctrl-C to stop)", file=sys.stderr)
-    return bridge, ControlledReplayer(session, plan, playback, stop, bridge.server)
+    return bridge, playback
+
+
+def _in_supervisor(launcher: Launcher, call) -> None:
+    """Run ``call()`` in the thread supervising ``launcher`` (at its next poll) and return once it ran, raising
+    what it raised (e.g. :meth:`Launcher.reset`, which must not race the supervision's restarts)."""
+    result: dict[str, BaseException] = {}
+    done = threading.Event()
+
+    def run() -> None:
+        try:
+            call()
+        except BaseException as exc:
+            result["error"] = exc
+        finally:
+            done.set()
+
+    launcher.call_soon(run)
+    done.wait()
+    if "error" in result:
+        raise result["error"]
 
 
 def _capture(work, result: dict[str, object]) -> None:

@@ -6,6 +6,8 @@ and on a recording (docs/foxglove.md).  The CDR payloads are forwarded as receiv
 them itself (``sensor_msgs/Image`` in the Image panel, ``position[3]`` of a joint state in a Plot).
 Runtime-internal topics (``_progress``, ``_clock``) are skipped; heartbeats (``_health``) and runtime
 events are shown.  Payloads that are not valid messages are not forwarded (docs/robustness.md).
+Serving a replay driven from the playback bar, it forwards nothing from a seek until the replay
+reaches the target (:meth:`handflow.framework.recorder.playback.Playback.shows`).
 For one graph, the server also offers Foxglove's Parameters capability (:mod:`.foxglove_params`), and
 given the graph file the ConnectionGraph capability (:mod:`.foxglove_graph`).
 """
@@ -112,6 +114,7 @@ class FoxgloveBridge:
 
             self.server.publish_connection_graph(connection_graph(spec))
         self.port = self.server.port
+        self.playback = playback
         self._channels: dict[tuple[str, str], foxglove.Channel] = {}  # (topic, type)
         self._lock = threading.Lock()
         self._subs = [session.declare_subscriber(f"{PREFIX}/{g}/**", self._on_sample) for g in graphs]
@@ -127,6 +130,8 @@ class FoxgloveBridge:
             if att is None:  # a JSON-speaking peer: forward its message as CDR
                 payload, att = wire.pack(msg)
         except MessageError:
+            return
+        if self.playback is not None and not self.playback.shows(key, msg.header.seq):
             return
         if self.params is not None and isinstance(msg, ParamChange):
             self.params.changed(msg)

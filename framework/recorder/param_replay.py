@@ -64,7 +64,12 @@ class RecordedChanges:
                 ", ".join(missing),
                 graph.name,
             )
-        self.pending = deque(c for c in changes if c.node in graph.nodes)
+        self.changes = [c for c in changes if c.node in graph.nodes]
+        self.rewind()
+
+    def rewind(self) -> None:
+        """All changes pending again, for a replay started over from the first message."""
+        self.pending = deque(self.changes)
         self.applied = 0
 
     def before(self, stamp_ns: int) -> None:

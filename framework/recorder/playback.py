@@ -1,16 +1,25 @@
-"""A timed replay driven from Foxglove's playback bar: play, pause, seek, speed (docs/recording.md).
+"""A replay driven from Foxglove's playback bar: play, pause, seek, speed (docs/recording.md).
 
 :class:`Playback` keeps the replay's position on the recording's clock and maps it to the wall
-clock at the chosen speed; :class:`ControlledReplayer` publishes the recording as
+clock at the chosen speed.  :class:`ControlledReplayer` publishes the recording as
 :class:`.replay.TimedReplayer` does, but waits on that clock, holds while paused and, after a seek,
 starts again from the first message at or after the target (going back reads the file from the
-start).  :class:`PlaybackListener` answers Foxglove's PlaybackControl requests.
+start).  :class:`ControlledLockstep` releases the messages of a :class:`.replay.LockstepReplayer`
+on that clock, each once the graph handled the one before: a seek forward releases the messages
+up to the target as fast as the graph handles them, a seek back first restarts the graph's nodes
+(their start state) and replays from the start up to the target the same way.  Until the replay
+reaches the target, the Foxglove bridge forwards nothing, not even what the graph published on the
+way and delivers late (:meth:`Playback.shows`), and the bar shows the target, status Buffering.  :class:`PlaybackListener` answers Foxglove's PlaybackControl
+requests.
 """
 
 from __future__ import annotations
 
+import logging
 import threading
 import time
+from abc import ABC, abstractmethod
+from collections.abc import Callable
 from typing import Any
 
 try:  # the optional extra 'foxglove', 0.30 or newer for PlaybackControl
@@ -21,8 +30,10 @@ except ImportError as exc:
 else:
     SDK_MISSING = None
 
-from ..files.mcap_reader import ReadReport, iter_recording
-from .replay import ReplayPlan, ReplayStats, _Publishers
+from ..files.mcap_reader import ReadReport, RecordedMessage, iter_recording
+from .replay import LockstepReplayer, ReplayPlan, ReplayStats, _Publishers
+
+log = logging.getLogger("handflow.replay")
 
 TIME_EVERY_S = 0.1  # how often the playback bar hears the position
 
@@ -45,15 +56,18 @@ class Playback:
         self.start_ns, self.end_ns = start_ns, end_ns
         self.cond = threading.Condition()
         self.playing, self.speed, self.ended = True, float(speed), False
-        self.seek_to: int | None = None
+        self.seek_to: int | None = None  # a seek the replay has not taken yet
+        self.seeking = False  # from a seek until the replay reaches its target
+        self.hidden: dict[str, int] = {}  # topic key → the last sequence number published on the way there
+        self.next_ns = start_ns  # the message waited for (a lock-step graph may lag behind the clock)
         self._anchor = (time.monotonic(), start_ns)  # wall time ↔ recording time at the last change
 
     def position(self) -> int:
         """The recording time playing now."""
         wall, rec = self._anchor
-        if not self.playing:
+        if not self.playing or self.seeking:
             return rec
-        return min(self.end_ns, rec + int((time.monotonic() - wall) * 1e9 * self.speed))
+        return min(self.end_ns, self.next_ns, rec + int((time.monotonic() - wall) * 1e9 * self.speed))
 
     def control(self, play: bool, speed: float, seek_ns: int | None) -> None:
         with self.cond:
@@ -62,12 +76,27 @@ class Playback:
             self.speed = speed if speed > 0 else self.speed
             self._anchor = (time.monotonic(), now)
             if seek_ns is not None:
-                self.seek_to, self.ended = now, False
+                self.seek_to, self.ended, self.seeking, self.next_ns = now, False, True, now
             self.cond.notify_all()
+
+    def arrived(self, hidden: dict[str, int]) -> bool:
+        """The replay reached the seek target: the clock runs on from the target, from now, and messages up to
+        the sequence numbers in ``hidden`` (topic key → number) stay hidden; True if it was seeking."""
+        with self.cond:
+            if not self.seeking:
+                return False
+            self.seeking, self.hidden = False, hidden
+            self._anchor = (time.monotonic(), self._anchor[1])
+            return True
+
+    def shows(self, key: str, seq: int) -> bool:
+        """Whether Foxglove is shown message ``seq`` on ``key``: not while seeking, nor one published on the way."""
+        return not self.seeking and seq > self.hidden.get(key, 0)
 
     def wait_for(self, log_ns: int, stop: threading.Event) -> bool:
         """Wait until the replay reaches ``log_ns``; False when a seek (or stop) came first."""
         with self.cond:
+            self.next_ns = log_ns
             while not stop.is_set() and self.seek_to is None:
                 if self.playing:
                     wall, rec = self._anchor
@@ -80,9 +109,12 @@ class Playback:
             return False
 
     def state(self, did_seek: bool = False, request_id: str | None = None) -> PlaybackState:
-        status = (
-            PlaybackStatus.Ended if self.ended else PlaybackStatus.Playing if self.playing else PlaybackStatus.Paused
-        )
+        if self.ended:
+            status = PlaybackStatus.Ended
+        elif self.seeking:  # "performing a prerequisite operation" (the protocol): reaching the target
+            status = PlaybackStatus.Buffering
+        else:
+            status = PlaybackStatus.Playing if self.playing else PlaybackStatus.Paused
         return PlaybackState(
             status=status,
             current_time=self.position(),
@@ -104,38 +136,143 @@ class PlaybackListener(ServerListener):
         return self.playback.state(did_seek=seek is not None, request_id=request.request_id)
 
 
-class ControlledReplayer:
+class _BarDriven(ABC):
+    """The loop of a replay driven from the playback bar; subclasses say how a message is released."""
+
+    def __init__(self, plan: ReplayPlan, playback: Playback, stop: threading.Event, server: Any) -> None:
+        self.plan, self.playback, self.stop, self.server = plan, playback, stop, server
+        self._time_due = 0.0
+
+    def run(self) -> ReplayStats:
+        """Replay until ``stop``: to the end (then wait for a seek), again from each seek's target."""
+        stats = ReplayStats()
+        target = self.playback.start_ns
+        while not self.stop.is_set():
+            stats.report = ReadReport(self.plan.path)
+            if self._play_from(target, stats):
+                self._wait_at_end()
+            with self.playback.cond:
+                if self.playback.seek_to is not None:
+                    target, self.playback.seek_to = self.playback.seek_to, None
+        self.close()
+        return stats
+
+    def _play_from(self, target: int, stats: ReplayStats) -> bool:
+        """Release the messages from ``target`` on the playback clock (those before it that :meth:`_skip`
+        keeps, as fast as they go); False when a seek (or stop) came first."""
+        for i, (key, rm) in enumerate(self.plan.messages(stats.report)):
+            if self._skip(i, rm, target):
+                continue
+            paced = rm.log_time_ns >= target
+            if paced:
+                if self._arrive():  # the bar plays (or holds) from the target now
+                    self.server.broadcast_playback_state(self.playback.state())
+                if not self.playback.wait_for(rm.log_time_ns, self.stop):
+                    return False
+            elif self.stop.is_set() or self.playback.seek_to is not None:
+                return False
+            self._release(i, key, rm, stats)
+            if paced and time.monotonic() >= self._time_due:
+                self.server.broadcast_time(rm.log_time_ns)
+                self._time_due = time.monotonic() + TIME_EVERY_S
+        return True
+
+    def _arrive(self) -> bool:
+        """At the seek target, if seeking: the bar runs on from it; True if it was seeking."""
+        return self.playback.seeking and self.playback.arrived(self._published())
+
+    def _published(self) -> dict[str, int]:
+        """Topic key → the last sequence number the graph published (none known in a timed replay)."""
+        return {}
+
+    def _wait_at_end(self) -> None:
+        self._arrive()  # a seek past the last message
+        with self.playback.cond:
+            self.playback.ended, self.playback.next_ns = True, self.playback.end_ns
+        self.server.broadcast_playback_state(self.playback.state())
+        with self.playback.cond:  # the end: wait for a seek back (or stop)
+            while self.playback.seek_to is None and not self.stop.is_set():
+                self.playback.cond.wait(0.1)
+
+    @abstractmethod
+    def _skip(self, index: int, rm: RecordedMessage, target: int) -> bool:
+        """Whether the ``index``-th message is not released in a pass from ``target``."""
+
+    @abstractmethod
+    def _release(self, index: int, key: str, rm: RecordedMessage, stats: ReplayStats) -> None:
+        """Publish the message (and, in lock-step, wait until the graph handled it)."""
+
+    @abstractmethod
+    def close(self) -> None:
+        """Undeclare the publishers."""
+
+
+class ControlledReplayer(_BarDriven):
     """Publish a recording on :class:`Playback`'s clock until its end (then wait for a seek) or ``stop``."""
 
     def __init__(self, session: Any, plan: ReplayPlan, playback: Playback, stop: threading.Event, server: Any) -> None:
-        self.plan, self.playback, self.stop, self.server = plan, playback, stop, server
+        super().__init__(plan, playback, stop, server)
         self.pubs = _Publishers(session)
 
-    def run(self) -> ReplayStats:
-        stats = ReplayStats()
-        start = self.playback.start_ns
-        while not self.stop.is_set():
-            stats.report = ReadReport(self.plan.path)
-            next_time = 0.0
-            for key, rm in self.plan.messages(stats.report):
-                if rm.log_time_ns < start:
-                    continue  # before the seek target
-                if not self.playback.wait_for(rm.log_time_ns, self.stop):
-                    break
-                payload, att = rm.wire()
-                self.pubs[key].put(payload, attachment=att)
-                stats.published[key] += 1
-                if time.monotonic() >= next_time:
-                    self.server.broadcast_time(rm.log_time_ns)
-                    next_time = time.monotonic() + TIME_EVERY_S
-            else:
-                with self.playback.cond:
-                    self.playback.ended = True
-                self.server.broadcast_playback_state(self.playback.state())
-                with self.playback.cond:  # the end: wait for a seek back (or stop)
-                    while self.playback.seek_to is None and not self.stop.is_set():
-                        self.playback.cond.wait(0.1)
-            with self.playback.cond:
-                start, self.playback.seek_to = self.playback.seek_to or start, None
+    def _skip(self, index: int, rm: RecordedMessage, target: int) -> bool:
+        return rm.log_time_ns < target
+
+    def _release(self, index: int, key: str, rm: RecordedMessage, stats: ReplayStats) -> None:
+        payload, att = rm.wire()
+        self.pubs[key].put(payload, attachment=att)
+        stats.published[key] += 1
+
+    def close(self) -> None:
         self.pubs.close()
-        return stats
+
+
+class ControlledLockstep(_BarDriven):
+    """Release a lock-step replay's messages on :class:`Playback`'s clock (see the module docstring).
+
+    ``restart_graph()`` starts the graph's nodes afresh; ``changes`` (:class:`.param_replay.RecordedChanges`)
+    are applied again from the first after each restart.
+    """
+
+    def __init__(
+        self,
+        lockstep: LockstepReplayer,
+        plan: ReplayPlan,
+        playback: Playback,
+        stop: threading.Event,
+        server: Any,
+        restart_graph: Callable[[], None],
+        changes: Any = None,
+        ready_timeout_s: float = 30.0,
+    ) -> None:
+        super().__init__(plan, playback, stop, server)
+        self.lockstep, self.restart_graph, self.changes = lockstep, restart_graph, changes
+        self.ready_timeout_s = ready_timeout_s
+        self.released = 0  # messages the graph has handled since its start
+        self.position: int | None = None  # the log time of the last of them
+
+    def _play_from(self, target: int, stats: ReplayStats) -> bool:
+        if self.position is not None and target <= self.position:
+            began = time.monotonic()
+            self.lockstep.rewind(self.restart_graph, self.ready_timeout_s)
+            if self.changes is not None:
+                self.changes.rewind()
+            self.released, self.position = 0, None
+            log.info(
+                "seek back to %.3fs: the graph's nodes started afresh in %.1fs; replaying from the start up to it",
+                (target - self.playback.start_ns) / 1e9,
+                time.monotonic() - began,
+            )
+        return super()._play_from(target, stats)
+
+    def _skip(self, index: int, rm: RecordedMessage, target: int) -> bool:
+        return index < self.released
+
+    def _published(self) -> dict[str, int]:
+        return self.lockstep.published()
+
+    def _release(self, index: int, key: str, rm: RecordedMessage, stats: ReplayStats) -> None:
+        self.lockstep.step(key, rm, stats, self.changes)
+        self.released, self.position = index + 1, rm.log_time_ns
+
+    def close(self) -> None:
+        self.lockstep.close()

@@ -135,6 +135,12 @@ class GraphWatcher:
                 f"{timeout_s:.0f}s; check their logs above (or raise --ready-timeout)"
             )
 
+    def forget(self) -> None:
+        """Drop what the nodes reported (their processes are being started afresh)."""
+        with self.cond:
+            self.health.clear()
+            self.progress.clear()
+
     def close(self) -> None:
         for sub in self._subs:
             sub.undeclare()
@@ -284,6 +290,7 @@ class LockstepReplayer:
             keys.clock_key(graph.name), congestion_control=zenoh.CongestionControl.BLOCK
         )
         self.sent: Counter = Counter()  # node/port → messages the replayer published
+        self.t_ns: int | None = None  # the virtual time published last
         self.edges = [(src, nid, port) for nid in self.node_ids for port, src in graph.nodes[nid].spec.inputs.items()]
 
     # -- conditions (evaluated under the watcher's lock) ------------------------------------
@@ -327,29 +334,56 @@ class LockstepReplayer:
             self.clock_pub.put(payload)
         self._settle(f"clock {t_ns}", lambda: self._clock_acked(t_ns))
 
+    def published(self) -> dict[str, int]:
+        """Topic key → messages each node output published since the node's (re)start: the last sequence
+        number, as a graph started afresh numbers them from 1 (:meth:`..runtime.launcher.Launcher.reset`)."""
+        with self.watcher.cond:
+            return {
+                keys.topic_key(self.graph.name, nid, port): int(n)
+                for nid, report in self.watcher.progress.items()
+                for port, n in report["published"].items()
+            }
+
+    def step(self, key: str, rm: RecordedMessage, stats: ReplayStats, changes: Any = None) -> None:
+        """Release one message: the recorded changes due, the clock, the message; return once the graph is quiet."""
+        stamp = rm.publish_time_ns
+        if changes is not None:
+            changes.before(stamp)
+        if self.t_ns is None or stamp > self.t_ns:
+            self.t_ns = stamp
+            self.advance_clock(stamp)
+        parts = keys.split_key(key)
+        with self.watcher.cond:
+            self.sent[f"{parts[1]}/{parts[2]}"] += 1
+        payload, att = rm.wire()
+        self.pubs[key].put(payload, attachment=att)
+        stats.published[key] += 1
+        self._settle(f"message #{stats.total} on {key}")
+
+    def rewind(self, restart_graph: Callable[[], None], ready_timeout_s: float) -> None:
+        """Back to the start: ``restart_graph()`` starts the graph's nodes afresh; the counters and the clock
+        start over once every node has sent a heartbeat again (docs/recording.md, "Replay from Foxglove's
+        playback bar")."""
+        self.watcher.forget()
+        restart_graph()
+        self.watcher.wait_alive(self.node_ids, ready_timeout_s, self.poll)
+        with self.watcher.cond:  # a late report of a stopped process must not count as a new one's
+            self.watcher.progress.clear()
+            self.sent.clear()
+        self.t_ns = None
+
     def run(self, plan: ReplayPlan, changes: Any = None) -> ReplayStats:
         """Replay ``plan``; ``changes`` (:class:`.param_replay.RecordedChanges`) are applied before the
         first message stamped at or after each of them."""
         stats = ReplayStats(report=ReadReport(plan.path))
-        t_ns: int | None = None
         for key, rm in plan.messages(stats.report):
             if self.stop.is_set():
                 break
-            stamp = rm.publish_time_ns
-            if changes is not None:
-                changes.before(stamp)
-            if t_ns is None or stamp > t_ns:
-                t_ns = stamp
-                self.advance_clock(t_ns)
-            parts = keys.split_key(key)
-            source = f"{parts[1]}/{parts[2]}"
-            with self.watcher.cond:
-                self.sent[source] += 1
-            payload, att = rm.wire()
-            self.pubs[key].put(payload, attachment=att)
-            stats.published[key] += 1
-            self._settle(f"message #{stats.total} on {key}")
+            self.step(key, rm, stats, changes)
         stats.loops = 1
+        self.close()
+        return stats
+
+    def close(self) -> None:
         self.pubs.close()
         self.clock_pub.undeclare()
-        return stats

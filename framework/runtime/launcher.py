@@ -37,7 +37,7 @@ from . import discovery
 from .live_params import forget_edited_params
 from .param_service import ParamService
 from .ros2_bridge import Ros2Bridge
-from .runner import RESTART_SIGNAL, START_WAIT_S, STOPPED, failure_file
+from .runner import RESTART_SIGNAL, START_WAIT_S, STOPPED, failure_file, node_state_files
 from .watch import Watcher
 from .zygote import RUNNER, ForkedProcess, Zygote, start_unless_disabled
 
@@ -236,6 +236,17 @@ class Launcher:
     def start(self) -> None:
         for unit in self.units:
             self._spawn(unit)
+
+    def reset(self) -> None:
+        """Stop every unit and start it afresh, as at the graph's start: its nodes' sequence numbers and
+        parameters set while running are forgotten (a lock-step replay seeking back, docs/recording.md)."""
+        self._terminate([u for u in self.units if u.proc is not None], RESTART_SIGNAL)  # no settling: restarted
+        for unit in self.units:  # one waiting to be restarted starts now, once
+            unit.restart_at = None
+        for nid in self.graph.nodes:
+            for path in node_state_files(self.state_dir, nid):
+                path.unlink(missing_ok=True)
+        self.start()
 
     def event(self, kind: str, unit: Unit, detail: str) -> None:
         """Publish a :class:`RuntimeEvent` (seen by monitor, written into recordings)."""

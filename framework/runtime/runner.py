@@ -51,7 +51,7 @@ from ..security.credentials import read_credentials, usrpwd_settings
 from ..testkit.harness import allocate_output, check_publish
 from . import forwarding, local_routes
 from .drops import DropLedger
-from .live_params import NodeParams
+from .live_params import NodeParams, overrides_file
 from .wakeup import wakeup_queue
 
 log = logging.getLogger("handflow.runner")
@@ -75,6 +75,16 @@ class SetupError(Exception):
     def __init__(self, node_id: str, cause: BaseException) -> None:
         self.node_id, self.cause = node_id, cause
         super().__init__(f"node '{node_id}' failed during setup: {cause}")
+
+
+def seq_file(state_dir: Path, node_id: str) -> Path:
+    """Where a node keeps its sequence numbers across restarts within a run (:class:`SeqState`)."""
+    return Path(state_dir) / f"{node_id}.seq"
+
+
+def node_state_files(state_dir: Path, node_id: str) -> list[Path]:
+    """What a node keeps across restarts within a run: its sequence numbers and parameters set while running."""
+    return [seq_file(state_dir, node_id), overrides_file(state_dir, node_id)]
 
 
 def failure_file(state_dir: Path, node_ids: list[str]) -> Path:
@@ -166,7 +176,7 @@ class _NodeSlot:
         slot_keys = [f"out:{p}" for p in sorted(rn.cls.output_types(rn.params))] + [
             f"in:{p}" for p in sorted(rn.spec.inputs)
         ]
-        self.state = SeqState(state_dir / f"{self.id}.seq" if state_dir else None, slot_keys)
+        self.state = SeqState(seq_file(state_dir, self.id) if state_dir else None, slot_keys)
         self.ctx = NodeContext(rt, rn, self.state)
         self.node: Node = rn.cls(rn.params, self.ctx)
         self.handled = dict.fromkeys(rn.spec.inputs, 0)

@@ -6,7 +6,6 @@ from __future__ import annotations
 import json
 import os
 import signal
-import struct
 import subprocess
 import sys
 import time
@@ -17,58 +16,11 @@ import pytest
 from handflow.framework.files.mcap_writer import McapWriter
 from handflow.framework.messages import Array, Header
 from handflow.framework.network.sessions import free_tcp_port
-from tests.foxglove_client import connect_foxglove
+from tests.foxglove_client import FoxgloveClient, connect_foxglove, playback_request, playback_state
 
 pytest.importorskip("foxglove")
 pytestmark = pytest.mark.slow
 REPO = Path(__file__).resolve().parents[2]
-
-
-class FoxgloveClient:
-    """The Foxglove app's side of the protocol: JSON requests, replies picked by their ``op``."""
-
-    def __init__(self, port: int, timeout: float = 30.0) -> None:
-        self.ws = connect_foxglove(port, timeout)
-
-    def __enter__(self) -> FoxgloveClient:
-        self.ws.__enter__()
-        self.server_info = self.next("serverInfo")
-        return self
-
-    def __exit__(self, *exc) -> None:
-        self.ws.__exit__(*exc)
-
-    def send(self, **msg) -> None:
-        self.ws.send(json.dumps(msg))
-
-    def next(self, op: str, timeout: float = 15.0, **match) -> dict:
-        deadline = time.time() + timeout
-        while time.time() < deadline:
-            try:
-                frame = self.ws.recv(timeout=1)
-            except TimeoutError:
-                continue
-            if isinstance(frame, str):
-                msg = json.loads(frame)
-                if msg.get("op") == op and all(msg.get(k) == v for k, v in match.items()):
-                    return msg
-        raise AssertionError(f"no {op} {match} within {timeout}s")
-
-    def binary(self, opcode: int, seconds: float) -> list[bytes]:
-        """The binary frames with ``opcode`` received within ``seconds`` (message data 1, playback state 5)."""
-        frames, deadline = [], time.time() + seconds
-        while (left := deadline - time.time()) > 0:
-            try:
-                frame = self.ws.recv(timeout=left)
-            except TimeoutError:
-                break
-            if isinstance(frame, bytes) and frame[0] == opcode:
-                frames.append(frame)
-        return frames
-
-    def values(self, **request) -> dict[str, object]:
-        msg = self.next("parameterValues", id=request.get("id"))
-        return {p["name"]: p.get("value") for p in msg["parameters"]}
 
 
 def test_parameters_panel_gets_sets_and_is_refused_with_the_models_message(tmp_path):
@@ -168,21 +120,9 @@ def test_topic_graph_shows_every_hosts_nodes_and_edges(tmp_path):
     }
 
 
-def _playback_request(command: int, speed: float, seek_ns: int | None, request_id: str) -> bytes:
-    """Foxglove's binary PlaybackControlRequest (opcode 3): command (0 play, 1 pause), speed, seek, id."""
-    head = struct.pack("<BBfB", 3, command, speed, seek_ns is not None) + struct.pack("<Q", seek_ns or 0)
-    return head + struct.pack("<I", len(request_id)) + request_id.encode()
-
-
-def _playback_state(frame: bytes) -> dict:
-    """The server's binary PlaybackState (opcode 5)."""
-    status, current, speed, did_seek, n = struct.unpack_from("<BQfBI", frame, 1)
-    return {"status": status, "time": current, "speed": speed, "did_seek": bool(did_seek), "id": frame[19 : 19 + n]}
-
-
 def test_replay_is_driven_from_the_playback_bar(tmp_path):
     """`handflow replay F.mcap --into G.yaml --foxglove`: pause, seek and speed from a real Foxglove client;
-    the replayed topic and the graph's node follow."""
+    the replayed topic and the graph's node follow.  The graph's own `foxglove:` server is not opened."""
     start = 1_700_000_000_000_000_000
     with McapWriter(tmp_path / "take.mcap") as writer:
         for i in range(1000):  # 20 s at 50 Hz, data = the index
@@ -190,9 +130,11 @@ def test_replay_is_driven_from_the_playback_bar(tmp_path):
             msg.header = Header("source", i + 1, start + i * 20_000_000)
             writer.write("handflow/pb/source/out", msg, log_time_ns=msg.header.stamp_ns)
     graph = tmp_path / "g.yaml"
+    own_port = free_tcp_port()
     graph.write_text(
-        "name: pb\nexternal: {source/out: Array}\nnodes:\n  - id: sink\n    plugin: basic.sink\n"
-        f"    params: {{jsonl: {tmp_path / 'sink.jsonl'}}}\n    inputs: {{in: source/out}}\n"
+        f"name: pb\nfoxglove: {{port: {own_port}}}\nexternal: {{source/out: Array}}\nnodes:\n"
+        f"  - id: sink\n    plugin: basic.sink\n    params: {{jsonl: {tmp_path / 'sink.jsonl'}}}\n"
+        "    inputs: {in: source/out}\n"
     )
     port = free_tcp_port()
     replay = subprocess.Popen(
@@ -212,19 +154,21 @@ def test_replay_is_driven_from_the_playback_bar(tmp_path):
                 channel = next((c for c in advertised if c["topic"] == "/handflow/pb/source/out"), None)
             fox.send(op="subscribe", subscriptions=[{"id": 7, "channelId": channel["id"]}])
             playing = len(fox.binary(opcode=1, seconds=1.0))
-            fox.ws.send(_playback_request(1, 1.0, None, "pause"))
+            fox.ws.send(playback_request(1, 1.0, None, "pause"))
             paused = fox.binary(opcode=5, seconds=0.5)
             held = len(fox.binary(opcode=1, seconds=1.0))
             seek = start + 12 * 10**9  # message 600
-            fox.ws.send(_playback_request(0, 4.0, seek, "seek"))
-            state = _playback_state(fox.binary(opcode=5, seconds=0.5)[0])
+            fox.ws.send(playback_request(0, 4.0, seek, "seek"))
+            answer, state = (playback_state(f) for f in fox.binary(opcode=5, seconds=0.5))  # reaching it, playing
             fast = len(fox.binary(opcode=1, seconds=1.0))
+            with pytest.raises(OSError):  # one server: the replay's, not the graph's
+                connect_foxglove(own_port, timeout=0)
     finally:
         replay.send_signal(signal.SIGINT)
         _, err = replay.communicate(timeout=60)
     assert replay.returncode == 0, err
     assert 30 <= playing <= 70  # 50 Hz
-    assert _playback_state(paused[0]) | {"time": 0} == {
+    assert playback_state(paused[0]) | {"time": 0} == {
         "status": 1,
         "time": 0,
         "speed": 1.0,
@@ -232,7 +176,8 @@ def test_replay_is_driven_from_the_playback_bar(tmp_path):
         "id": b"pause",
     }
     assert held <= 2  # paused: nothing more (a message in flight at most)
-    assert (state["status"], state["did_seek"], state["speed"]) == (0, True, 4.0)
+    assert (answer["status"], answer["did_seek"], answer["speed"], answer["time"]) == (2, True, 4.0, seek)  # buffering
+    assert (state["status"], state["did_seek"], state["speed"]) == (0, False, 4.0)
     assert seek <= state["time"] < seek + 10**8  # the target (playing on from it)
     assert 130 <= fast <= 250  # 4× speed: 200 a second
     handled = [json.loads(line)["msg"]["data"][0] for line in (tmp_path / "sink.jsonl").read_text().splitlines()]

@@ -73,7 +73,7 @@ BENCHMARKS = {
             " glove_reader grasp"
             " manipulation param_roundtrip projection_kernel"
             " mapping_cost novelty_probe online_score_segmenter online_segmenter recording scorer_fit sim startup"
-            " local_transport transport ukr_speed ukr_toy viewer".split()
+            " local_transport transport ukr_speed ukr_toy viewer watch_reload".split()
         ),
         "a measurement of this machine (minutes; figures and load in docs/benchmarks.md), not run by the tests",
     ),

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.plugin_dist import register_plugins
+from handflow.framework.testkit.plugin_dist import register_plugins
 
 DOC = Path(__file__).resolve().parents[2] / "docs" / "pipelines.md"
 

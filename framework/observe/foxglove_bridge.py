@@ -107,8 +107,8 @@ class FoxgloveBridge:
         self.server = foxglove.start_server(
             name=name, host=host, port=port, context=self.context, capabilities=capabilities, **options
         )
-        if self.params is not None:
-            self.params.server = self.server
+        if "server_listener" in options:  # it answers through the server (refusals, playback states)
+            options["server_listener"].server = self.server
         if spec is not None:  # a client that subscribes later receives the current graph
             from .foxglove_graph import connection_graph
 

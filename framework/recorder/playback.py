@@ -125,15 +125,26 @@ class Playback:
 
 
 class PlaybackListener(ServerListener):
-    """Foxglove's playback bar → :class:`Playback`."""
+    """Foxglove's playback bar → :class:`Playback`.
+
+    The answer to a request is broadcast while the playback is locked, so that it reaches the client
+    before any later state of the replay (reaching a seek's target, the end): returned to the SDK, it
+    was sent after the callback, and a replay that reached the target at once had already told the
+    client it was playing, which the answer's Buffering then overrode."""
 
     def __init__(self, playback: Playback) -> None:
         self.playback = playback
+        self.server: Any = None  # set once the server runs
 
-    def on_playback_control_request(self, request) -> PlaybackState:
+    def on_playback_control_request(self, request) -> PlaybackState | None:
         seek = request.seek_time
-        self.playback.control(request.playback_command == PlaybackCommand.Play, request.playback_speed, seek)
-        return self.playback.state(did_seek=seek is not None, request_id=request.request_id)
+        with self.playback.cond:
+            self.playback.control(request.playback_command == PlaybackCommand.Play, request.playback_speed, seek)
+            answer = self.playback.state(did_seek=seek is not None, request_id=request.request_id)
+            if self.server is None:
+                return answer
+            self.server.broadcast_playback_state(answer)
+        return None
 
 
 class _BarDriven(ABC):
@@ -166,7 +177,7 @@ class _BarDriven(ABC):
             paced = rm.log_time_ns >= target
             if paced:
                 if self._arrive():  # the bar plays (or holds) from the target now
-                    self.server.broadcast_playback_state(self.playback.state())
+                    self._broadcast_state()
                 if not self.playback.wait_for(rm.log_time_ns, self.stop):
                     return False
             elif self.stop.is_set() or self.playback.seek_to is not None:
@@ -176,6 +187,10 @@ class _BarDriven(ABC):
                 self.server.broadcast_time(rm.log_time_ns)
                 self._time_due = time.monotonic() + TIME_EVERY_S
         return True
+
+    def _broadcast_state(self) -> None:
+        with self.playback.cond:  # in order with the answers to the bar's requests (PlaybackListener)
+            self.server.broadcast_playback_state(self.playback.state())
 
     def _arrive(self) -> bool:
         """At the seek target, if seeking: the bar runs on from it; True if it was seeking."""
@@ -189,7 +204,7 @@ class _BarDriven(ABC):
         self._arrive()  # a seek past the last message
         with self.playback.cond:
             self.playback.ended, self.playback.next_ns = True, self.playback.end_ns
-        self.server.broadcast_playback_state(self.playback.state())
+        self._broadcast_state()
         with self.playback.cond:  # the end: wait for a seek back (or stop)
             while self.playback.seek_to is None and not self.stop.is_set():
                 self.playback.cond.wait(0.1)

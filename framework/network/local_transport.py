@@ -318,9 +318,16 @@ class LocalTransport:
 
     def _wait(self, topic: _Topic) -> None:
         timeout = self._iox.Duration.from_secs_f64(POLL_S)
+        failures = 0
         while not self._stop.is_set():
-            topic.listener.timed_wait(timeout)
-            self._drain(topic)
+            try:
+                topic.listener.timed_wait(timeout)
+                self._drain(topic)
+            except Exception as exc:  # a failed wait or receive must not end the topic's delivery
+                failures += 1
+                if failures == 1 or failures % 1000 == 0:
+                    log.warning("%s: %s: %s (%d time(s); retrying)", topic.name, type(exc).__name__, exc, failures)
+                self._stop.wait(POLL_S)
 
     def _drain(self, topic: _Topic) -> None:
         while not self._stop.is_set():

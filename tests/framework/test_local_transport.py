@@ -143,6 +143,40 @@ def test_a_view_outlives_the_closed_transport(namespace):
     assert (got[0] == 0).all() and got[0].size == 1000
 
 
+class _FailingOnce:
+    """A topic's real listener whose first wait fails, as an interrupted wait would."""
+
+    def __init__(self, listener) -> None:
+        self.listener, self.failed = listener, False
+
+    def timed_wait(self, timeout):
+        if not self.failed:
+            self.failed = True
+            raise RuntimeError("interrupted")
+        return self.listener.timed_wait(timeout)
+
+    def delete(self) -> None:
+        self.listener.delete()
+
+
+def test_a_failed_wait_does_not_end_the_topics_delivery(namespace, caplog):
+    subscriber, got = lt.LocalTransport("runfail", "test/subscriber"), []
+    subscriber.subscribe("handflow/t/src/out", lambda payload, att: got.append(bytes(payload)))
+    topic = subscriber._topics["handflow/t/src/out"]
+    topic.listener = _FailingOnce(topic.listener)
+    subscriber.start()
+    publishing = lt.LocalTransport("runfail", "test/publisher")
+    publisher = publishing.publisher("handflow/t/src/out")
+    wait_until(lambda: topic.listener.failed, timeout=10, what="the failed wait")
+    for i in range(5):
+        publisher.send(b"message %d" % i, b"att")
+    wait_until(lambda: len(got) == 5, timeout=10, what=f"5 messages, got {len(got)}")
+    assert got == [b"message %d" % i for i in range(5)]
+    assert "RuntimeError: interrupted (1 time(s); retrying)" in caplog.text
+    subscriber.close()
+    publishing.close()
+
+
 @given(st.binary(max_size=300), st.binary(max_size=80))
 def test_frames_round_trip(payload, att):
     buf = bytearray(lt.frame_size(len(payload), len(att)))

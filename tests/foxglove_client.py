@@ -5,9 +5,27 @@ from __future__ import annotations
 
 import json
 import struct
+import subprocess
+import sys
 import time
+from pathlib import Path
 
 from websockets.sync.client import connect
+
+from handflow.framework.network.sessions import free_tcp_port
+
+
+def handflow_with_foxglove(args: list[str], env: dict[str, str], cwd: Path) -> tuple[subprocess.Popen, int]:
+    """``handflow ARGS --foxglove PORT`` on a free port, its stderr piped: the process and the port."""
+    port = free_tcp_port()
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "handflow.framework.cli", *args, "--foxglove", str(port)],
+        cwd=cwd,
+        env=env,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    return proc, port
 
 
 def connect_foxglove(port: int, timeout: float):

@@ -13,10 +13,13 @@ from __future__ import annotations
 
 import importlib
 import importlib.util
+import logging
 import sys
 from collections.abc import Collection
 from pathlib import Path
 from types import ModuleType
+
+log = logging.getLogger("handflow.watch")
 
 
 def _file(module: ModuleType | None) -> Path | None:
@@ -74,6 +77,12 @@ def drop_bytecode(path: Path) -> None:
     """Remove the cached bytecode of ``path``: an edit within the second of the last one that kept the
     file's size would otherwise import the cached, older code (the cache is checked by mtime in seconds)."""
     try:
-        Path(importlib.util.cache_from_source(str(path))).unlink(missing_ok=True)
-    except (OSError, ValueError, NotImplementedError):
-        pass
+        cached = Path(importlib.util.cache_from_source(str(path)))
+    except NotImplementedError:  # an interpreter without a bytecode cache: nothing to remove
+        return
+    try:
+        cached.unlink(missing_ok=True)
+    except OSError as exc:
+        log.warning(
+            "could not remove %s (%s): an edit within a second of the last may load the older code", cached, exc
+        )

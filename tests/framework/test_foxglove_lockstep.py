@@ -19,8 +19,7 @@ from handflow.framework import keys
 from handflow.framework.files.mcap_reader import iter_recording
 from handflow.framework.files.mcap_writer import McapWriter
 from handflow.framework.messages import Header, ParamChange
-from handflow.framework.network.sessions import free_tcp_port
-from tests.foxglove_client import FoxgloveClient, playback_request, playback_state
+from tests.foxglove_client import FoxgloveClient, handflow_with_foxglove, playback_request, playback_state
 
 pytest.importorskip("foxglove")
 pytestmark = pytest.mark.slow
@@ -82,9 +81,9 @@ def _seek(fox: FoxgloveClient, speed: float, seek_ns: int, request: str) -> tupl
 def test_lockstep_replay_follows_the_playback_bar_and_a_seek_back_gives_the_uninterrupted_labels(tmp_path):
     stamps = _take(tmp_path / "take.mcap")
     env = dict(os.environ, HANDFLOW_RUN_DIR=str(tmp_path / "runs"))
-    cli = [sys.executable, "-m", "handflow.framework.cli", "replay", str(tmp_path / "take.mcap"), "--into", str(GRAPH)]
+    args = ["replay", str(tmp_path / "take.mcap"), "--into", str(GRAPH), "--lockstep"]
     reference = subprocess.run(
-        [*cli, "--lockstep", "--record", str(tmp_path / "uninterrupted.mcap")],
+        [sys.executable, "-m", "handflow.framework.cli", *args, "--record", str(tmp_path / "uninterrupted.mcap")],
         cwd=tmp_path,
         env=env,
         capture_output=True,
@@ -95,10 +94,7 @@ def test_lockstep_replay_follows_the_playback_bar_and_a_seek_back_gives_the_unin
     uninterrupted = [rm.data for rm in iter_recording(tmp_path / "uninterrupted.mcap", ["segmenter/labels"])]
     assert [_stamp(cdr) for cdr in uninterrupted] == stamps  # one label per frame, stamped with it
 
-    port = free_tcp_port()
-    replay = subprocess.Popen(
-        [*cli, "--lockstep", "--foxglove", str(port)], cwd=tmp_path, env=env, stderr=subprocess.PIPE, text=True
-    )
+    replay, port = handflow_with_foxglove(args, env, tmp_path)
     try:
         with FoxgloveClient(port, timeout=60) as fox:
             assert "playbackControl" in fox.server_info["capabilities"]

@@ -16,7 +16,13 @@ import pytest
 from handflow.framework.files.mcap_writer import McapWriter
 from handflow.framework.messages import Array, Header
 from handflow.framework.network.sessions import free_tcp_port
-from tests.foxglove_client import FoxgloveClient, connect_foxglove, playback_request, playback_state
+from tests.foxglove_client import (
+    FoxgloveClient,
+    connect_foxglove,
+    handflow_with_foxglove,
+    playback_request,
+    playback_state,
+)
 
 pytest.importorskip("foxglove")
 pytestmark = pytest.mark.slow
@@ -30,15 +36,8 @@ def test_parameters_panel_gets_sets_and_is_refused_with_the_models_message(tmp_p
         "  - id: scale\n    plugin: basic.transform\n    params: {gain: 2.0}\n    inputs: {in: source/out}\n"
     )
     env = dict(os.environ, HANDFLOW_RUN_DIR=str(tmp_path / "runs"))
-    port = free_tcp_port()
     cli = [sys.executable, "-m", "handflow.framework.cli"]
-    run = subprocess.Popen(
-        [*cli, "run", str(graph), "--duration", "40", "--foxglove", str(port)],
-        cwd=REPO,
-        env=env,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
+    run, port = handflow_with_foxglove(["run", str(graph), "--duration", "40"], env, REPO)
     try:
         with FoxgloveClient(port) as fox:
             check_parameters_panel(fox, cli, env)
@@ -89,15 +88,8 @@ def test_topic_graph_shows_every_hosts_nodes_and_edges(tmp_path):
         "  - {id: sink, plugin: basic.sink, host: a, inputs: {in: scale/out}}\n"
         "  - {id: raw, plugin: basic.sink, host: a, inputs: {in: glove/raw}}\n"
     )
-    port = free_tcp_port()
-    run = subprocess.Popen(
-        [sys.executable, "-m", "handflow.framework.cli", "run", str(graph), "--host", "a"]
-        + ["--duration", "20", "--foxglove", str(port)],
-        cwd=REPO,
-        env=dict(os.environ, HANDFLOW_RUN_DIR=str(tmp_path / "runs")),
-        stderr=subprocess.PIPE,
-        text=True,
-    )
+    env = dict(os.environ, HANDFLOW_RUN_DIR=str(tmp_path / "runs"))
+    run, port = handflow_with_foxglove(["run", str(graph), "--host", "a", "--duration", "20"], env, REPO)
     try:
         with FoxgloveClient(port) as fox:
             assert "connectionGraph" in fox.server_info["capabilities"]
@@ -136,15 +128,8 @@ def test_replay_is_driven_from_the_playback_bar(tmp_path):
         f"  - id: sink\n    plugin: basic.sink\n    params: {{jsonl: {tmp_path / 'sink.jsonl'}}}\n"
         "    inputs: {in: source/out}\n"
     )
-    port = free_tcp_port()
-    replay = subprocess.Popen(
-        [sys.executable, "-m", "handflow.framework.cli", "replay", str(tmp_path / "take.mcap"), "--into", str(graph)]
-        + ["--foxglove", str(port)],
-        cwd=REPO,
-        env=dict(os.environ, HANDFLOW_RUN_DIR=str(tmp_path / "runs")),
-        stderr=subprocess.PIPE,
-        text=True,
-    )
+    env = dict(os.environ, HANDFLOW_RUN_DIR=str(tmp_path / "runs"))
+    replay, port = handflow_with_foxglove(["replay", str(tmp_path / "take.mcap"), "--into", str(graph)], env, REPO)
     try:
         with FoxgloveClient(port) as fox:
             assert "playbackControl" in fox.server_info["capabilities"]

@@ -17,6 +17,8 @@ import sys
 import tempfile
 import textwrap
 import time
+from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -257,13 +259,38 @@ class _Health:
         return self.counters.get(node, {}).get(key)
 
 
-def test_local_subscribers_take_iceoryx2_and_zenoh_readers_get_the_same_bytes(tmp_path, namespace):
-    name, port = unique("local"), free_tcp_port()
-    proc = start("run", str(_graph(tmp_path, name, "iceoryx2", port)), "--duration", "30")
-    session = _peer(port)
+@dataclass
+class _Run:
+    """A graph run by :func:`_running`; ``returncode`` and the launcher's ``err`` once it ended."""
+
+    name: str
+    session: zenoh.Session
+    health: _Health | None = None
+    returncode: int | None = None
+    err: str = ""
+
+
+@contextmanager
+def _running(tmp_path: Path, prefix: str, seconds: int):
+    """The iceoryx2 graph running for at most ``seconds``, read by a remote-style peer, once its sink handles
+    messages; stopped with Ctrl-C at the end of the block."""
+    name, port = unique(prefix), free_tcp_port()
+    proc = start("run", str(_graph(tmp_path, name, "iceoryx2", port)), "--duration", str(seconds))
+    run = _Run(name, _peer(port))
     try:
-        health = _Health(session, name)
-        wait_until(lambda: (health.get("sink", "handled.in") or 0) > 20, timeout=60, what="the sink handling")
+        run.health = _Health(run.session, name)
+        wait_until(lambda: (run.health.get("sink", "handled.in") or 0) > 20, timeout=60, what="the sink handling")
+        yield run
+    finally:
+        proc.send_signal(signal.SIGINT)
+        _, run.err = proc.communicate(timeout=60)
+        run.returncode = proc.returncode
+        run.session.close()
+
+
+def test_local_subscribers_take_iceoryx2_and_zenoh_readers_get_the_same_bytes(tmp_path, namespace):
+    with _running(tmp_path, "local", 30) as launched:
+        name, session, health = launched.name, launched.session, launched.health
         # no Zenoh reader of the data topics: they travel through iceoryx2 only
         assert health.get("source", "path.out") == lt.LOCAL and health.get("scale", "path.out") == lt.LOCAL
         run = next(r for r in live_runs() if r.graph == name)
@@ -286,17 +313,13 @@ def test_local_subscribers_take_iceoryx2_and_zenoh_readers_get_the_same_bytes(tm
         sub.undeclare()
         wait_until(lambda: path("scale") == lt.LOCAL, timeout=5, what="scale/out over iceoryx2 alone again")
         local.close()  # before the launcher ends, which removes the files once no node is alive
-    finally:
-        proc.send_signal(signal.SIGINT)
-        _, err = proc.communicate(timeout=60)
-        session.close()
-    assert proc.returncode == 0, err
+    assert launched.returncode == 0, launched.err
     # each message once: the sink handled exactly what scale published, without gaps
     assert health.get("sink", "handled.in") == health.get("scale", "published.out")
     assert health.get("sink", "gaps.in") == 0 and health.get("scale", "gaps.in") == 0
     common = sorted(set(local_got) & set(zenoh_got))
     assert len(common) >= 15 and all(local_got[q] == zenoh_got[q] and len(zenoh_got[q]) > WIDTH * 8 for q in common)
-    assert "iceoryx2 is not usable" not in err
+    assert "iceoryx2 is not usable" not in launched.err
     assert _files() == [], "iceoryx2 files left after the launcher ended"
 
 
@@ -346,23 +369,15 @@ def test_without_iceoryx2_one_notice_and_the_graph_runs_over_zenoh(tmp_path, nam
 
 
 def test_killed_processes_are_replaced_and_leave_no_file(tmp_path, namespace):
-    name, port = unique("kill"), free_tcp_port()
-    proc = start("run", str(_graph(tmp_path, name, "iceoryx2", port)), "--duration", "60")
-    session = _peer(port)
-    try:
-        health = _Health(session, name)
-        wait_until(lambda: (health.get("sink", "handled.in") or 0) > 20, timeout=60, what="the sink handling")
+    with _running(tmp_path, "kill", 60) as run:
+        health = run.health
         for node in ("sink", "source"):  # a subscriber (which holds samples while it handles them), a publisher
             pid = health.pids[node]
             os.kill(pid, signal.SIGKILL)
             wait_until(lambda n=node, p=pid: health.pids[n] != p, timeout=60, what=f"{node} restarted")
         before = health.get("sink", "handled.in")
         wait_until(lambda: health.get("sink", "handled.in") > before + 20, timeout=60, what="the graph to recover")
-    finally:
-        proc.send_signal(signal.SIGINT)
-        _, err = proc.communicate(timeout=60)
-        session.close()
-    assert proc.returncode == 0, err
+    assert run.returncode == 0, run.err
     assert _files() == [], "iceoryx2 files left after the launcher ended"
 
 

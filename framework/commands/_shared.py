@@ -15,6 +15,28 @@ def add_foxglove_option(parser: argparse.ArgumentParser, help: str) -> None:
     parser.add_argument("--foxglove", nargs="?", const=FOXGLOVE_PORT, type=int, metavar="PORT", help=help)
 
 
+def add_set_option(parser: argparse.ArgumentParser) -> None:
+    """``--set NODE.KEY=VALUE`` (repeatable): a node parameter from the command line (:mod:`..graphs.overrides`)."""
+    parser.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="NODE.KEY=VALUE",
+        help="set a node parameter (YAML value; an input path is relative to the current directory); repeatable",
+    )
+
+
+def graph_with_sets(argument: str, sets: list[str], host: str | None = None):
+    """``(graph, text)``: the graph file or shipped graph ``argument`` with the ``--set`` items applied,
+    checked with its inputs (``text`` None without ``--set``); raises GraphError or OverrideError
+    (a ValueError) with what to change."""
+    from ..graphs.model import load_graph
+    from ..graphs.overrides import graph_text_with
+
+    text = graph_text_with(argument, sets, host) if sets else None
+    return load_graph(argument, preflight=True, host=host, text=text), text
+
+
 def joined_graphs(args: argparse.Namespace) -> tuple | None:
     """The Zenoh session and the graphs found with ``--graph``, ``--connect`` and the authentication
     options; None after printing why not (the command exits 2)."""

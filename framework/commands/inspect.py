@@ -7,12 +7,14 @@ import json
 import sys
 from typing import Any
 
+from ..files.labels import summarize_intervals, topic_intervals
 from ..files.mcap_reader import ReadReport, iter_recording
 from ..files.mcap_writer import RecordingError
+from ..messages import Label
 
 
 def register(parser: argparse.ArgumentParser) -> None:
-    """Summarise a recording: topics, message types, counts, time range, rates (works on truncated files)."""
+    """Summarise a recording: topics, message types, counts, time range, rates, labels (works on truncated files)."""
     parser.add_argument("file", help="MCAP recording")
     parser.add_argument("--json", action="store_true", help="print one JSON object (see docs/recording.md)")
     parser.set_defaults(func=run)
@@ -31,7 +33,11 @@ def summarize(path: str) -> dict[str, Any]:
     """
     report = ReadReport(path)
     stats: dict[str, list[int]] = {}  # topic → [count, first log, last log, first publish, last publish] (ns)
+    marks: dict[str, list[tuple[int, str]]] = {}  # Label topic → (stamp, label) as received
     for rm in iter_recording(path, report=report):
+        if rm.type_name == Label.TYPE:
+            msg = rm.decode()
+            marks.setdefault(rm.topic, []).append((msg.header.stamp_ns, msg.label))
         s = stats.get(rm.topic)
         if s is None:
             stats[rm.topic] = [1, rm.log_time_ns, rm.log_time_ns, rm.publish_time_ns, rm.publish_time_ns]
@@ -53,6 +59,7 @@ def summarize(path: str) -> dict[str, Any]:
                 "end_ns": last,
             }
         )
+    end_pub = max((s[4] for s in stats.values()), default=0)
     return {
         "file": str(path),
         "total_messages": report.messages,
@@ -65,6 +72,7 @@ def summarize(path: str) -> dict[str, Any]:
         "views": sorted(t for t, c in report.channels.items() if "view_of" in c),
         "metadata": report.metadata,
         "attachments": sorted(report.attachments),
+        "labels": {t: summarize_intervals(topic_intervals(m, end_pub)) for t, m in sorted(marks.items())},
     }
 
 
@@ -89,6 +97,9 @@ def _text(summary: dict[str, Any]) -> str:
         lines.append(f"{t['topic']:<{width}}  {t['type']:<22} {t['count']:>8} {t['rate_hz']:>9.2f}")
     for v in summary["views"]:
         lines.append(f"{v:<{width}}  (Foxglove image view)")
+    for topic, per_label in summary["labels"].items():
+        shown = ", ".join(f"{k} ×{v['intervals']} ({v['seconds']:.1f} s)" for k, v in per_label.items())
+        lines.append(f"labels on {topic}: {shown or 'none'}")
     return "\n".join(lines)
 
 

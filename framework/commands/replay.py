@@ -27,7 +27,7 @@ from ..recorder.replay import (
 )
 from ..runtime.discovery import DiscoveryError, add_auth_arguments, join
 from ..runtime.launcher import Launcher
-from ._shared import add_foxglove_option
+from ._shared import add_foxglove_option, add_set_option, graph_with_sets
 
 log = logging.getLogger("handflow.replay")
 
@@ -45,6 +45,7 @@ def register(parser: argparse.ArgumentParser) -> None:
         metavar="GRAPH.yaml",
         help="launch this graph and feed it the recorded topics its nodes read but do not publish",
     )
+    add_set_option(parser)
     parser.add_argument(
         "--lockstep",
         action="store_true",
@@ -93,6 +94,8 @@ def _check_args(args: argparse.Namespace) -> str | None:
         return f"--speed must be > 0 (got {args.speed}); use 2 for twice as fast, 0.5 for half speed"
     if args.record and not args.into:
         return "--record needs --into GRAPH.yaml (to record a running graph use `handflow record`)"
+    if args.set and not args.into:
+        return "--set needs --into GRAPH: it sets a parameter of a node the replay launches"
     if args.lockstep and not args.into:
         return (
             "--lockstep needs --into GRAPH.yaml: the replayer launches the graph in lock-step mode to know its wiring"
@@ -178,9 +181,12 @@ def _replay_join(args: argparse.Namespace, recorded: str | None, stop: threading
 def _replay_into(args: argparse.Namespace, recorded: str | None, stop: threading.Event) -> int:
     """Launch ``--into`` (lock-step or not), feed it, let it drain, stop it."""
     try:
-        graph = load_graph(args.into, preflight=True)
+        graph, text = graph_with_sets(args.into, args.set)
     except GraphError as exc:
         print(f"{exc}\n{args.into}: fix the graph file (see `handflow validate {args.into}`)", file=sys.stderr)
+        return 2
+    except ValueError as exc:  # a --set that cannot be applied
+        print(f"error: {exc}", file=sys.stderr)
         return 2
     sources = external_inputs(graph)
     if not sources:
@@ -191,7 +197,9 @@ def _replay_into(args: argparse.Namespace, recorded: str | None, stop: threading
         )
         return 2
     plan = ReplayPlan(Path(args.file), args.topics, graph.name, sources)
-    launcher = Launcher(graph, lockstep=args.lockstep, log_level=logging.getLevelName(logging.getLogger().level))
+    launcher = Launcher(
+        graph, lockstep=args.lockstep, log_level=logging.getLevelName(logging.getLogger().level), graph_text=text
+    )
     recorder = None
     if args.record:
         recorder = GraphRecorder.for_graph(graph, args.record)

@@ -6,14 +6,15 @@ import argparse
 import json
 import sys
 
-from ..graphs.model import FoxgloveSettings, GraphError, load_graph
+from ..graphs.model import FoxgloveSettings, GraphError
+from ..graphs.overrides import OverrideError
 from ..network.sessions import EndpointInUse
 from ..observe.foxglove_bridge import BridgeError, start_bridge
 from ..runtime.launcher import run_graph
 from ..runtime.param_service import LOCAL
 from ..runtime.status import StatusLine
 from ..runtime.zygote import start_unless_disabled
-from ._shared import add_foxglove_option
+from ._shared import add_foxglove_option, add_set_option, graph_with_sets
 
 
 def register(parser: argparse.ArgumentParser) -> None:
@@ -24,6 +25,7 @@ def register(parser: argparse.ArgumentParser) -> None:
         "--record", metavar="FILE.mcap", help="record the graph's 'record.topics' (default all) to MCAP"
     )
     parser.add_argument("--host", help="run only the nodes whose 'host' is NAME (a graph spread over machines)")
+    add_set_option(parser)
     add_foxglove_option(
         parser,
         "live view: stream every topic to Foxglove on ws://127.0.0.1:PORT (default 8765)",
@@ -49,12 +51,17 @@ def run(args: argparse.Namespace) -> int:
     # imports the plugins for the node processes while the graph is checked here
     zygote = start_unless_disabled(args.graph)
     try:
-        graph = load_graph(args.graph, preflight=True, host=args.host)
-    except GraphError as exc:
+        if args.set and args.watch:
+            raise OverrideError(
+                "--set and --watch cannot be combined: an edit of the graph file would drop the values set"
+            )
+        graph, text = graph_with_sets(args.graph, args.set, args.host)
+    except (GraphError, OverrideError) as exc:
         if zygote is not None:
             zygote.close()
-        print(exc, file=sys.stderr)
-        print(f"{args.graph}: fix the problems above (see `handflow validate {args.graph}`)", file=sys.stderr)
+        print(exc if isinstance(exc, GraphError) else f"error: {exc}", file=sys.stderr)
+        if isinstance(exc, GraphError):
+            print(f"{args.graph}: fix the problems above (see `handflow validate {args.graph}`)", file=sys.stderr)
         return 2
     record_path = args.record or (graph.spec.record.path if graph.spec.record else None)
     recorder = bridge = None
@@ -76,7 +83,9 @@ def run(args: argparse.Namespace) -> int:
             recorder.attach(launcher.session)
 
     try:
-        launcher = run_graph(graph, args.duration, args.host, on_ready=attach, zygote=zygote, watch=args.watch)
+        launcher = run_graph(
+            graph, args.duration, args.host, on_ready=attach, zygote=zygote, watch=args.watch, text=text
+        )
     except (ValueError, BridgeError, EndpointInUse) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

@@ -99,10 +99,6 @@ class Launcher:
         if not self.units:
             where = f" for host '{host}'" if host else ""
             raise ValueError(f"graph '{graph.name}' has no nodes to run{where}; check the nodes' 'host' fields")
-        if lockstep and graph_text is not None:
-            raise ValueError(
-                "--watch cannot be used in lock-step mode: a lock-step replay is a fixed, deterministic run"
-            )
         self.lockstep = lockstep
         self.log_level = log_level
         # before any Zenoh session: it forks the node processes (docs/architecture.md, "Process start-up")
@@ -535,6 +531,7 @@ def run_graph(
     lockstep: bool = False,
     zygote: Zygote | None = None,
     watch: bool = False,
+    text: str | None = None,
 ) -> Launcher:
     """Run ``graph`` until Ctrl-C/SIGTERM or ``duration_s``; returns the stopped launcher (for its summary).
 
@@ -542,9 +539,13 @@ def run_graph(
     recorder or a live view there, so they miss nothing); if it raises, nothing is started.  A
     ``zygote`` started before the graph was loaded imports the plugins meanwhile (one is started otherwise).
     With ``watch``, edits of the graph file and of its plugins' sources restart the nodes they
-    concern (:mod:`.watch`, docs/tuning.md).
+    concern (:mod:`.watch`, docs/tuning.md).  With ``text``, the nodes run that version of the graph
+    file (``handflow run --set``, :mod:`..graphs.overrides`).
     """
-    text = graph.path.read_text() if watch else None
+    if lockstep and watch:
+        raise ValueError("--watch cannot be used in lock-step mode: a lock-step replay is a fixed, deterministic run")
+    if text is None and watch:
+        text = graph.path.read_text()
     level = logging.getLevelName(logging.getLogger().level)
     launcher = Launcher(graph, host, lockstep, level, zygote, graph_text=text)
     if on_ready is not None:
@@ -562,7 +563,7 @@ def run_graph(
     watcher = None
     try:
         launcher.start()
-        watcher = Watcher(launcher, text) if text is not None else None
+        watcher = Watcher(launcher, text) if watch else None
         t_launch = time.monotonic()
         t_end = None  # the duration counts from the moment every node is ready (or down for good)
         started = False

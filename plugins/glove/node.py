@@ -54,14 +54,17 @@ class EmulatorParams(StrictModel):
 RUNNING_LOG_LIMIT = 1000  # records of the emulator's ``sent`` log kept in a graph or by glove-emulator
 
 
-def build_emulator(opts: EmulatorParams, resolve=lambda p: p, log_limit: int = RUNNING_LOG_LIMIT) -> GloveEmulator:
-    """An emulator from options (used by the node and by ``handflow glove-emulator``).
+def build_emulator(
+    opts: EmulatorParams, resolve=lambda p: p, log_limit: int = RUNNING_LOG_LIMIT, source=None
+) -> GloveEmulator:
+    """An emulator from options (used by the node and by ``handflow glove-emulator``); ``source``
+    replaces the one the options name (a node that makes its own frames).
 
     Both run for hours and read no record log, so it keeps only the last ``log_limit`` records
     (a log of every record grew the node's memory by about 24 MB an hour at 50 Hz)."""
-    if opts.frames:
+    if source is None and opts.frames:
         source = array_source(load_frames(resolve(opts.frames)))
-    else:
+    elif source is None:
         source = SyntheticGlove(
             HandMotion(opts.motion_period_s, seed=opts.seed), noise=opts.noise, seed=opts.seed
         ).source
@@ -136,7 +139,7 @@ class CyberGloveNode(Node):
         self.emulator = None
         port = p.port
         if port == "emulator":
-            self.emulator = build_emulator(p.emulator, self.ctx.resolve_path).start()
+            self.emulator = build_emulator(p.emulator, self.ctx.resolve_path, source=self.emulator_source()).start()
             port = self.emulator.path
         elif (problem := missing_device_message(port)) is not None:
             self.ctx.log.error("%s; retrying in the background", problem)
@@ -145,6 +148,10 @@ class CyberGloveNode(Node):
         self._last_state = None
         self._last_status_ns = None
         self.published = 0
+
+    def emulator_source(self):
+        """The embedded emulator's record source (None: the one ``emulator`` names); subclasses perform."""
+        return None
 
     def _publish_pending(self) -> None:
         for rec, arrival_ns in self.reader.drain():

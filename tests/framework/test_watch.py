@@ -15,7 +15,7 @@ import pytest
 from handflow.framework import keys, wire
 from handflow.framework.graphs.model import load_graph
 from handflow.framework.runtime.discovery import join, live_runs
-from handflow.framework.runtime.launcher import Launcher
+from handflow.framework.runtime.launcher import run_graph
 from handflow.framework.runtime.live_params import forget_edited_params, overrides_file, save_override
 from handflow.framework.testkit.plugin_dist import register_plugins
 from tests.framework._rec_helpers import unique
@@ -228,4 +228,4 @@ def test_an_edit_wins_over_the_values_set_while_running_for_the_keys_it_changed_
 def test_watch_is_refused_in_lockstep_mode():
     graph = load_graph(REPO / "configs/basic_chain.yaml")
     with pytest.raises(ValueError, match="--watch cannot be used in lock-step mode"):
-        Launcher(graph, lockstep=True, graph_text=graph.path.read_text())
+        run_graph(graph, lockstep=True, watch=True)

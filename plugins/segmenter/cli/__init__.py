@@ -1,5 +1,5 @@
-"""The segmenter's commands: train-classes, evaluate segmentation, basicmotions-continuous and
-fit-scorer (docs/segmentation.md)."""
+"""The segmenter's commands: train-classes, evaluate segmentation, basicmotions-continuous,
+fit-scorer and dataset (docs/segmentation.md)."""
 
 from ._commands import (
     HEADINGS_ON_RECORDINGS,
@@ -11,6 +11,7 @@ from ._commands import (
     run_train_classes,
     write_plots,
 )
+from ._dataset import register_dataset, run_dataset
 from ._recordings import (
     format_stream_table,
     known_segments,
@@ -24,6 +25,8 @@ from ._recordings import (
 )
 
 __all__ = [
+    "register_dataset",
+    "run_dataset",
     "HEADINGS_ON_RECORDINGS",
     "format_stream_table",
     "format_table",

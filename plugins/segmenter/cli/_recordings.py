@@ -179,10 +179,11 @@ def register_fit_scorer(parser) -> None:
 
 
 def known_segments(path: str, known: str | None, option: str = "--known") -> dict[str, list[np.ndarray]]:
-    """Class name → labelled segments of the classes ``known`` (comma-separated; None = all) of
+    """Class name → labelled segments of the classes ``known`` (comma-separated; None = all but the data's
+    ``unknown_classes``) of
     continuous recordings, or a ValueError that says what to change (naming the ``option``)."""
     data = load_recordings(path)
-    names = known.split(",") if known else data.class_names
+    names = known.split(",") if known else data.known_classes
     missing = sorted(set(names) - set(data.class_names))
     if missing:
         raise ValueError(f"{option} names classes {missing} that the data lacks; it has {data.class_names}")

@@ -9,6 +9,16 @@ from ._enrolment import (
     session_aligned,
     session_alignment,
 )
+from ._labelled_mcap import (
+    MIN_REPETITIONS,
+    REST,
+    Dataset,
+    Stream,
+    build_dataset,
+    label_stream,
+    read_stream,
+    round_cuts,
+)
 from ._recordings import (
     LABEL_COLUMN,
     UNLABELLED,
@@ -34,6 +44,14 @@ from ._trajectories import (
 )
 
 __all__ = [
+    "MIN_REPETITIONS",
+    "REST",
+    "Dataset",
+    "Stream",
+    "build_dataset",
+    "label_stream",
+    "read_stream",
+    "round_cuts",
     "ADAPTATIONS",
     "DatasetError",
     "EnrolmentError",

@@ -6,8 +6,10 @@ Accepted formats (:func:`load_recordings`):
    columns and a last column ``label`` (class name per row; an empty cell = unlabelled).  An
    optional time column (``time``, ``t``, ``timestamp``, ``stamp``) is dropped.
 2. **Continuous .npz** — a ``class_names`` array and matching pairs ``X_<name>`` (T, D) and
-   ``y_<name>`` (T,) of label indices into ``class_names`` (−1 = unlabelled); other keys (e.g.
-   ``t_<name>`` timestamps, ``metadata``) are ignored.
+   ``y_<name>`` (T,) of label indices into ``class_names`` (−1 = unlabelled); an optional
+   ``unknown_classes`` array names classes no model is for (``rest`` of ``handflow dataset``): by
+   default they are unknown to the evaluation and not trained; other keys (e.g. ``t_<name>``
+   timestamps, ``metadata``) are ignored.
 
 :func:`is_continuous` tells these apart from the trajectory formats of :mod:`._trajectories`.
 """
@@ -15,7 +17,7 @@ Accepted formats (:func:`load_recordings`):
 from __future__ import annotations
 
 import csv
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -45,9 +47,15 @@ class RecordingSet:
     class_names: list[str]
     columns: list[str]
     source: str = ""
+    unknown_classes: list[str] = field(default_factory=list)
 
     def __post_init__(self) -> None:
         _check(self)
+
+    @property
+    def known_classes(self) -> list[str]:
+        """The classes modelled by default: all but ``unknown_classes``."""
+        return [c for c in self.class_names if c not in self.unknown_classes]
 
     def names(self) -> list[str]:
         return [r.name for r in self.recordings]
@@ -122,7 +130,10 @@ def _load_npz(arrays: dict[str, np.ndarray], source: str) -> RecordingSet:
         recs.append(Recording(name, X.astype(float), y.astype(int)))
     if not recs:
         raise DatasetError(f"{source}: no 'X_<name>'/'y_<name>' pairs found")
-    return RecordingSet(recs, names, [f"x{i}" for i in range(recs[0].X.shape[1])], source)
+    unknown = [str(c) for c in np.atleast_1d(arrays.get("unknown_classes", np.array([], dtype=str)))]
+    if not set(unknown) <= set(names):
+        raise DatasetError(f"{source}: 'unknown_classes' {unknown} must be among class_names {names}")
+    return RecordingSet(recs, names, [f"x{i}" for i in range(recs[0].X.shape[1])], source, unknown)
 
 
 def _read_labelled_csv(path: Path) -> tuple[list[str], np.ndarray, list[str]]:

@@ -130,7 +130,8 @@ class RecordingsEvaluator(HalvingSelection, InnerFoldCalibration, EnrolmentFits,
         if len(data.recordings) < 3:
             raise ValueError("leave-one-recording-out needs at least 3 recordings (2 to train and validate, 1 to test)")
         self.data = data
-        self.known = [data.class_names.index(k) for k in known] if known else list(range(len(data.class_names)))
+        known = known or data.known_classes  # a dataset's unknown_classes (rest) are unknown by default
+        self.known = [data.class_names.index(k) for k in known]
         check_enrolment(data, self.known, enroll, enrol_adaptations)
         self.enroll = enroll
         self.enrol_adaptations = tuple(enrol_adaptations)

@@ -53,21 +53,22 @@ def _apply(data: dict, sets: Sequence[tuple[str, list[str], Any]]) -> dict:
     return data
 
 
+def _absolute(value: Any, loc: tuple, inputs: set[tuple]) -> Any:
+    """``value`` with the relative paths at the input locations ``inputs`` made absolute against the current directory."""
+    if loc in inputs and isinstance(value, str) and not Path(value).expanduser().is_absolute():
+        return str(Path.cwd() / value)
+    if isinstance(value, list):
+        return [_absolute(x, loc + (i,), inputs) for i, x in enumerate(value)]
+    return value
+
+
 def _cwd_paths(graph: Graph, sets: Sequence[tuple[str, list[str], Any]]) -> list[tuple[str, list[str], Any]]:
     """The values of ``sets`` with the relative input paths they name made absolute against the current directory."""
     out = []
     for node, keys, value in sets:
         rn = graph.nodes.get(node)
-        inputs = {loc: v for loc, v, _ in declared_inputs(rn.cls.Params, rn.params)} if rn is not None else {}
-
-        def absolute(v: Any, loc: tuple) -> Any:
-            if loc in inputs and isinstance(v, str) and not Path(v).expanduser().is_absolute():
-                return str(Path.cwd() / v)
-            if isinstance(v, list):
-                return [absolute(x, loc + (i,)) for i, x in enumerate(v)]
-            return v
-
-        out.append((node, keys, absolute(value, tuple(keys))))
+        inputs = {loc for loc, _, _ in declared_inputs(rn.cls.Params, rn.params)} if rn is not None else set()
+        out.append((node, keys, _absolute(value, tuple(keys), inputs)))
     return out
 
 

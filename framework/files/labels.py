@@ -76,8 +76,12 @@ class CsvInterval:
 def parse_interval_csv(text: str, source: str = "intervals") -> list[CsvInterval]:
     """The rows of an interval CSV, sorted by start; :class:`LabelError` (``source:line``) for a row
     that is not ``start_s,end_s,label`` with finite ``start_s < end_s`` and a label, or for overlaps."""
+    try:
+        table = list(csv.reader(io.StringIO(text, newline="")))
+    except csv.Error as exc:
+        raise LabelError(f"{source}: not a CSV of start_s,end_s,label rows ({exc})") from None
     rows: list[CsvInterval] = []
-    for line, row in enumerate(csv.reader(io.StringIO(text)), 1):
+    for line, row in enumerate(table, 1):
         cells = [c.strip() for c in row]
         if not any(cells) or cells[0].startswith("#"):
             continue

@@ -159,3 +159,46 @@ def summarize_intervals(intervals: Sequence[Interval]) -> dict[str, dict[str, fl
         entry["intervals"] += 1
         entry["seconds"] = round(entry["seconds"] + (i.end_ns - i.start_ns) / 1e9, 3)
     return dict(sorted(out.items()))
+
+
+def recognition_shares(
+    path: str | Path, truth_topic: str, labels_topic: str, truth_path: str | Path | None = None
+) -> dict[str, dict[str, float]]:
+    """How the per-frame labels on ``labels_topic`` (a recogniser's, ``NODE/PORT``) match the truth
+    on ``truth_topic`` (a ``Label`` topic, e.g. ``glove/performed``), per true label: ``frames``, the
+    share labelled that label (``right``) and the share labelled ``unknown``.  Revision events of the
+    recogniser (``SegmentEvent`` on the labels' ``events`` port) are applied first, so the shares are
+    those of its final labels; the truth may come from another recording (``truth_path``, e.g. the
+    live run a lock-step replay recomputed)."""
+    from .mcap_reader import iter_recording
+
+    events_topic = labels_topic.rsplit("/", 1)[0] + "/events"
+    marks, stamps, labels, by_index, revisions = [], [], [], {}, []
+    for rm in iter_recording(truth_path or path, [truth_topic]):
+        msg = rm.decode()
+        marks.append((msg.header.stamp_ns, msg.label))
+    for rm in iter_recording(path, [labels_topic, events_topic]):
+        msg = rm.decode()
+        if rm.topic.endswith("/" + labels_topic):
+            by_index[msg.index] = len(labels)
+            stamps.append(msg.header.stamp_ns)
+            labels.append(msg.label)
+        elif getattr(msg, "kind", "") == "revision":
+            revisions.append(msg)
+    for ev in revisions:
+        for i in range(ev.start_index, ev.end_index + 1):
+            if i in by_index:
+                labels[by_index[i]] = ev.label
+    if not marks or not labels:
+        raise LabelError(f"{path}: no truth on {truth_topic} or no labels on {labels_topic}")
+    truth = frame_labels(np.array(stamps), topic_intervals(marks, max(stamps) + 1))
+    got = np.array(labels, dtype=object)
+    out = {}
+    for label in sorted(set(truth) - {""}):
+        here = truth == label
+        out[label] = {
+            "frames": int(here.sum()),
+            "right": round(float((got[here] == label).mean()), 4),
+            "unknown": round(float((got[here] == "unknown").mean()), 4),
+        }
+    return out

@@ -49,12 +49,10 @@ def run_dataset(args: argparse.Namespace) -> int:
     except (LabelError, RecordingError, OSError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    width = max(len(c) for c in data.frames)
     print(f"wrote {data.recordings} recording(s) to {out}")
-    print(f"{'class':<{width}}  {'repetitions':>11}  {'frames':>7}")
     for c in data.frames:
-        note = "  (rest: unknown, not trained)" if c == REST else ""
-        print(f"{c:<{width}}  {data.repetitions[c]:>11}  {data.frames[c]:>7}{note}")
+        note = " (unknown: no model is trained for it)" if c == REST else ""
+        print(f"{c}: {data.repetitions[c]} repetition(s), {data.frames[c]} frames{note}")
     few = [c for c in data.frames if c != REST and data.repetitions[c] < MIN_REPETITIONS]
     for c in few:
         print(

@@ -228,7 +228,29 @@ def run_train_recording_models(args, progress) -> int:
     progress(
         f"wrote {len(cands)} models (delay {args.delay}, derived {args.derived}) to {out} in {time.perf_counter() - t0:.1f}s"
     )
+    if args.params:
+        print(estimate_line(args.params))
     return 0
+
+
+def estimate_line(path: str, method: str = "ukr_clm") -> str:
+    """How well models trained with the choices of the evaluation result at ``path`` are expected to work
+    on new recordings: its leave-one-recording-out figures for ``method``; marked optimistic when the
+    settings were chosen on all the recordings (a preview) rather than on each fold's inner folds."""
+    result = json.loads(Path(path).read_text())
+    m = result["methods"][method]
+    unknown = m.get("unknown_rejection")
+    optimistic = bool(result.get("parameters", {}).get("preview"))
+    return (
+        f"estimate on new recordings (leave one recording out, {len(m['folds'])} folds, {method}): "
+        f"open-set accuracy {m['open_set_accuracy']:.3f}, known gestures right {m['known_accuracy']:.3f}"
+        + (f", unknown frames rejected {unknown:.3f}" if unknown is not None else "")
+        + (
+            " — optimistic: the settings were chosen on these same recordings"
+            if optimistic
+            else " (settings chosen within each fold, on the other recordings)"
+        )
+    )
 
 
 def _calibrated_background(args, classes: list[str], progress) -> dict:

@@ -162,14 +162,18 @@ def summarize_intervals(intervals: Sequence[Interval]) -> dict[str, dict[str, fl
 
 
 def recognition_shares(
-    path: str | Path, truth_topic: str, labels_topic: str, truth_path: str | Path | None = None
+    path: str | Path,
+    truth_topic: str,
+    labels_topic: str,
+    truth_path: str | Path | None = None,
+    revisions: bool = True,
 ) -> dict[str, dict[str, float]]:
     """How the per-frame labels on ``labels_topic`` (a recogniser's, ``NODE/PORT``) match the truth
     on ``truth_topic`` (a ``Label`` topic, e.g. ``glove/performed``), per true label: ``frames``, the
-    share labelled that label (``right``) and the share labelled ``unknown``.  Revision events of the
-    recogniser (``SegmentEvent`` on the labels' ``events`` port) are applied first, so the shares are
-    those of its final labels; the truth may come from another recording (``truth_path``, e.g. the
-    live run a lock-step replay recomputed)."""
+    share labelled that label (``right``) and the share labelled ``unknown``.  With ``revisions`` the
+    recogniser's revision events (``SegmentEvent`` on the labels' ``events`` port) are applied first,
+    so the shares are those of its final labels, else of its labels on arrival; the truth may come
+    from another recording (``truth_path``, e.g. the live run a lock-step replay recomputed)."""
     from .mcap_reader import iter_recording
 
     events_topic = labels_topic.rsplit("/", 1)[0] + "/events"
@@ -183,7 +187,7 @@ def recognition_shares(
             by_index[msg.index] = len(labels)
             stamps.append(msg.header.stamp_ns)
             labels.append(msg.label)
-        elif getattr(msg, "kind", "") == "revision":
+        elif revisions and getattr(msg, "kind", "") == "revision":
             revisions.append(msg)
     for ev in revisions:
         for i in range(ev.start_index, ev.end_index + 1):

@@ -62,7 +62,7 @@ from tests.conftest import cpu_hog
 
 REPO = Path(__file__).resolve().parents[2]
 TESTED_ELSEWHERE = {"recording.md", "monitoring.md"}  # tests/framework/test_recording_docs.py
-FROM_ANY_DIRECTORY = {"tutorial_training.md"}  # run from an empty directory below, outcome asserted
+FROM_ANY_DIRECTORY = {"tutorial_training.md", "tutorial_gestures.md"}  # run from an empty directory below
 BENCHMARKS = {
     "soak.py": "its bounded variant (3 min of the 60-minute soak) is tests/flagship/test_flagship_soak.py",
     "decode_fuzz.py": "its bounded variant is tests/framework/test_decode_robustness.py",
@@ -516,6 +516,38 @@ def test_the_training_tutorial_works_from_an_empty_directory(workspace):
         latent = np.unwrap(model.latents_[model.sequence_ids_ == seq, 0], period=np.pi)
         assert (latent - np.maximum.accumulate(latent)).min() >= -0.05, f"demonstration {seq} runs backwards"
         assert latent[-1] - latent[0] >= 0.9 * np.pi, f"demonstration {seq} climbs {latent[-1] - latent[0]:.2f} rad"
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(1500)
+def test_the_gestures_tutorial_works_from_an_empty_directory(workspace):
+    """docs/tutorial_gestures.md from an empty directory: the dataset's counts, the estimate, and labels
+    that match the gestures the emulated hand performed on a fresh session (docs/benchmarks.md)."""
+    from handflow.framework.files.labels import recognition_shares
+    from handflow.plugins.segmenter.datasets import load_recordings
+
+    elsewhere = workspace.parent / "elsewhere"
+    elsewhere.mkdir()
+    run_page(REPO / "docs" / "tutorial_gestures.md", elsewhere)
+    out = elsewhere / "out"
+    data = load_recordings(out / "gestures.npz")
+    assert len(data.recordings) == 5 and data.known_classes == ["grasp", "pinch", "wave"]
+    for rec in data.recordings:  # each recording is one round: every class once, about 4 s at 50 Hz
+        counts = np.bincount(rec.y[rec.y >= 0], minlength=4)
+        assert all(180 <= n <= 220 for n in counts[:3]), counts
+    estimate = json.loads((out / "check.json").read_text())["methods"]["ukr_clm"]
+    assert estimate["open_set_accuracy"] >= 0.8 and estimate["known_accuracy"] >= 0.8, estimate
+    assert sorted(json.loads((elsewhere / "models" / "classes.json").read_text())["classes"]) == [
+        "grasp",
+        "pinch",
+        "wave",
+    ]
+    live = recognition_shares(out / "live.mcap", "glove/performed", "segmenter/labels", revisions=False)
+    replayed = recognition_shares(out / "replayed.mcap", "glove/performed", "segmenter/labels", out / "live.mcap")
+    for gesture in ("grasp", "pinch", "wave"):
+        assert live[gesture]["right"] >= 0.7, live
+        assert replayed[gesture]["right"] >= 0.9, replayed
+    assert live["turn"]["unknown"] >= 0.5 and replayed["turn"]["unknown"] >= 0.5, (live, replayed)
 
 
 def test_the_loopback_lsl_setup_shown_in_lsl_md_is_the_shipped_file():

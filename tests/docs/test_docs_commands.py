@@ -66,6 +66,7 @@ FROM_ANY_DIRECTORY = {"tutorial_training.md", "tutorial_gestures.md"}  # run fro
 BENCHMARKS = {
     "soak.py": "its bounded variant (3 min of the 60-minute soak) is tests/flagship/test_flagship_soak.py",
     "decode_fuzz.py": "its bounded variant is tests/framework/test_decode_robustness.py",
+    "gesture_tutorial.py": "the page it times is run by test_the_gestures_tutorial_works_from_an_empty_directory",
     **dict.fromkeys(
         (
             f"{name}.py"

@@ -94,7 +94,7 @@ def _check_args(args: argparse.Namespace) -> str | None:
         return f"--speed must be > 0 (got {args.speed}); use 2 for twice as fast, 0.5 for half speed"
     if args.record and not args.into:
         return "--record needs --into GRAPH.yaml (to record a running graph use `handflow record`)"
-    if args.set and not args.into:
+    if getattr(args, "set", None) and not args.into:
         return "--set needs --into GRAPH: it sets a parameter of a node the replay launches"
     if args.lockstep and not args.into:
         return (
@@ -181,7 +181,7 @@ def _replay_join(args: argparse.Namespace, recorded: str | None, stop: threading
 def _replay_into(args: argparse.Namespace, recorded: str | None, stop: threading.Event) -> int:
     """Launch ``--into`` (lock-step or not), feed it, let it drain, stop it."""
     try:
-        graph, text = graph_with_sets(args.into, args.set)
+        graph, text = graph_with_sets(args.into, getattr(args, "set", None) or [])
     except GraphError as exc:
         print(f"{exc}\n{args.into}: fix the graph file (see `handflow validate {args.into}`)", file=sys.stderr)
         return 2

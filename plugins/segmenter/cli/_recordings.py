@@ -228,17 +228,20 @@ def run_train_recording_models(args, progress) -> int:
     progress(
         f"wrote {len(cands)} models (delay {args.delay}, derived {args.derived}) to {out} in {time.perf_counter() - t0:.1f}s"
     )
-    if args.params:
-        print(estimate_line(args.params))
+    if args.params and (estimate := estimate_line(args.params)) is not None:
+        print(estimate)
     return 0
 
 
-def estimate_line(path: str, method: str = "ukr_clm") -> str:
+def estimate_line(path: str, method: str = "ukr_clm") -> str | None:
     """How well models trained with the choices of the evaluation result at ``path`` are expected to work
     on new recordings: its leave-one-recording-out figures for ``method``; marked optimistic when the
-    settings were chosen on all the recordings (a preview) rather than on each fold's inner folds."""
+    settings were chosen on all the recordings (a preview) rather than on each fold's inner folds; None
+    when the result holds no figures for it."""
     result = json.loads(Path(path).read_text())
     m = result["methods"][method]
+    if "open_set_accuracy" not in m or "known_accuracy" not in m:
+        return None
     unknown = m.get("unknown_rejection")
     optimistic = bool(result.get("parameters", {}).get("preview"))
     return (

@@ -177,7 +177,7 @@ def recognition_shares(
     from .mcap_reader import iter_recording
 
     events_topic = labels_topic.rsplit("/", 1)[0] + "/events"
-    marks, stamps, labels, by_index, revisions = [], [], [], {}, []
+    marks, stamps, labels, by_index, revised = [], [], [], {}, []
     for rm in iter_recording(truth_path or path, [truth_topic]):
         msg = rm.decode()
         marks.append((msg.header.stamp_ns, msg.label))
@@ -188,8 +188,8 @@ def recognition_shares(
             stamps.append(msg.header.stamp_ns)
             labels.append(msg.label)
         elif revisions and getattr(msg, "kind", "") == "revision":
-            revisions.append(msg)
-    for ev in revisions:
+            revised.append(msg)
+    for ev in revised:
         for i in range(ev.start_index, ev.end_index + 1):
             if i in by_index:
                 labels[by_index[i]] = ev.label

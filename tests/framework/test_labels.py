@@ -117,3 +117,27 @@ def test_set_resolves_input_paths_against_the_current_directory(tmp_path, monkey
         graph_text_with("recognise_gestures", ["segmentr.models=x"])
     with pytest.raises(OverrideError, match="NODE.KEY=VALUE"):
         parse_set("models")
+
+
+def test_recognition_shares_apply_revisions_to_the_labels_on_arrival(tmp_path):
+    from handflow.framework.files.labels import recognition_shares
+    from handflow.framework.files.mcap_writer import McapWriter
+    from handflow.framework.messages import Label, SegmentEvent
+
+    def stamped(msg, stamp):
+        msg.header.stamp_ns = stamp
+        return msg
+
+    path = tmp_path / "live.mcap"
+    arrived = ["unknown"] * 3 + ["grasp"] * 7 + ["unknown"] * 10  # frames 0–9 grasp, 10–19 turn
+    with McapWriter(path, flush_interval_s=None) as w:
+        w.write("handflow/g/glove/performed", stamped(Label(label="grasp"), 0), 0)
+        w.write("handflow/g/glove/performed", stamped(Label(label="turn"), 10), 10)
+        for i, label in enumerate(arrived):
+            w.write("handflow/g/seg/labels", stamped(Label(label=label, index=i), i), i)
+        revision = SegmentEvent(kind="revision", label="grasp", start_index=1, end_index=2, previous_label="unknown")
+        w.write("handflow/g/seg/events", stamped(revision, 12), 12)
+    final = recognition_shares(path, "glove/performed", "seg/labels")
+    assert final["grasp"] == {"frames": 10, "right": 0.9, "unknown": 0.1}
+    assert final["turn"] == {"frames": 10, "right": 0.0, "unknown": 1.0}
+    assert recognition_shares(path, "glove/performed", "seg/labels", revisions=False)["grasp"]["right"] == 0.7

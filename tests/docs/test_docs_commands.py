@@ -376,7 +376,7 @@ def test_graph_files_named_in_doc_commands_validate():
 
 
 def test_foxglove_layout_topics_are_published_by_the_flagship():
-    layout = json.loads((REPO / "docs" / "foxglove_layout.json").read_text())
+    layout = json.loads((REPO / "configs" / "foxglove_layout.json").read_text())
     graph = load_graph(REPO / "configs" / "demo.yaml")
     text = json.dumps(layout["configById"])
     topics = set(re.findall(r"demo/(\w+)/(\w+)", text))

@@ -512,7 +512,11 @@ def _key(unit: Unit) -> tuple[str, tuple[str, ...]]:
 def _prepare_local() -> None:
     """Reclaim what dead processes left in iceoryx2; one notice when it is not usable (docs/shared_memory.md)."""
     if (why := local_transport.prepare()) is not None:
-        log.warning("iceoryx2 is not usable here (%s); this host's topics travel over Zenoh", why)
+        log.warning(
+            "iceoryx2 is not usable here (%s); this host's topics travel over Zenoh. %s",
+            why,
+            local_transport.remedy(why),
+        )
 
 
 def _why(failure: dict) -> str:

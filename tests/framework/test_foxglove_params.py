@@ -201,6 +201,8 @@ def test_replay_is_driven_from_the_playback_bar(tmp_path):
         replay.send_signal(signal.SIGINT)
         _, err = replay.communicate(timeout=60)
     assert replay.returncode == 0, err
+    assert fox.problems() == [] and " ERROR " not in err, err  # every request answered with a playback state
+    assert [st["id"] for st in fox.states if st["id"]] == [b"pause", b"seek"]
     assert 30 <= playing <= 70  # 50 Hz
     assert playback_state(paused[0]) | {"time": 0} == {
         "status": 1,

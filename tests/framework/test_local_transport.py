@@ -274,10 +274,11 @@ class _Run:
 
 
 @contextmanager
-def _running(tmp_path: Path, prefix: str, seconds: int):
+def _running(tmp_path: Path, prefix: str, seconds: int, again: tuple[str, int] | None = None):
     """The iceoryx2 graph running for at most ``seconds``, read by a remote-style peer, once its sink handles
-    messages; stopped with Ctrl-C at the end of the block."""
-    name, port = unique(prefix), free_tcp_port()
+    messages; stopped with Ctrl-C at the end of the block.  ``again``: the name and hub port of a graph run
+    before (the same iceoryx2 services)."""
+    name, port = again or (unique(prefix), free_tcp_port())
     proc = start("run", str(_graph(tmp_path, name, "iceoryx2", port)), "--duration", str(seconds))
     run = _Run(name, _peer(port))
     try:
@@ -490,7 +491,7 @@ def test_launchers_killed_during_start_up_never_switch_the_local_transport_off(t
         how = signal.SIGINT if i % 2 else signal.SIGKILL
         err = _interrupted_start(graph, how, after_s=0.1 * (i // 2))  # while its nodes open their ports
         notices += [line for line in err.splitlines() if "not usable" in line]
-    with _running(tmp_path, "after", 30) as run:
+    with _running(tmp_path, "after", 30, again=(name, port)) as run:  # the same iceoryx2 services
         assert run.health.get("source", "path.out") == lt.LOCAL  # the monitor's path column: iceoryx2
         assert run.health.get("scale", "path.out") == lt.LOCAL
     assert run.returncode == 0, run.err

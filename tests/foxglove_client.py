@@ -45,18 +45,22 @@ def connect_foxglove(port: int, timeout: float):
 
 class FoxgloveClient:
     """The Foxglove app's side of the protocol: JSON requests, replies picked by their ``op``.  Every status
-    message and playback state received on the way is kept (``statuses``, ``states``)."""
+    message, playback state and advertised topic received on the way is kept (``statuses``, ``states``,
+    ``topics``)."""
 
     def __init__(self, port: int, timeout: float = 30.0) -> None:
         self.ws = connect_foxglove(port, timeout)
         self.statuses: list[dict] = []
         self.states: list[dict] = []
+        self.topics: set[str] = set()
 
     def recv(self, timeout: float) -> str | bytes:
         """The next frame (``TimeoutError`` after ``timeout``), noting statuses and playback states."""
         frame = self.ws.recv(timeout=timeout)
         if isinstance(frame, str) and (msg := json.loads(frame)).get("op") == "status":
             self.statuses.append(msg)
+        elif isinstance(frame, str) and msg.get("op") == "advertise":
+            self.topics |= {c["topic"] for c in msg["channels"]}
         elif isinstance(frame, bytes) and frame[0] == 5:
             self.states.append(playback_state(frame))
         return frame

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -20,7 +21,9 @@ import pytest
 from handflow.framework import keys
 from handflow.framework.files.mcap_reader import iter_recording
 from handflow.framework.files.mcap_writer import McapWriter
+from handflow.framework.graphs.model import load_graph
 from handflow.framework.messages import Header, ParamChange
+from handflow.framework.observe.foxglove_layout import carried, layout_for
 from tests.foxglove_client import FoxgloveClient, handflow_with_foxglove, playback_request, playback_state
 
 pytest.importorskip("foxglove")
@@ -123,6 +126,11 @@ def test_lockstep_replay_follows_the_playback_bar_and_a_seek_back_gives_the_unin
     assert replay.returncode == 0, err
     assert fox.problems() == []  # no "Server did not send playback state ..."
     assert " ERROR " not in err, err
+    # the flagship layout written for this graph (`handflow layout`): every topic it names that the graph
+    # carries reached the client, so its joint, label and event panels show the replay
+    wanted = {f"/handflow/demo_segment_only/{t}" for t in carried(load_graph(GRAPH))}
+    named = set(re.findall(r"/handflow/demo_segment_only/\w+/\w+", layout_for("demo_segment_only")))
+    assert len(named & wanted) == 3 and named & wanted <= fox.topics, fox.topics
     answered = [st["id"] for st in fox.states if st["id"]]
     assert answered == [b"pause", b"slow", b"fast", b"ahead", b"back"]  # one answer each, in order
 

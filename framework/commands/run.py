@@ -5,7 +5,6 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-import time
 
 from ..runtime.startup import StartupProgress
 from ..runtime.zygote import start_unless_disabled
@@ -42,7 +41,7 @@ def register(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    progress = StartupProgress(time.monotonic())
+    progress = StartupProgress()
     progress.say("handflow run %s: importing its plugins, checking its inputs, starting its processes", args.graph)
     # imports the plugins for the node processes while the graph is checked here
     zygote = start_unless_disabled(args.graph)

@@ -151,6 +151,18 @@ def _unavailable(name: str, exc: Exception) -> int:
     return 1
 
 
+def _parse(parser: argparse.ArgumentParser, argv: list[str] | None) -> argparse.Namespace:
+    """The arguments; a command that sets ``late_positionals`` (names of optional positionals) takes them also
+    after an option (``param load --restart FILE``), which argparse alone leaves unrecognised."""
+    args, extra = parser.parse_known_args(argv)
+    for name in getattr(args, "late_positionals", ()):
+        if getattr(args, name, None) is None and extra and not extra[0].startswith("-"):
+            setattr(args, name, extra.pop(0))
+    if extra:
+        parser.error(f"unrecognized arguments: {' '.join(extra)}")
+    return args
+
+
 def _terminated(signum, frame) -> None:
     raise KeyboardInterrupt  # SIGTERM stops a command like Ctrl-C does (commands install finer handlers)
 
@@ -158,7 +170,7 @@ def _terminated(signum, frame) -> None:
 def main(argv: list[str] | None = None) -> int:
     signal.signal(signal.SIGTERM, _terminated)
     parser = build_parser(argv)
-    args = parser.parse_args(argv)
+    args = _parse(parser, argv)
     logging.basicConfig(
         level=args.log_level, stream=sys.stderr, format="%(asctime)s %(levelname)s [%(name)s] %(message)s"
     )

@@ -15,8 +15,8 @@ import yaml
 from .. import keys, wire
 from ..messages import MessageError
 from ..runtime.discovery import add_auth_arguments
-from ..runtime.param_service import LOCAL, NODE_TIMEOUT_S
-from ._shared import joined_graphs
+from ..runtime.param_service import NODE_TIMEOUT_S
+from ._shared import one_graph, param_asker
 
 PORT_CHECK_S = 1.0  # nothing came within this: check that the node has such an output port
 
@@ -88,16 +88,10 @@ def run(args: argparse.Namespace) -> int:
         return 2
     named, node, port = parse_topic(args.topic)
     args.graph = args.graph or named
-    if (joined := joined_graphs(args)) is None:
+    if (joined := one_graph(args)) is None:
         return 2
-    session, found = joined
+    session, graph, info = joined
     try:
-        if len(found) > 1:
-            print(
-                f"error: several graphs run there ({', '.join(sorted(found))}); name one with --graph", file=sys.stderr
-            )
-            return 2
-        graph, info = next(iter(found.items()))
         nodes = info.get("nodes", [])
         if not node.startswith("_") and node not in nodes:
             print(f"error: graph '{graph}' has no node '{node}' (its nodes: {', '.join(nodes)})", file=sys.stderr)
@@ -142,10 +136,7 @@ def _no_such_port(session, graph: str, node: str, port: str, args: argparse.Name
     cannot be told here (a plugin given by path, or not installed on this machine)."""
     from ..registry import PluginError, plugin_entries
 
-    who = args.cert_name if args.certs else LOCAL
-    request = json.dumps({"op": "get"})
-    for reply in session.get(keys.param_request_key(graph, who, node), payload=request, timeout=NODE_TIMEOUT_S + 3):
-        answer = json.loads(reply.ok.payload.to_bytes()) if reply.ok is not None else {}
+    for answer in param_asker(session, graph, args)(node, {"op": "get"}, NODE_TIMEOUT_S + 3):
         entry = plugin_entries().get(answer.get("plugin", ""))
         if not answer.get("ok") or entry is None:
             continue

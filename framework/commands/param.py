@@ -10,11 +10,10 @@ from typing import Any
 
 import yaml
 
-from ..keys import param_request_key
 from ..runtime.discovery import add_auth_arguments
-from ..runtime.param_service import LOCAL, NODE_TIMEOUT_S, RESTART_TIMEOUT_S
+from ..runtime.param_service import NODE_TIMEOUT_S, RESTART_TIMEOUT_S
 from . import param_files
-from ._shared import joined_graphs
+from ._shared import one_graph, param_asker
 from .param_files import show
 
 
@@ -82,23 +81,11 @@ def run(args: argparse.Namespace) -> int:
         print(f"error: {asked}", file=sys.stderr)
         return 2
     node, key, request = asked
-    if (joined := joined_graphs(args)) is None:
+    if (joined := one_graph(args)) is None:
         return 2
-    session, found = joined
+    session, graph, info = joined
     try:
-        if len(found) > 1:
-            print(
-                f"error: several graphs run there ({', '.join(sorted(found))}); name one with --graph", file=sys.stderr
-            )
-            return 2
-        graph, info = next(iter(found.items()))
-        who = args.cert_name if args.certs else LOCAL
-
-        def ask(node: str, request: dict[str, Any], timeout: float) -> list[dict[str, Any]]:
-            key = param_request_key(graph, who, node)
-            answers = session.get(key, payload=json.dumps(request), timeout=timeout)
-            return [json.loads(r.ok.payload.to_bytes()) for r in answers if r.ok is not None]
-
+        ask = param_asker(session, graph, args)
         timeouts = NODE_TIMEOUT_S + 3, RESTART_TIMEOUT_S + 10
         if request["op"] == "dump":
             return param_files.dump(graph, ask, args.target, timeouts[0])

@@ -15,30 +15,9 @@ from handflow.framework.graphs.model import GraphError, load_graph
 from handflow.framework.registry import load_plugin
 from handflow.framework.runtime.plugin_sources import forget, plugin_files
 from tests.framework._rec_helpers import handflow, unique, wait_until, write_graph
+from tests.framework.test_watch import PLUGIN as WATCHED
 
-PLUGIN = """from handflow.framework.files.params import StrictModel
-from handflow.framework.messages import Array
-from handflow.framework.plugin import Node
-
-SHIFT = 1.0
-
-
-class ShiftParams(StrictModel):
-    scale: float = 1.0
-
-
-class Shift(Node):
-    Params = ShiftParams
-    inputs = {"in": Array}
-    outputs = {"out": Array}
-
-    def on_message(self, port, msg):
-        out = Array(data=msg.data * self.params.scale + SHIFT, shape=list(msg.shape))
-        self.ctx.publish("out", out, stamp_ns=msg.header.stamp_ns)
-
-
-NotANode = dict
-"""
+PLUGIN = WATCHED.replace("SHIFT = 0.0", "SHIFT = 1.0") + "\n\nNotANode = dict\n"  # and a class that is no Node
 NODES = """nodes:
   - id: source
     plugin: basic.signal

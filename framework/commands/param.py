@@ -90,7 +90,7 @@ def run(args: argparse.Namespace) -> int:
         if request["op"] == "dump":
             return param_files.dump(graph, ask, args.target, timeouts[0])
         if request["op"] == "load":
-            return param_files.load(graph, ask, args.target, args.restart, timeouts)
+            return param_files.load(graph, info.get("nodes", []), ask, args.target, args.restart, timeouts)
         replies = ask(node, request, timeouts[1] if request.get("restart") else timeouts[0])
     finally:
         session.close()

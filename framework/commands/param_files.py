@@ -115,11 +115,17 @@ def dump(graph: str, ask: Ask, file: str | None, timeout: float) -> int:
     return 0
 
 
-def _unknown(wanted: dict[str, dict[str, Any]], current: dict[str, dict[str, Any]], graph: str, file: str) -> list[str]:
+def _unknown(
+    wanted: dict[str, dict[str, Any]], current: dict[str, dict[str, Any]], graph: str, nodes: list[str], file: str
+) -> list[str]:
     problems = []
     for node, params in wanted.items():
         if node not in current:
-            problems.append(f"{file}: graph '{graph}' has no node '{node}' (its nodes: {', '.join(sorted(current))})")
+            problems.append(
+                f"{file}: node '{node}' of graph '{graph}' did not answer: is it running? (see the graph's log)"
+                if node in nodes
+                else f"{file}: graph '{graph}' has no node '{node}' (its nodes: {', '.join(sorted(nodes))})"
+            )
             continue
         for key in params.keys() - current[node]["params"].keys():
             problems.append(
@@ -128,7 +134,7 @@ def _unknown(wanted: dict[str, dict[str, Any]], current: dict[str, dict[str, Any
     return problems
 
 
-def load(graph: str, ask: Ask, file: str, restart: bool, timeouts: tuple[float, float]) -> int:
+def load(graph: str, nodes: list[str], ask: Ask, file: str, restart: bool, timeouts: tuple[float, float]) -> int:
     """Apply ``file`` to the running graph (see the module docstring); exit code as ``param set``."""
     node_timeout, restart_timeout = timeouts
     try:
@@ -140,7 +146,7 @@ def load(graph: str, ask: Ask, file: str, restart: bool, timeouts: tuple[float, 
         print(f"error: {exc}", file=sys.stderr)
         return 2
     current = {r["node"]: r for r in ask("*", {"op": "get"}, node_timeout) if r.get("ok")}
-    if problems := _unknown(wanted, current, graph, file):
+    if problems := _unknown(wanted, current, graph, nodes or sorted(current), file):
         print("\n".join(f"error: {p}" for p in problems) + "\nnothing changed", file=sys.stderr)
         return 2
     codes, applied, unchanged = [], 0, 0

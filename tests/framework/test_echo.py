@@ -11,6 +11,7 @@ import yaml
 
 from handflow.framework.commands.echo import parse_topic, shown
 from handflow.framework.messages import Array, Header
+from handflow.framework.testkit.fuzzing import sample_messages
 from tests.framework._rec_helpers import chain, handflow, start, unique, wait_until
 
 
@@ -32,6 +33,13 @@ def test_messages_show_as_yaml_blocks_with_long_lists_cut():
     assert block["header"] == {"source": "scale", "seq": 7, "stamp_ns": 123}
     assert block["data"] == [*range(10), "..."] and block["shape"] == [300]
     assert yaml.safe_load(shown(msg.to_dict(), truncate=0).removesuffix("---"))["data"] == list(range(300))
+
+
+def test_every_message_type_shows_as_yaml_and_json():
+    for msg in sample_messages():
+        d = msg.to_dict()
+        block = yaml.safe_load(shown(d, truncate=0).removesuffix("---"))
+        assert block == {k: v for k, v in json.loads(json.dumps(d)).items() if k != "type"}, msg.TYPE
 
 
 @pytest.mark.slow

@@ -18,7 +18,7 @@ from .param_files import show
 
 
 def register(parser: argparse.ArgumentParser) -> None:
-    """List, read or change the parameters of a running graph's nodes (live, or with --restart)."""
+    """List, read or change a running graph's parameters (live, or with --restart); dump them to or load a file."""
     parser.add_argument(
         "action",
         choices=["list", "get", "set", "dump", "load"],

@@ -90,6 +90,17 @@ def test_a_path_plugin_that_does_not_load_is_refused_at_its_graph_line(folder, p
         assert f"(at {folder / 'plugins' / 'broken.py'}:5)" in text
 
 
+def test_plugins_shows_a_path_plugin_relative_to_the_current_folder(folder, monkeypatch, capsys):
+    from handflow.framework import cli
+
+    monkeypatch.chdir(folder)
+    assert cli.main(["plugins", "./plugins/shift.py:Shift"]) == 0
+    out = capsys.readouterr().out
+    assert f"({folder / 'plugins' / 'shift.py'})" in out and "outputs: out [handflow.Array]" in out
+    assert cli.main(["plugins", "./plugins/shift.py:Shfit", "--json"]) == 2
+    assert "defines no 'Shfit'" in json.loads(capsys.readouterr().out)[0]["error"]
+
+
 @pytest.mark.slow
 def test_a_graph_with_a_path_plugin_runs_records_and_replays_in_lockstep(folder, monkeypatch):
     monkeypatch.setenv("HANDFLOW_RUN_DIR", str(folder / "runs"))

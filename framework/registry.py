@@ -106,8 +106,12 @@ def load_file_plugin(name: str, base_dir: Path) -> type[Node]:
             f"plugin '{name}': a plugin given by path is written FILE.py:ClassName (e.g. ./my_plugin.py:MyNode), "
             "FILE relative to the graph file's folder"
         )
-    path = (base_dir / file).resolve()
-    if not path.is_file():
+    try:
+        path = (base_dir / file).resolve()
+        found = path.is_file()
+    except (OSError, ValueError) as exc:  # a name the file system refuses (too long, a NUL byte)
+        raise PluginError(f"plugin '{name}': {file!r} is not a usable path: {exc}") from None
+    if not found:
         raise PluginError(
             f"plugin '{name}': no file {path} (a path is relative to the graph file's folder, {base_dir})"
         )

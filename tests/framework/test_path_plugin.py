@@ -9,6 +9,8 @@ import subprocess
 import sys
 
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from handflow.framework.files.mcap_reader import ReadReport, iter_recording
 from handflow.framework.graphs.model import GraphError, load_graph
@@ -88,6 +90,22 @@ def test_a_path_plugin_that_does_not_load_is_refused_at_its_graph_line(folder, p
         assert "is not a handflow.framework.plugin.Node subclass" in text
     if "broken" in plugin:
         assert f"(at {folder / 'plugins' / 'broken.py'}:5)" in text
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(
+    name=st.tuples(
+        st.sampled_from(["./", "../", "/", "../plugins/"]),
+        st.text(max_size=20) | st.sampled_from(["shift", "broken", "nothing", "", "../graphs/g"]),
+        st.sampled_from([".py:Shift", ".py:NotANode", ".py:", ".py", ":Shift", ".yaml:Shift", ""]),
+    ).map("".join)
+)
+def test_any_plugin_path_validates_or_is_a_problem_at_its_line(folder, name):
+    (folder / "plugins" / "broken.py").write_text(PLUGIN.replace("SHIFT = 1.0", "SHIFT = (1.0"))
+    try:
+        load_graph(graph_with(folder, json.dumps(name)))
+    except GraphError as exc:
+        assert "g.yaml:" in str(exc)
 
 
 def test_plugins_shows_a_path_plugin_relative_to_the_current_folder(folder, monkeypatch, capsys):

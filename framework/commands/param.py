@@ -88,7 +88,7 @@ def run(args: argparse.Namespace) -> int:
         ask = param_asker(session, graph, args)
         timeouts = NODE_TIMEOUT_S + 3, RESTART_TIMEOUT_S + 10
         if request["op"] == "dump":
-            return param_files.dump(graph, ask, args.target, timeouts[0])
+            return param_files.dump(graph, info.get("nodes", []), ask, args.target, timeouts[0])
         if request["op"] == "load":
             return param_files.load(graph, info.get("nodes", []), ask, args.target, args.restart, timeouts)
         replies = ask(node, request, timeouts[1] if request.get("restart") else timeouts[0])

@@ -95,24 +95,32 @@ def dump_text(graph: str, replies: list[dict[str, Any]]) -> str:
     return head + yaml.safe_dump(nodes, sort_keys=False, default_flow_style=False)  # escaped: a NEL survives
 
 
-def dump(graph: str, ask: Ask, file: str | None, timeout: float) -> int:
+def dump(graph: str, nodes: list[str], ask: Ask, file: str | None, timeout: float) -> int:
+    """Write the parameter file (exit 1 when a node of the graph did not answer: the file lacks it)."""
     replies = ask("*", {"op": "get"}, timeout)
     failed = [r for r in replies if not r.get("ok")]
     for r in failed:
         print(f"error: {r.get('error', 'refused')}", file=sys.stderr)
     if failed or not replies:
         return 2 if not replies else max(int(r.get("code", 2)) for r in failed)
+    missing = sorted(set(nodes) - {r["node"] for r in replies})
+    if missing:
+        print(
+            f"warning: node(s) {', '.join(missing)} did not answer and are not in the file (not running, or run by "
+            "another machine's launcher: join its hub with --connect)",
+            file=sys.stderr,
+        )
     text = dump_text(graph, replies)
     if file is None:
         sys.stdout.write(text)
-        return 0
+        return 1 if missing else 0
     try:
         Path(file).write_text(text)
     except OSError as exc:
         print(f"error: cannot write {file}: {exc.strerror}; pass a writable path", file=sys.stderr)
         return 2
     print(f"wrote the parameters of {len(replies)} node(s) of graph '{graph}' to {file}", file=sys.stderr)
-    return 0
+    return 1 if missing else 0
 
 
 def _unknown(

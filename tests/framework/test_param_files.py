@@ -15,7 +15,7 @@ import yaml
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from handflow.framework.commands.param_files import ParamFileError, dump_text, read_param_file, same_value
+from handflow.framework.commands.param_files import ParamFileError, dump, dump_text, read_param_file, same_value
 from handflow.framework.runtime.discovery import live_runs
 
 REPO = Path(__file__).resolve().parents[2]
@@ -71,6 +71,14 @@ def test_malformed_files_are_refused_with_file_line_and_what_to_change(text, say
 def test_equal_values_are_equal_as_parameters():
     assert same_value(2, 2.0) and same_value([1, {"a": 2}], [1.0, {"a": 2.0}]) and same_value(None, None)
     assert not same_value(True, 1) and not same_value("2", 2) and not same_value([1], [1, 2])
+
+
+def test_a_dump_missing_a_node_says_which_and_exits_1(tmp_path, capsys):
+    """The replies as the parameter service gives them when node 'sink' is down."""
+    replies = [{"ok": True, "node": "scale", "params": {"gain": 2.0}, "live": ["gain"], "plugin": "basic.transform"}]
+    code = dump("g", ["scale", "sink"], lambda node, request, timeout: replies, str(tmp_path / "p.yaml"), 1.0)
+    assert code == 1 and "node(s) sink did not answer" in capsys.readouterr().err
+    assert read_param_file((tmp_path / "p.yaml").read_text()) == {"scale": {"gain": 2.0}}
 
 
 # ----------------------------------------------------------------------------------------------

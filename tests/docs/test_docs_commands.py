@@ -435,7 +435,9 @@ def run_page(doc: Path, workspace: Path) -> None:
         for block in doc_blocks(doc):
             for kind, arg in block.markers:
                 if kind == "file":
-                    (workspace / QUOTED.findall(arg)[0]).write_text(block.text)
+                    target = workspace / QUOTED.findall(arg)[0]
+                    target.parent.mkdir(parents=True, exist_ok=True)
+                    target.write_text(block.text)
             busy = cpu_hog() if any(kind == "busy" for kind, _ in block.markers) else nullcontext()
             with busy:
                 _run_block(doc, block, workspace, jobs, started)

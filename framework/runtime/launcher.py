@@ -38,6 +38,7 @@ from .live_params import forget_edited_params
 from .param_service import ParamService
 from .ros2_bridge import Ros2Bridge
 from .runner import RESTART_SIGNAL, START_WAIT_S, STOPPED, failure_file, node_state_files
+from .startup import StartupProgress
 from .watch import Watcher
 from .zygote import RUNNER, ForkedProcess, Zygote, start_unless_disabled
 
@@ -508,7 +509,11 @@ def _key(unit: Unit) -> tuple[str, tuple[str, ...]]:
 def _prepare_local() -> None:
     """Reclaim what dead processes left in iceoryx2; one notice when it is not usable (docs/shared_memory.md)."""
     if (why := local_transport.prepare()) is not None:
-        log.warning("iceoryx2 is not usable here (%s); this host's topics travel over Zenoh", why)
+        log.warning(
+            "iceoryx2 is not usable here (%s); this host's topics travel over Zenoh. %s",
+            why,
+            local_transport.remedy(why),
+        )
 
 
 def _why(failure: dict) -> str:
@@ -531,6 +536,7 @@ def run_graph(
     lockstep: bool = False,
     zygote: Zygote | None = None,
     watch: bool = False,
+    progress: StartupProgress | None = None,
     text: str | None = None,
 ) -> Launcher:
     """Run ``graph`` until Ctrl-C/SIGTERM or ``duration_s``; returns the stopped launcher (for its summary).
@@ -539,11 +545,13 @@ def run_graph(
     recorder or a live view there, so they miss nothing); if it raises, nothing is started.  A
     ``zygote`` started before the graph was loaded imports the plugins meanwhile (one is started otherwise).
     With ``watch``, edits of the graph file and of its plugins' sources restart the nodes they
-    concern (:mod:`.watch`, docs/tuning.md).  With ``text``, the nodes run that version of the graph
-    file (``handflow run --set``, :mod:`..graphs.overrides`).
+    concern (:mod:`.watch`, docs/tuning.md).  ``progress`` says how start-up goes (:mod:`.startup`).
+    With ``text``, the nodes run that version of the graph file (``handflow run --set``,
+    :mod:`..graphs.overrides`).
     """
     if lockstep and watch:
         raise ValueError("--watch cannot be used in lock-step mode: a lock-step replay is a fixed, deterministic run")
+    progress = progress or StartupProgress()
     if text is None and watch:
         text = graph.path.read_text()
     level = logging.getLevelName(logging.getLogger().level)
@@ -572,13 +580,15 @@ def run_graph(
             if not launcher.alive():
                 log.info("all nodes have exited")
                 break
+            if not started:
+                progress.poll(launcher)
             ready = lockstep or launcher.all_ready()
             waited = time.monotonic() - t_launch
             settled = ready or launcher.settled() or waited > START_WAIT_S
             if settled and not started:
                 started = True
                 if ready:
-                    log.info("all nodes ready after %.1fs", waited)
+                    progress.all_ready(waited)
                 else:
                     down = [nid for u in launcher.units if u.proc is None for nid in u.node_ids]
                     log.warning("%.1fs after the launch, the other nodes start without %s", waited, ", ".join(down))

@@ -263,6 +263,15 @@ def register_evaluate(parser: argparse.ArgumentParser) -> None:
         "(docs/segmentation.md)",
     )
     parser.add_argument(
+        "--preview",
+        action="store_true",
+        help="explore in minutes: every candidate is scored once on the reported folds (continuous recordings: the "
+        "leave-one-recording-out folds; labelled trajectories: the test cases, fitted on the train split) by the "
+        "nested protocol's own objective, one choice per method for all folds — cross-validated grid search, "
+        "optimistic like scikit-learn's best_score_; the JSON's 'protocol' says so. Publish the default (nested) "
+        "protocol's figure (docs/segmentation.md, Which protocol when)",
+    )
+    parser.add_argument(
         "--verbose",
         action="store_true",
         help="continuous recordings: also print every candidate's calibration and each fold's full choice "

@@ -48,8 +48,24 @@ class Choice:
     fallback: bool = False  # rejection switched off: nothing beat rejecting everything
     strict: Choice | None = None  # the objective's own choice, when it was overruled
 
+    def selected(self) -> dict:
+        """A fold's ``selected`` in the JSON: the parameters, the rejection value, the validation
+        objective, whether rejection is off, and the overruled strict choice."""
+        out = {
+            **self.params,
+            "reject": float(self.reject),
+            "validation_objective": self.objective,
+            "rejection": "off" if self.fallback else "calibrated",
+        }
+        if self.fallback:
+            out["strict"] = {**self.strict.params, "reject": float(self.strict.reject)}
+        return out
 
-def inner_folds(train: list[Recording]) -> list[tuple[Recording, list[Recording]]]:
+
+Split = tuple[Recording, list[Recording]]  # a validation recording and the recordings that train for it
+
+
+def inner_folds(train: list[Recording]) -> list[Split]:
     """The inner splits of the training recordings ``train``: each of the last :data:`INNER_FOLDS`
     validated by the others."""
     return [(v, [t for t in train if t is not v]) for v in train[-INNER_FOLDS:]]
@@ -78,11 +94,12 @@ class InnerFoldCalibration:
         return [self.data.class_names[c] for c, segs in segments(recs, self.known).items() if not segs]
 
     def _calibrated(
-        self, method, train: list[Recording], params: dict, fidelity: Fidelity = FULL
+        self, method, splits: list[Split], params: dict, fidelity: Fidelity = FULL
     ) -> tuple[Choice, float, Callable]:
-        """``params``' best rejection value on the inner folds of ``train`` at ``fidelity``, the
-        sweep's keep-all value and the known accuracy as a function of the rejection value."""
-        known_acc, pseudo_rej, grid = self.validation(method, train, params, fidelity)
+        """``params``' best rejection value on ``splits`` (:func:`inner_folds`; the preview: the
+        outer folds) at ``fidelity``, the sweep's keep-all value and the known accuracy as a
+        function of the rejection value."""
+        known_acc, pseudo_rej, grid = self.validation(method, splits, params, fidelity)
         value, score = calibrate(known_acc, pseudo_rej, grid)
         self.detail(f"    {method.name} {fidelity.name} {params}: reject={value:.4g} objective={score:.3f}")
         return Choice(params, value, score), grid[0], known_acc
@@ -120,13 +137,15 @@ class InnerFoldCalibration:
         return replace(chosen, fallback=True, strict=best)
 
     def validation(
-        self, method, train: list[Recording], params: dict, fidelity: Fidelity = FULL
+        self, method, splits: list[Split], params: dict, fidelity: Fidelity = FULL
     ) -> tuple[Callable, Callable, np.ndarray]:
-        """The calibration's view of ``method`` with ``params`` on the inner folds of ``train``
-        (recordings with ``params``' derived features, scaled) at ``fidelity``: its known accuracy
-        and its pseudo-unknown rejection (mean over the known classes the folds hold) as
-        functions of the rejection value, and the values of the method's sweep it tries."""
-        folds = inner_folds(train)
+        """The calibration's view of ``method`` with ``params`` on ``splits`` (each a validation
+        recording and the recordings that train for it, with ``params``' derived features,
+        scaled; the inner folds of :func:`inner_folds`) at ``fidelity``: its known accuracy and
+        its pseudo-unknown rejection (mean over the known classes the folds hold) as functions of
+        the rejection value, and the values of the method's sweep it tries.  Labels of classes
+        outside ``known`` never count: their frames are neither known nor pseudo-unknown."""
+        folds = splits
         truth = np.concatenate([np.where(np.isin(v.y, self.known), v.y, -1) for v, _ in folds])
         present = [c for c in self.known if np.any(truth == c)]
         fits = [(self._fit(method, rest, params, fidelity), v) for v, rest in folds]

@@ -1,0 +1,158 @@
+"""The preview protocol on continuous recordings (docs/segmentation.md, "Which protocol when"):
+cross-validated grid search for exploring, in minutes instead of the nested protocol's hours.
+
+Every candidate of a method (view × grid point) is calibrated once on the *outer* folds
+themselves — each recording held out in turn, the others training — by the nested protocol's own
+objective and calibration rule (:mod:`._calibration`: the mean of the known accuracy and the
+rejection of pseudo-unknowns, the rejection value included, and the fallback rule), with the
+nested protocol's successive halving over the candidates (:mod:`._selection`: screened with cheap
+models, the best third refined at full fidelity).  Each method gets one choice for all folds, the
+candidate with the best pooled objective, and the reported labels of every held-out recording are
+that candidate's, at that rejection value: there is no final refit, the refined fits are the
+reported fits.  Labels of classes outside ``known`` never count in a choice: their frames are
+neither known nor pseudo-unknown (:meth:`._calibration.InnerFoldCalibration.validation`).
+
+The figure is the best pooled objective's candidate scored on the recordings that chose it, as
+scikit-learn's ``best_score_``: optimistic by the luck of that choice (:data:`PROTOCOLS`).  The
+methods run in groups of shared fits (``fit_key``: ``ukr_clm`` with ``ukr_only``, ``minirocket``
+with ``clm_minirocket``), the groups over ``jobs`` processes, the manifold methods' group first.
+"""
+
+from __future__ import annotations
+
+import time
+from collections import Counter
+
+from joblib import Parallel, delayed, parallel_config
+from threadpoolctl import threadpool_limits
+
+from ._fidelity import REFINE
+from ._folds import FoldResult, MethodFold
+from ._methods import REGISTRY
+from ._report import choice_summary
+from ._third_party import counted_warnings
+
+PROTOCOLS = {
+    "nested": {
+        "name": "nested",
+        "optimistic": False,
+        "reason": "every fold's view, grid point and rejection value are chosen on inner folds of its training "
+        "recordings: the held-out recording takes no part in any choice (the figure to publish)",
+    },
+    "preview": {
+        "name": "preview",
+        "optimistic": True,
+        "reason": "cross-validated grid search, like scikit-learn's best_score_: every candidate is scored on the "
+        "held-out recordings themselves and the one with the best pooled objective is reported on those same "
+        "recordings, so the figure includes the luck of that choice; one choice for all folds, no refit "
+        "(for exploring; publish the nested protocol's figure)",
+    },
+}
+
+
+def _shipped_group(evaluator, group: list[str]) -> tuple[dict[str, list[MethodFold]], dict]:
+    """A group of the preview in a worker process (one BLAS thread)."""
+    with threadpool_limits(1):
+        return evaluator._preview_group(group)
+
+
+class PreviewRunner:
+    """The preview part of :class:`._recordings.RecordingsEvaluator`."""
+
+    def _preview_groups(self) -> list[list[str]]:
+        """The batch methods by the fits they share (``fit_key``), the groups that fit class
+        manifolds first (they take longest, so the other workers take the rest meanwhile)."""
+        groups: dict[str, list[str]] = {}
+        for name in self.methods:
+            if REGISTRY[name].batch is None:
+                groups.setdefault(REGISTRY[name].fit_key, []).append(name)
+        return sorted(groups.values(), key=lambda g: not any(REGISTRY[m].manifolds for m in g))
+
+    def _preview_folds(self) -> tuple[list[FoldResult], dict]:
+        """Every fold's result (recording order) and the timing of the preview."""
+        groups, t0 = self._preview_groups(), time.perf_counter()
+        jobs = min(self.jobs, len(groups))
+        self.progress(
+            f"preview: {len(groups)} group(s) of methods over {jobs} process(es), every candidate scored on the "
+            f"{len(self.data.recordings)} leave-one-recording-out folds"
+        )
+        if jobs > 1:
+            with parallel_config(backend="loky", inner_max_num_threads=1):
+                done = Parallel(n_jobs=jobs)(delayed(_shipped_group)(self, g) for g in groups)
+        else:
+            with threadpool_limits(1):  # as in a worker: BLAS sums in the same order whatever ``jobs``
+                done = [self._preview_group(g) for g in groups]
+        parts = {name: folds for found, _ in done for name, folds in found.items()}
+        names = self.data.names()
+        folds = [
+            self._fold_result(
+                held,
+                self.data.recordings[k].y,
+                [parts[name][k] for name in parts],
+                self._untrained(self.data.without(held)),
+            )
+            for k, held in enumerate(names)
+        ]
+        seconds = {m: phases for _, timing in done for m, phases in timing.items()}
+        timing = {
+            "methods": {m: {p: round(v, 2) for p, v in phases.items()} for m, phases in seconds.items()},
+            "wall_s": round(time.perf_counter() - t0, 2),
+        }
+        return folds, timing
+
+    def _preview_group(self, group: list[str]) -> tuple[dict[str, list[MethodFold]], dict]:
+        """The methods of ``group`` (sharing fits): each one's choice on the outer folds and its
+        parts of every fold; the seconds per method and phase."""
+        self._cache, self._fold_choices, self._timing = {}, {}, {}
+        names = self.data.names()
+        views = {held: self.views(held) for held in names}
+        splits = {key: [(views[h][key][1], views[h][key][0]) for h in names] for key in views[names[0]]}
+        out = {}
+        for name in group:
+            caught = Counter()
+            with counted_warnings(caught):
+                out[name] = self._preview_method(name, splits, views)
+            for part in out[name]:
+                part.warnings = dict(caught) if part is out[name][0] else {}
+        return out, self._timing
+
+    def _preview_method(self, name: str, splits: dict, views: dict) -> list[MethodFold]:
+        """Method ``name``'s one choice for all folds (:meth:`_select` on the outer folds) and,
+        per fold, the refined fits' labels of the held-out recording at it and over the sweep."""
+        method, t0 = REGISTRY[name], time.perf_counter()
+        with self._timed(name, "selection"):
+            choice = self._select(name, splits)
+        selected = choice.selected()
+        self.progress(
+            f"preview: {name} {choice_summary(selected)} for all folds (pooled objective {choice.objective:.3f}) "
+            f"in {time.perf_counter() - t0:.1f} s"
+        )
+        with self._timed(name, "labelling"):
+            fits = self._refined(method, choice.params, views)
+            grid = method.reject_grid(fits[0][0], [state for _, state, _ in fits])
+            strict = self._refined(method, choice.strict.params, views) if choice.fallback else None
+        parts = []
+        for k, (fitted, state, test) in enumerate(fits):
+            with self._timed(name, "labelling"):
+                labels = {name: method.labels(fitted, state, choice.reject)}
+                sweeps = [self._labels(method, fitted, state, test, r) for r in grid]
+                held_strict = None
+                if strict is not None:
+                    s_fit, s_state, s_test = strict[k]
+                    held_strict = self._labels(method, s_fit, s_state, s_test, choice.strict.reject)
+            labels.update(self._replayed(method, fitted, choice.reject, test))
+            parts.append(
+                MethodFold(test.name, name, labels, dict.fromkeys(labels, selected), sweeps, held_strict, {}, {})
+            )
+        return parts
+
+    def _refined(self, method, params: dict, views: dict) -> list[tuple]:
+        """Per fold: ``method`` with ``params`` fitted at the refinement's fidelity on the fold's
+        training recordings (the calibration's own fits, from the cache), its state on the
+        held-out recording, and that recording."""
+        out = []
+        for fold in views.values():
+            train, test = fold[params["normalise"], params["derived"]]
+            fitted = self._fit(method, train, params, REFINE)
+            out.append((fitted, self._prepare(method, fitted, test), test))
+        return out

@@ -38,7 +38,7 @@ from ..models import (
     save_class_models,
     train_class_models,
 )
-from ._recordings import _progress, run_recordings_evaluation, run_train_recording_models
+from ._recordings import _progress, protocol_line, run_recordings_evaluation, run_train_recording_models
 
 
 def _add_dataset_args(parser: argparse.ArgumentParser) -> None:
@@ -415,7 +415,7 @@ def run_evaluate(args) -> int:
             )
             _progress(f"training one manifold per class ({len(ds.classes)} classes) per heading channels {choices}")
             candidates, *alternatives = _train_each(ds, args, choices)
-            trainer = _fold_trainer(args) if len(choices) > 1 else None
+            trainer = _fold_trainer(args) if len(choices) > 1 and not args.preview else None
         protocol = replace(
             TrajectoryProtocol.quick() if args.quick else TrajectoryProtocol(),
             selection=(args.select or "open-set").replace("-", "_"),
@@ -429,6 +429,7 @@ def run_evaluate(args) -> int:
             alternatives=tuple(alternatives),
             trainer=trainer,
             jobs=args.jobs or default_jobs(),
+            preview=args.preview,
         )
     except (DatasetError, ModelsMissingError, ValueError) as exc:
         print(f"error: {exc}", file=sys.stderr)
@@ -456,7 +457,7 @@ def run_evaluate(args) -> int:
 def format_table(result: dict) -> str:
     """Plain-text summary: share ≥ 85 % / share perfect / mean correct per method and experiment."""
     lines = [
-        f"{'method':10s} " + " ".join(f"{e:>22s}" for e in EXPERIMENTS),
+        protocol_line(result) + f"{'method':10s} " + " ".join(f"{e:>22s}" for e in EXPERIMENTS),
         f"{'':10s} " + " ".join(f"{'>=85% perfect mean':>22s}" for _ in EXPERIMENTS),
     ]
     for m, exps in result["methods"].items():

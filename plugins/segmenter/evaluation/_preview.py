@@ -13,7 +13,7 @@ reported fits.  Labels of classes outside ``known`` never count in a choice: the
 neither known nor pseudo-unknown (:meth:`._calibration.InnerFoldCalibration.validation`).
 
 The figure is the best pooled objective's candidate scored on the recordings that chose it, as
-scikit-learn's ``best_score_``: optimistic by the luck of that choice (:data:`PROTOCOLS`).  The
+scikit-learn's ``best_score_``: optimistic by the luck of that choice (:mod:`._protocols`).  The
 methods run in groups of shared fits (``fit_key``: ``ukr_clm`` with ``ukr_only``, ``minirocket``
 with ``clm_minirocket``), the groups over ``jobs`` processes, the manifold methods' group first.
 """
@@ -26,34 +26,18 @@ from collections import Counter
 from joblib import Parallel, delayed, parallel_config
 from threadpoolctl import threadpool_limits
 
-from ._fidelity import REFINE
+from ._fidelity import REFINE, Fidelity
 from ._folds import FoldResult, MethodFold
 from ._methods import REGISTRY
 from ._report import choice_summary
 from ._third_party import counted_warnings
 
-PROTOCOLS = {
-    "nested": {
-        "name": "nested",
-        "optimistic": False,
-        "reason": "every fold's view, grid point and rejection value are chosen on inner folds of its training "
-        "recordings: the held-out recording takes no part in any choice (the figure to publish)",
-    },
-    "preview": {
-        "name": "preview",
-        "optimistic": True,
-        "reason": "cross-validated grid search, like scikit-learn's best_score_: every candidate is scored on the "
-        "held-out recordings themselves and the one with the best pooled objective is reported on those same "
-        "recordings, so the figure includes the luck of that choice; one choice for all folds, no refit "
-        "(for exploring; publish the nested protocol's figure)",
-    },
-}
 
-
-def _shipped_group(evaluator, group: list[str]) -> tuple[dict[str, list[MethodFold]], dict]:
-    """A group of the preview in a worker process (one BLAS thread)."""
+def _shipped_split(evaluator, name: str, v, rest, params: dict, fidelity: Fidelity, present: list[int]) -> tuple:
+    """One split's models (:meth:`._calibration.InnerFoldCalibration.split_models`) in a worker
+    process (one BLAS thread)."""
     with threadpool_limits(1):
-        return evaluator._preview_group(group)
+        return evaluator.split_models(REGISTRY[name], v, rest, params, fidelity, present)
 
 
 class PreviewRunner:
@@ -68,20 +52,38 @@ class PreviewRunner:
                 groups.setdefault(REGISTRY[name].fit_key, []).append(name)
         return sorted(groups.values(), key=lambda g: not any(REGISTRY[m].manifolds for m in g))
 
+    def _warm(self, method, candidates: list[tuple[list, dict]], fidelity: Fidelity) -> None:
+        """Before the preview calibrates ``candidates`` (their splits and parameters) at
+        ``fidelity``: every split's models (the fits, states and pseudo-unknowns' refits) computed
+        over ``jobs`` processes and kept here; the calibration's labels follow in this process.
+        Nothing in the nested protocol, whose folds are the parallel unit."""
+        if not self.preview or self.jobs < 2:
+            return
+        todo = {}
+        for splits, params in candidates:
+            present = self.present(splits)
+            for v, rest in splits:
+                key = ("split", *self._fit_key(method, params, rest, fidelity), v.name, tuple(present))
+                if key not in self._cache:
+                    todo[key] = (v, rest, params, present)
+        if not todo:
+            return
+        with parallel_config(backend="loky", inner_max_num_threads=1):
+            done = Parallel(n_jobs=min(self.jobs, len(todo)))(
+                delayed(_shipped_split)(self, method.name, v, rest, params, fidelity, present)
+                for v, rest, params, present in todo.values()
+            )
+        self._cache.update(zip(todo, done))
+
     def _preview_folds(self) -> tuple[list[FoldResult], dict]:
         """Every fold's result (recording order) and the timing of the preview."""
         groups, t0 = self._preview_groups(), time.perf_counter()
-        jobs = min(self.jobs, len(groups))
         self.progress(
-            f"preview: {len(groups)} group(s) of methods over {jobs} process(es), every candidate scored on the "
-            f"{len(self.data.recordings)} leave-one-recording-out folds"
+            f"preview: every candidate scored on the {len(self.data.recordings)} leave-one-recording-out folds, "
+            f"the fits over {self.jobs} process(es)"
         )
-        if jobs > 1:
-            with parallel_config(backend="loky", inner_max_num_threads=1):
-                done = Parallel(n_jobs=jobs)(delayed(_shipped_group)(self, g) for g in groups)
-        else:
-            with threadpool_limits(1):  # as in a worker: BLAS sums in the same order whatever ``jobs``
-                done = [self._preview_group(g) for g in groups]
+        with threadpool_limits(1):  # as in a worker: BLAS sums in the same order whatever ``jobs``
+            done = [self._preview_group(g) for g in groups]
         parts = {name: folds for found, _ in done for name, folds in found.items()}
         names = self.data.names()
         folds = [
@@ -111,12 +113,12 @@ class PreviewRunner:
         for name in group:
             caught = Counter()
             with counted_warnings(caught):
-                out[name] = self._preview_method(name, splits, views)
+                out[name] = self._preview_method(name, splits)
             for part in out[name]:
                 part.warnings = dict(caught) if part is out[name][0] else {}
         return out, self._timing
 
-    def _preview_method(self, name: str, splits: dict, views: dict) -> list[MethodFold]:
+    def _preview_method(self, name: str, splits: dict) -> list[MethodFold]:
         """Method ``name``'s one choice for all folds (:meth:`_select` on the outer folds) and,
         per fold, the refined fits' labels of the held-out recording at it and over the sweep."""
         method, t0 = REGISTRY[name], time.perf_counter()
@@ -128,9 +130,9 @@ class PreviewRunner:
             f"in {time.perf_counter() - t0:.1f} s"
         )
         with self._timed(name, "labelling"):
-            fits = self._refined(method, choice.params, views)
+            fits = self._refined(method, choice.params, splits)
             grid = method.reject_grid(fits[0][0], [state for _, state, _ in fits])
-            strict = self._refined(method, choice.strict.params, views) if choice.fallback else None
+            strict = self._refined(method, choice.strict.params, splits) if choice.fallback else None
         parts = []
         for k, (fitted, state, test) in enumerate(fits):
             with self._timed(name, "labelling"):
@@ -146,13 +148,10 @@ class PreviewRunner:
             )
         return parts
 
-    def _refined(self, method, params: dict, views: dict) -> list[tuple]:
+    def _refined(self, method, params: dict, splits: dict) -> list[tuple]:
         """Per fold: ``method`` with ``params`` fitted at the refinement's fidelity on the fold's
-        training recordings (the calibration's own fits, from the cache), its state on the
-        held-out recording, and that recording."""
-        out = []
-        for fold in views.values():
-            train, test = fold[params["normalise"], params["derived"]]
-            fitted = self._fit(method, train, params, REFINE)
-            out.append((fitted, self._prepare(method, fitted, test), test))
-        return out
+        training recordings and its state on the held-out recording — the calibration's own
+        models, from the cache — and that recording."""
+        folds = splits[params["normalise"], params["derived"]]
+        present = self.present(folds)
+        return [(*self.split_models(method, v, rest, params, REFINE, present)[:2], v) for v, rest in folds]

@@ -56,7 +56,8 @@ from ._enrolment import (
 )
 from ._folds import FoldResult, FoldRunner, MethodFold, timing
 from ._methods import REGISTRY, UKRCLMMethod
-from ._preview import PROTOCOLS, PreviewRunner
+from ._preview import PreviewRunner
+from ._protocols import protocol
 from ._report import Report, choice_summary
 from ._selection import HalvingSelection
 
@@ -164,6 +165,11 @@ class RecordingsEvaluator(HalvingSelection, InnerFoldCalibration, EnrolmentFits,
         self._cache: dict[tuple, object] = {}
         self._fold_choices: dict[str, list] = {}  # method → its calibrated parameter sets in this fold
         self._timing: dict[str, dict[str, float]] = {}  # method → phase → seconds, in this fold
+
+    def __getstate__(self) -> dict:
+        """What travels to a worker process: the evaluator without this process's fold cache
+        (a worker starts its own)."""
+        return {**self.__dict__, "_cache": {}, "_fold_choices": {}}
 
     def fold_views(self, held: str | None) -> dict[tuple[str, str], tuple[list[Recording], Recording | None]]:
         """Per (normalisation, derived features) choice: the training recordings and the held-out one
@@ -293,8 +299,7 @@ class RecordingsEvaluator(HalvingSelection, InnerFoldCalibration, EnrolmentFits,
         """The result (docs/segmentation.md, JSON): the nested protocol's, or the preview's."""
         folds, spent = self._preview_folds() if self.preview else (self._run_folds(), None)
         truth = np.concatenate([f.truth for f in folds])
-        protocol = PROTOCOLS["preview" if self.preview else "nested"]
-        out: dict = {"protocol": protocol, "methods": {}, "parameters": self._parameters()}
+        out: dict = {"protocol": protocol(self.preview, "recordings"), "methods": {}, "parameters": self._parameters()}
         for name in self.methods:
             out["methods"][name] = self._method_result(folds, name, truth)
         out["timing"] = spent or timing(folds)

@@ -86,25 +86,30 @@ class HalvingSelection:
                 chosen = self._rule(scorer.name, self._choices(scorer, views)).params
                 candidates = [(splits, params) for splits, params in candidates if params == chosen]
             if len(candidates) > 1:
+                self._warm(method, candidates, SCREEN)
                 screened = [self._calibrated(method, splits, params, SCREEN) for splits, params in candidates]
-                kept = survivors(self._ranking(screened))
-                self.screened(method.name, [(params, c) for (_, params), (c, *_) in zip(candidates, screened)], kept)
+                ranking = self._ranking(screened)
+                kept = survivors(ranking)
+                self.screened(method.name, [params for _, params in candidates], screened, ranking, kept)
                 candidates = [candidates[i] for i in kept]
+            self._warm(method, candidates, REFINE)
             self._fold_choices[method.name] = [
                 self._calibrated(method, splits, params, REFINE) for splits, params in candidates
             ]
         return self._fold_choices[method.name]
 
-    def screened(self, name: str, candidates: list[tuple[dict, Choice]], kept: list[int]) -> None:
-        """The screen's provisional ranking of a method's candidates (parameters, screened
-        choice; ``kept``: the refined ones): on stderr in the preview, with ``--verbose`` in the
-        nested protocol."""
+    def screened(self, name: str, candidates: list[dict], screened: list, ranking: list[float], kept: list[int]):
+        """The screen's provisional ranking of a method's ``candidates`` (their screened
+        calibrations and what ranks them, :meth:`._calibration.InnerFoldCalibration._ranking`;
+        ``kept``: the refined ones): on stderr in the preview, with ``--verbose`` in the nested
+        protocol."""
         say = self.progress if self.preview else self.detail
-        say(f"  {name}: screen of {len(candidates)} candidates (provisional ranking: pooled objective, cheap models)")
-        for rank, i in enumerate(sorted(range(len(candidates)), key=lambda i: -candidates[i][1].objective), 1):
-            params, choice = candidates[i]
+        by = "pooled objective" if ranking == [c.objective for c, *_ in screened] else "keep-all known accuracy"
+        say(f"  {name}: screen of {len(candidates)} candidates, provisional ranking by {by} (cheap models)")
+        for rank, i in enumerate(sorted(range(len(candidates)), key=lambda i: -ranking[i]), 1):
+            params = candidates[i]
             grid = ", ".join(f"{k} {v}" for k, v in params.items() if k not in ("normalise", "derived"))
             say(
-                f"    {rank:2d}. {choice.objective:.3f}  {params['normalise']}/{params['derived']}, {grid}  "
-                + ("(refined)" if i in kept else "(dropped)")
+                f"    {rank:2d}. {ranking[i]:.3f} (objective {screened[i][0].objective:.3f})  "
+                f"{params['normalise']}/{params['derived']}, {grid}  " + ("refined" if i in kept else "dropped")
             )

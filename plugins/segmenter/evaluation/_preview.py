@@ -27,7 +27,7 @@ from joblib import Parallel, delayed, parallel_config
 from threadpoolctl import threadpool_limits
 
 from ._fidelity import REFINE, Fidelity
-from ._folds import FoldResult, MethodFold
+from ._fold_result import FoldResult, MethodFold
 from ._methods import REGISTRY
 from ._report import choice_summary
 from ._third_party import counted_warnings

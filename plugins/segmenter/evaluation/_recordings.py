@@ -54,7 +54,8 @@ from ._enrolment import (
     check_enrolment,
     enrolled_views,
 )
-from ._folds import FoldResult, FoldRunner, MethodFold, timing
+from ._fold_result import FoldResult, MethodFold, timing
+from ._folds import FoldRunner
 from ._methods import REGISTRY, UKRCLMMethod
 from ._preview import PreviewRunner
 from ._protocols import protocol

@@ -5,7 +5,6 @@ window, the rejection trade-off, the folds where rejection was switched off and 
 from __future__ import annotations
 
 from collections import Counter
-from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -13,12 +12,10 @@ from ..base import lagged
 from ._calibration import FALLBACK_MARGIN, REJECT_ALL_OBJECTIVE
 from ._chosen import REPORTED
 from ._enrolment import enrolment_report
+from ._fold_result import FoldResult
 from ._methods import REGISTRY
 from ._metrics import frame_metrics, segment_f1, tradeoff_curve
 from ._third_party import summary
-
-if TYPE_CHECKING:
-    from ._folds import FoldResult
 
 
 def _degenerate_calibration(

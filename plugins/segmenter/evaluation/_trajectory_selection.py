@@ -6,16 +6,12 @@ from __future__ import annotations
 
 import time
 from dataclasses import replace
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ._methods import REGISTRY
 from ._selection import first_of_best, survivors
 from ._trajectory_cases import REJECTION_EXPERIMENTS, SEGMENT_RULES, SELECTION_EXPERIMENTS, cross_fitted_splits
-
-if TYPE_CHECKING:
-    from ._trajectories import Evaluator
 
 
 class TrajectorySelection:
@@ -102,7 +98,7 @@ class TrajectorySelection:
     def _run_objectives(self, method: str, run: list[dict], screen: bool) -> list[float]:
         return [self.validation_objective(method, params, screen=screen) for params in run]
 
-    def _fold(self, k: int) -> Evaluator:
+    def _fold(self, k: int) -> TrajectorySelection:
         """This evaluator on the ``k``-th split of :func:`cross_fitted_splits` (0: itself), its
         heading channels' candidates retrained by ``trainer`` on that split's train part."""
         if k == 0:
@@ -145,11 +141,11 @@ class TrajectorySelection:
             for h in range(len(tasks))
         ]
 
-    def choose(self, method: str) -> tuple[Evaluator, dict, float]:
+    def choose(self, method: str) -> tuple[TrajectorySelection, dict, float]:
         """:meth:`choose_all` of one method."""
         return self.choose_all((method,))[method]
 
-    def choose_all(self, methods: tuple[str, ...]) -> dict[str, tuple[Evaluator, dict, float]]:
+    def choose_all(self, methods: tuple[str, ...]) -> dict[str, tuple[TrajectorySelection, dict, float]]:
         """Per method the evaluator (heading channels) and grid point: (evaluator, params,
         validation objective).  Each candidate set's grid point is chosen by :meth:`select`; a
         manifold method then chooses among the candidate sets (heading channels) — a choice that

@@ -18,6 +18,7 @@ from tests.conftest import run_command
 DEMO = Path(__file__).parents[3] / "recordings" / "segmenter_demo"
 KNOWN = ["circle", "wave"]  # "rest" is unknown: its frames must be rejected and never choose
 METHODS = ("ukr_clm", "ukr_clm_online", "dtw_1nn")
+VIEWS = {"normalise": ("training", "recording"), "derived": ("none",)}  # two candidates: a screen, one refined
 
 
 @pytest.fixture(scope="module")
@@ -29,7 +30,7 @@ def demo():
 def preview(demo):
     """The preview of the shipped recordings and its evaluator (the folds' labels, the fits)."""
     lines = []
-    ev = RecordingsEvaluator(demo, KNOWN, METHODS, quick=True, preview=True, progress=lines.append, jobs=2)
+    ev = RecordingsEvaluator(demo, KNOWN, METHODS, quick=True, preview=True, progress=lines.append, **VIEWS)
     return ev, ev.evaluate(), lines
 
 
@@ -66,17 +67,24 @@ def test_labels_of_unknown_classes_never_enter_the_choice(demo, preview):
     unlabelled = replace(
         demo, recordings=[Recording(r.name, r.X, np.where(r.y == rest, -1, r.y)) for r in demo.recordings]
     )
-    blind = RecordingsEvaluator(unlabelled, KNOWN, METHODS, quick=True, preview=True, jobs=2).evaluate()
-    for name in METHODS:  # the same choice and the same known frames' figures; only the report of "rest" goes
+    choosing = ("ukr_clm", "dtw_1nn")  # the online method replays ukr_clm's choice
+    blind = RecordingsEvaluator(unlabelled, KNOWN, choosing, quick=True, preview=True, **VIEWS).evaluate()
+    for name in choosing:  # the same choice and the same known frames' figures; only the report of "rest" goes
         a, b = result["methods"][name], blind["methods"][name]
         assert [f["selected"] for f in a["folds"]] == [f["selected"] for f in b["folds"]], name
         assert a["known_accuracy"] == b["known_accuracy"] and b["unknown_rejection"] is None
 
 
-def test_train_classes_trains_the_models_a_preview_chose(tmp_path, capsys):
-    assert run_command(register_evaluate, [str(DEMO), "--quick", "--preview", "--json", "--methods", "ukr_clm"]) == 0
-    result = json.loads(capsys.readouterr().out)
-    assert result["protocol"]["name"] == "preview"
+def test_the_command_says_which_protocol_its_figures_come_from(capsys):
+    argv = [str(DEMO), "--quick", "--preview", "--methods", "dtw_1nn", "--normalise", "training", "--derived", "none"]
+    assert run_command(register_evaluate, argv) == 0
+    assert capsys.readouterr().out.startswith("protocol: preview, optimistic — cross-validated grid search")
+    assert run_command(register_evaluate, [*argv, "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["protocol"]["name"] == "preview"
+
+
+def test_train_classes_trains_the_models_a_preview_chose(preview, tmp_path):
+    _, result, _ = preview
     (tmp_path / "preview.json").write_text(json.dumps(result))
     argv = [str(DEMO), "--out", str(tmp_path / "models"), "--params", str(tmp_path / "preview.json"), "--steps", "30"]
     assert run_command(register_train_classes, argv) == 0
@@ -90,3 +98,26 @@ def test_train_classes_trains_the_models_a_preview_chose(tmp_path, capsys):
 def test_the_preview_refuses_what_belongs_to_the_nested_protocol(demo, tmp_path):
     with pytest.raises(ValueError, match="--preview takes no"):
         RecordingsEvaluator(demo, methods=("dtw_1nn",), preview=True, checkpoints=str(tmp_path))
+
+
+def test_the_trajectory_preview_chooses_on_the_test_cases_it_reports(monkeypatch):
+    from handflow.plugins.segmenter import LetterGenerator, candidate_set
+    from handflow.plugins.segmenter.evaluation import Evaluator, TrajectoryProtocol
+    from handflow.plugins.segmenter.models import train_class_models
+
+    letters = LetterGenerator(n_classes=3, random_state=1, noise=0.01).dataset((3, 1, 1))
+    sets = [candidate_set(train_class_models(letters, n_steps=30, random_state=0, headings=h)) for h in ((0, 1), ())]
+    protocol = TrajectoryProtocol(nths=(1, 2), histories=(5,), runs=1, max_pairs=2)
+    ev = Evaluator(letters, sets[0], protocol, alternatives=(sets[1],), preview=True)
+    splits = []
+    run = Evaluator.run
+    monkeypatch.setattr(
+        Evaluator, "run", lambda self, m, p, split, **kw: splits.append(split) or run(self, m, p, split, **kw)
+    )
+    result = ev.evaluate(("ukr_only", "dtw_1nn"))
+    assert result["protocol"]["name"] == "preview" and result["parameters"]["protocol"]["choose_on"] == "test"
+    assert set(splits) == {"test"}  # no validation round
+    chosen = result["parameters"]["selection"]["ukr_only"]["headings"]
+    assert all(len(h["folds"]) == 1 for h in chosen)  # no cross-fitted heading splits
+    best = max(h["validation"] for h in chosen)  # the reported candidate set is the best on the test cases
+    assert result["parameters"]["validation_score"]["ukr_only"] >= best - 0.01

@@ -156,7 +156,7 @@ class TrajectorySelection:
         picks: dict[str, list[tuple[dict, float]]] = {}
         for method in methods:
             t0 = time.perf_counter()
-            self.progress(f"{method}: selecting parameters on validation")
+            self.progress(f"{method}: selecting parameters on {self.choosing}")
             evs = evaluators if REGISTRY[method].manifolds else [self]
             picks[method], halving = [], []
             for ev in evs:
@@ -186,7 +186,7 @@ class TrajectorySelection:
                     for ev, (params, score), x, p in zip(evaluators, picks[method], f, pooled)
                 ]
                 self.progress(
-                    f"{method}: validation chose heading channels {evaluators[k].headings or 'none'} "
+                    f"{method}: {self.choosing} chose heading channels {evaluators[k].headings or 'none'} "
                     f"({pooled[k]:.3f} over {len(f[k])} split(s); "
                     + ", ".join(f"{ev.headings or 'none'}: {p:.3f}" for ev, p in zip(evaluators, pooled))
                     + ")"

@@ -26,6 +26,7 @@ import numpy as np
 
 from handflow.plugins.segmenter.datasets import load_recordings
 from handflow.plugins.segmenter.evaluation import REGISTRY, RecordingsEvaluator, ScoreCLMMethod, UKRCLMMethod
+from handflow.plugins.segmenter.evaluation._calibration import inner_folds
 
 FINE = 2.0 ** np.arange(-5, 6.01, 0.25)  # background factors 1/32 … 64
 
@@ -37,7 +38,7 @@ def curve(ev: RecordingsEvaluator, method_name: str, held: str, fine: bool) -> l
     for (normalise, derived), (train, _) in ev.fold_views(held).items():
         for params in method.grid(ev.quick):
             params = {**params, "derived": derived, "normalise": normalise}
-            known_acc, pseudo_rej, sweep = ev.validation(method, train, params)
+            known_acc, pseudo_rej, sweep = ev.validation(method, inner_folds(train), params)
             for r in np.r_[0.0, FINE] if fine else sweep:
                 known, rejection = known_acc(r), pseudo_rej(r)
                 rows.append(

@@ -38,7 +38,7 @@ from ..models import (
     save_class_models,
     train_class_models,
 )
-from ._recordings import _progress, run_recordings_evaluation, run_train_recording_models
+from ._recordings import _progress, protocol_line, run_recordings_evaluation, run_train_recording_models
 
 
 def _add_dataset_args(parser: argparse.ArgumentParser) -> None:
@@ -265,6 +265,15 @@ def register_evaluate(parser: argparse.ArgumentParser) -> None:
         "(docs/segmentation.md)",
     )
     parser.add_argument(
+        "--preview",
+        action="store_true",
+        help="explore in minutes: every candidate is scored once on the reported folds (continuous recordings: the "
+        "leave-one-recording-out folds; labelled trajectories: the test cases, fitted on the train split) by the "
+        "nested protocol's own objective, one choice per method for all folds — cross-validated grid search, "
+        "optimistic like scikit-learn's best_score_; the JSON's 'protocol' says so. Publish the default (nested) "
+        "protocol's figure (docs/segmentation.md, Which protocol when)",
+    )
+    parser.add_argument(
         "--verbose",
         action="store_true",
         help="continuous recordings: also print every candidate's calibration and each fold's full choice "
@@ -408,7 +417,7 @@ def run_evaluate(args) -> int:
             )
             _progress(f"training one manifold per class ({len(ds.classes)} classes) per heading channels {choices}")
             candidates, *alternatives = _train_each(ds, args, choices)
-            trainer = _fold_trainer(args) if len(choices) > 1 else None
+            trainer = _fold_trainer(args) if len(choices) > 1 and not args.preview else None
         protocol = replace(
             TrajectoryProtocol.quick() if args.quick else TrajectoryProtocol(),
             selection=(args.select or "open-set").replace("-", "_"),
@@ -422,6 +431,7 @@ def run_evaluate(args) -> int:
             alternatives=tuple(alternatives),
             trainer=trainer,
             jobs=args.jobs or default_jobs(),
+            preview=args.preview,
         )
     except (DatasetError, ModelsMissingError, ValueError) as exc:
         print(f"error: {exc}", file=sys.stderr)
@@ -449,7 +459,7 @@ def run_evaluate(args) -> int:
 def format_table(result: dict) -> str:
     """Plain-text summary: share ≥ 85 % / share perfect / mean correct per method and experiment."""
     lines = [
-        f"{'method':10s} " + " ".join(f"{e:>22s}" for e in EXPERIMENTS),
+        protocol_line(result) + f"{'method':10s} " + " ".join(f"{e:>22s}" for e in EXPERIMENTS),
         f"{'':10s} " + " ".join(f"{'>=85% perfect mean':>22s}" for _ in EXPERIMENTS),
     ]
     for m, exps in result["methods"].items():

@@ -65,6 +65,7 @@ def run_recordings_evaluation(args, progress) -> int:
             chosen=ChosenParameters.load(args.params) if args.params else None,
             cache=args.cache,
             scheduler=args.scheduler,
+            preview=args.preview,
             detail=progress if args.verbose else lambda msg: None,
         )
         result = evaluator.evaluate()
@@ -85,9 +86,19 @@ def _choices(option: str | None, every: tuple[str, ...]) -> tuple[str, ...]:
     return tuple(v for v in option.split(",") if v) if option else every
 
 
+def protocol_line(result: dict) -> str:
+    """What the figures are: the protocol and, for the preview, why they can be optimistic."""
+    protocol = result.get("protocol")
+    if not protocol:
+        return ""
+    if protocol["optimistic"]:
+        return f"protocol: preview, optimistic — {protocol['reason']}\n"
+    return f"protocol: nested — {protocol['reason']}\n"
+
+
 def format_stream_table(result: dict) -> str:
     cols = ("known_accuracy", "unknown_rejection", "open_set_accuracy", "macro_f1", "segment_f1", "tradeoff_auc")
-    lines = [f"{'method':15s} " + " ".join(f"{c:>18s}" for c in cols)]
+    lines = [protocol_line(result) + f"{'method':15s} " + " ".join(f"{c:>18s}" for c in cols)]
     for name, r in result["methods"].items():
         cells = ["—".rjust(18) if r.get(c) is None else f"{r[c]:18.3f}" for c in cols]
         lines.append(f"{name:15s} " + " ".join(cells))

@@ -13,7 +13,8 @@ from ._calibration import (
     Choice,
 )
 from ._chosen import ChosenParameters
-from ._folds import FoldResult, default_jobs
+from ._fold_result import FoldResult
+from ._folds import default_jobs
 from ._methods import (
     MAX_FIT_RATIOS,
     MIN_PROGRESS,

@@ -48,8 +48,24 @@ class Choice:
     fallback: bool = False  # rejection switched off: nothing beat rejecting everything
     strict: Choice | None = None  # the objective's own choice, when it was overruled
 
+    def selected(self) -> dict:
+        """A fold's ``selected`` in the JSON: the parameters, the rejection value, the validation
+        objective, whether rejection is off, and the overruled strict choice."""
+        out = {
+            **self.params,
+            "reject": float(self.reject),
+            "validation_objective": self.objective,
+            "rejection": "off" if self.fallback else "calibrated",
+        }
+        if self.fallback:
+            out["strict"] = {**self.strict.params, "reject": float(self.strict.reject)}
+        return out
 
-def inner_folds(train: list[Recording]) -> list[tuple[Recording, list[Recording]]]:
+
+Split = tuple[Recording, list[Recording]]  # a validation recording and the recordings that train for it
+
+
+def inner_folds(train: list[Recording]) -> list[Split]:
     """The inner splits of the training recordings ``train``: each of the last :data:`INNER_FOLDS`
     validated by the others."""
     return [(v, [t for t in train if t is not v]) for v in train[-INNER_FOLDS:]]
@@ -78,11 +94,12 @@ class InnerFoldCalibration:
         return [self.data.class_names[c] for c, segs in segments(recs, self.known).items() if not segs]
 
     def _calibrated(
-        self, method, train: list[Recording], params: dict, fidelity: Fidelity = FULL
+        self, method, splits: list[Split], params: dict, fidelity: Fidelity = FULL
     ) -> tuple[Choice, float, Callable]:
-        """``params``' best rejection value on the inner folds of ``train`` at ``fidelity``, the
-        sweep's keep-all value and the known accuracy as a function of the rejection value."""
-        known_acc, pseudo_rej, grid = self.validation(method, train, params, fidelity)
+        """``params``' best rejection value on ``splits`` (:func:`inner_folds`; the preview: the
+        outer folds) at ``fidelity``, the sweep's keep-all value and the known accuracy as a
+        function of the rejection value."""
+        known_acc, pseudo_rej, grid = self.validation(method, splits, params, fidelity)
         value, score = calibrate(known_acc, pseudo_rej, grid)
         self.detail(f"    {method.name} {fidelity.name} {params}: reject={value:.4g} objective={score:.3f}")
         return Choice(params, value, score), grid[0], known_acc
@@ -120,18 +137,23 @@ class InnerFoldCalibration:
         return replace(chosen, fallback=True, strict=best)
 
     def validation(
-        self, method, train: list[Recording], params: dict, fidelity: Fidelity = FULL
+        self, method, splits: list[Split], params: dict, fidelity: Fidelity = FULL
     ) -> tuple[Callable, Callable, np.ndarray]:
-        """The calibration's view of ``method`` with ``params`` on the inner folds of ``train``
-        (recordings with ``params``' derived features, scaled) at ``fidelity``: its known accuracy
-        and its pseudo-unknown rejection (mean over the known classes the folds hold) as
-        functions of the rejection value, and the values of the method's sweep it tries."""
-        folds = inner_folds(train)
-        truth = np.concatenate([np.where(np.isin(v.y, self.known), v.y, -1) for v, _ in folds])
-        present = [c for c in self.known if np.any(truth == c)]
-        fits = [(self._fit(method, rest, params, fidelity), v) for v, rest in folds]
-        states = [(f, self._prepare(method, f, v), v) for f, v in fits]
-        unseen = {c: self._without(method, fits, folds, params, c, fidelity) for c in present}
+        """The calibration's view of ``method`` with ``params`` on ``splits`` (each a validation
+        recording and the recordings that train for it, with ``params``' derived features,
+        scaled; the inner folds of :func:`inner_folds`) at ``fidelity``: its known accuracy and
+        its pseudo-unknown rejection (mean over the known classes the folds hold) as functions of
+        the rejection value, and the values of the method's sweep it tries.  Labels of classes
+        outside ``known`` never count: their frames are neither known nor pseudo-unknown."""
+        folds = splits
+        truth, present = self._known_truth(folds), self.present(folds)
+        models = [self.split_models(method, v, rest, params, fidelity, present) for v, rest in folds]
+        fits = [(fitted, v) for (fitted, _, _), (v, _) in zip(models, folds)]
+        states = [(fitted, state, v) for (fitted, state, _), (v, _) in zip(models, folds)]
+        unseen = {
+            c: None if any(m[2][c] is None for m in models) else [(*m[2][c], v) for m, (v, _) in zip(models, folds)]
+            for c in present
+        }
 
         def pred(r, drop=None):
             if drop is not None and unseen[drop] is not None:  # a model that never saw the class
@@ -170,25 +192,49 @@ class InnerFoldCalibration:
         fit_params = {k: v for k, v in params.items() if k not in getattr(method, "label_params", ())}
         return (method.fit_key, repr(sorted(fit_params.items())), tuple(r.name for r in train), fidelity.models)
 
-    def _without(self, method, fits, folds, params: dict, drop: int, fidelity: Fidelity) -> list | None:
-        """Per inner fold the model, validation state and recording of ``method`` fitted without
-        class ``drop`` (:meth:`~._methods.ScoreMethod.without_class`), or None where dropping it
-        is exact or the evaluation or ``fidelity`` drops classes (``pseudo_unknowns="drop"``)."""
+    def _known_truth(self, splits: list[Split]) -> np.ndarray:
+        """The validation recordings' labels of known classes (others −1: they never count)."""
+        return np.concatenate([np.where(np.isin(v.y, self.known), v.y, -1) for v, _ in splits])
+
+    def present(self, splits: list[Split]) -> list[int]:
+        """The known classes the validation recordings of ``splits`` hold (the pseudo-unknowns)."""
+        truth = self._known_truth(splits)
+        return [c for c in self.known if np.any(truth == c)]
+
+    def split_models(
+        self, method, v: Recording, rest: list[Recording], params: dict, fidelity: Fidelity, present: list[int]
+    ) -> tuple[Fitted, object, dict[int, tuple | None]]:
+        """What the calibration needs of one split: ``method`` with ``params`` fitted on ``rest``
+        at ``fidelity``, its state on ``v``, and per class of ``present`` a model that never saw
+        it with its state (:meth:`~._methods.ScoreMethod.without_class`; the model itself where
+        the split never held the class), or None where dropping the class is exact or the
+        evaluation or ``fidelity`` drops classes (``pseudo_unknowns="drop"``).  Computed once per
+        fold, or by the preview's workers (:meth:`._preview.PreviewRunner._warm`)."""
+        key = ("split", *self._fit_key(method, params, rest, fidelity), v.name, tuple(present))
+        if key not in self._cache:
+            fitted = self._fit(method, rest, params, fidelity)
+            unseen = {c: self._unseen(method, fitted, rest, v, params, c, fidelity) for c in present}
+            self._cache[key] = (fitted, self._prepare(method, fitted, v), unseen)
+        fitted, state, unseen = self._cache[key]
+        return (
+            replace(fitted, params=params),
+            state,
+            {c: None if u is None else (replace(u[0], params=params), u[1]) for c, u in unseen.items()},
+        )
+
+    def _unseen(self, method, fitted: Fitted, rest, v: Recording, params: dict, drop: int, fidelity: Fidelity):
+        """One split's model without class ``drop`` and its state on ``v`` (:meth:`split_models`)."""
         if "drop" in (self.pseudo_unknowns, fidelity.pseudo_unknowns):
             return None
-        unseen = []
-        for (fitted, v), (_, rest) in zip(fits, folds):
-            if drop not in fitted.classes:  # this inner split never held the class: the model is one
-                unseen.append((fitted, self._prepare(method, fitted, v), v))
-                continue
-            key = (*self._fit_key(method, params, rest, fidelity), "without", drop)
-            if key not in self._cache:
-                self._cache[key] = method.without_class(fitted, self._segments(rest), drop, self.random_state)
-            if self._cache[key] is None:
-                return None
-            refit = replace(self._cache[key], params=params)
-            unseen.append((refit, self._prepare(method, refit, v), v))
-        return unseen
+        if drop not in fitted.classes:  # this split never held the class: the model is one
+            return fitted, self._prepare(method, fitted, v)
+        key = (*self._fit_key(method, params, rest, fidelity), "without", drop)
+        if key not in self._cache:
+            self._cache[key] = method.without_class(fitted, self._segments(rest), drop, self.random_state)
+        if self._cache[key] is None:
+            return None
+        refit = replace(self._cache[key], params=params)
+        return refit, self._prepare(method, refit, v)
 
     def _prepare(self, method, fitted: Fitted, rec: Recording):
         key = (method.fit_key, id(fitted.model), rec.name)

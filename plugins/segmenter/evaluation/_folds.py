@@ -12,9 +12,9 @@ import time
 from collections import Counter
 from collections.abc import Callable
 from contextlib import contextmanager
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 from joblib import Parallel, delayed, parallel_config
@@ -22,11 +22,16 @@ from threadpoolctl import threadpool_limits
 
 from ._checkpoints import UNSAFE, FoldCheckpoints, settings_digest
 from ._enrolment import fold_note
+from ._fold_result import FoldResult, MethodFold
 from ._methods import REGISTRY
 from ._third_party import counted_warnings
 
-if TYPE_CHECKING:
-    from ._recordings import RecordingsEvaluator
+
+class FoldTask(Protocol):
+    """What a worker needs of the evaluator that travels with a fold's task (the evaluator is
+    :class:`._recordings.RecordingsEvaluator`, defined above this module)."""
+
+    def _announced_fold(self, k: int, held: str) -> FoldResult: ...
 
 
 def default_jobs() -> int:
@@ -34,7 +39,7 @@ def default_jobs() -> int:
     return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
 
 
-def _shipped_fold(evaluator: RecordingsEvaluator, k: int, held: str) -> FoldResult:
+def _shipped_fold(evaluator: FoldTask, k: int, held: str) -> FoldResult:
     """A fold in a worker process, local or a cluster's, to which the evaluator travels with the
     task (one BLAS thread)."""
     with threadpool_limits(1):
@@ -60,54 +65,6 @@ def cluster_client(scheduler: str):
 
 
 CONNECT_TIMEOUT = "10s"  # how long --scheduler waits for the scheduler to answer
-
-
-@dataclass
-class MethodFold:
-    """One batch method's part of a fold (with the online methods that replay its models): what
-    ``--cache`` keeps per method and fold."""
-
-    recording: str
-    method: str
-    labels: dict[str, np.ndarray]  # per method, at lag 0
-    selected: dict[str, dict]
-    sweeps: list[np.ndarray]  # the batch method's labels at every rejection value of its sweep (lagged)
-    strict: np.ndarray | None  # its labels at the strict choice where it fell back (lagged)
-    enrolled: dict[str, dict[str, np.ndarray]]  # per adaptation, method: labels (lagged)
-    timing: dict[str, dict[str, float]]  # method → phase → seconds
-    warnings: dict[str, int] = field(default_factory=dict)  # third-party warnings while computing it
-
-
-@dataclass
-class FoldResult:
-    recording: str
-    truth: np.ndarray
-    labels: dict[str, np.ndarray]
-    selected: dict[str, dict]
-    sweeps: dict[str, list[np.ndarray]]  # per method: labels at every rejection value of its sweep
-    strict: dict[str, np.ndarray]  # per method that fell back: the labels at the strict choice
-    untrained: list[str]  # known classes without a training segment in this fold
-    unlagged: dict[str, np.ndarray]  # per method: the labels at lag 0 (``labels`` are at the evaluation's lag)
-    enrolled: dict[str, dict[str, np.ndarray]] = field(default_factory=dict)  # per adaptation, method: labels
-    scored_from: int = 0  # the first frame after the enrolment
-    seconds: float = 0.0  # the fold's own wall time
-    timing: dict[str, dict[str, float]] = field(default_factory=dict)  # method → phase → seconds
-    warnings: dict[str, int] = field(default_factory=dict)  # third-party warnings of its methods: gist → count
-
-
-def timing(folds: list[FoldResult]) -> dict:
-    """Seconds per method and phase (selection, final fit, labelling), summed over the folds, and
-    each fold's wall time: the JSON's ``timing`` (on the machine of the run, unlike the figures)."""
-    per_method: dict[str, dict[str, float]] = {}
-    for fold in folds:
-        for name, phases in fold.timing.items():
-            for phase, seconds in phases.items():
-                per_method.setdefault(name, {}).setdefault(phase, 0.0)
-                per_method[name][phase] += seconds
-    return {
-        "methods": {n: {p: round(v, 2) for p, v in phases.items()} for n, phases in per_method.items()},
-        "folds": {f.recording: round(f.seconds, 2) for f in folds},
-    }
 
 
 class FoldRunner:

@@ -44,6 +44,7 @@ from ._calibration import (
     REJECT_ALL_OBJECTIVE,
     Choice,
     InnerFoldCalibration,
+    inner_folds,
 )
 from ._chosen import ChosenParameters
 from ._enrolment import (
@@ -53,8 +54,11 @@ from ._enrolment import (
     check_enrolment,
     enrolled_views,
 )
-from ._folds import FoldResult, FoldRunner, MethodFold, timing
+from ._fold_result import FoldResult, MethodFold, timing
+from ._folds import FoldRunner
 from ._methods import REGISTRY, UKRCLMMethod
+from ._preview import PreviewRunner
+from ._protocols import protocol
 from ._report import Report, choice_summary
 from ._selection import HalvingSelection
 
@@ -81,7 +85,7 @@ def _zscore(train: list[Recording], recs: list[Recording], normalise: str = "tra
     return [Recording(r.name, scaler.transform(r.X), r.y) for r in recs]
 
 
-class RecordingsEvaluator(HalvingSelection, InnerFoldCalibration, EnrolmentFits, FoldRunner, Report):
+class RecordingsEvaluator(HalvingSelection, InnerFoldCalibration, EnrolmentFits, FoldRunner, PreviewRunner, Report):
     """Runs the leave-one-recording-out protocol for the chosen methods."""
 
     def __init__(
@@ -105,6 +109,7 @@ class RecordingsEvaluator(HalvingSelection, InnerFoldCalibration, EnrolmentFits,
         chosen: ChosenParameters | None = None,
         cache: str | None = None,
         scheduler: str | None = None,
+        preview: bool = False,
     ) -> None:
         if jobs < 1:
             raise ValueError(f"jobs must be at least 1, got {jobs}")
@@ -129,6 +134,12 @@ class RecordingsEvaluator(HalvingSelection, InnerFoldCalibration, EnrolmentFits,
         methods = (*dict.fromkeys(b for b in batches if b not in methods), *methods)
         if len(data.recordings) < 3:
             raise ValueError("leave-one-recording-out needs at least 3 recordings (2 to train and validate, 1 to test)")
+        if preview and (enroll or checkpoints or chosen or cache or scheduler):
+            raise ValueError(
+                "--preview takes no --enroll, --checkpoints, --cache, --params or --scheduler: they belong to the "
+                "nested protocol (drop them or --preview)"
+            )
+        self.preview = preview  # the preview protocol (:mod:`._preview`) instead of the nested one
         self.data = data
         known = known or data.known_classes  # a dataset's unknown_classes (rest) are unknown by default
         self.known = [data.class_names.index(k) for k in known]
@@ -157,11 +168,20 @@ class RecordingsEvaluator(HalvingSelection, InnerFoldCalibration, EnrolmentFits,
         self._fold_choices: dict[str, list] = {}  # method → its calibrated parameter sets in this fold
         self._timing: dict[str, dict[str, float]] = {}  # method → phase → seconds, in this fold
 
+    def __getstate__(self) -> dict:
+        """What travels to a worker process: the evaluator without this process's fold cache
+        (a worker starts its own)."""
+        return {**self.__dict__, "_cache": {}, "_fold_choices": {}}
+
     def fold_views(self, held: str | None) -> dict[tuple[str, str], tuple[list[Recording], Recording | None]]:
         """Per (normalisation, derived features) choice: the training recordings and the held-out one
         (None: all recordings train), with the features appended and then scaled with the training
         frames.  Starts the fold: fitted models and states of the previous one are dropped."""
         self._cache.clear()
+        return self.views(held)
+
+    def views(self, held: str | None) -> dict[tuple[str, str], tuple[list[Recording], Recording | None]]:
+        """:meth:`fold_views` without starting a fold (the preview keeps every fold's fits)."""
         views = {}
         for derived in self.derived:
             recs = [Recording(r.name, derive(r.X, derived), r.y) for r in self.data.recordings]
@@ -188,7 +208,10 @@ class RecordingsEvaluator(HalvingSelection, InnerFoldCalibration, EnrolmentFits,
             for name in self.methods
             if REGISTRY[name].batch is None  # online methods replay the models of their batch method
         ]
-        truth = next(iter(views.values()))[1].y
+        return self._fold_result(held, next(iter(views.values()))[1].y, parts, untrained)
+
+    def _fold_result(self, held: str, truth: np.ndarray, parts: list[MethodFold], untrained: list[str]) -> FoldResult:
+        """The fold of ``held`` from its methods' parts."""
         return FoldResult(
             held,
             truth,
@@ -213,7 +236,7 @@ class RecordingsEvaluator(HalvingSelection, InnerFoldCalibration, EnrolmentFits,
         method, t0 = REGISTRY[name], time.perf_counter()
         with self._timed(name, "selection"):
             choice = (
-                self._select(name, {key: train for key, (train, _) in views.items()})
+                self._select(name, {key: inner_folds(train) for key, (train, _) in views.items()})
                 if self.chosen is None
                 else self.chosen.choice(name, held)
             )
@@ -221,15 +244,9 @@ class RecordingsEvaluator(HalvingSelection, InnerFoldCalibration, EnrolmentFits,
         with self._timed(name, "labelling"):
             labels = {name: method.labels(fitted, state, choice.reject)}
             sweeps = [lagged(method.labels(fitted, state, r), self.lag) for r in method.reject_grid(fitted, [state])]
-        selected = {
-            **choice.params,
-            "reject": float(choice.reject),
-            "validation_objective": choice.objective,
-            "rejection": "off" if choice.fallback else "calibrated",
-        }
+        selected = choice.selected()
         strict = None
         if choice.fallback:
-            selected["strict"] = {**choice.strict.params, "reject": float(choice.strict.reject)}
             strict_fit, strict_state, _ = self._final(method, choice.strict.params, views)
             with self._timed(name, "labelling"):
                 strict = lagged(method.labels(strict_fit, strict_state, choice.strict.reject), self.lag)
@@ -242,11 +259,7 @@ class RecordingsEvaluator(HalvingSelection, InnerFoldCalibration, EnrolmentFits,
                     selected["enrol_adaptation"], selected["enrol_validation"] = self._adaptation(method, choice, views)
         self.progress(f"  {held}: {name} {choice_summary(selected)} in {time.perf_counter() - t0:.1f} s")
         self.detail(f"    {name}: {selected}")
-        for online in map(REGISTRY.get, self._replaying(method)):
-            t0 = time.perf_counter()
-            with self._timed(online.name, "labelling"):
-                labels[online.name] = online.labels_online(fitted, choice.reject, test.X)
-            self.progress(f"  {held}: {online.name} replayed {name}'s models in {time.perf_counter() - t0:.1f} s")
+        labels.update(self._replayed(method, fitted, choice.reject, test))
         enrolled = {}
         for adaptation in self.enrol_adaptations if self.enroll else ():
             chosen = selected["enrol_adaptation"] if adaptation == CHOSEN else adaptation
@@ -257,6 +270,18 @@ class RecordingsEvaluator(HalvingSelection, InnerFoldCalibration, EnrolmentFits,
             )
         timing = {m: self._timing.get(m, {}) for m in labels}
         return MethodFold(held, name, labels, dict.fromkeys(labels, selected), sweeps, strict, enrolled, timing)
+
+    def _replayed(self, method, fitted, reject: float, test: Recording) -> dict[str, np.ndarray]:
+        """The labels of ``test`` by the online methods that replay ``method``'s ``fitted`` models."""
+        labels = {}
+        for online in map(REGISTRY.get, self._replaying(method)):
+            t0 = time.perf_counter()
+            with self._timed(online.name, "labelling"):
+                labels[online.name] = online.labels_online(fitted, reject, test.X)
+            self.progress(
+                f"  {test.name}: {online.name} replayed {method.name}'s models in {time.perf_counter() - t0:.1f} s"
+            )
+        return labels
 
     def _final(self, method, params: dict, views) -> tuple:
         """``method`` fitted with ``params`` on all training recordings, its state on the held-out
@@ -273,19 +298,25 @@ class RecordingsEvaluator(HalvingSelection, InnerFoldCalibration, EnrolmentFits,
         return [m for m in self.methods if REGISTRY[m].batch is method]
 
     def evaluate(self) -> dict:
-        folds = self._run_folds()
+        """The result (docs/segmentation.md, JSON): the nested protocol's, or the preview's."""
+        folds, spent = self._preview_folds() if self.preview else (self._run_folds(), None)
         truth = np.concatenate([f.truth for f in folds])
-        out: dict = {"methods": {}, "parameters": self._parameters()}
+        out: dict = {"protocol": protocol(self.preview, "recordings"), "methods": {}, "parameters": self._parameters()}
         for name in self.methods:
             out["methods"][name] = self._method_result(folds, name, truth)
-        out["timing"] = timing(folds)
+        out["timing"] = spent or timing(folds)
         out["warnings"] = self._warnings(folds)
         self.folds_ = folds
         return out
 
     def _parameters(self) -> dict:
         return {
-            "protocol": f"leave-one-recording-out; inner folds hold out each of the last {INNER_FOLDS} training recordings",
+            "protocol": "leave-one-recording-out; "
+            + (
+                "every candidate scored on these folds themselves, one choice per method for all folds (preview)"
+                if self.preview
+                else f"inner folds hold out each of the last {INNER_FOLDS} training recordings"
+            ),
             "known": [self.data.class_names[c] for c in self.known],
             "classes": self.data.class_names,
             "recordings": self.data.names(),
@@ -383,8 +414,8 @@ def _calibrate_on_all(
     )
     train = ev.fold_views(None)["training", derived][0] if scaled else list(data.recordings)
     scorer = method.rejects_with
-    gate = None if scorer is None else ev._calibrated(scorer, train, params)[0].objective
-    return ev._rule(method.name, [ev._calibrated(method, train, params)], gate)
+    gate = None if scorer is None else ev._calibrated(scorer, inner_folds(train), params)[0].objective
+    return ev._rule(method.name, [ev._calibrated(method, inner_folds(train), params)], gate)
 
 
 __getattr__ = renamed(__name__, {"StreamEvaluator": "RecordingsEvaluator"})  # the names before the recordings rename

@@ -5,7 +5,6 @@ window, the rejection trade-off, the folds where rejection was switched off and 
 from __future__ import annotations
 
 from collections import Counter
-from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -13,16 +12,19 @@ from ..base import lagged
 from ._calibration import FALLBACK_MARGIN, REJECT_ALL_OBJECTIVE
 from ._chosen import REPORTED
 from ._enrolment import enrolment_report
+from ._fold_result import FoldResult
 from ._methods import REGISTRY
 from ._metrics import frame_metrics, segment_f1, tradeoff_curve
 from ._third_party import summary
 
-if TYPE_CHECKING:
-    from ._folds import FoldResult
-
 
 def _degenerate_calibration(
-    truth: np.ndarray, pred: np.ndarray, known: list[int], selected: list[dict], no_rejection: dict | None
+    truth: np.ndarray,
+    pred: np.ndarray,
+    known: list[int],
+    selected: list[dict],
+    no_rejection: dict | None,
+    where: str = "the inner folds",
 ) -> str | None:
     """What a user needs to know when the calibration chose to reject (nearly) every known frame
     because, on validation, nothing did better than rejecting everything; ``None`` otherwise."""
@@ -32,7 +34,7 @@ def _degenerate_calibration(
     if rejected < 0.9 or best > REJECT_ALL_OBJECTIVE + FALLBACK_MARGIN:
         return None
     return (
-        f"{rejected:.0%} of the known frames are rejected: on the inner folds no operating point kept "
+        f"{rejected:.0%} of the known frames are rejected: on {where} no operating point kept "
         f"known frames and rejected left-out classes better than rejecting everything (best validation "
         f"objective {best:.3f}; rejecting everything scores {REJECT_ALL_OBJECTIVE}). The classes are not "
         "separable enough here for open-set rejection"
@@ -45,13 +47,13 @@ def _degenerate_calibration(
     )
 
 
-def _fallback_note(folds: int, fell_back: int, strict: dict | None) -> str | None:
+def _fallback_note(folds: int, fell_back: int, strict: dict | None, where: str = "the inner folds") -> str | None:
     """What a user needs to know when the calibration switched rejection off in some folds;
     ``None`` when it never did."""
     if not fell_back:
         return None
     return (
-        f"rejection is off in {fell_back} of {folds} folds: on the inner folds no operating point kept known "
+        f"rejection is off in {fell_back} of {folds} folds: on {where} no operating point kept known "
         f"frames and rejected left-out classes better than rejecting everything (objective <= "
         f"{REJECT_ALL_OBJECTIVE + FALLBACK_MARGIN:.2f}; rejecting everything scores {REJECT_ALL_OBJECTIVE}), so the "
         "classes are not separable enough here for open-set rejection and every frame keeps its best label"
@@ -100,8 +102,11 @@ class Report:
         if fell_back:  # the objective's own choice, for the folds where it was overruled
             strict = np.concatenate([f.strict.get(name, f.labels[name]) for f in folds])
             res["strict"] = frame_metrics(truth, strict, self.known)
-        res["calibration_note"] = _fallback_note(len(folds), len(fell_back), res.get("strict")) or (
-            _degenerate_calibration(truth, pred, self.known, [f.selected[name] for f in folds], res.get("no_rejection"))
+        where = "the folds themselves (preview)" if self.preview else "the inner folds"
+        res["calibration_note"] = _fallback_note(len(folds), len(fell_back), res.get("strict"), where) or (
+            _degenerate_calibration(
+                truth, pred, self.known, [f.selected[name] for f in folds], res.get("no_rejection"), where
+            )
         )
         if name in folds[0].sweeps and res["unknown_rejection"] is not None:
             res["tradeoff"] = self._tradeoff(folds, name, truth)

@@ -28,12 +28,11 @@ import math
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
-from ..datasets import Recording
 from ._fidelity import REFINE, SCREEN
 from ._methods import REGISTRY
 
 if TYPE_CHECKING:
-    from ._calibration import Choice
+    from ._calibration import Choice, Split
 
 KEEP = 1 / 3  # share of the screened candidates that are refined (at least one)
 TIE_MARGIN = 0.01  # objectives this close to the best are a tie: the first candidate in order wins
@@ -60,9 +59,10 @@ class HalvingSelection:
     by successive halving over its candidates, calibrated on the inner folds
     (:class:`._calibration.InnerFoldCalibration`)."""
 
-    def _select(self, name: str, views: dict[tuple[str, str], list[Recording]]) -> Choice:
+    def _select(self, name: str, views: dict[tuple[str, str], list[Split]]) -> Choice:
         """Normalisation, derived features, hyper-parameters and rejection value of one method, chosen
-        on inner splits of the training recordings (``views``: (normalisation, derived) → those recordings)."""
+        on the splits of ``views`` ((normalisation, derived) → its splits: the inner folds of the
+        training recordings, :func:`._calibration.inner_folds`; the preview: the outer folds)."""
         method = REGISTRY[name]
         gate = (
             None
@@ -71,24 +71,45 @@ class HalvingSelection:
         )
         return self._rule(name, self._choices(method, views), gate)
 
-    def _choices(self, method, views: dict[tuple[str, str], list[Recording]]) -> list[tuple[Choice, float, Callable]]:
+    def _choices(self, method, views: dict[tuple[str, str], list[Split]]) -> list[tuple[Choice, float, Callable]]:
         """The parameter sets of ``method`` (normalisation and derived features included) that
-        survive the screen, calibrated on the inner folds (:mod:`._selection`); once per fold,
-        whether for the method itself or as the scorer another method rejects with."""
+        survive the screen, calibrated on the splits of ``views`` (:mod:`._selection`); once per
+        fold, whether for the method itself or as the scorer another method rejects with."""
         if method.name not in self._fold_choices:
             candidates = [
-                (train, {**params, "derived": derived, "normalise": normalise})
-                for (normalise, derived), train in views.items()
+                (splits, {**params, "derived": derived, "normalise": normalise})
+                for (normalise, derived), splits in views.items()
                 for params in method.grid(self.quick)
             ]
             if method.rejects_with is not None:  # the CLM over a scorer: the scorer's chosen candidate
                 scorer = method.rejects_with
                 chosen = self._rule(scorer.name, self._choices(scorer, views)).params
-                candidates = [(train, params) for train, params in candidates if params == chosen]
+                candidates = [(splits, params) for splits, params in candidates if params == chosen]
             if len(candidates) > 1:
-                screened = [self._calibrated(method, train, params, SCREEN) for train, params in candidates]
-                candidates = [candidates[i] for i in survivors(self._ranking(screened))]
+                self._warm(method, candidates, SCREEN)
+                screened = [self._calibrated(method, splits, params, SCREEN) for splits, params in candidates]
+                ranking = self._ranking(screened)
+                kept = survivors(ranking)
+                self.screened(method.name, [params for _, params in candidates], screened, ranking, kept)
+                candidates = [candidates[i] for i in kept]
+            self._warm(method, candidates, REFINE)
             self._fold_choices[method.name] = [
-                self._calibrated(method, train, params, REFINE) for train, params in candidates
+                self._calibrated(method, splits, params, REFINE) for splits, params in candidates
             ]
         return self._fold_choices[method.name]
+
+    def screened(self, name: str, candidates: list[dict], screened: list, ranking: list[float], kept: list[int]):
+        """The screen's provisional ranking of a method's ``candidates`` (their screened
+        calibrations and what ranks them, :meth:`._calibration.InnerFoldCalibration._ranking`;
+        ``kept``: the refined ones): on stderr in the preview, with ``--verbose`` in the nested
+        protocol."""
+        say = self.progress if self.preview else self.detail
+        by = "pooled objective" if ranking == [c.objective for c, *_ in screened] else "keep-all known accuracy"
+        say(f"  {name}: screen of {len(candidates)} candidates, provisional ranking by {by} (cheap models)")
+        for rank, i in enumerate(sorted(range(len(candidates)), key=lambda i: -ranking[i]), 1):
+            params = candidates[i]
+            grid = ", ".join(f"{k} {v}" for k, v in params.items() if k not in ("normalise", "derived"))
+            say(
+                f"    {rank:2d}. {ranking[i]:.3f} (objective {screened[i][0].objective:.3f})  "
+                f"{params['normalise']}/{params['derived']}, {grid}  " + ("refined" if i in kept else "dropped")
+            )

@@ -54,6 +54,7 @@ from ..datasets import LabelledDataset
 from ..models import CandidateSet, Projection
 from ..scorers import PerClassHMM, SlidingDTW1NN
 from ._methods import REGISTRY
+from ._protocols import protocol
 from ._trajectory_cases import (
     EXPERIMENTS,
     METHODS,
@@ -87,6 +88,7 @@ class Evaluator(TrajectorySelection, ForkedWork):
     alternatives: tuple[CandidateSet, ...] = ()
     trainer: Callable[[LabelledDataset, tuple[int, ...]], CandidateSet] | None = None
     jobs: int = 1  # forked processes (docs/segmentation.md, ``--jobs``): the same figures with any number
+    preview: bool = False  # choose on the test cases that are reported (the preview protocol) instead of validation
 
     def __post_init__(self) -> None:
         self.classes = self.candidates.classes
@@ -303,9 +305,11 @@ class Evaluator(TrajectorySelection, ForkedWork):
     def evaluate(self, methods: tuple[str, ...] = METHODS) -> dict:
         """Select on validation, report on test: the JSON structure of ``evaluate segmentation``."""
         out: dict = {
+            "protocol": protocol(self.preview, "trajectories"),
             "methods": {},
             "parameters": {
                 "protocol": {
+                    "choose_on": self.choosing,
                     "nths": list(self.protocol.nths),
                     "histories": list(self.protocol.histories),
                     "runs": self.protocol.runs,

@@ -6,16 +6,12 @@ from __future__ import annotations
 
 import time
 from dataclasses import replace
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ._methods import REGISTRY
 from ._selection import first_of_best, survivors
 from ._trajectory_cases import REJECTION_EXPERIMENTS, SEGMENT_RULES, SELECTION_EXPERIMENTS, cross_fitted_splits
-
-if TYPE_CHECKING:
-    from ._trajectories import Evaluator
 
 
 class TrajectorySelection:
@@ -39,7 +35,7 @@ class TrajectorySelection:
         annealing (:data:`SCREEN_ETA`); computed once."""
         key = self._objective_key(method, params, screen, cheap)
         if key not in self._objectives:
-            res = self.run(method, params, "validation", screen=screen, cheap=cheap)
+            res = self.run(method, params, self.choosing, screen=screen, cheap=cheap)
             self._objectives[key] = self.objective(res)
         return self._objectives[key]
 
@@ -48,10 +44,16 @@ class TrajectorySelection:
         return (method, repr(sorted(params.items())), bool(screen), bool(screen if cheap is None else cheap))
 
     @property
+    def choosing(self) -> str:
+        """The split the candidates are scored on: validation, or the reported test split in the
+        preview (docs/segmentation.md, "Which protocol when")."""
+        return "test" if self.preview else "validation"
+
+    @property
     def screens(self) -> bool:
         """Whether the screen is a proper part of the validation cases (else every candidate is
         scored on all of them at once)."""
-        return any((c.nth, c.history) not in self.screen for c in self.cases["validation"])
+        return any((c.nth, c.history) not in self.screen for c in self.cases[self.choosing])
 
     def select(self, method: str) -> tuple[dict, float]:
         """The grid point chosen on validation by successive halving: (params, objective).  The
@@ -62,8 +64,8 @@ class TrajectorySelection:
         validation cases; among the refined grid points the first within ``TIE_MARGIN`` of the
         best objective wins (:func:`._selection.first_of_best`, grid order)."""
         if self.jobs > 1:
-            self.warm(method, "validation")  # the baselines' thresholds already need their scores
-        grid = self.grid(method)
+            self.warm(method, self.choosing)  # the baselines' thresholds already need their scores
+        grid = self.grid(method, self.choosing)
         groups: dict[str, list[int]] = {}
         for i, params in enumerate(grid):
             groups.setdefault(repr(sorted((k, v) for k, v in params.items() if k not in SEGMENT_RULES)), []).append(i)
@@ -87,7 +89,7 @@ class TrajectorySelection:
         sharing one run), the runs over ``jobs`` forked processes."""
         todo = [run for run in runs if any(self._objective_key(method, p, screen) not in self._objectives for p in run)]
         if todo and self.jobs > 1:
-            self.warm(method, "validation")
+            self.warm(method, self.choosing)
             for run, scores in zip(todo, self._parallel("_run_objectives", [(method, run, screen) for run in todo])):
                 for params, score in zip(run, scores):
                     self._objectives[self._objective_key(method, params, screen)] = score
@@ -96,7 +98,7 @@ class TrajectorySelection:
     def _run_objectives(self, method: str, run: list[dict], screen: bool) -> list[float]:
         return [self.validation_objective(method, params, screen=screen) for params in run]
 
-    def _fold(self, k: int) -> Evaluator:
+    def _fold(self, k: int) -> TrajectorySelection:
         """This evaluator on the ``k``-th split of :func:`cross_fitted_splits` (0: itself), its
         heading channels' candidates retrained by ``trainer`` on that split's train part."""
         if k == 0:
@@ -109,7 +111,9 @@ class TrajectorySelection:
 
     def n_folds(self) -> int:
         """How many cross-fitted splits the heading channels are chosen on (1 without a ``trainer``)."""
-        return len(cross_fitted_splits(self.dataset, self.protocol.heading_folds)) if self.trainer else 1
+        if self.preview or not self.trainer:  # the preview scores every candidate set on the test cases once
+            return 1
+        return len(cross_fitted_splits(self.dataset, self.protocol.heading_folds))
 
     def _fold_objectives(self, h: int, k: int, tasks: list[tuple[str, dict]]) -> list[float]:
         """The objective on the screen's cases (at full fidelity: the segmenter's own annealing)
@@ -137,11 +141,11 @@ class TrajectorySelection:
             for h in range(len(tasks))
         ]
 
-    def choose(self, method: str) -> tuple[Evaluator, dict, float]:
+    def choose(self, method: str) -> tuple[TrajectorySelection, dict, float]:
         """:meth:`choose_all` of one method."""
         return self.choose_all((method,))[method]
 
-    def choose_all(self, methods: tuple[str, ...]) -> dict[str, tuple[Evaluator, dict, float]]:
+    def choose_all(self, methods: tuple[str, ...]) -> dict[str, tuple[TrajectorySelection, dict, float]]:
         """Per method the evaluator (heading channels) and grid point: (evaluator, params,
         validation objective).  Each candidate set's grid point is chosen by :meth:`select`; a
         manifold method then chooses among the candidate sets (heading channels) — a choice that
@@ -152,7 +156,7 @@ class TrajectorySelection:
         picks: dict[str, list[tuple[dict, float]]] = {}
         for method in methods:
             t0 = time.perf_counter()
-            self.progress(f"{method}: selecting parameters on validation")
+            self.progress(f"{method}: selecting parameters on {self.choosing}")
             evs = evaluators if REGISTRY[method].manifolds else [self]
             picks[method], halving = [], []
             for ev in evs:
@@ -182,7 +186,7 @@ class TrajectorySelection:
                     for ev, (params, score), x, p in zip(evaluators, picks[method], f, pooled)
                 ]
                 self.progress(
-                    f"{method}: validation chose heading channels {evaluators[k].headings or 'none'} "
+                    f"{method}: {self.choosing} chose heading channels {evaluators[k].headings or 'none'} "
                     f"({pooled[k]:.3f} over {len(f[k])} split(s); "
                     + ", ".join(f"{ev.headings or 'none'}: {p:.3f}" for ev, p in zip(evaluators, pooled))
                     + ")"

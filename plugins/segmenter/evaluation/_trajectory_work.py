@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import multiprocessing
 from concurrent.futures import ProcessPoolExecutor
-from typing import TYPE_CHECKING
 
 import numpy as np
 from threadpoolctl import threadpool_limits
@@ -14,11 +13,7 @@ from threadpoolctl import threadpool_limits
 from ..models import Projection
 from ._methods import REGISTRY
 
-if TYPE_CHECKING:
-    from ._trajectories import Evaluator
-
-
-_FORKED: Evaluator | None = None  # the evaluator whose work the forked processes do
+_FORKED: ForkedWork | None = None  # the evaluator whose work the forked processes do
 
 
 _LOADED: set[str] = set()  # methods whose compiled kernels this process has loaded (before forking)

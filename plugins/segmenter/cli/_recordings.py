@@ -256,7 +256,7 @@ def estimate_line(path: str, method: str = "ukr_clm") -> str | None:
     if "open_set_accuracy" not in m or "known_accuracy" not in m:
         return None
     unknown = m.get("unknown_rejection")
-    optimistic = bool(result.get("parameters", {}).get("preview"))
+    optimistic = bool(result.get("protocol", {}).get("optimistic"))
     return (
         f"estimate on new recordings (leave one recording out, {len(m['folds'])} folds, {method}): "
         f"open-set accuracy {m['open_set_accuracy']:.3f}, known gestures right {m['known_accuracy']:.3f}"

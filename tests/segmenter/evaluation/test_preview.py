@@ -83,11 +83,12 @@ def test_the_command_says_which_protocol_its_figures_come_from(capsys):
     assert json.loads(capsys.readouterr().out)["protocol"]["name"] == "preview"
 
 
-def test_train_classes_trains_the_models_a_preview_chose(preview, tmp_path):
+def test_train_classes_trains_the_models_a_preview_chose(preview, tmp_path, capsys):
     _, result, _ = preview
     (tmp_path / "preview.json").write_text(json.dumps(result))
     argv = [str(DEMO), "--out", str(tmp_path / "models"), "--params", str(tmp_path / "preview.json"), "--steps", "30"]
     assert run_command(register_train_classes, argv) == 0
+    assert "optimistic: the settings were chosen on these same recordings" in capsys.readouterr().out
     provenance = json.loads((tmp_path / "models" / "classes.json").read_text())["provenance"]
     selected = result["methods"]["ukr_clm"]["folds"][0]["selected"]
     expected = 0.0 if selected["rejection"] == "off" else selected["reject"]

@@ -12,6 +12,7 @@ from ..observe.foxglove_bridge import BridgeError, start_bridge
 from ..runtime.launcher import run_graph
 from ..runtime.param_service import LOCAL
 from ..runtime.status import StatusLine
+from ..runtime.stop_signals import StopSignals
 from ..runtime.zygote import start_unless_disabled
 from ._shared import add_foxglove_option
 
@@ -46,6 +47,12 @@ def register(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    # Ctrl-C and SIGTERM only ask to stop from here on: the start-up checks it and stops in order
+    with StopSignals() as stop:
+        return _run(args, stop)
+
+
+def _run(args: argparse.Namespace, stop: StopSignals) -> int:
     # imports the plugins for the node processes while the graph is checked here
     zygote = start_unless_disabled(args.graph)
     try:
@@ -56,6 +63,15 @@ def run(args: argparse.Namespace) -> int:
         print(exc, file=sys.stderr)
         print(f"{args.graph}: fix the problems above (see `handflow validate {args.graph}`)", file=sys.stderr)
         return 2
+    except BaseException:
+        if zygote is not None:
+            zygote.close()
+        raise
+    if stop.is_set():  # before anything ran: nothing to stop, no recording begun
+        if zygote is not None:
+            zygote.close()
+        print("interrupted", file=sys.stderr)
+        return 130
     record_path = args.record or (graph.spec.record.path if graph.spec.record else None)
     recorder = bridge = None
     status = StatusLine(graph.name, graph.spec.status) if graph.spec.status else None
@@ -76,7 +92,9 @@ def run(args: argparse.Namespace) -> int:
             recorder.attach(launcher.session)
 
     try:
-        launcher = run_graph(graph, args.duration, args.host, on_ready=attach, zygote=zygote, watch=args.watch)
+        launcher = run_graph(
+            graph, args.duration, args.host, on_ready=attach, zygote=zygote, watch=args.watch, stop=stop
+        )
     except (ValueError, BridgeError, EndpointInUse) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

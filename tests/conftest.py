@@ -3,8 +3,11 @@
 from __future__ import annotations
 
 import argparse
+import os
+import signal
 import subprocess
 import sys
+import warnings
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -51,3 +54,42 @@ def run_command(register, argv: list[str]):
 @pytest.fixture
 def run_handflow():
     return handflow
+
+
+def processes_of(folder: Path) -> list[int]:
+    """Live processes (zombies aside) that a test started in ``folder``: its path in their command line (a
+    graph file there) or their working directory below it.  Empty where there is no ``/proc``."""
+    found = []
+    for entry in Path("/proc").glob("[0-9]*"):
+        if int(entry.name) == os.getpid():
+            continue
+        try:
+            state = (entry / "stat").read_text().rsplit(")", 1)[1].split()[0]
+            command = (entry / "cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
+            cwd = os.readlink(entry / "cwd") if str(folder) not in command else str(folder)
+        except (OSError, IndexError):  # gone meanwhile, or not ours to look at
+            continue
+        if state != "Z" and (str(folder) in command or Path(cwd).is_relative_to(folder)):
+            found.append(int(entry.name))
+    return found
+
+
+def kill_processes_of(folder: Path) -> list[int]:
+    """SIGKILL what :func:`processes_of` finds; returns their pids."""
+    pids = processes_of(folder)
+    for pid in pids:
+        try:
+            os.kill(pid, signal.SIGKILL)
+        except (ProcessLookupError, PermissionError):
+            pass
+    return pids
+
+
+@pytest.fixture(autouse=True)
+def _no_process_left(request):
+    """A test that fails or times out (pytest-timeout) leaves no launcher, zygote or node process running: what
+    it started in its ``tmp_path`` is killed at its end, with a warning naming them."""
+    folder = request.getfixturevalue("tmp_path") if "tmp_path" in request.fixturenames else None
+    yield
+    if folder is not None and (left := kill_processes_of(folder)):
+        warnings.warn(f"{request.node.nodeid} left processes running; killed: {left}", stacklevel=1)

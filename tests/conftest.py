@@ -4,9 +4,11 @@ from __future__ import annotations
 
 import argparse
 import os
+import shutil
 import signal
 import subprocess
 import sys
+import tempfile
 import warnings
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -15,6 +17,31 @@ from pathlib import Path
 import pytest
 
 REPO = Path(__file__).resolve().parents[1]
+
+
+@pytest.hookimpl(trylast=True)  # after pytest's temporary-folder factory is configured
+def pytest_configure(config):
+    """Each pytest process (an xdist worker, or the only one) gets a private ``$TMPDIR`` — so its own iceoryx2
+    namespace in ``/dev/shm`` and its own launcher state folders — and a private run folder
+    (``$HANDFLOW_RUN_DIR``), inherited by every process its tests start: tests running side by side never
+    see each other's graphs (docs/testing.md).  A test may narrow them further (its ``tmp_path``)."""
+    config._tmp_path_factory.getbasetemp()
+    worker = os.environ.get("PYTEST_XDIST_WORKER", "main")
+    private = Path(tempfile.mkdtemp(prefix=f"hf{worker}-", dir="/tmp"))  # short: iceoryx2's socket paths
+    config._handflow_tmp = private
+    os.environ["TMPDIR"] = str(private)
+    os.environ["HANDFLOW_RUN_DIR"] = str(private / "runs")
+    tempfile.tempdir = None  # gettempdir() reads $TMPDIR again
+
+
+def pytest_unconfigure(config):
+    private = getattr(config, "_handflow_tmp", None)
+    if private is None:
+        return
+    from handflow.framework.network import local_transport
+
+    local_transport.remove_leftovers()  # this process's iceoryx2 namespace: files of nodes that were killed
+    shutil.rmtree(private, ignore_errors=True)
 
 
 def handflow(*args: str, timeout: float = 120, check: bool = False, **kw) -> subprocess.CompletedProcess:

@@ -34,3 +34,7 @@ class StopSignals:
 
     def is_set(self) -> bool:
         return self.event.is_set()
+
+    def wait(self, timeout: float | None = None) -> bool:
+        """Until a stop is asked for (True) or ``timeout`` passes (False)."""
+        return self.event.wait(timeout)

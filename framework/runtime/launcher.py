@@ -143,8 +143,10 @@ class Launcher:
             self._calls: queue.SimpleQueue = queue.SimpleQueue()  # run by poll(), the supervising thread
             self.params = ParamService(self)
             undo.pop_all()
+        self._local_prepared = None
         if graph.spec.transport.local == "iceoryx2":  # beside the start-up: importing iceoryx2 takes 0.2-0.6 s
-            threading.Thread(target=_prepare_local, name="handflow-iox2", daemon=True).start()
+            self._local_prepared = threading.Thread(target=_prepare_local, name="handflow-iox2", daemon=True)
+            self._local_prepared.start()
 
     def _secure_settings(self, host: str | None) -> dict[str, object]:
         """The hub's TLS, access-control and user/password settings (docs/security.md)."""
@@ -241,6 +243,8 @@ class Launcher:
         log.info("started %s (pid %d)", unit.name, unit.proc.pid)
 
     def start(self) -> None:
+        if self._local_prepared is not None:  # its reclaiming of dead nodes' files must not meet a node being made
+            self._local_prepared.join()
         for unit in self.units:
             self._spawn(unit)
 

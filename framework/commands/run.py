@@ -41,7 +41,8 @@ def register(parser: argparse.ArgumentParser) -> None:
     parser.epilog = (
         "exit codes: 0 ok (a node that failed, restarted and runs at the end is noted in the summary), "
         "1 empty or failed recording, 2 bad graph, missing input (file, device, extra) or bad arguments, "
-        "3 a node in a crash loop, 4 a node failed and was not running at the end (docs/reliability.md)"
+        "3 a node in a crash loop, 4 a node failed and was not running at the end, 130 Ctrl-C or SIGTERM before the "
+        "graph was loaded (docs/reliability.md)"
     )
     parser.set_defaults(func=run)
 

@@ -394,7 +394,10 @@ def _reclaim_dead_nodes() -> int:
     alive = 0
     for state in iox.Node.list(iox.ServiceType.Ipc, _config(iox)):
         if isinstance(state, iox.NodeState.Dead):
-            state._0.try_remove_stale_resources()
+            try:
+                state._0.try_remove_stale_resources()
+            except iox.NodeCleanupFailure as exc:  # another process of the namespace reclaimed it first
+                log.debug("a dead node's resources: %s", exc)
         alive += isinstance(state, iox.NodeState.Alive)
     return alive
 

@@ -2,12 +2,18 @@
 
 Built-in plugins register exactly like third-party ones: entry-point group ``handflow.plugins``
 (name → ``module:NodeClass``).  A plugin that was renamed keeps its old entry point; its class
-names the current one in ``plugin_name`` and loading it by the old name warns (docs/pipelines.md).  CLI commands come from group ``handflow.commands``.
+names the current one in ``plugin_name`` and loading it by the old name warns (docs/pipelines.md).  A graph
+may also name a plugin by its source file, ``./my_plugin.py:MyNode`` (:func:`load_file_plugin`; docs/pipelines.md,
+"A plugin given by path").  CLI commands come from group ``handflow.commands``.
 """
 
 from __future__ import annotations
 
 import difflib
+import hashlib
+import importlib.util
+import inspect
+import re
 import sys
 import sysconfig
 import traceback
@@ -15,6 +21,7 @@ import warnings
 from dataclasses import dataclass
 from functools import cache
 from importlib.metadata import EntryPoint, entry_points
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:  # the node base class (numpy, pydantic) loads with the first plugin, not with `--help`
@@ -22,6 +29,7 @@ if TYPE_CHECKING:  # the node base class (numpy, pydantic) loads with the first 
 
 PLUGIN_GROUP = "handflow.plugins"
 COMMAND_GROUP = "handflow.commands"
+PATH_PREFIXES = ("./", "../", "/")  # a plugin named so is a source file (docs/pipelines.md)
 
 
 class PluginError(LookupError):
@@ -81,8 +89,70 @@ def unknown_plugin(name: str) -> str:
     return f"unknown plugin '{name}'; {guess}installed plugins: {', '.join(names)}"
 
 
-def load_plugin(name: str) -> type[Node]:
-    """The node class of plugin ``name``; :class:`PluginError` lists the known names if unknown."""
+def is_path_plugin(name: str) -> bool:
+    """Whether a graph names this plugin by its source file (``./my_plugin.py:MyNode``)."""
+    return name.startswith(PATH_PREFIXES)
+
+
+def load_file_plugin(name: str, base_dir: Path) -> type[Node]:
+    """The node class of ``FILE.py:Class`` (FILE relative to ``base_dir``, the graph file's folder, unless
+    absolute).  The module is imported once per process under a name made from its resolved path, so that
+    ``--watch`` sees and forgets it like an installed one (:mod:`.runtime.plugin_sources`: the file alone)."""
+    from .plugin import Node
+
+    file, _, class_name = name.rpartition(":")
+    if not file.endswith(".py") or not class_name.isidentifier():
+        raise PluginError(
+            f"plugin '{name}': a plugin given by path is written FILE.py:ClassName (e.g. ./my_plugin.py:MyNode), "
+            "FILE relative to the graph file's folder"
+        )
+    try:
+        path = (base_dir / file).resolve()
+        found = path.is_file()
+    except (OSError, ValueError) as exc:  # a name the file system refuses (too long, a NUL byte)
+        raise PluginError(f"plugin '{name}': {file!r} is not a usable path: {exc}") from None
+    if not found:
+        raise PluginError(
+            f"plugin '{name}': no file {path} (a path is relative to the graph file's folder, {base_dir})"
+        )
+    stem, digest = re.sub(r"\W", "_", path.stem), hashlib.sha1(str(path).encode()).hexdigest()[:10]
+    module_name = f"handflow_plugin_{stem}_{digest}"
+    module = sys.modules.get(module_name)
+    if module is None:
+        spec = importlib.util.spec_from_file_location(module_name, path)
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[module_name] = module
+        try:
+            spec.loader.exec_module(module)
+        except Exception as exc:  # its own error, where it happened
+            del sys.modules[module_name]
+            at = failing_line(exc)
+            raise PluginError(
+                f"plugin '{name}' failed to load: {type(exc).__name__}: {exc}" + (f" (at {at})" if at else "")
+            ) from exc
+    cls = getattr(module, class_name, None)
+    if cls is None:
+        nodes = [k for k, v in vars(module).items() if isinstance(v, type) and issubclass(v, Node) and v is not Node]
+        raise PluginError(
+            f"plugin '{name}': {path}:1 defines no '{class_name}' "
+            f"(its Node classes: {', '.join(nodes) or 'none'}); check the name after ':'"
+        )
+    if not (isinstance(cls, type) and issubclass(cls, Node)):
+        try:
+            where = f"{path}:{inspect.getsourcelines(cls)[1]}"
+        except (OSError, TypeError):
+            where = str(path)
+        raise PluginError(
+            f"plugin '{name}': '{class_name}' (at {where}) is not a handflow.framework.plugin.Node subclass"
+        )
+    return cls
+
+
+def load_plugin(name: str, base_dir: Path | None = None) -> type[Node]:
+    """The node class of plugin ``name`` (installed, or a file relative to ``base_dir``: :func:`load_file_plugin`);
+    :class:`PluginError` lists the known names if unknown."""
+    if is_path_plugin(name):
+        return load_file_plugin(name, base_dir if base_dir is not None else Path.cwd())
     entries = plugin_entries()
     if name not in entries:
         raise PluginError(unknown_plugin(name))

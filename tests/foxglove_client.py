@@ -1,5 +1,6 @@
-"""A real Foxglove WebSocket client (the ``foxglove.websocket.v1`` protocol over ``websockets``): its connection,
-the Foxglove app's side of the protocol, and the binary frames of the playback bar."""
+"""A real Foxglove WebSocket client (a ``foxglove.sdk.v1`` client over ``websockets``, the subprotocol
+foxglove-sdk's server speaks): its connection, the Foxglove app's side of the protocol, and the binary
+frames of the playback bar."""
 
 from __future__ import annotations
 
@@ -43,10 +44,30 @@ def connect_foxglove(port: int, timeout: float):
 
 
 class FoxgloveClient:
-    """The Foxglove app's side of the protocol: JSON requests, replies picked by their ``op``."""
+    """The Foxglove app's side of the protocol: JSON requests, replies picked by their ``op``.  Every status
+    message, playback state and advertised topic received on the way is kept (``statuses``, ``states``,
+    ``topics``)."""
 
     def __init__(self, port: int, timeout: float = 30.0) -> None:
         self.ws = connect_foxglove(port, timeout)
+        self.statuses: list[dict] = []
+        self.states: list[dict] = []
+        self.topics: set[str] = set()
+
+    def recv(self, timeout: float) -> str | bytes:
+        """The next frame (``TimeoutError`` after ``timeout``), noting statuses and playback states."""
+        frame = self.ws.recv(timeout=timeout)
+        if isinstance(frame, str) and (msg := json.loads(frame)).get("op") == "status":
+            self.statuses.append(msg)
+        elif isinstance(frame, str) and msg.get("op") == "advertise":
+            self.topics |= {c["topic"] for c in msg["channels"]}
+        elif isinstance(frame, bytes) and frame[0] == 5:
+            self.states.append(playback_state(frame))
+        return frame
+
+    def problems(self) -> list[dict]:
+        """The status messages of level warning (1) or error (2) received so far."""
+        return [s for s in self.statuses if s.get("level", 0) >= 1]
 
     def __enter__(self) -> FoxgloveClient:
         self.ws.__enter__()
@@ -63,7 +84,7 @@ class FoxgloveClient:
         deadline = time.time() + timeout
         while time.time() < deadline:
             try:
-                frame = self.ws.recv(timeout=1)
+                frame = self.recv(timeout=1)
             except TimeoutError:
                 continue
             if isinstance(frame, str):
@@ -77,7 +98,7 @@ class FoxgloveClient:
         frames, deadline = [], time.time() + seconds
         while (left := deadline - time.time()) > 0:
             try:
-                frame = self.ws.recv(timeout=left)
+                frame = self.recv(timeout=left)
             except TimeoutError:
                 break
             if isinstance(frame, bytes) and frame[0] == opcode:

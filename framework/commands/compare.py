@@ -15,7 +15,11 @@ def register(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("a", metavar="A.mcap", help="first recording (e.g. the live run)")
     parser.add_argument("b", metavar="B.mcap", help="second recording (e.g. its replay)")
     parser.add_argument(
-        "--topics", nargs="+", metavar="GLOB", help="node/port globs as for record (default: every data topic)"
+        "--topics",
+        nargs="+",
+        metavar="GLOB",
+        help="node/port globs as for record (default: every data topic, whose node and port names do not start "
+        "with '_'; '_runtime/*' or '_params/*' compares those)",
     )
     parser.add_argument("--json", action="store_true", help="print one JSON object (see docs/recording.md)")
     parser.epilog = "exit codes: 0 equal, 1 a difference, 2 a missing or unreadable file, or no topic to compare"

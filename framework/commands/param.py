@@ -1,5 +1,5 @@
-"""``handflow param list|get|set [--graph G] NODE[.KEY] [VALUE] [--restart]``: a running graph's parameters
-(docs/tuning.md)."""
+"""``handflow param list|get|set [--graph G] NODE[.KEY] [VALUE] [--restart]``, ``param dump [FILE]`` and
+``param load FILE [--restart]``: a running graph's parameters (docs/tuning.md; files: :mod:`.param_files`)."""
 
 from __future__ import annotations
 
@@ -10,39 +10,40 @@ from typing import Any
 
 import yaml
 
-from ..keys import param_request_key
 from ..runtime.discovery import add_auth_arguments
-from ..runtime.param_service import LOCAL, NODE_TIMEOUT_S, RESTART_TIMEOUT_S
-from ._shared import joined_graphs
+from ..runtime.param_service import NODE_TIMEOUT_S, RESTART_TIMEOUT_S
+from . import param_files
+from ._shared import one_graph, param_asker
+from .param_files import show
 
 
 def register(parser: argparse.ArgumentParser) -> None:
-    """List, read or change the parameters of a running graph's nodes (live, or with --restart)."""
+    """List, read or change a running graph's parameters (live, or with --restart); dump them to or load a file."""
     parser.add_argument(
-        "action", choices=["list", "get", "set"], help="list NODE's (or every node's) parameters; get; set"
+        "action",
+        choices=["list", "get", "set", "dump", "load"],
+        help="list NODE's (or every node's) parameters; get; set; dump every node's to FILE (YAML, default "
+        "stdout); load FILE: set the keys whose value differs",
     )
-    parser.add_argument("target", nargs="?", metavar="NODE[.KEY]", help="a node, or one of its parameters")
+    parser.add_argument(
+        "target", nargs="?", metavar="NODE[.KEY] | FILE", help="a node, or one of its parameters; with dump/load: FILE"
+    )
     parser.add_argument(
         "value", nargs="?", metavar="VALUE", help="with set: the new value, a YAML scalar (3, 0.5, sine, null)"
     )
     parser.add_argument(
-        "--restart", action="store_true", help="with set: restart the node when it takes KEY only at start"
+        "--restart",
+        action="store_true",
+        help="with set/load: restart the node when it takes KEY only at start (load: once per node)",
     )
     parser.add_argument("--graph", help="name of the running graph (default: the only one running)")
     parser.add_argument("--connect", metavar="ENDPOINT", help="join this Zenoh endpoint (the hub running the node)")
     add_auth_arguments(parser)
     parser.epilog = (
-        "exit codes: 0 done, 1 the node refused the value (its message says why; the old value stays), "
-        "2 no such graph, node or parameter, bad arguments, or no permission (docs/tuning.md)"
+        "exit codes: 0 done, 1 the node refused the value (its message says why; the old value stays; load: any "
+        "key), 2 no such graph, node or parameter, bad arguments, a malformed FILE, or no permission (docs/tuning.md)"
     )
-    parser.set_defaults(func=run)
-
-
-def show(value: Any) -> str:
-    """A parameter value as one would write it in the graph file (``3`` for 3.0)."""
-    if isinstance(value, float) and value.is_integer():
-        return str(int(value))
-    return value if isinstance(value, str) else json.dumps(value)
+    parser.set_defaults(func=run, late_positionals=("target", "value"))
 
 
 def scalar(text: str) -> Any:
@@ -58,6 +59,10 @@ def scalar(text: str) -> Any:
 
 def _request(args: argparse.Namespace) -> tuple[str, str, dict[str, Any]] | str:
     """(node or ``*``, key, request), or what is wrong with the arguments."""
+    if args.action in ("dump", "load"):
+        if args.value is not None or (args.action == "load" and not args.target):
+            return f"param {args.action} takes {'FILE' if args.action == 'load' else '[FILE]'} only"
+        return "*", "", {"op": args.action}
     node, _, key = (args.target or "").partition(".")
     if args.action == "list":
         return node or "*", key, {"op": "get"}
@@ -76,23 +81,17 @@ def run(args: argparse.Namespace) -> int:
         print(f"error: {asked}", file=sys.stderr)
         return 2
     node, key, request = asked
-    if (joined := joined_graphs(args)) is None:
+    if (joined := one_graph(args)) is None:
         return 2
-    session, found = joined
+    session, graph, info = joined
     try:
-        if len(found) > 1:
-            print(
-                f"error: several graphs run there ({', '.join(sorted(found))}); name one with --graph", file=sys.stderr
-            )
-            return 2
-        graph, info = next(iter(found.items()))
-        who = args.cert_name if args.certs else LOCAL
-        timeout = RESTART_TIMEOUT_S + 10 if request.get("restart") else NODE_TIMEOUT_S + 3
-        replies = [
-            json.loads(r.ok.payload.to_bytes())
-            for r in session.get(param_request_key(graph, who, node), payload=json.dumps(request), timeout=timeout)
-            if r.ok is not None
-        ]
+        ask = param_asker(session, graph, args)
+        timeouts = NODE_TIMEOUT_S + 3, RESTART_TIMEOUT_S + 10
+        if request["op"] == "dump":
+            return param_files.dump(graph, info.get("nodes", []), ask, args.target, timeouts[0])
+        if request["op"] == "load":
+            return param_files.load(graph, info.get("nodes", []), ask, args.target, args.restart, timeouts)
+        replies = ask(node, request, timeouts[1] if request.get("restart") else timeouts[0])
     finally:
         session.close()
     if not replies:

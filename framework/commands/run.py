@@ -6,12 +6,7 @@ import argparse
 import json
 import sys
 
-from ..graphs.model import FoxgloveSettings, GraphError, load_graph
-from ..network.sessions import EndpointInUse
-from ..observe.foxglove_bridge import BridgeError, start_bridge
-from ..runtime.launcher import run_graph
-from ..runtime.param_service import LOCAL
-from ..runtime.status import StatusLine
+from ..runtime.startup import StartupProgress
 from ..runtime.stop_signals import StopSignals
 from ..runtime.zygote import start_unless_disabled
 from ._shared import add_foxglove_option
@@ -54,8 +49,18 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _run(args: argparse.Namespace, stop: StopSignals) -> int:
+    progress = StartupProgress()
+    progress.say("handflow run %s: importing its plugins, checking its inputs, starting its processes", args.graph)
     # imports the plugins for the node processes while the graph is checked here
     zygote = start_unless_disabled(args.graph)
+    # the rest of what a run needs, imported once the first line is out (docs/pipelines.md, "Start-up")
+    from ..graphs.model import FoxgloveSettings, GraphError, load_graph
+    from ..network.sessions import EndpointInUse
+    from ..observe.foxglove_bridge import BridgeError, start_bridge
+    from ..runtime.launcher import run_graph
+    from ..runtime.param_service import LOCAL
+    from ..runtime.status import StatusLine
+
     try:
         graph = load_graph(args.graph, preflight=True, host=args.host)
     except GraphError as exc:
@@ -92,9 +97,17 @@ def _run(args: argparse.Namespace, stop: StopSignals) -> int:
             recorder = GraphRecorder.for_graph(graph, record_path)  # outputs are relative to the current directory
             recorder.attach(launcher.session)
 
+    progress.say("graph '%s' checked (%.1fs); starting its nodes", graph.name, progress.elapsed())
     try:
         launcher = run_graph(
-            graph, args.duration, args.host, on_ready=attach, zygote=zygote, watch=args.watch, stop=stop
+            graph,
+            args.duration,
+            args.host,
+            on_ready=attach,
+            zygote=zygote,
+            watch=args.watch,
+            progress=progress,
+            stop=stop,
         )
     except (ValueError, BridgeError, EndpointInUse) as exc:
         print(f"error: {exc}", file=sys.stderr)

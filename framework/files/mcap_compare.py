@@ -5,7 +5,9 @@ under another graph name), messages by their header's ``stamp_ns`` (which the re
 as the MCAP ``publish_time``; files written by other tools may set that differently), the k-th
 message of a stamp with the k-th of the same stamp in the other file.  Two messages are equal when every decoded field and the header's stamp and seq
 are equal (the header's source is the topic's node, which CDR does not store), whatever the encoding.
-Truncated files are compared as far as they were recovered (:class:`ReadReport` says so).
+Without globs, the data topics are compared: those whose node and port names do not start with ``_``
+(recordings also hold the runtime's ``_params/changes`` and ``_runtime/events``, which globs naming
+them compare).  Truncated files are compared as far as they were recovered (:class:`ReadReport` says so).
 """
 
 from __future__ import annotations
@@ -54,19 +56,28 @@ def _stamped_digest(rm: RecordedMessage) -> tuple[int, bytes]:
     return d["header"]["stamp_ns"], hashlib.blake2b(json.dumps(d, sort_keys=True).encode(), digest_size=16).digest()
 
 
+def is_data_topic(topic: str) -> bool:
+    """Whether ``node/port`` is a data topic: neither name starts with ``_`` (not ``_runtime/events``)."""
+    return not any(name.startswith("_") for name in topic.split("/"))
+
+
 def _index(path: str | Path, topics: Iterable[str] | None, report: ReadReport) -> dict[str, dict[int, list[bytes]]]:
-    """topic → stamp → fingerprints in file order."""
+    """topic → stamp → fingerprints in file order (without globs: of the data topics)."""
     out: dict[str, dict[int, list[bytes]]] = defaultdict(lambda: defaultdict(list))
     for rm in iter_recording(path, topics, report=report):
+        topic = _topic(rm.topic)
+        if topics is None and not is_data_topic(topic):
+            continue
         stamp, digest = _stamped_digest(rm)
-        out[_topic(rm.topic)][stamp].append(digest)
+        out[topic][stamp].append(digest)
     return out
 
 
 def compare_recordings(
     a: str | Path, b: str | Path, topics: Iterable[str] | None = None
 ) -> tuple[list[TopicComparison], ReadReport, ReadReport]:
-    """Compare the topics (:class:`TopicFilter` globs, default every data topic) of two recordings.
+    """Compare the topics (:class:`TopicFilter` globs, default every data topic, :func:`is_data_topic`) of two
+    recordings.
 
     Raises :class:`handflow.framework.files.mcap_writer.RecordingError` for a missing or non-MCAP file.
     """

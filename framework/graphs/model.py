@@ -209,7 +209,7 @@ def read_graph_text(
         if only is not None and ns.id not in only:
             continue
         try:
-            cls = classes[ns.id] = load_plugin(ns.plugin)
+            cls = classes[ns.id] = load_plugin(ns.plugin, path.parent)
         except PluginError as exc:
             problems.append(Problem(line_of(lines, ("nodes", i, "plugin")), str(exc)))
             continue

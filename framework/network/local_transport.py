@@ -388,7 +388,11 @@ class LocalTransport:
 
 
 def _reclaim_dead_nodes() -> int:
-    """Remove what dead handflow nodes of this namespace left; returns how many nodes are alive."""
+    """Remove what dead handflow nodes of this namespace left; returns how many nodes are alive.
+
+    A node killed while it was being created or cleaned up (a launcher's process group stopped during
+    start-up) can be one whose cleanup iceoryx2 refuses (``NodeCleanupFailure``, e.g.
+    ``ResourcesAlreadyCleanedUp``) and lists as dead for ever: its files are removed here instead."""
     iox = _iox()
     iox.set_log_level(iox.LogLevel.Error)
     alive = 0
@@ -396,20 +400,58 @@ def _reclaim_dead_nodes() -> int:
         if isinstance(state, iox.NodeState.Dead):
             try:
                 state._0.try_remove_stale_resources()
-            except iox.NodeCleanupFailure as exc:  # another process of the namespace reclaimed it first
-                log.debug("a dead node's resources: %s", exc)
+            except Exception as exc:  # iceoryx2's NodeCleanupFailure
+                log.debug("dead iceoryx2 node %s: %s; removing its files", state._0.id.value, exc)
+                _remove_node_files(state._0.id.value)
         alive += isinstance(state, iox.NodeState.Alive)
     return alive
 
 
+def _remove_node_files(node_id: object) -> None:
+    nodes = root_dir() / "nodes"
+    shutil.rmtree(nodes / str(node_id), ignore_errors=True)
+    for f in nodes.glob(f"{prefix()}{node_id}.*"):
+        f.unlink(missing_ok=True)
+
+
+def _remove_namespace() -> list[str]:
+    """Delete every file of this namespace (``/dev/shm/<prefix>*`` and :func:`root_dir`); returns them."""
+    removed = [str(p) for p in Path("/dev/shm").glob(f"{prefix()}*")]
+    for p in removed:
+        Path(p).unlink(missing_ok=True)
+    if root_dir().exists():
+        shutil.rmtree(root_dir(), ignore_errors=True)
+        removed.append(str(root_dir()))
+    return removed
+
+
 def prepare() -> str | None:
-    """At a launcher's start: reclaim dead nodes' resources; ``None`` when iceoryx2 is usable, else why not."""
+    """At a launcher's start: reclaim dead nodes' resources and check that a transport opens; ``None`` when
+    iceoryx2 is usable, else why not (:func:`remedy` says what to do).  When it does not open and no
+    handflow node of the namespace is alive, the namespace is started afresh and tried once more."""
     try:
-        _reclaim_dead_nodes()
-        LocalTransport("probe", "handflow/probe").close()
+        alive = _reclaim_dead_nodes()
+        try:
+            LocalTransport("probe", "handflow/probe").close()
+        except Exception:
+            if alive:
+                raise
+            log.debug("iceoryx2 did not open; removed %s", _remove_namespace())
+            LocalTransport("probe", "handflow/probe").close()
     except Exception as exc:  # ImportError, a missing /dev/shm, a sandbox: whatever iceoryx2 raises
         return f"{type(exc).__name__}: {exc}"
     return None
+
+
+def remedy(why: str) -> str:
+    """What to do when :func:`prepare` found iceoryx2 unusable for the reason ``why``."""
+    if why.startswith("ImportError"):
+        return "To use it: pip install iceoryx2 (or set 'transport: {local: zenoh}' to silence this)."
+    return (
+        f"To use it: check that /dev/shm is writable and has room and that $TMPDIR ({tempfile.gettempdir()}) is "
+        f"shorter than ~60 characters; its files ({root_dir()}, /dev/shm/{prefix()}*) are removed when a run "
+        "ends and no handflow node of this user is alive. Or set 'transport: {local: zenoh}' (docs/shared_memory.md)."
+    )
 
 
 def remove_leftovers() -> list[str]:
@@ -421,10 +463,4 @@ def remove_leftovers() -> list[str]:
     except Exception as exc:  # not usable: nothing of ours can be there
         log.debug("no iceoryx2 cleanup: %s", exc)
         return []
-    removed = [str(p) for p in Path("/dev/shm").glob(f"{prefix()}*")]
-    for p in removed:
-        Path(p).unlink(missing_ok=True)
-    if root_dir().exists():
-        shutil.rmtree(root_dir(), ignore_errors=True)
-        removed.append(str(root_dir()))
-    return removed
+    return _remove_namespace()

@@ -35,6 +35,31 @@ if TYPE_CHECKING:
     from ..recorder.playback import Playback
 
 log = logging.getLogger("handflow.foxglove")
+SUBPROTOCOL = "foxglove.sdk.v1"
+"""The WebSocket subprotocol foxglove-sdk's server speaks (it refuses a client offering only
+``foxglove.websocket.v1``); the apps that offer it: docs/foxglove.md, "Connect"."""
+REFUSED_HINT = (
+    f"a client that offers no WebSocket subprotocol {SUBPROTOCOL} is refused (HTTP 400): connect with an app "
+    f"that offers it (Lichtblick 1.22.0 or newer, a current Foxglove app; docs/foxglove.md, 'Open it in Foxglove')"
+)
+
+
+class _ExplainRefusals(logging.Filter):
+    """After foxglove-sdk's "handshake failed" line, a line saying which subprotocol a client needs."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        if getattr(record, "explained", False) or "handshake failed" not in record.getMessage():
+            return True
+        record.explained = True
+        logging.getLogger(record.name).handle(record)  # the SDK's line first
+        log.error(REFUSED_HINT)
+        return False
+
+
+def _explain_refusals() -> None:
+    sdk_log = logging.getLogger("foxglove.websocket.server")
+    if not any(isinstance(f, _ExplainRefusals) for f in sdk_log.filters):
+        sdk_log.addFilter(_ExplainRefusals())
 
 
 class BridgeError(OSError):
@@ -86,6 +111,7 @@ class FoxgloveBridge:
         playback: Playback | None = None,
     ) -> None:
         graphs = [graph] if isinstance(graph, str) else graph
+        _explain_refusals()
         self.context = foxglove.Context()
         name = f"handflow {', '.join(graphs)}"
         self.params = None
@@ -102,13 +128,13 @@ class FoxgloveBridge:
             from ..recorder.playback import PlaybackListener
 
             capabilities += [foxglove.Capability.PlaybackControl, foxglove.Capability.Time]
-            options["server_listener"] = PlaybackListener(playback)
+            options["server_listener"] = PlaybackListener(playback)  # no parameters in a replay
             options["playback_time_range"] = (playback.start_ns, playback.end_ns)
         self.server = foxglove.start_server(
             name=name, host=host, port=port, context=self.context, capabilities=capabilities, **options
         )
-        if "server_listener" in options:  # it answers through the server (refusals, playback states)
-            options["server_listener"].server = self.server
+        if self.params is not None:  # it tells of refusals and changes through the server
+            self.params.server = self.server
         if spec is not None:  # a client that subscribes later receives the current graph
             from .foxglove_graph import connection_graph
 

@@ -13,6 +13,7 @@ from typing import Any
 from .. import keys, wire
 from ..files.mcap_writer import McapWriter, RecordingError, TopicFilter
 from ..messages import MessageError, Text
+from ..registry import is_path_plugin
 
 log = logging.getLogger("handflow.recording")
 MAX_ATTACHED_FILE_BYTES = 64 * 2**20  # files named by params larger than this are listed, not attached
@@ -24,8 +25,8 @@ def graph_provenance(graph: Any) -> tuple[dict[str, dict[str, str]], dict[str, t
     Metadata: ``handflow.graph`` (name, file, host, start time), ``handflow.params`` (node id →
     resolved params as JSON), ``handflow.plugins`` (node id → plugin), ``handflow.files``
     (``node.param`` → attachment name, or a note why the file is not attached).
-    Attachments: ``graph.yaml`` (the graph file) and every existing file a param names
-    (resolved relative to the graph folder), as ``files/<path>``.
+    Attachments: ``graph.yaml`` (the graph file) and every existing file a param names, and the source of
+    a plugin given by path (``NODE.plugin``), resolved relative to the graph folder, as ``files/<path>``.
     """
     meta = {
         "handflow.graph": {
@@ -44,7 +45,8 @@ def graph_provenance(graph: Any) -> tuple[dict[str, dict[str, str]], dict[str, t
         log.warning("graph file %s not attached: %s", graph.path, exc.strerror)
     files: dict[str, str] = {}
     for nid, rn in graph.nodes.items():
-        for name, value in _string_leaves(rn.params.model_dump(mode="json")):
+        source = [("plugin", rn.spec.plugin.rpartition(":")[0])] if is_path_plugin(rn.spec.plugin) else []
+        for name, value in [*source, *_string_leaves(rn.params.model_dump(mode="json"))]:
             path = _existing_file(graph.base_dir, value)
             if path is None:
                 continue

@@ -36,6 +36,9 @@ from .replay import LockstepReplayer, ReplayPlan, ReplayStats, _Publishers
 log = logging.getLogger("handflow.replay")
 
 TIME_EVERY_S = 0.1  # how often the playback bar hears the position
+ANSWER_GRACE_S = 0.05
+"""The replay's own playback states wait this long after an answer to the bar, which foxglove-sdk sends
+when the request's callback returns (:class:`PlaybackListener`)."""
 
 
 def time_range(path: Any) -> tuple[int, int]:
@@ -60,6 +63,7 @@ class Playback:
         self.seeking = False  # from a seek until the replay reaches its target
         self.hidden: dict[str, int] = {}  # topic key → the last sequence number published on the way there
         self.next_ns = start_ns  # the message waited for (a lock-step graph may lag behind the clock)
+        self.answered_at = float("-inf")  # when the bar's last request was answered (monotonic)
         self._anchor = (time.monotonic(), start_ns)  # wall time ↔ recording time at the last change
 
     def position(self) -> int:
@@ -127,24 +131,22 @@ class Playback:
 class PlaybackListener(ServerListener):
     """Foxglove's playback bar → :class:`Playback`.
 
-    The answer to a request is broadcast while the playback is locked, so that it reaches the client
-    before any later state of the replay (reaching a seek's target, the end): returned to the SDK, it
-    was sent after the callback, and a replay that reached the target at once had already told the
-    client it was playing, which the answer's Buffering then overrode."""
+    The answer to a request is returned to foxglove-sdk, which sends it with the request's id once the
+    callback returns (a request answered otherwise gets an error status).  So that it reaches the client
+    before any later state of the replay (reaching a seek's target, the end), the replay holds its own
+    states until :data:`ANSWER_GRACE_S` after an answer (:meth:`_BarDriven._broadcast_state`): sent
+    at once, a replay that reached the target at once had already told the client it was playing,
+    which the answer's Buffering then overrode, and the bar stayed on Buffering."""
 
     def __init__(self, playback: Playback) -> None:
         self.playback = playback
-        self.server: Any = None  # set once the server runs
 
-    def on_playback_control_request(self, request) -> PlaybackState | None:
+    def on_playback_control_request(self, request) -> PlaybackState:
         seek = request.seek_time
         with self.playback.cond:
             self.playback.control(request.playback_command == PlaybackCommand.Play, request.playback_speed, seek)
-            answer = self.playback.state(did_seek=seek is not None, request_id=request.request_id)
-            if self.server is None:
-                return answer
-            self.server.broadcast_playback_state(answer)
-        return None
+            self.playback.answered_at = time.monotonic()
+            return self.playback.state(did_seek=seek is not None, request_id=request.request_id)
 
 
 class _BarDriven(ABC):
@@ -189,7 +191,10 @@ class _BarDriven(ABC):
         return True
 
     def _broadcast_state(self) -> None:
-        with self.playback.cond:  # in order with the answers to the bar's requests (PlaybackListener)
+        """Send the playback's state now, after the answer to the bar's last request (:class:`PlaybackListener`)."""
+        with self.playback.cond:
+            while (wait := self.playback.answered_at + ANSWER_GRACE_S - time.monotonic()) > 0:
+                self.playback.cond.wait(wait)  # a request answered meanwhile moves the time on
             self.server.broadcast_playback_state(self.playback.state())
 
     def _arrive(self) -> bool:

@@ -39,6 +39,7 @@ from .live_params import forget_edited_params
 from .param_service import ParamService
 from .ros2_bridge import Ros2Bridge
 from .runner import RESTART_SIGNAL, START_WAIT_S, STOPPED, failure_file, node_state_files
+from .startup import StartupProgress
 from .stop_signals import StopSignals
 from .watch import Watcher
 from .zygote import RUNNER, ForkedProcess, Zygote, start_unless_disabled
@@ -523,7 +524,11 @@ def _key(unit: Unit) -> tuple[str, tuple[str, ...]]:
 def _prepare_local() -> None:
     """Reclaim what dead processes left in iceoryx2; one notice when it is not usable (docs/shared_memory.md)."""
     if (why := local_transport.prepare()) is not None:
-        log.warning("iceoryx2 is not usable here (%s); this host's topics travel over Zenoh", why)
+        log.warning(
+            "iceoryx2 is not usable here (%s); this host's topics travel over Zenoh. %s",
+            why,
+            local_transport.remedy(why),
+        )
 
 
 def _why(failure: dict) -> str:
@@ -546,6 +551,7 @@ def run_graph(
     lockstep: bool = False,
     zygote: Zygote | None = None,
     watch: bool = False,
+    progress: StartupProgress | None = None,
     stop: StopSignals | None = None,
 ) -> Launcher:
     """Run ``graph`` until Ctrl-C/SIGTERM or ``duration_s``; returns the stopped launcher (for its summary).
@@ -554,10 +560,12 @@ def run_graph(
     recorder or a live view there, so they miss nothing); if it raises, nothing is started.  A
     ``zygote`` started before the graph was loaded imports the plugins meanwhile (one is started otherwise).
     With ``watch``, edits of the graph file and of its plugins' sources restart the nodes they
-    concern (:mod:`.watch`, docs/tuning.md).  ``stop``: the caller's :class:`.stop_signals.StopSignals`,
-    installed before its own start-up (else installed here); a stop before the nodes start starts none.
-    On any error the units are stopped and the launcher closed before it propagates.
+    concern (:mod:`.watch`, docs/tuning.md).  ``progress`` says how start-up goes (:mod:`.startup`).
+    ``stop``: the caller's :class:`.stop_signals.StopSignals`, installed before its own start-up (else
+    installed here); a stop before the nodes start starts none.  On any error the units are stopped and
+    the launcher closed before it propagates.
     """
+    progress = progress or StartupProgress()
     text = graph.path.read_text() if watch else None
     level = logging.getLevelName(logging.getLogger().level)
     with contextlib.ExitStack() as signals:
@@ -567,7 +575,7 @@ def run_graph(
         try:
             if on_ready is not None:
                 on_ready(launcher)
-            _supervise(launcher, stop, duration_s, lockstep, text)
+            _supervise(launcher, stop, progress, duration_s, lockstep, text)
         except BaseException:
             try:
                 launcher.stop()
@@ -578,7 +586,12 @@ def run_graph(
 
 
 def _supervise(
-    launcher: Launcher, stop: StopSignals, duration_s: float | None, lockstep: bool, text: str | None
+    launcher: Launcher,
+    stop: StopSignals,
+    progress: StartupProgress,
+    duration_s: float | None,
+    lockstep: bool,
+    text: str | None,
 ) -> None:
     """Start the units and supervise them until ``stop`` or the end of ``duration_s``, then stop them."""
     watcher = None
@@ -594,13 +607,15 @@ def _supervise(
             if not launcher.alive():
                 log.info("all nodes have exited")
                 break
+            if not started:
+                progress.poll(launcher)
             ready = lockstep or launcher.all_ready()
             waited = time.monotonic() - t_launch
             settled = ready or launcher.settled() or waited > START_WAIT_S
             if settled and not started:
                 started = True
                 if ready:
-                    log.info("all nodes ready after %.1fs", waited)
+                    progress.all_ready(waited)
                 else:
                     down = [nid for u in launcher.units if u.proc is None for nid in u.node_ids]
                     log.warning("%.1fs after the launch, the other nodes start without %s", waited, ", ".join(down))

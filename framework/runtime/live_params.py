@@ -217,6 +217,11 @@ class NodeParams:
             return describe(slot.node.params, slot.rn.spec.plugin)
         if op != "set":
             raise ParamRefused(f"unknown parameter request {op!r}: get or set", code=2)
+        if "values" in request:  # several keys at once, checked only: the launcher restarts the node with them
+            new = slot.node.params
+            for key, value in dict(request["values"]).items():
+                new = validated(new, slot.id, str(key), value)
+            return {**describe(new, slot.rn.spec.plugin), "restart": True}
         key, value = str(request["key"]), request.get("value")
         with self._rt.lock:
             if request.get("restart"):  # checked only: the launcher restarts the node with it

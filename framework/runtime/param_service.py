@@ -5,7 +5,9 @@ The launcher answers JSON requests on ``handflow/<graph>/_params/<who>/<node>`` 
 (:func:`handflow.framework.keys.param_request_key`; ``<node>`` ``*`` in a request: every node) and
 forwards them to the node's process (:mod:`.live_params`).  ``get`` returns the node's applied
 params; ``set`` its answer, and for a key the node takes only at start with ``restart``, the
-launcher restarts that node's process alone with the new value and answers once it runs again.
+launcher restarts that node's process alone with the new value and answers once it runs again
+(``values`` instead of ``key`` and ``value``: several keys, checked together, one restart;
+``handflow param load --restart``).
 Every accepted change is on ``handflow/<graph>/_params/changes`` (published by the node, or here
 after a restart).
 
@@ -84,24 +86,28 @@ class ParamService:
             query.drop()
 
     def answer(self, nid: str, who: str, request: dict[str, Any]) -> dict[str, Any]:
-        """The answer to one request from ``who`` for node ``nid``."""
+        """The answer to one request from ``who`` for node ``nid`` (``values``: several keys, one restart)."""
         if request.get("op") != "set":
             return self._ask(nid, {"op": "get"})
-        key = str(request["key"])
+        values = dict(request["values"]) if "values" in request else {str(request["key"]): request.get("value")}
         if self._setters is not None and who not in self._setters:
-            log.warning("refused: '%s' may not set %s.%s (not a host nor in 'zenoh.tls.operators')", who, nid, key)
+            named = ", ".join(f"{nid}.{key}" for key in values)
+            log.warning("refused: '%s' may not set %s (not a host nor in 'zenoh.tls.operators')", who, named)
             return {
                 "ok": False,
                 "code": 2,
                 "error": f"certificate '{who}' may not change parameters of graph '{self._graph}': only its hosts "
                 f"and the certificates in 'zenoh.tls.operators' may (docs/security.md)",
             }
-        reply = self._ask(
-            nid, {"op": "set", "key": key, "value": request.get("value"), "restart": request.get("restart", False)}
-        )
+        if "values" in request:
+            ask = {"op": "set", "values": values, "restart": True}
+        else:
+            ask = {"op": "set", "key": next(iter(values)), "value": request.get("value")}
+            ask["restart"] = request.get("restart", False)
+        reply = self._ask(nid, ask)
         if not (reply.get("ok") and reply.get("restart")):
             return reply
-        return self._restart(nid, key, reply["params"][key])
+        return self._restart(nid, {key: reply["params"][key] for key in values})
 
     def _ask(self, nid: str, request: dict[str, Any]) -> dict[str, Any]:
         """Forward ``request`` to the node's process and return its answer."""
@@ -112,22 +118,27 @@ class ParamService:
                 return json.loads(answer.ok.payload.to_bytes())
         return {"ok": False, "error": f"node '{nid}' did not answer: it is not running (see the graph's log)"}
 
-    def _restart(self, nid: str, key: str, value: Any) -> dict[str, Any]:
-        """Restart the process of ``nid`` (and the nodes of its group) with ``key = value``."""
+    def _restart(self, nid: str, values: dict[str, Any]) -> dict[str, Any]:
+        """Restart the process of ``nid`` (and the nodes of its group) once with ``key = value`` for each of ``values``."""
         launcher = self._launcher
         unit = next(u for u in launcher.units if nid in u.node_ids)
-        before = self._ask(nid, {"op": "get"}).get("params", {}).get(key)
-        save_override(launcher.state_dir, nid, key, value)
+        before = self._ask(nid, {"op": "get"}).get("params", {})
+        for key, value in values.items():
+            save_override(launcher.state_dir, nid, key, value)
         restarted = threading.Event()
-        launcher.call_soon(lambda: (launcher.restart(unit, f"parameter {nid}.{key} changed"), restarted.set()))
+        why = f"parameter {', '.join(f'{nid}.{key}' for key in values)} changed"
+        launcher.call_soon(lambda: (launcher.restart(unit, why), restarted.set()))
         deadline = time.monotonic() + RESTART_TIMEOUT_S
         if not restarted.wait(RESTART_TIMEOUT_S) or not _wait(lambda: launcher.ready(unit), deadline):
             return {"ok": False, "error": f"node '{nid}' did not come back within {RESTART_TIMEOUT_S:.0f}s"}
         reply = self._ask(nid, {"op": "get"})
         if reply.get("ok"):
-            self._publish(
-                ParamChange(node=nid, key=key, value=json.dumps(value), previous=json.dumps(before), restart=True)
-            )
+            for key, value in values.items():
+                self._publish(
+                    ParamChange(
+                        node=nid, key=key, value=json.dumps(value), previous=json.dumps(before.get(key)), restart=True
+                    )
+                )
         return reply
 
     def _publish(self, change: ParamChange) -> None:

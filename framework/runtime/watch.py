@@ -13,7 +13,8 @@ graph is run again.  Otherwise :meth:`.launcher.Launcher.reload` restarts, in th
 the nodes whose entry changed, whose plugin's files changed (every node of that plugin) and the
 nodes sharing their process (``group:``), starts added nodes and stops removed ones; the line
 ``reloaded: ... (FILE changed) in X s`` is logged once they run.  Changed files are compared with the
-running version: an edit reverted before it was taken is no change.
+running version: an edit reverted before it was taken is no change, and one reverted after (a refused
+edit undone) is logged as ``FILE back to the running version``.
 """
 
 from __future__ import annotations
@@ -99,10 +100,15 @@ class Watcher:
             elif now != pending:
                 pending = now  # taken once it stays so for one more poll
             else:
+                reverted = [path for path, digest in now.items() if digest != last.get(path)]
                 last, pending = now, None
                 changed = [path for path, digest in now.items() if digest != self.running.get(path)]
                 if changed:
                     self._reload(changed, now)
+                else:  # e.g. a refused edit undone: the error logged before is no longer the files' state
+                    log.info(
+                        "%s back to the running version: nothing to reload", ", ".join(_shown(p) for p in reverted)
+                    )
 
     def _reload(self, changed: list[Path], now: dict[Path, str | None]) -> None:
         t0 = time.monotonic()

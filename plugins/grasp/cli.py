@@ -76,6 +76,7 @@ def _pair(text: str, name: str) -> tuple[float, float]:
 
 # -- grasp-experience ---------------------------------------------------------------------------
 def register_generate(parser: argparse.ArgumentParser) -> None:
+    """Generate grasp experience in pybullet (tactile grasps that pass the disturbance test), optionally train SOMs."""
     parser.description = (
         "Generate grasp experience in pybullet (randomised tactile grasps kept when they pass "
         "the disturbance test) and optionally train the SOM grasp manifolds."
@@ -148,6 +149,7 @@ def run_generate(args) -> int:
 
 # -- grasp-som -------------------------------------------------------------------------------------
 def register_train_som(parser: argparse.ArgumentParser) -> None:
+    """Train (or resume training of) a SOM grasp manifold on a grasp dataset; plot it."""
     parser.description = "Train (or resume training of) a SOM grasp manifold on a grasp dataset; plot it."
     parser.add_argument("data", help="grasp dataset (.npz from grasp-experience)")
     parser.add_argument("--object", default="all", help="box | cylinder | sphere | all")
@@ -216,6 +218,7 @@ def run_train_som(args) -> int:
 
 # -- evaluate grasping -----------------------------------------------------------------------------
 def register_evaluate(parser: argparse.ArgumentParser) -> None:
+    """Grasp every object over a grid of poses (object SOM, no experience, shared SOM): shares of stable grasps."""
     parser.description = (
         "Grasp every object over a grid of poses with the object-specific SOM, without "
         "experience and with one shared SOM; report the shares of stable grasps per object and "

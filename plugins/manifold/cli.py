@@ -82,7 +82,7 @@ def load_data(cfg: DataConfig):
 
 
 def register_train(parser: argparse.ArgumentParser) -> None:
-    """Entry point of group ``handflow.commands``: add the arguments of ``train``."""
+    """Train a structured UKR manifold from a YAML config."""
     parser.description = "Train a Structured UKR manifold from a YAML config."
     parser.add_argument("config", type=Path, help="YAML config (see docs/training.md)")
     parser.add_argument("--out", type=Path, required=True, help="model file to write (.npz)")

@@ -81,7 +81,7 @@ def ensure_manifold(name: str, models_dir: Path, say=_say) -> Path:
 
 
 def register_evaluate(parser: argparse.ArgumentParser) -> None:
-    """Entry point ``evaluate.manipulation`` of group ``handflow.commands``."""
+    """Evaluate the manipulation controllers headless: cap turning per radius, ball swapping; print a table."""
     parser.description = (
         "Evaluate the manipulation controllers headless: cap turning per radius, "
         "ball swapping open vs closed loop, control-loop latency."

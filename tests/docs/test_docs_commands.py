@@ -384,7 +384,7 @@ def test_graph_files_named_in_doc_commands_validate():
 
 
 def test_foxglove_layout_topics_are_published_by_the_flagship():
-    layout = json.loads((REPO / "docs" / "foxglove_layout.json").read_text())
+    layout = json.loads((REPO / "configs" / "foxglove_layout.json").read_text())
     graph = load_graph(REPO / "configs" / "demo.yaml")
     text = json.dumps(layout["configById"])
     topics = set(re.findall(r"demo/(\w+)/(\w+)", text))
@@ -443,7 +443,9 @@ def run_page(doc: Path, workspace: Path) -> None:
         for block in doc_blocks(doc):
             for kind, arg in block.markers:
                 if kind == "file":
-                    (workspace / QUOTED.findall(arg)[0]).write_text(block.text)
+                    target = workspace / QUOTED.findall(arg)[0]
+                    target.parent.mkdir(parents=True, exist_ok=True)
+                    target.write_text(block.text)
             busy = cpu_hog() if any(kind == "busy" for kind, _ in block.markers) else nullcontext()
             with busy:
                 _run_block(doc, block, workspace, jobs, started)

@@ -25,3 +25,35 @@ def test_a_command_whose_plugin_fails_to_import_says_why_whatever_its_arguments(
     err = capsys.readouterr().err
     assert "handflow evaluate broken is unavailable: ModuleNotFoundError" in err
     assert "handflow_no_such_module" in err
+
+
+def _listed(parser) -> dict[str, str | None]:
+    """Command (or group) name → its help line, as ``handflow [GROUP] --help`` lists them."""
+    import argparse
+
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    return {a.dest: a.help for a in sub._choices_actions}
+
+
+def test_every_command_and_group_has_a_one_line_description_in_help(run_handflow):
+    from handflow.framework import cli
+    from handflow.framework.registry import command_entries
+
+    top = _listed(cli.build_parser([]))
+    names = {ep.name.split(".")[0] for ep in command_entries()}
+    assert set(top) == names and {"certs", "evaluate", "param", "compare"} <= names
+    for group in ("certs", "evaluate"):
+        sub = _listed(cli.build_parser([group])._subparsers._group_actions[0].choices[group])
+        assert len(sub) >= 2 and all(sub.values()), (group, sub)
+        assert all(name in top[group] for name in sub), top[group]  # the group's line names its commands
+        top |= {f"{group} {name}": text for name, text in sub.items()}
+    missing = [name for name, text in top.items() if not text or not text.strip()]
+    assert not missing, f"no description: {missing}"
+    assert not [name for name, text in top.items() if "see `handflow" in text]
+    # the line read from the source without importing is the docstring the command registers with
+    for ep in command_entries():
+        if ep.value.startswith("handflow.framework."):
+            assert cli.summary(ep) == ep.load().__doc__.strip().splitlines()[0], ep.name
+    proc = run_handflow("--help", timeout=60)
+    assert proc.returncode == 0 and "see `handflow" not in proc.stdout
+    assert "Compare two recordings" in proc.stdout and "init: create a certificate authority" in proc.stdout

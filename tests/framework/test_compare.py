@@ -3,13 +3,15 @@
 from __future__ import annotations
 
 import json
+import signal
+import time
 
 import numpy as np
 import pytest
 
 from handflow.framework.files.mcap_reader import iter_recording
 from handflow.framework.files.mcap_writer import McapWriter
-from tests.framework._rec_helpers import REPO, chain, handflow, unique
+from tests.framework._rec_helpers import REPO, chain, handflow, start, unique, wait_until, write_graph
 
 GESTURES = REPO / "recordings" / "gestures.mcap"  # shipped, old style: JSON, no leading '/'
 
@@ -95,3 +97,44 @@ def test_bad_input_exits_2_with_what_is_wrong_and_truncated_files_compare_what_w
     assert code == 1 and "truncated" in err and "Traceback" not in err
     assert out["files"][1]["recovered"] and sum(t["only_a"] for t in out["topics"]) > 0
     assert sum(t["differing"] for t in out["topics"]) == 0
+
+
+REPLAY_TARGET = """external: {source/out: Array}
+nodes:
+  - id: scale
+    plugin: basic.transform
+    params: {gain: 2.0}
+    inputs: {in: source/out}
+  - id: sink
+    plugin: basic.sink
+    inputs: {in: scale/out}
+"""
+
+
+@pytest.mark.slow
+def test_a_faithful_lockstep_replay_compares_equal_by_default_also_after_a_restart(tmp_path, monkeypatch):
+    """The recording holds a live change (replayed) and a --restart change of the sink (not replayed; its
+    outputs are none): the data topics are equal, exit 0; the runtime's own topics differ when asked for."""
+    monkeypatch.setenv("HANDFLOW_RUN_DIR", str(tmp_path / "runs"))
+    graph = chain(tmp_path / "g.yaml", unique("faithful"))
+    run = start("run", str(graph), "--record", str(tmp_path / "live.mcap"), cwd=tmp_path)
+    try:
+        wait_until(lambda: handflow("param", "get", "sink", cwd=tmp_path).returncode == 0, 60, "the graph")
+        assert handflow("param", "set", "scale.gain", "3", cwd=tmp_path).returncode == 0
+        restarted = handflow("param", "set", "sink.log_every", "25", "--restart", cwd=tmp_path)
+        assert restarted.returncode == 0, restarted.stderr
+        time.sleep(0.5)
+    finally:
+        run.send_signal(signal.SIGINT)
+        _, err = run.communicate(timeout=60)
+    assert run.returncode == 0, err
+    replay = handflow(
+        "replay", "live.mcap", "--into", str(write_graph(tmp_path / "r.yaml", unique("replay"), REPLAY_TARGET)),
+        "--lockstep", "--record", "replayed.mcap", cwd=tmp_path,
+    )  # fmt: skip
+    assert replay.returncode == 0 and "not applied: sink.log_every" in replay.stderr, replay.stderr
+    code, out, _ = _compare(tmp_path / "live.mcap", tmp_path / "replayed.mcap", "--json")
+    assert code == 0, out
+    assert sorted(t["topic"] for t in out["topics"]) == ["scale/out", "source/out"]
+    code, table, _ = _compare(tmp_path / "live.mcap", tmp_path / "replayed.mcap", "--topics", "_runtime/*")
+    assert code == 1 and "_runtime/events" in table  # the restart: only in the live run

@@ -1,12 +1,15 @@
 """A lock-step replay driven from Foxglove's playback bar (docs/recording.md, "Replay from Foxglove's playback
-bar"): a real ``foxglove.websocket.v1`` client pauses, changes the speed and seeks back a tuned recording
-replayed into the flagship's segmenter; after the seek back, the labels it receives equal those of an
-uninterrupted lock-step replay (the recorded parameter changes applied again in order)."""
+bar"): a real ``foxglove.sdk.v1`` client pauses, changes the speed and seeks back a tuned recording
+replayed into the flagship's segmenter; each request is answered with a playback state carrying its id,
+no status of level warning or error arrives and the terminal shows no ERROR line; after the seek back,
+the labels it receives equal those of an uninterrupted lock-step replay (the recorded parameter changes
+applied again in order)."""
 
 from __future__ import annotations
 
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -18,7 +21,9 @@ import pytest
 from handflow.framework import keys
 from handflow.framework.files.mcap_reader import iter_recording
 from handflow.framework.files.mcap_writer import McapWriter
+from handflow.framework.graphs.model import load_graph
 from handflow.framework.messages import Header, ParamChange
+from handflow.framework.observe.foxglove_layout import carried, layout_for
 from tests.foxglove_client import FoxgloveClient, handflow_with_foxglove, playback_request, playback_state
 
 pytest.importorskip("foxglove")
@@ -68,9 +73,9 @@ def _seek(fox: FoxgloveClient, speed: float, seek_ns: int, request: str) -> tupl
     fox.ws.send(playback_request(PLAY, speed, seek_ns, request))
     sent, states, labels, first = time.monotonic(), [], [], 0.0
     while not states or states[-1]["status"] != ENDED:
-        frame = fox.ws.recv(timeout=60)
+        frame = fox.recv(timeout=60)
         if isinstance(frame, bytes) and frame[0] == 5:
-            states.append(playback_state(frame))
+            states.append(fox.states[-1])
         elif isinstance(frame, bytes) and frame[0] == 1 and states:  # before the answer: sent before the seek
             assert len(states) == 2, "a label before the bar played from the target"  # the answer, then playing
             labels.append(frame[13:])
@@ -114,10 +119,20 @@ def test_lockstep_replay_follows_the_playback_bar_and_a_seek_back_gives_the_unin
             ahead = next(i for i, t in enumerate(stamps) if t > fast[-1] + 10**9)  # a second ahead
             forward, after_forward, _ = _seek(fox, 2.0, stamps[ahead], "ahead")
             back, after_back, cost = _seek(fox, 4.0, stamps[MIDDLE], "back")  # from the end
+            fox.binary(opcode=5, seconds=0.5)  # a late status would come now
     finally:
         replay.send_signal(signal.SIGINT)
         _, err = replay.communicate(timeout=60)
     assert replay.returncode == 0, err
+    assert fox.problems() == []  # no "Server did not send playback state ..."
+    assert " ERROR " not in err, err
+    # the flagship layout written for this graph (`handflow layout`): every topic it names that the graph
+    # carries reached the client, so its joint, label and event panels show the replay
+    wanted = {f"/handflow/demo_segment_only/{t}" for t in carried(load_graph(GRAPH))}
+    named = set(re.findall(r"/handflow/demo_segment_only/\w+/\w+", layout_for("demo_segment_only")))
+    assert len(named & wanted) == 3 and named & wanted <= fox.topics, fox.topics
+    answered = [st["id"] for st in fox.states if st["id"]]
+    assert answered == [b"pause", b"slow", b"fast", b"ahead", b"back"]  # one answer each, in order
 
     assert (paused["status"], paused["did_seek"], paused["id"]) == (PAUSED, False, b"pause")
     assert len(held) <= 1  # paused: no label advances (one in flight at most)

@@ -1,5 +1,7 @@
-"""Foxglove's Parameters panel on a running graph (docs/tuning.md): a real ``foxglove.websocket.v1`` client
-gets, sets and is refused parameters of `handflow run --foxglove`, and sees changes made by `handflow param`."""
+"""Foxglove's Parameters panel on a running graph (docs/tuning.md, docs/foxglove.md): a real ``foxglove.sdk.v1``
+client gets every parameter (``null`` ones as ``""``, integers as integers), sets and is refused parameters of
+`handflow run --foxglove`, and sees changes made by `handflow param`; a client offering only the old
+subprotocol is refused and the terminal says which one it needs."""
 
 from __future__ import annotations
 
@@ -12,6 +14,8 @@ import time
 from pathlib import Path
 
 import pytest
+from websockets.exceptions import InvalidStatus
+from websockets.sync.client import connect
 
 from handflow.framework.files.mcap_writer import McapWriter
 from handflow.framework.messages import Array, Header
@@ -57,6 +61,7 @@ def check_parameters_panel(fox: FoxgloveClient, cli: list[str], env: dict) -> No
             break
         time.sleep(0.5)
     assert params["/scale/gain"] == 2.0 and params["/source/kind"] == "sine" and params["/source/rate_hz"] == 20
+    assert isinstance(params["/source/width"], int) and isinstance(params["/source/rate_hz"], float)  # as declared
 
     fox.send(op="subscribeParameterUpdates", parameterNames=["/scale/gain"])
     fox.send(op="setParameters", parameters=[{"name": "/scale/gain", "value": 3.0}], id="set")
@@ -69,13 +74,57 @@ def check_parameters_panel(fox: FoxgloveClient, cli: list[str], env: dict) -> No
     assert status["level"] == 2 and "/scale/gain not set" in status["message"]
     assert "valid number" in status["message"]  # the model's message
     assert fox.values(id="bad") == {"/scale/gain": 3.0}  # the old value kept
-    fox.send(op="setParameters", parameters=[{"name": "/source/rate_hz", "value": 5.0}], id="start-only")
-    assert "needs a restart" in fox.next("status")["message"]
-    assert fox.values(id="start-only") == {"/source/rate_hz": 20.0}
+    fox.send(op="setParameters", parameters=[{"name": "/source/rate_hz", "value": 5}], id="start-only")
+    refused = fox.next("status")["message"]
+    assert "only at start" in refused and "handflow param set source.rate_hz 5 --restart" in refused, refused
+    assert fox.values(id="start-only") == {"/source/rate_hz": 20}
 
     subprocess.run([*cli, "param", "set", "scale.gain", "4.5"], env=env, check=True, capture_output=True)
     update = fox.next("parameterValues")  # a change made elsewhere reaches the subscribed panel
     assert {p["name"]: p["value"] for p in update["parameters"]} == {"/scale/gain": 4.5}
+
+
+def test_null_parameters_are_listed_set_and_set_back_and_an_old_client_is_told_the_subprotocol(tmp_path):
+    """The flagship's segmenter (configs/demo_segment_only.yaml, fed by nothing): every parameter of every
+    node is listed as `handflow param list` lists it, `/segmenter/background_factor` (null) as "";
+    set to 2 and back to null with "", `handflow param get` follows."""
+    env = dict(os.environ, HANDFLOW_RUN_DIR=str(tmp_path / "runs"))
+    cli = [sys.executable, "-m", "handflow.framework.cli"]
+    graph = str(REPO / "configs" / "demo_segment_only.yaml")
+    run, port = handflow_with_foxglove(["run", graph, "--duration", "60"], env, tmp_path)
+    key = "/segmenter/background_factor"
+
+    def param_get() -> str:
+        got = subprocess.run([*cli, "param", "get", "segmenter.background_factor"], env=env, capture_output=True)
+        return got.stdout.decode().strip()
+
+    try:
+        with FoxgloveClient(port, timeout=60) as fox:
+            with pytest.raises(InvalidStatus, match="400"):  # an app offering only the old name
+                connect(f"ws://127.0.0.1:{port}", subprotocols=["foxglove.websocket.v1"], open_timeout=5)
+            listed: dict = {}
+            for attempt in range(120):  # until both nodes answer
+                fox.send(op="getParameters", parameterNames=[], id=f"all{attempt}")
+                if {key, "/labels/jsonl"} <= (listed := fox.values(id=f"all{attempt}")).keys():
+                    break
+                time.sleep(0.5)
+            cli_list = subprocess.run([*cli, "param", "list"], env=env, capture_output=True, text=True).stdout
+            assert listed[key] == "" and listed["/segmenter/distance_z"] == ""
+            fox.send(op="setParameters", parameters=[{"name": key, "value": 2}], id="two")
+            assert fox.values(id="two") == {key: 2.0}
+            assert param_get() == "2"
+            fox.send(op="setParameters", parameters=[{"name": key, "value": ""}], id="back")  # null, as documented
+            assert fox.values(id="back") == {key: ""}
+            assert param_get() == "null"
+            problems = fox.problems()
+    finally:
+        run.terminate()
+        _, err = run.communicate(timeout=60)
+    assert run.returncode == 0, err
+    assert problems == []
+    names = {"/" + line.split(" = ")[0].replace(".", "/", 1) for line in cli_list.splitlines() if " = " in line}
+    assert len(names) > 20 and names == set(listed), cli_list  # every parameter of every node, whatever its value
+    assert "handshake failed" in err and "foxglove.sdk.v1" in err.split("handshake failed", 1)[1], err
 
 
 def test_topic_graph_shows_every_hosts_nodes_and_edges(tmp_path):
@@ -152,6 +201,8 @@ def test_replay_is_driven_from_the_playback_bar(tmp_path):
         replay.send_signal(signal.SIGINT)
         _, err = replay.communicate(timeout=60)
     assert replay.returncode == 0, err
+    assert fox.problems() == [] and " ERROR " not in err, err  # every request answered with a playback state
+    assert [st["id"] for st in fox.states if st["id"]] == [b"pause", b"seek"]
     assert 30 <= playing <= 70  # 50 Hz
     assert playback_state(paused[0]) | {"time": 0} == {
         "status": 1,

@@ -7,6 +7,7 @@ private ``$TMPDIR``, which gives it its own iceoryx2 namespace (``local_transpor
 
 from __future__ import annotations
 
+import contextlib
 import gc
 import json
 import os
@@ -201,7 +202,9 @@ def test_unusable_iceoryx2_gives_a_reason_and_no_transport(monkeypatch):
         raise ImportError("No module named 'iceoryx2'")
 
     monkeypatch.setattr(lt, "_iox", missing)
-    assert "ImportError" in lt.prepare()
+    assert "ImportError" in (why := lt.prepare())
+    assert "pip install iceoryx2" in lt.remedy(why) and "local: zenoh" in lt.remedy(why)  # what to do
+    assert "/dev/shm" in lt.remedy("IOException: out of memory")
     assert lt.open_local("run1", "test") is None
     assert lt.remove_leftovers() == []
 
@@ -271,10 +274,11 @@ class _Run:
 
 
 @contextmanager
-def _running(tmp_path: Path, prefix: str, seconds: int):
+def _running(tmp_path: Path, prefix: str, seconds: int, again: tuple[str, int] | None = None):
     """The iceoryx2 graph running for at most ``seconds``, read by a remote-style peer, once its sink handles
-    messages; stopped with Ctrl-C at the end of the block."""
-    name, port = unique(prefix), free_tcp_port()
+    messages; stopped with Ctrl-C at the end of the block.  ``again``: the name and hub port of a graph run
+    before (the same iceoryx2 services)."""
+    name, port = again or (unique(prefix), free_tcp_port())
     proc = start("run", str(_graph(tmp_path, name, "iceoryx2", port)), "--duration", str(seconds))
     run = _Run(name, _peer(port))
     try:
@@ -450,3 +454,50 @@ def test_an_allocated_image_is_published_in_place_and_zenoh_readers_get_its_byte
     # BORROWED - 1 already, it got the third as a copy
     assert [type(img.data) for img, _ in local_got] == [np.ndarray, np.ndarray, bytes]
     assert not any(img.data.flags.writeable for img, _ in local_got[:2])
+
+
+def _interrupted_start(graph: Path, how: signal.Signals, after_s: float) -> str:
+    """Start ``handflow run GRAPH`` in its own process group and send ``how`` to the whole group ``after_s``
+    after its first node process started (start-up still going on); the launcher's stderr so far."""
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "handflow.framework.cli", "run", str(graph)],
+        cwd=REPO,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+    )
+    lines = []
+    try:
+        for line in proc.stderr:
+            lines.append(line)
+            if "started " in line:
+                break
+        time.sleep(after_s)
+        os.killpg(proc.pid, how)
+        lines += proc.stderr.readlines()
+        proc.wait(timeout=60)
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(proc.pid, signal.SIGKILL)  # a Ctrl-C'd launcher's nodes are gone with it; none is left
+        proc.wait(timeout=60)
+    return "".join(lines)
+
+
+@pytest.mark.slow
+def test_launchers_killed_during_start_up_never_switch_the_local_transport_off(tmp_path, namespace):
+    """Ctrl-C (SIGINT) and ``kill -9`` of the launcher's process group during start-up, 10 times, half each
+    (docs/shared_memory.md, "Processes that die"); the next run uses iceoryx2 with no file removed by hand."""
+    name, port = unique("interrupted"), free_tcp_port()
+    graph = _graph(tmp_path, name, "iceoryx2", port)
+    notices = []
+    for i in range(10):
+        how = signal.SIGINT if i % 2 else signal.SIGKILL
+        err = _interrupted_start(graph, how, after_s=0.1 * (i // 2))  # while its nodes open their ports
+        notices += [line for line in err.splitlines() if "not usable" in line]
+    with _running(tmp_path, "after", 30, again=(name, port)) as run:  # the same iceoryx2 services
+        assert run.health.get("source", "path.out") == lt.LOCAL  # the monitor's path column: iceoryx2
+        assert run.health.get("scale", "path.out") == lt.LOCAL
+    assert run.returncode == 0, run.err
+    assert "not usable" not in run.err, run.err
+    assert notices == []
+    assert _files() == [], "iceoryx2 files left after the last launcher ended"

@@ -92,6 +92,25 @@ def test_any_request_is_answered_or_refused_with_a_reason_and_never_applies_an_i
         assert slot.node.params is before
 
 
+@settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(
+    values=st.dictionaries(st.sampled_from(["gain", "offset", "nope"]) | st.text(max_size=4), json_values) | json_values
+)
+def test_several_values_at_once_are_checked_together_and_never_applied_by_the_node(runtime, values):
+    """``param load --restart``: the node checks every value (the launcher restarts it with them once)."""
+    *_, rt = runtime
+    slot = rt.slots[0]
+    before = slot.node.params
+    try:
+        answer = rt.live_params.handle(slot, {"op": "set", "values": values, "restart": True})
+    except (ParamRefused, TypeError, ValueError) as exc:  # TypeError/ValueError: not a mapping (a bad request)
+        assert str(exc) and slot.node.params is before
+        return
+    assert answer["ok"] and answer["restart"] and slot.node.params is before
+    expected = GainOffsetParams.model_validate({**dict(before), **dict(values)})
+    assert answer["params"] == expected.model_dump(mode="json")
+
+
 def test_a_refused_value_names_the_key_and_the_models_message(runtime):
     *_, rt = runtime
     slot = rt.slots[0]

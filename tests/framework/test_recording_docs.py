@@ -58,6 +58,10 @@ def test_documented_commands_run(doc, tmp_path, monkeypatch):
                 assert proc.returncode == 0, f"{cmd}\n{proc.stdout}\n{proc.stderr}"
                 if "--json" in cmd and "monitor" in cmd:
                     assert '"alive": true' in proc.stdout, proc.stdout
+                if cmd.startswith("handflow echo") and "--json" in cmd:  # -n 5: five JSON objects
+                    assert [json.loads(line)["type"] for line in proc.stdout.splitlines()] == ["handflow.Array"] * 5
+                elif cmd.startswith("handflow echo"):  # --once: one YAML block
+                    assert proc.stdout.count("---") == 1 and "header:" in proc.stdout, proc.stdout
                 if cmd.startswith("handflow compare"):
                     _assert_replayed_labels_equal(cmd, ws)
     finally:

@@ -199,6 +199,11 @@ def test_edits_restart_only_the_nodes_they_concern(watched):
     topics.wait_for("shift", lambda v: v > 50, WAIT_S)
     assert topics.reloads() == []
 
+    # undone: back to the running version, said so, nothing restarted
+    plugin.write_text(PLUGIN.replace("SHIFT = 0.0", "SHIFT = 100.0"))
+    wait_until(lambda: "tempshift.py back to the running version: nothing to reload" in output(), 5, "not said")
+    assert topics.reloads() == []
+
     # fixed: every node of the plugin restarts
     plugin.write_text(PLUGIN.replace("SHIFT = 0.0", "SHIFT = 200.0"))
     topics.wait_for("shift", lambda v: v > 150, WAIT_S)

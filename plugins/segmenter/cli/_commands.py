@@ -108,6 +108,7 @@ def _beta(args):
 
 # -- train-classes ------------------------------------------------------------------------------
 def register_train_classes(parser: argparse.ArgumentParser) -> None:
+    """Train one structured UKR manifold (periodic time) per class of a labelled dataset or of recordings."""
     parser.description = (
         "Train one structured UKR manifold (1D periodic time) per class: of a labelled dataset's train split "
         "(the thesis' models), or of every labelled segment of continuous recordings (delay-embedded models "
@@ -224,6 +225,7 @@ def run_train_classes(args) -> int:
 
 # -- evaluate segmentation ----------------------------------------------------------------------
 def register_evaluate(parser: argparse.ArgumentParser) -> None:
+    """Run the recognition/segmentation protocol for the UKR methods and the baselines; print a table."""
     parser.description = (
         "Run the thesis recognition/segmentation protocol (docs/segmentation.md §D) for "
         "ukr_only, ukr_clm and the dtw_1nn / hmm baselines: validation picks parameters, "

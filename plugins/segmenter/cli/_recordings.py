@@ -138,6 +138,7 @@ def write_recordings_plots(ev: RecordingsEvaluator, result: dict, folder: Path) 
 
 
 def register_make_continuous(parser) -> None:
+    """Write BasicMotions as continuous labelled recordings (cases shuffled and concatenated)."""
     parser.description = (
         "Write BasicMotions as continuous recordings: all train + test cases shuffled with --seed and "
         "concatenated into --recordings recordings (docs/segmentation.md)."
@@ -164,6 +165,7 @@ def run_make_continuous(args) -> int:
 
 
 def register_fit_scorer(parser) -> None:
+    """Fit a frame scorer (MiniRocket or DTW 1-NN) for the online CLM on continuous recordings."""
     parser.description = (
         "Fit a frame scorer (MiniRocket or DTW 1-NN over the causal window) on every labelled segment of "
         "continuous recordings, calibrate its null class's score (the rejection threshold) on inner folds of "

@@ -1,12 +1,13 @@
 """What the launcher's helpers may use of it: the narrow interfaces the launcher
 (:class:`handflow.framework.runtime.launcher.Launcher`) implements for its parameter service
-(:mod:`.param_service`) and its file watcher (:mod:`.watch`).  They sit below all three, so neither
-helper imports the launcher that runs it (docs/architecture.md, "Layers")."""
+(:mod:`.param_service`), its file watcher (:mod:`.watch`) and its start-up lines (:mod:`.startup`).
+They sit below all of them, so no helper imports the launcher that runs it (docs/architecture.md,
+"Layers")."""
 
 from __future__ import annotations
 
 import subprocess
-from collections.abc import Callable, Collection, Sequence
+from collections.abc import Callable, Collection, Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol
 
@@ -18,7 +19,9 @@ if TYPE_CHECKING:
 class SupervisedUnit(Protocol):
     """A process the launcher supervises, running these nodes."""
 
+    name: str
     node_ids: list[str]
+    proc: Any  # its process while it runs, else None
 
 
 class Supervisor(Protocol):
@@ -61,3 +64,12 @@ class WatchHost(Supervisor, Protocol):
         self, module: str, args: list[str], what: str, edited: Collection[Path] = ()
     ) -> subprocess.Popen | ForkedProcess:
         """A process running ``module.main(args)`` (forked from the zygote when it can)."""
+
+
+class StartupHost(Protocol):
+    """What :class:`.startup.StartupProgress` reads: the units and the nodes that reported (their last status)."""
+
+    health: Mapping[str, Any]
+
+    @property
+    def units(self) -> Sequence[SupervisedUnit]: ...

@@ -3,8 +3,13 @@
 from __future__ import annotations
 
 import argparse
+import os
+import shutil
+import signal
 import subprocess
 import sys
+import tempfile
+import warnings
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -12,6 +17,31 @@ from pathlib import Path
 import pytest
 
 REPO = Path(__file__).resolve().parents[1]
+
+
+@pytest.hookimpl(trylast=True)  # after pytest's temporary-folder factory is configured
+def pytest_configure(config):
+    """Each pytest process (an xdist worker, or the only one) gets a private ``$TMPDIR`` — so its own iceoryx2
+    namespace in ``/dev/shm`` and its own launcher state folders — and a private run folder
+    (``$HANDFLOW_RUN_DIR``), inherited by every process its tests start: tests running side by side never
+    see each other's graphs (docs/testing.md).  A test may narrow them further (its ``tmp_path``)."""
+    config._tmp_path_factory.getbasetemp()
+    worker = os.environ.get("PYTEST_XDIST_WORKER", "main")
+    private = Path(tempfile.mkdtemp(prefix=f"hf{worker}-", dir="/tmp"))  # short: iceoryx2's socket paths
+    config._handflow_tmp = private
+    os.environ["TMPDIR"] = str(private)
+    os.environ["HANDFLOW_RUN_DIR"] = str(private / "runs")
+    tempfile.tempdir = None  # gettempdir() reads $TMPDIR again
+
+
+def pytest_unconfigure(config):
+    private = getattr(config, "_handflow_tmp", None)
+    if private is None:
+        return
+    from handflow.framework.network import local_transport
+
+    local_transport.remove_leftovers()  # this process's iceoryx2 namespace: files of nodes that were killed
+    shutil.rmtree(private, ignore_errors=True)
 
 
 def handflow(*args: str, timeout: float = 120, check: bool = False, **kw) -> subprocess.CompletedProcess:
@@ -51,3 +81,42 @@ def run_command(register, argv: list[str]):
 @pytest.fixture
 def run_handflow():
     return handflow
+
+
+def processes_of(folder: Path) -> list[int]:
+    """Live processes (zombies aside) that a test started in ``folder``: its path in their command line (a
+    graph file there) or their working directory below it.  Empty where there is no ``/proc``."""
+    found = []
+    for entry in Path("/proc").glob("[0-9]*"):
+        if int(entry.name) == os.getpid():
+            continue
+        try:
+            state = (entry / "stat").read_text().rsplit(")", 1)[1].split()[0]
+            command = (entry / "cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
+            cwd = os.readlink(entry / "cwd") if str(folder) not in command else str(folder)
+        except (OSError, IndexError):  # gone meanwhile, or not ours to look at
+            continue
+        if state != "Z" and (str(folder) in command or Path(cwd).is_relative_to(folder)):
+            found.append(int(entry.name))
+    return found
+
+
+def kill_processes_of(folder: Path) -> list[int]:
+    """SIGKILL what :func:`processes_of` finds; returns their pids."""
+    pids = processes_of(folder)
+    for pid in pids:
+        try:
+            os.kill(pid, signal.SIGKILL)
+        except (ProcessLookupError, PermissionError):
+            pass
+    return pids
+
+
+@pytest.fixture(autouse=True)
+def _no_process_left(request):
+    """A test that fails or times out (pytest-timeout) leaves no launcher, zygote or node process running: what
+    it started in its ``tmp_path`` is killed at its end, with a warning naming them."""
+    folder = request.getfixturevalue("tmp_path") if "tmp_path" in request.fixturenames else None
+    yield
+    if folder is not None and (left := kill_processes_of(folder)):
+        warnings.warn(f"{request.node.nodeid} left processes running; killed: {left}", stacklevel=1)

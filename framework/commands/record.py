@@ -3,15 +3,14 @@
 from __future__ import annotations
 
 import argparse
-import signal
 import sys
-import threading
 from pathlib import Path
 
 from ..files.mcap_writer import McapWriter, RecordingError
 from ..graphs.model import GraphError, load_graph
 from ..recorder.graph_recorder import GraphRecorder
 from ..runtime.discovery import DiscoveryError, add_auth_arguments, join_graphs
+from ..runtime.stop_signals import StopSignals
 
 
 def register(parser: argparse.ArgumentParser) -> None:
@@ -35,6 +34,11 @@ def register(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    with StopSignals() as stop:  # Ctrl-C and SIGTERM ask to stop: every path below closes the session
+        return _record(args, stop)
+
+
+def _record(args: argparse.Namespace, stop: StopSignals) -> int:
     graph = None
     name = args.graph
     if name and (name.endswith((".yaml", ".yml")) or Path(name).is_file()):
@@ -49,10 +53,19 @@ def run(args: argparse.Namespace) -> int:
     except DiscoveryError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    if len(found) > 1:
+    try:
+        return _record_from(args, session, graph, info, found, stop)
+    finally:
         session.close()
+
+
+def _record_from(args: argparse.Namespace, session, graph, info, found, stop: StopSignals) -> int:
+    if len(found) > 1:
         print(f"error: several graphs run there ({', '.join(sorted(found))}); name the one to record", file=sys.stderr)
         return 2
+    if stop.is_set():
+        print("interrupted", file=sys.stderr)
+        return 130
     name = next(iter(found))
     if graph is None and info is not None and Path(info.graph_file).is_file():
         try:
@@ -68,18 +81,12 @@ def run(args: argparse.Namespace) -> int:
             recorder = GraphRecorder(writer, name, args.topics)
     except RecordingError as exc:
         print(f"error: {exc}", file=sys.stderr)
-        session.close()
         return 2
-    stop = threading.Event()
-    old = {s: signal.signal(s, lambda *_: stop.set()) for s in (signal.SIGINT, signal.SIGTERM)}
     recorder.attach(session)
     print(f"recording graph '{name}' to {args.out} (Ctrl-C to stop)", file=sys.stderr)
     try:
         stop.wait(args.duration)
     finally:
-        for s, h in old.items():
-            signal.signal(s, h)
         recorder.close(log_summary=False)  # printed once, below
-        session.close()
     print(recorder.summary)
     return 0

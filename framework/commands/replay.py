@@ -201,12 +201,12 @@ def _replay_into(args: argparse.Namespace, recorded: str | None, stop: threading
         graph, lockstep=args.lockstep, log_level=logging.getLevelName(logging.getLogger().level), graph_text=text
     )
     recorder = None
-    if args.record:
-        recorder = GraphRecorder.for_graph(graph, args.record)
-        recorder.attach(launcher.session)
     result: dict[str, object] = {}
     bridge = None
-    try:
+    try:  # whatever fails from here on, the launcher is stopped and closed (its session too)
+        if args.record:
+            recorder = GraphRecorder.for_graph(graph, args.record)
+            recorder.attach(launcher.session)
         launcher.start()
         watcher = GraphWatcher(launcher.session, graph.name)
         poll = launcher.poll

@@ -7,6 +7,7 @@ import json
 import sys
 
 from ..runtime.startup import StartupProgress
+from ..runtime.stop_signals import StopSignals
 from ..runtime.zygote import start_unless_disabled
 from ._shared import add_foxglove_option, add_set_option, graph_with_sets
 
@@ -36,12 +37,19 @@ def register(parser: argparse.ArgumentParser) -> None:
     parser.epilog = (
         "exit codes: 0 ok (a node that failed, restarted and runs at the end is noted in the summary), "
         "1 empty or failed recording, 2 bad graph, missing input (file, device, extra) or bad arguments, "
-        "3 a node in a crash loop, 4 a node failed and was not running at the end (docs/reliability.md)"
+        "3 a node in a crash loop, 4 a node failed and was not running at the end, 130 Ctrl-C or SIGTERM before the "
+        "graph was loaded (docs/reliability.md)"
     )
     parser.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
+    # Ctrl-C and SIGTERM only ask to stop from here on: the start-up checks it and stops in order
+    with StopSignals() as stop:
+        return _run(args, stop)
+
+
+def _run(args: argparse.Namespace, stop: StopSignals) -> int:
     progress = StartupProgress()
     progress.say("handflow run %s: importing its plugins, checking its inputs, starting its processes", args.graph)
     # imports the plugins for the node processes while the graph is checked here
@@ -68,6 +76,15 @@ def run(args: argparse.Namespace) -> int:
         if isinstance(exc, GraphError):
             print(f"{args.graph}: fix the problems above (see `handflow validate {args.graph}`)", file=sys.stderr)
         return 2
+    except BaseException:
+        if zygote is not None:
+            zygote.close()
+        raise
+    if stop.is_set():  # before anything ran: nothing to stop, no recording begun
+        if zygote is not None:
+            zygote.close()
+        print("interrupted", file=sys.stderr)
+        return 130
     record_path = args.record or (graph.spec.record.path if graph.spec.record else None)
     recorder = bridge = None
     status = StatusLine(graph.name, graph.spec.status) if graph.spec.status else None
@@ -98,6 +115,7 @@ def run(args: argparse.Namespace) -> int:
             watch=args.watch,
             progress=progress,
             text=text,
+            stop=stop,
         )
     except (ValueError, BridgeError, EndpointInUse) as exc:
         print(f"error: {exc}", file=sys.stderr)

@@ -15,6 +15,7 @@ serves ``handflow param`` for its nodes (:mod:`.param_service`, docs/tuning.md) 
 from __future__ import annotations
 
 import collections
+import contextlib
 import json
 import logging
 import queue
@@ -39,6 +40,7 @@ from .param_service import ParamService
 from .ros2_bridge import Ros2Bridge
 from .runner import RESTART_SIGNAL, START_WAIT_S, STOPPED, failure_file, node_state_files
 from .startup import StartupProgress
+from .stop_signals import StopSignals
 from .watch import Watcher
 from .zygote import RUNNER, ForkedProcess, Zygote, start_unless_disabled
 
@@ -107,34 +109,41 @@ class Launcher:
         self.hub_endpoint = transport.hub_endpoint_for()
         self._state_dir = tempfile.TemporaryDirectory(prefix=f"handflow-{graph.name}-")
         self.user: str | None = None
-        try:
-            self.session = transport.open_hub(graph.spec.zenoh, self.hub_endpoint, self._secure_settings(host))
-        except BaseException:
+        with contextlib.ExitStack() as undo:  # if the start-up fails (or is interrupted), close what it opened
             if self.zygote is not None:
-                self.zygote.close()
-            self._state_dir.cleanup()
-            raise
-        self.stopping = False
-        self.edited: set[Path] = set()  # plugin source files edited during the run (`--watch`, docs/tuning.md)
-        self.graph_text: Path | None = None  # the version of the graph file the nodes run (`--watch`)
-        if graph_text is not None:
-            self.graph_text = self.state_dir / "graph.yaml"
-            self.graph_text.write_text(graph_text)
-        self.run_file = discovery.write_run_file(
-            graph.name, self.hub_endpoint, graph.path, lockstep, usrpwd=self.user is not None
-        )
-        self.health: dict[str, Status] = {}
-        self._health_sub = self.session.declare_subscriber(keys.topic_key(graph.name, "*", "_health"), self._on_health)
-        self._start_pub = self.session.declare_publisher(keys.start_key(graph.name))
-        self._report_pub = self.session.declare_publisher(keys.report_key(graph.name))
-        self._event_pub = self.session.declare_publisher(keys.topic_key(graph.name, "_runtime", "events"))
-        self._event_seq = 0
-        self._info = hub_info.declare_info(self.session, graph.name, host, list(graph.nodes))
-        self.ros2 = Ros2Bridge(self.session, graph, host) if graph.spec.ros2 is not None else None
-        self._calls: queue.SimpleQueue = queue.SimpleQueue()  # run by poll(), the supervising thread
-        self.params = ParamService(self)
+                undo.callback(self.zygote.close)
+            undo.callback(self._state_dir.cleanup)
+            self.session = transport.open_hub(graph.spec.zenoh, self.hub_endpoint, self._secure_settings(host))
+            undo.callback(self.session.close)
+            self.stopping = False
+            self.edited: set[Path] = set()  # plugin source files edited during the run (`--watch`, docs/tuning.md)
+            self.graph_text: Path | None = None  # the version of the graph file the nodes run (`--watch`)
+            if graph_text is not None:
+                self.graph_text = self.state_dir / "graph.yaml"
+                self.graph_text.write_text(graph_text)
+            self.run_file = discovery.write_run_file(
+                graph.name, self.hub_endpoint, graph.path, lockstep, usrpwd=self.user is not None
+            )
+            undo.callback(discovery.remove_run_file, self.run_file)
+            self.health: dict[str, Status] = {}
+            self._health_sub = self.session.declare_subscriber(
+                keys.topic_key(graph.name, "*", "_health"), self._on_health
+            )
+            self._start_pub = self.session.declare_publisher(keys.start_key(graph.name))
+            self._report_pub = self.session.declare_publisher(keys.report_key(graph.name))
+            self._event_pub = self.session.declare_publisher(keys.topic_key(graph.name, "_runtime", "events"))
+            self._event_seq = 0
+            self._info = hub_info.declare_info(self.session, graph.name, host, list(graph.nodes))
+            self.ros2 = Ros2Bridge(self.session, graph, host) if graph.spec.ros2 is not None else None
+            if self.ros2 is not None:
+                undo.callback(self.ros2.close)
+            self._calls: queue.SimpleQueue = queue.SimpleQueue()  # run by poll(), the supervising thread
+            self.params = ParamService(self)
+            undo.pop_all()
+        self._local_prepared = None
         if graph.spec.transport.local == "iceoryx2":  # beside the start-up: importing iceoryx2 takes 0.2-0.6 s
-            threading.Thread(target=_prepare_local, name="handflow-iox2", daemon=True).start()
+            self._local_prepared = threading.Thread(target=_prepare_local, name="handflow-iox2", daemon=True)
+            self._local_prepared.start()
 
     def _secure_settings(self, host: str | None) -> dict[str, object]:
         """The hub's TLS, access-control and user/password settings (docs/security.md)."""
@@ -231,6 +240,8 @@ class Launcher:
         log.info("started %s (pid %d)", unit.name, unit.proc.pid)
 
     def start(self) -> None:
+        if self._local_prepared is not None:  # its reclaiming of dead nodes' files must not meet a node being made
+            self._local_prepared.join()
         for unit in self.units:
             self._spawn(unit)
 
@@ -538,6 +549,7 @@ def run_graph(
     watch: bool = False,
     progress: StartupProgress | None = None,
     text: str | None = None,
+    stop: StopSignals | None = None,
 ) -> Launcher:
     """Run ``graph`` until Ctrl-C/SIGTERM or ``duration_s``; returns the stopped launcher (for its summary).
 
@@ -548,6 +560,9 @@ def run_graph(
     concern (:mod:`.watch`, docs/tuning.md).  ``progress`` says how start-up goes (:mod:`.startup`).
     With ``text``, the nodes run that version of the graph file (``handflow run --set``,
     :mod:`..graphs.overrides`).
+    ``stop``: the caller's :class:`.stop_signals.StopSignals`, installed before its own start-up (else
+    installed here); a stop before the nodes start starts none.  On any error the units are stopped and
+    the launcher closed before it propagates.
     """
     if lockstep and watch:
         raise ValueError("--watch cannot be used in lock-step mode: a lock-step replay is a fixed, deterministic run")
@@ -555,27 +570,41 @@ def run_graph(
     if text is None and watch:
         text = graph.path.read_text()
     level = logging.getLevelName(logging.getLogger().level)
-    launcher = Launcher(graph, host, lockstep, level, zygote, graph_text=text)
-    if on_ready is not None:
+    with contextlib.ExitStack() as signals:
+        if stop is None:
+            stop = signals.enter_context(StopSignals())
+        launcher = Launcher(graph, host, lockstep, level, zygote, graph_text=text)
         try:
-            on_ready(launcher)
+            if on_ready is not None:
+                on_ready(launcher)
+            _supervise(launcher, stop, progress, duration_s, lockstep, text if watch else None)
         except BaseException:
-            launcher.close()
+            try:
+                launcher.stop()
+            finally:
+                launcher.close()
             raise
-    stop = {"flag": False}
+    return launcher
 
-    def _stop(signum, frame):
-        stop["flag"] = True
 
-    old = {s: signal.signal(s, _stop) for s in (signal.SIGINT, signal.SIGTERM)}
+def _supervise(
+    launcher: Launcher,
+    stop: StopSignals,
+    progress: StartupProgress,
+    duration_s: float | None,
+    lockstep: bool,
+    text: str | None,
+) -> None:
+    """Start the units and supervise them until ``stop`` or the end of ``duration_s``, then stop them."""
     watcher = None
     try:
-        launcher.start()
-        watcher = Watcher(launcher, text) if watch else None
+        if not stop.is_set():  # a stop during the start-up: nothing is started
+            launcher.start()
+            watcher = Watcher(launcher, text) if text is not None else None
         t_launch = time.monotonic()
         t_end = None  # the duration counts from the moment every node is ready (or down for good)
         started = False
-        while not stop["flag"] and (t_end is None or time.monotonic() < t_end):
+        while not stop.is_set() and (t_end is None or time.monotonic() < t_end):
             launcher.poll()
             if not launcher.alive():
                 log.info("all nodes have exited")
@@ -597,10 +626,7 @@ def run_graph(
             if settled and not lockstep:
                 launcher.signal_start()
             time.sleep(0.05)
+    finally:
         if watcher is not None:
             watcher.close()
-        launcher.stop()
-    finally:
-        for s, h in old.items():
-            signal.signal(s, h)
-    return launcher
+    launcher.stop()

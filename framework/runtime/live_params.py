@@ -23,9 +23,10 @@ from __future__ import annotations
 
 import json
 import logging
-from collections.abc import Callable
+import threading
+from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 from pydantic import BaseModel, ValidationError
 
@@ -34,11 +35,33 @@ from ..files.params import live_keys
 from ..messages import Header, ParamChange
 
 if TYPE_CHECKING:
-    from ..graphs.model import Graph
+    from ..graphs.model import Graph, ResolvedNode
     from ..plugin import Node
-    from .runner import GroupRuntime
 
 log = logging.getLogger("handflow.params")
+
+
+class ParamSlot(Protocol):
+    """One node of a node process, as its parameter service sees it."""
+
+    id: str
+    node: Node
+    rn: ResolvedNode
+    ctx: Any  # the node's context: its ``log``
+
+
+class ParamRuntime(Protocol):
+    """What :class:`NodeParams` needs of the node process that runs it (the runner's ``GroupRuntime``)."""
+
+    graph: Graph
+    session: Any  # the process's Zenoh session
+    slots: Sequence[ParamSlot]
+
+    @property
+    def lock(self) -> threading.Lock:
+        """Held while a hook of a node runs: node code never runs concurrently with itself."""
+
+    def now_ns(self) -> int: ...
 
 
 class ParamRefused(ValueError):
@@ -154,7 +177,7 @@ class NodeParams:
     """The parameter service of one node process (see the module docstring)."""
 
     def __init__(
-        self, rt: GroupRuntime, node_ids: list[str], state_dir: Path | None, open_session: Callable[[], Any]
+        self, rt: ParamRuntime, node_ids: list[str], state_dir: Path | None, open_session: Callable[[], Any]
     ) -> None:
         self._rt = rt
         self._state_dir = state_dir
@@ -177,7 +200,7 @@ class NodeParams:
                 )
             )
 
-    def _on_query(self, slot: Any, query: Any) -> None:
+    def _on_query(self, slot: ParamSlot, query: Any) -> None:
         try:
             request = json.loads(query.payload.to_bytes()) if query.payload is not None else {}
             reply = self.handle(slot, request)
@@ -187,7 +210,7 @@ class NodeParams:
             reply = {"ok": False, "code": 2, "error": f"bad parameter request: {exc}"}
         query.reply(query.key_expr, json.dumps(reply))
 
-    def handle(self, slot: Any, request: dict[str, Any]) -> dict[str, Any]:
+    def handle(self, slot: ParamSlot, request: dict[str, Any]) -> dict[str, Any]:
         """Answer one request (``get`` or ``set``) for the node of ``slot``."""
         op = request.get("op")
         if op == "get":  # params are replaced whole, never changed in place: no need to wait for the lock
@@ -200,7 +223,7 @@ class NodeParams:
                 new = validated(new, slot.id, str(key), value)
             return {**describe(new, slot.rn.spec.plugin), "restart": True}
         key, value = str(request["key"]), request.get("value")
-        with self._rt._lock:
+        with self._rt.lock:
             if request.get("restart"):  # checked only: the launcher restarts the node with it
                 new = validated(slot.node.params, slot.id, key, value)
                 return {**describe(new, slot.rn.spec.plugin), "restart": True}

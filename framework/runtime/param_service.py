@@ -31,7 +31,7 @@ from .live_params import save_override
 
 if TYPE_CHECKING:
     from ..graphs.model import Graph
-    from .launcher import Launcher
+    from .supervisor import ParamHost
 
 log = logging.getLogger("handflow.params")
 
@@ -52,7 +52,7 @@ def setters(graph: Graph) -> frozenset[str] | None:
 class ParamService:
     """Serves parameter requests for the nodes a launcher runs (see the module docstring)."""
 
-    def __init__(self, launcher: Launcher) -> None:
+    def __init__(self, launcher: ParamHost) -> None:
         self._launcher = launcher
         self._session = launcher.session
         self._graph = launcher.graph.name

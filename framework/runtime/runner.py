@@ -48,10 +48,10 @@ from ..network import sessions as transport
 from ..network.shm import SharedPayloads
 from ..plugin import Node
 from ..security.credentials import read_credentials, usrpwd_settings
-from ..testkit.harness import allocate_output, check_publish
 from . import forwarding, local_routes
 from .drops import DropLedger
 from .live_params import NodeParams, overrides_file
+from .publish import allocate_output, check_publish
 from .wakeup import wakeup_queue
 
 log = logging.getLogger("handflow.runner")
@@ -263,6 +263,11 @@ class GroupRuntime:
             if lockstep
             else {}
         )
+
+    @property
+    def lock(self) -> threading.Lock:
+        """Held while a node's code runs (:class:`.live_params.ParamRuntime`)."""
+        return self._lock
 
     # -- clock ------------------------------------------------------------------------------
     def now_ns(self) -> int:

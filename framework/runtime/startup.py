@@ -12,7 +12,7 @@ import time
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from .launcher import Launcher
+    from .supervisor import StartupHost
 
 log = logging.getLogger("handflow.launcher")
 
@@ -30,7 +30,7 @@ class StartupProgress:
     def say(self, what: str, *args: object) -> None:
         log.info(what, *args)
 
-    def poll(self, launcher: Launcher) -> None:
+    def poll(self, launcher: StartupHost) -> None:
         """A line for each node that reported ready since the last call (once each)."""
         total = sum(len(unit.node_ids) for unit in launcher.units)
         for unit in launcher.units:

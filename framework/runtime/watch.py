@@ -35,7 +35,7 @@ from ..graphs.model import Graph, GraphError, GraphSpec, load_graph
 from .plugin_sources import drop_bytecode, forget, plugin_files
 
 if TYPE_CHECKING:
-    from .launcher import Launcher
+    from .supervisor import WatchHost
 
 log = logging.getLogger("handflow.watch")
 
@@ -57,7 +57,7 @@ def _shown(path: Path) -> str:
 class Watcher:
     """Watches the files of a running graph and reloads what changed (see the module docstring)."""
 
-    def __init__(self, launcher: Launcher, text: str) -> None:
+    def __init__(self, launcher: WatchHost, text: str) -> None:
         self.launcher = launcher
         self.path = launcher.graph.path
         self.text = text  # the graph file's running version

@@ -42,6 +42,7 @@ RUNNER = "handflow.framework.runtime.runner"
 MAX_REQUEST = 1 << 16
 REAP_S = 0.05
 SPAWN_TIMEOUT_S = 60.0  # the zygote answers a spawn request once it has imported the graph's plugins
+CLOSE_WAIT_S = 2.0  # at the close, how long the zygote may take to exit before it is killed
 
 
 def _exit_status(status: int) -> int:
@@ -298,8 +299,8 @@ class Zygote:
         except OSError:
             pass
         self.sock.close()
-        try:
-            self.proc.wait(timeout=5)
+        try:  # it ends within a poll of the close; one still importing the graph's plugins is killed
+            self.proc.wait(timeout=CLOSE_WAIT_S)
         except subprocess.TimeoutExpired:
             self.proc.kill()
             self.proc.wait()

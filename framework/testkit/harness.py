@@ -1,8 +1,8 @@
 """Drive one node in-process, without Zenoh: for unit tests of a plugin's node wrapper.
 
 The harness builds the node exactly as the runtime does (params validated by the plugin's model,
-published messages validated by :meth:`Message.check`), but delivers messages and ticks on demand
-and keeps what the node publishes.  End-to-end behaviour is tested with ``handflow run``.
+published messages checked by the runtime's publish contract, :mod:`handflow.framework.runtime.publish`),
+but delivers messages and ticks on demand and keeps what the node publishes.  End-to-end behaviour is tested with ``handflow run``.
 """
 
 from __future__ import annotations
@@ -16,6 +16,7 @@ import numpy as np
 
 from ..messages import Header, Message, MessageError
 from ..plugin import Node
+from ..runtime.publish import allocate_output, check_publish
 
 
 class HarnessContext:
@@ -52,31 +53,6 @@ class HarnessContext:
         p = Path(path).expanduser().resolve()
         p.parent.mkdir(parents=True, exist_ok=True)
         return p
-
-
-def check_publish(
-    node_id: str, outputs: dict[str, type[Message]], port: str, msg: Message, validated: bool = False
-) -> None:
-    """The publisher-side checks shared by the runtime and the harness; ``validated`` skips the
-    message's own check (a received message forwarded unchanged was checked when it was decoded)."""
-    expected = outputs.get(port)
-    if expected is None:
-        raise MessageError(f"node '{node_id}' has no output port '{port}' (it has: {', '.join(outputs) or 'none'})")
-    if not isinstance(msg, expected):
-        raise MessageError(f"node '{node_id}' port '{port}' carries {expected.TYPE}, not {type(msg).__name__}")
-    if validated:
-        return
-    try:
-        msg.check()
-    except MessageError as exc:
-        raise MessageError(f"node '{node_id}' port '{port}': {exc}") from None
-
-
-def allocate_output(node_id: str, outputs: dict[str, type[Message]], port: str, nbytes: int) -> np.ndarray:
-    """:meth:`handflow.framework.plugin.Context.allocate`, shared by the runtime and the harness."""
-    if port not in outputs:
-        raise MessageError(f"node '{node_id}' has no output port '{port}' (it has: {', '.join(outputs) or 'none'})")
-    return np.empty(int(nbytes), dtype=np.uint8)
 
 
 class NodeHarness:

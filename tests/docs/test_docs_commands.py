@@ -80,7 +80,15 @@ BENCHMARKS = {
     ),
 }
 """The ``python benchmarks/X.py`` commands of the docs, in tables and prose: why the docs test does not run them."""
-SLOW = ("handflow run", "handflow replay", "handflow calibrate --port", "&", "grasp-experience", "demo-record")
+SLOW = (
+    "handflow run",
+    "handflow replay",
+    "handflow calibrate --port",
+    "&",
+    "grasp-experience",
+    "demo-record",
+    "handflow evaluate segmentation",
+)
 """Commands that mark their page's test slow: several processes, or a minute of computing."""
 FENCE = re.compile(r"^```(\w*)\s*$")
 JOB_STOP = re.compile(r"kill -INT %(\d+)")

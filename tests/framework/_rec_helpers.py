@@ -9,6 +9,8 @@ import time
 import uuid
 from pathlib import Path
 
+from tests.conftest import kill_processes_of, processes_of
+
 REPO = Path(__file__).resolve().parents[2]
 
 
@@ -60,6 +62,31 @@ def handflow(*args: str, cwd: Path = REPO, timeout: float = 90) -> subprocess.Co
         text=True,
         timeout=timeout,
     )
+
+
+def ended_within(proc: subprocess.Popen, seconds: float, folder: Path, what: str, sig: int | None = None) -> str:
+    """The stderr of ``proc`` (sent ``sig`` first, if given) once it has exited, which must be within ``seconds``
+    and leave no process it started (:func:`tests.conftest.processes_of` ``folder``); otherwise all of them are
+    killed and the test fails."""
+    if sig is not None:
+        proc.send_signal(sig)
+    try:
+        _, err = proc.communicate(timeout=seconds)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        _, err = proc.communicate()
+        left = kill_processes_of(folder)
+        raise AssertionError(
+            f"{what}: still running {seconds:.0f}s after the signal; killed it and {left}\n{err[-3000:]}"
+        ) from None
+    try:
+        wait_until(lambda: not processes_of(folder), timeout=5.0, what="its processes to exit")
+    except AssertionError:
+        left = kill_processes_of(folder)
+        raise AssertionError(
+            f"{what}: exited {proc.returncode}, leaving processes {left} (killed)\n{err[-3000:]}"
+        ) from None
+    return err
 
 
 def wait_until(pred, timeout: float = 30.0, what: str = "condition") -> None:

@@ -34,7 +34,7 @@ from handflow.framework.network import local_transport as lt
 from handflow.framework.network.sessions import free_tcp_port
 from handflow.framework.runtime import local_routes
 from handflow.framework.runtime.discovery import live_runs
-from tests.framework._rec_helpers import REPO, start, unique, wait_until, write_graph
+from tests.framework._rec_helpers import REPO, ended_within, start, unique, wait_until, write_graph
 
 
 @pytest.fixture
@@ -285,9 +285,12 @@ def _running(tmp_path: Path, prefix: str, seconds: int, again: tuple[str, int] |
         run.health = _Health(run.session, name)
         wait_until(lambda: (run.health.get("sink", "handled.in") or 0) > 20, timeout=60, what="the sink handling")
         yield run
+    except AssertionError as exc:  # the graph's log says why
+        run.err = ended_within(proc, 30.0, tmp_path, "the launcher", sig=signal.SIGINT)
+        raise AssertionError(f"{exc}\nthe launcher's log:\n{run.err[-4000:]}") from None
     finally:
-        proc.send_signal(signal.SIGINT)
-        _, run.err = proc.communicate(timeout=60)
+        if proc.returncode is None:
+            run.err = ended_within(proc, 30.0, tmp_path, "the launcher", sig=signal.SIGINT)
         run.returncode = proc.returncode
         run.session.close()
 

@@ -144,6 +144,7 @@ def test_evaluation_pools_seeds_and_repeats_with_jittered_gamma(capsys):
     assert "repeats must be ≥ 1" in capsys.readouterr().err
 
 
+@pytest.mark.slow  # a whole evaluation (docs/testing.md)
 def test_quick_evaluation_prints_tables_json_and_success_maps(tmp_path, capsys):
     assert run_command(cli.register_evaluate, ["--quick", "--json", "--plots", str(tmp_path)]) == 0
     result = json.loads(capsys.readouterr().out)

@@ -124,6 +124,7 @@ def test_train_classes_says_when_rejection_cannot_be_calibrated(tmp_path, capsys
     assert NodeHarness(OnlineCLMNode, {"models": str(out)}).setup().node.segmenter.background_factor == 0
 
 
+@pytest.mark.slow  # a whole evaluation (docs/testing.md)
 def test_folds_over_processes_give_the_same_json_as_one_after_the_other(tmp_path, capsys):
     """``--jobs 3`` runs the folds over three processes (one BLAS thread each): every figure, label
     and selected parameter of the JSON equals that of ``--jobs 1`` (docs/segmentation.md)."""

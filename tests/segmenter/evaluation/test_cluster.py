@@ -18,6 +18,7 @@ def _result(capsys, argv) -> dict:
     return result
 
 
+@pytest.mark.slow  # a whole evaluation (docs/testing.md)
 def test_folds_on_a_cluster_of_two_workers_give_the_local_figures(three_class_npz, capsys):
     argv = [str(three_class_npz), "--quick", "--json", "--methods", "ukr_clm,ukr_clm_online,dtw_1nn"]
     local = _result(capsys, [*argv, "--jobs", "2"])

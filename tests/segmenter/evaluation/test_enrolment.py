@@ -136,6 +136,7 @@ def test_the_chosen_adaptation_is_one_of_the_others_per_fold_and_its_labels_are_
         assert "(chosen: align in 4; gain" in format_stream_table(res)
 
 
+@pytest.mark.slow  # a whole evaluation (docs/testing.md)
 def test_without_an_inner_fold_gain_of_the_margin_the_enrolment_is_not_used(sessions, monkeypatch):
     monkeypatch.setattr(enrolment_module, "ENROL_MARGIN", 1.0)  # no adaptation gains a whole unit of accuracy
     ev = RecordingsEvaluator(

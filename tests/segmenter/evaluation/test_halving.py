@@ -41,6 +41,7 @@ def test_the_screen_tries_every_third_rejection_value_and_the_last():
     assert REFINE.models == FULL.models != SCREEN.models  # only the screen fits cheaper models
 
 
+@pytest.mark.slow  # a whole evaluation (docs/testing.md)
 def test_selection_screens_every_view_and_refines_the_best_third(three_class_npz):
     lines = []
     ev = RecordingsEvaluator(
@@ -65,6 +66,7 @@ def test_selection_screens_every_view_and_refines_the_best_third(three_class_npz
     assert all(f > c for f, c in steps), steps
 
 
+@pytest.mark.slow  # a whole evaluation (docs/testing.md)
 def test_the_json_reports_time_per_method_and_phase(three_class_npz):
     ev = RecordingsEvaluator(load_recordings(three_class_npz), methods=("ukr_clm", "ukr_clm_online"), quick=True)
     result = ev.evaluate()
@@ -96,6 +98,7 @@ def test_params_that_are_no_evaluation_result_say_so(bad):
         ChosenParameters(bad)
 
 
+@pytest.mark.slow  # a whole evaluation (docs/testing.md)
 def test_params_rerun_the_choices_with_the_labels_of_the_run_that_chose_them(three_class_npz, tmp_path):
     data, methods = load_recordings(three_class_npz), ("ukr_clm", "ukr_clm_online", "dtw_1nn")
     first = RecordingsEvaluator(data, methods=methods, quick=True)
@@ -130,6 +133,7 @@ def test_a_new_recording_gets_the_choice_of_most_folds_ties_to_the_first():
     assert chosen.__class__({"methods": {"dtw_1nn": {"folds": folds}}}).selected("dtw_1nn", "new")["window"] == 10
 
 
+@pytest.mark.slow  # a whole evaluation (docs/testing.md)
 def test_the_cache_gives_the_same_json_and_computes_only_a_method_added(three_class_npz, tmp_path, capsys):
     def run(methods: str, *extra: str) -> tuple[dict, str]:
         argv = [str(three_class_npz), "--quick", "--json", "--jobs", "1", "--methods", methods, *extra]

@@ -43,6 +43,7 @@ def test_validation_chooses_the_candidate_set_that_scores_best(synthetic, headin
     assert out["methods"]["ukr_only"]["single"]["mean_correct"] > 0.5  # tested with the chosen candidates
 
 
+@pytest.mark.slow  # a whole evaluation (docs/testing.md)
 def test_headings_given_are_not_chosen_and_none_can_be_forced(tmp_path, synthetic, capsys):
     data = str(write_csv_dataset(tmp_path / "letters", synthetic))
     argv = ["--methods", "ukr_only", "--quick", "--json", "--steps", "20"]

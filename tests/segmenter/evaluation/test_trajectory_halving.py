@@ -111,6 +111,7 @@ def _headed_choice(letters, plain, validation_order=None):
     return ev
 
 
+@pytest.mark.slow  # a whole evaluation (docs/testing.md)
 def test_the_heading_choice_is_made_on_every_split_and_does_not_flip_under_a_permutation(letters, plain):
     ev = _headed_choice(letters, plain)
     record = ev.choices["ukr_only"]["headings"]
@@ -165,6 +166,7 @@ def test_baseline_scores_of_a_concatenation_equal_those_of_the_joined_sequence(l
     assert np.allclose(ev.baseline_scores("dtw_1nn", "validation", case), whole)
 
 
+@pytest.mark.slow  # a whole evaluation (docs/testing.md)
 def test_forked_processes_give_the_same_figures(letters, plain):
     headed = train(letters, (0, 1))
     outs = []

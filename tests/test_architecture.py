@@ -11,20 +11,6 @@ import pytest
 REPO = Path(__file__).resolve().parents[1]
 tomllib = pytest.importorskip("tomllib")  # Python >= 3.11
 
-# Circles the rework of the segmenter's evaluation removes; this list must end empty.
-KNOWN_CIRCLES = [
-    {
-        "handflow.plugins.segmenter.evaluation._folds",
-        "handflow.plugins.segmenter.evaluation._recordings",
-        "handflow.plugins.segmenter.evaluation._report",
-    },
-    {
-        "handflow.plugins.segmenter.evaluation._trajectories",
-        "handflow.plugins.segmenter.evaluation._trajectory_selection",
-        "handflow.plugins.segmenter.evaluation._trajectory_work",
-    },
-]
-
 
 def import_circles(*packages: str) -> list[set[str]]:
     """The modules of ``packages`` that import each other in a circle, one set per circle (a strongly
@@ -50,7 +36,7 @@ def import_circles(*packages: str) -> list[set[str]]:
 
 def test_no_import_circle_between_modules_of_the_framework_or_the_plugins():
     circles = import_circles("handflow.framework", "handflow.plugins")
-    assert [c for c in circles if c not in KNOWN_CIRCLES] == []
+    assert circles == []
 
 
 def test_the_circle_check_finds_circles_through_type_checking_imports(tmp_path, monkeypatch):

@@ -26,7 +26,7 @@ try:  # the optional extra 'foxglove'; the bridge says how to install it
 except ImportError:
     ServerListener = object
 
-from ..commands.param import show
+from ..commands.param_files import show
 from ..keys import param_request_key
 from ..messages import ParamChange
 

@@ -76,10 +76,9 @@ def forget(files: Collection[str | Path]) -> None:
 def drop_bytecode(path: Path) -> None:
     """Remove the cached bytecode of ``path``: an edit within the second of the last one that kept the
     file's size would otherwise import the cached, older code (the cache is checked by mtime in seconds)."""
-    try:
-        cached = Path(importlib.util.cache_from_source(str(path)))
-    except NotImplementedError:  # an interpreter without a bytecode cache: nothing to remove
+    if sys.implementation.cache_tag is None:  # an interpreter that writes no bytecode cache
         return
+    cached = Path(importlib.util.cache_from_source(str(path)))
     try:
         cached.unlink(missing_ok=True)
     except OSError as exc:

@@ -40,7 +40,7 @@ def _xorshift(state):  # pragma: no cover - compiled
     return state
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _sweeps(x, colsum, band, diag, J, inhib, T, eta, max_sweeps, tol, seed, first):  # pragma: no cover - compiled
     """Run annealed sweeps in place over the columns ``first…N−1`` (the others are held fixed;
     ``T`` holds one temperature per column and is annealed in place too); returns (sweeps done,

@@ -157,8 +157,8 @@ class InnerFoldCalibration:
 
         def pred(r, drop=None):
             if drop is not None and unseen[drop] is not None:  # a model that never saw the class
-                return np.concatenate([self._labels(method, f, s, v, r) for f, s, v in unseen[drop]])
-            return np.concatenate([self._labels(method, f, s, v, r, drop) for f, s, v in states])
+                return np.concatenate(self._each_split(lambda f, s, v: self._labels(method, f, s, v, r), unseen[drop]))
+            return np.concatenate(self._each_split(lambda f, s, v: self._labels(method, f, s, v, r, drop), states))
 
         @functools.cache
         def known_acc(r):
@@ -168,6 +168,13 @@ class InnerFoldCalibration:
             return float(np.mean([np.mean(pred(r, drop=c)[truth == c] == -1) for c in present]))
 
         return known_acc, pseudo_rej, fidelity.sweep(method.reject_grid(fits[0][0], [s for _, s, _ in states]))
+
+    def _each_split(self, labels: Callable, splits: list[tuple]) -> list[np.ndarray]:
+        """``labels(fitted, state, recording)`` of every split, over the threads of ``_threads``
+        where there are (the preview's folds; the CLM's sweeps release the GIL), else in turn."""
+        if self._threads is None:
+            return [labels(*split) for split in splits]
+        return list(self._threads.map(lambda split: labels(*split), splits))
 
     def _labels(self, method, fitted: Fitted, state, rec: Recording, reject: float, drop: int | None = None):
         """``method``'s lagged labels of ``rec`` at ``reject`` (without class ``drop``), computed

@@ -1,7 +1,8 @@
 """What a fit or a calibration of the evaluation may spend (docs/segmentation.md, "successive
 halving"): the full models that label a held-out recording (:data:`FULL`), and the
 cheaper ones the successive halving of :mod:`._selection` screens and refines candidates with
-(:data:`SCREEN`; the survivors are refined at full fidelity, :data:`REFINE`; documented choices)."""
+(:data:`SCREEN`; the survivors are refined at full fidelity, :data:`REFINE`), each protocol's
+halving (:data:`NESTED`, :data:`PREVIEW`; documented choices)."""
 
 from __future__ import annotations
 
@@ -39,3 +40,20 @@ class Fidelity:
 FULL = Fidelity("full")
 REFINE = Fidelity("refine")  # the survivors: full models, the whole sweep
 SCREEN = Fidelity("screen", max_points=250, steps=60, statistics_frames=500, pseudo_unknowns="drop", reject_stride=3)
+
+
+@dataclass(frozen=True)
+class Halving:
+    """A protocol's successive halving: the ``screen`` every candidate gets, the share ``keep`` of
+    them (at least one) refined at ``refine``."""
+
+    screen: Fidelity
+    refine: Fidelity
+    keep: float
+
+
+NESTED = Halving(SCREEN, REFINE, keep=1 / 3)
+# The preview's own (docs/segmentation.md, "The preview protocol"): the nested protocol's screen and
+# survivors, refined with a quarter of the class manifolds' statistics frames; its refined fits are
+# its reported fits.
+PREVIEW = Halving(SCREEN, Fidelity("preview", statistics_frames=1000), keep=NESTED.keep)

@@ -22,15 +22,24 @@ from __future__ import annotations
 
 import time
 from collections import Counter
+from concurrent.futures import ThreadPoolExecutor
+from contextlib import nullcontext
 
 from joblib import Parallel, delayed, parallel_config
 from threadpoolctl import threadpool_limits
 
-from ._fidelity import REFINE, Fidelity
+from ._fidelity import Fidelity
 from ._fold_result import FoldResult, MethodFold
 from ._methods import REGISTRY
 from ._report import choice_summary
 from ._third_party import counted_warnings
+
+
+def _shipped_replay(evaluator, name: str, fitted, reject: float, test) -> dict:
+    """One held-out recording's online replays (:meth:`._recordings.RecordingsEvaluator._replayed`)
+    in a worker process (one BLAS thread)."""
+    with threadpool_limits(1):
+        return evaluator._replayed(REGISTRY[name], fitted, reject, test)
 
 
 def _shipped_split(evaluator, name: str, v, rest, params: dict, fidelity: Fidelity, present: list[int]) -> tuple:
@@ -82,8 +91,14 @@ class PreviewRunner:
             f"preview: every candidate scored on the {len(self.data.recordings)} leave-one-recording-out folds, "
             f"the fits over {self.jobs} process(es)"
         )
-        with threadpool_limits(1):  # as in a worker: BLAS sums in the same order whatever ``jobs``
-            done = [self._preview_group(g) for g in groups]
+        # as in a worker: BLAS sums in the same order whatever ``jobs``; a calibration labels its
+        # folds over ``jobs`` threads (:meth:`._calibration.InnerFoldCalibration._each_split`)
+        with threadpool_limits(1), ThreadPoolExecutor(self.jobs) if self.jobs > 1 else nullcontext() as threads:
+            self._threads = threads
+            try:
+                done = [self._preview_group(g) for g in groups]
+            finally:
+                self._threads = None
         parts = {name: folds for found, _ in done for name, folds in found.items()}
         names = self.data.names()
         folds = [
@@ -133,6 +148,7 @@ class PreviewRunner:
             fits = self._refined(method, choice.params, splits)
             grid = method.reject_grid(fits[0][0], [state for _, state, _ in fits])
             strict = self._refined(method, choice.strict.params, splits) if choice.fallback else None
+        replays = self._replays(method, fits, choice.reject)
         parts = []
         for k, (fitted, state, test) in enumerate(fits):
             with self._timed(name, "labelling"):
@@ -142,11 +158,22 @@ class PreviewRunner:
                 if strict is not None:
                     s_fit, s_state, s_test = strict[k]
                     held_strict = self._labels(method, s_fit, s_state, s_test, choice.strict.reject)
-            labels.update(self._replayed(method, fitted, choice.reject, test))
+            labels.update(replays[k])
             parts.append(
                 MethodFold(test.name, name, labels, dict.fromkeys(labels, selected), sweeps, held_strict, {}, {})
             )
         return parts
+
+    def _replays(self, method, fits: list[tuple], reject: float) -> list[dict]:
+        """Per fold: the online methods' replays of the refined ``fits`` at ``reject``, the folds
+        over ``jobs`` processes."""
+        online = self._replaying(method)
+        if self.jobs < 2 or not online:
+            return [self._replayed(method, fitted, reject, test) for fitted, _, test in fits]
+        with self._timed(" + ".join(online), "labelling"), parallel_config(backend="loky", inner_max_num_threads=1):
+            return Parallel(n_jobs=min(self.jobs, len(fits)))(
+                delayed(_shipped_replay)(self, method.name, fitted, reject, test) for fitted, _, test in fits
+            )
 
     def _refined(self, method, params: dict, splits: dict) -> list[tuple]:
         """Per fold: ``method`` with ``params`` fitted at the refinement's fidelity on the fold's
@@ -154,4 +181,5 @@ class PreviewRunner:
         models, from the cache — and that recording."""
         folds = splits[params["normalise"], params["derived"]]
         present = self.present(folds)
-        return [(*self.split_models(method, v, rest, params, REFINE, present)[:2], v) for v, rest in folds]
+        refine = self.halving.refine
+        return [(*self.split_models(method, v, rest, params, refine, present)[:2], v) for v, rest in folds]

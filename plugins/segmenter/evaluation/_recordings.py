@@ -54,6 +54,7 @@ from ._enrolment import (
     check_enrolment,
     enrolled_views,
 )
+from ._fidelity import NESTED, PREVIEW
 from ._fold_result import FoldResult, MethodFold, timing
 from ._folds import FoldRunner
 from ._methods import REGISTRY, UKRCLMMethod
@@ -140,6 +141,8 @@ class RecordingsEvaluator(HalvingSelection, InnerFoldCalibration, EnrolmentFits,
                 "nested protocol (drop them or --preview)"
             )
         self.preview = preview  # the preview protocol (:mod:`._preview`) instead of the nested one
+        self.halving = PREVIEW if preview else NESTED  # its successive halving (:mod:`._fidelity`)
+        self._threads = None  # the preview's threads that label a calibration's folds
         self.data = data
         known = known or data.known_classes  # a dataset's unknown_classes (rest) are unknown by default
         self.known = [data.class_names.index(k) for k in known]
@@ -171,7 +174,7 @@ class RecordingsEvaluator(HalvingSelection, InnerFoldCalibration, EnrolmentFits,
     def __getstate__(self) -> dict:
         """What travels to a worker process: the evaluator without this process's fold cache
         (a worker starts its own)."""
-        return {**self.__dict__, "_cache": {}, "_fold_choices": {}}
+        return {**self.__dict__, "_cache": {}, "_fold_choices": {}, "_threads": None}
 
     def fold_views(self, held: str | None) -> dict[tuple[str, str], tuple[list[Recording], Recording | None]]:
         """Per (normalisation, derived features) choice: the training recordings and the held-out one

@@ -13,7 +13,7 @@ models, refitted pseudo-unknowns and the whole sweep (:data:`REFINE`); the calib
 picks among those (:meth:`._calibration.InnerFoldCalibration._rule`: the best objective, exact
 ties to the first).  Only the chosen candidate is fitted at full fidelity (:data:`FULL`), on all
 training recordings, to label the held-out one.  Documented choices: the fidelities of
-:mod:`._fidelity` and ``KEEP``.
+:mod:`._fidelity` (each protocol's :class:`~._fidelity.Halving`).
 
 :func:`first_of_best` is the labelled-trajectory protocol's rule for choices made on a single
 small validation split (``TIE_MARGIN``).  The continuous protocol pools its objective over the
@@ -28,20 +28,19 @@ import math
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
-from ._fidelity import REFINE, SCREEN
+from ._fidelity import NESTED
 from ._methods import REGISTRY
 
 if TYPE_CHECKING:
     from ._calibration import Choice, Split
 
-KEEP = 1 / 3  # share of the screened candidates that are refined (at least one)
 TIE_MARGIN = 0.01  # objectives this close to the best are a tie: the first candidate in order wins
 
 
-def survivors(objectives: list[float]) -> list[int]:
-    """Indices of the screened candidates that are refined: the best ``KEEP`` share, at least
+def survivors(objectives: list[float], keep: float = NESTED.keep) -> list[int]:
+    """Indices of the screened candidates that are refined: the best ``keep`` share, at least
     one, in candidate order (ties keep the earlier candidate)."""
-    n_keep = max(1, math.ceil(len(objectives) * KEEP))
+    n_keep = max(1, math.ceil(len(objectives) * keep))
     ranked = sorted(range(len(objectives)), key=lambda i: -objectives[i])  # stable
     return sorted(ranked[:n_keep])
 
@@ -86,15 +85,16 @@ class HalvingSelection:
                 chosen = self._rule(scorer.name, self._choices(scorer, views)).params
                 candidates = [(splits, params) for splits, params in candidates if params == chosen]
             if len(candidates) > 1:
-                self._warm(method, candidates, SCREEN)
-                screened = [self._calibrated(method, splits, params, SCREEN) for splits, params in candidates]
+                halving = self.halving
+                self._warm(method, candidates, halving.screen)
+                screened = [self._calibrated(method, splits, params, halving.screen) for splits, params in candidates]
                 ranking = self._ranking(screened)
-                kept = survivors(ranking)
+                kept = survivors(ranking, halving.keep)
                 self.screened(method.name, [params for _, params in candidates], screened, ranking, kept)
                 candidates = [candidates[i] for i in kept]
-            self._warm(method, candidates, REFINE)
+            self._warm(method, candidates, self.halving.refine)
             self._fold_choices[method.name] = [
-                self._calibrated(method, splits, params, REFINE) for splits, params in candidates
+                self._calibrated(method, splits, params, self.halving.refine) for splits, params in candidates
             ]
         return self._fold_choices[method.name]
 

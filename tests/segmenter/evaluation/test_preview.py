@@ -12,7 +12,7 @@ import pytest
 from handflow.plugins.segmenter.cli import register_evaluate, register_train_classes
 from handflow.plugins.segmenter.datasets import Recording, load_recordings
 from handflow.plugins.segmenter.evaluation import REGISTRY, RecordingsEvaluator
-from handflow.plugins.segmenter.evaluation._fidelity import REFINE
+from handflow.plugins.segmenter.evaluation._fidelity import PREVIEW
 from tests.conftest import run_command
 
 DEMO = Path(__file__).parents[3] / "recordings" / "segmenter_demo"
@@ -56,7 +56,7 @@ def test_every_fold_gets_the_one_choice_and_its_refined_fits_label_it(preview):
     params = {k: selected[k] for k in ("window", "derived", "normalise")}
     for fold in ev.folds_:  # no final refit: the calibration's own fits label the held-out recording
         train, test = ev.views(fold.recording)[params["normalise"], params["derived"]]
-        fitted = method.fit(ev._segments(train), params, 0, REFINE)
+        fitted = method.fit(ev._segments(train), params, 0, PREVIEW.refine)
         expected = method.labels(fitted, method.prepare(fitted, test.X), selected["reject"])
         np.testing.assert_array_equal(fold.labels["dtw_1nn"], expected)
 

@@ -11,7 +11,8 @@ from handflow.plugins.segmenter import LetterGenerator, candidate_set
 from handflow.plugins.segmenter.clm import CLMSegmenter
 from handflow.plugins.segmenter.datasets import LabelledDataset
 from handflow.plugins.segmenter.evaluation import SEGMENT_RULES, Evaluator, TrajectoryProtocol, heading_choices
-from handflow.plugins.segmenter.evaluation._selection import KEEP, TIE_MARGIN, first_of_best
+from handflow.plugins.segmenter.evaluation._fidelity import NESTED
+from handflow.plugins.segmenter.evaluation._selection import TIE_MARGIN, first_of_best
 from handflow.plugins.segmenter.evaluation._trajectory_cases import cross_fitted_splits, screen_pairs
 from handflow.plugins.segmenter.models import train_class_models
 
@@ -53,7 +54,7 @@ def test_halving_screens_every_grid_point_and_refines_the_best_third(letters, pl
 
     monkeypatch.setattr(ev, "validation_objective", lambda m, p, screen=False: fake(m, p, screen))
     params, score = ev.select("ukr_only")
-    n_keep = math.ceil(len(grid) * KEEP)
+    n_keep = math.ceil(len(grid) * NESTED.keep)
     best_third = sorted(screen.values(), reverse=True)[:n_keep]
     refined = [key for key, screened in asked if not screened]
     assert sum(screened for _, screened in asked) == len(grid)  # every grid point screened once
@@ -82,7 +83,7 @@ def test_halving_chooses_what_an_exhaustive_search_chooses(letters, plain):
     exhaustive = [ev.objective(ev.run("ukr_only", p, "validation")) for p in grid]
     assert params == grid[first_of_best(exhaustive)] and score == pytest.approx(exhaustive[first_of_best(exhaustive)])
     refined = [k for k in ev._objectives if not k[2]]
-    assert len(refined) == math.ceil(len(grid) * KEEP)  # only the best third ran on every case
+    assert len(refined) == math.ceil(len(grid) * NESTED.keep)  # only the best third ran on every case
 
 
 def test_cross_fitted_splits_validate_every_train_and_validation_trajectory_once(letters):
@@ -195,7 +196,7 @@ def test_grid_points_sharing_a_clm_run_are_screened_and_refined_together(letters
     monkeypatch.setattr(ev, "validation_objective", fake)
     params, _ = ev.select("ukr_clm")
     best_of_run = {r: max(value[repr(sorted(p.items()))] for p in grid if run_of(p) == r) for r in runs}
-    kept = sorted(runs, key=lambda r: -best_of_run[r])[: math.ceil(len(runs) * KEEP)]
+    kept = sorted(runs, key=lambda r: -best_of_run[r])[: math.ceil(len(runs) * NESTED.keep)]
     assert sorted(set(refined)) == sorted(kept)  # the best third of the runs, by their best rule
     assert len(refined) == len(kept) * len(grid) // len(runs)  # each with all its segment rules
     assert ev._halving == {"candidates": 112, "runs": 28, "refined_runs": len(kept), "refined": len(refined)}

@@ -218,6 +218,12 @@ def run_train_recording_models(args, progress) -> int:
         if chosen is not None:
             args.delay, args.history, args.derived = int(chosen["delay"]), int(chosen["history"]), chosen["derived"]
             progress(f"--params {args.params}: ukr_clm's choice of most folds, {choice_summary(chosen)}")
+            if chosen["normalise"] != "training":
+                progress(
+                    f"warning: the evaluation chose normalisation {chosen['normalise']!r}; train-classes z-scores with "
+                    "all training frames (docs/segmentation.md, per-recording normalisation: not built), so the "
+                    "models differ from the evaluated ones"
+                )
         by_class = known_segments(args.dataset, args.classes, "--classes")
         if args.delay < 1:
             raise ValueError(f"--delay must be >= 1 frame, got {args.delay}")

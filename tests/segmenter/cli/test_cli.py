@@ -118,6 +118,11 @@ def test_train_classes_with_params_trains_ukr_clms_choice_of_most_folds(tmp_path
         assert NodeHarness(OnlineCLMNode, params).setup().node.segmenter.history == 20, graph
     given = NodeHarness(OnlineCLMNode, {"models": str(out), "history": 10}).setup()
     assert given.node.segmenter.history == 10  # the parameter overrides the choice
+    for fold in folds:  # a normalisation train-classes does not train with is said, not silently dropped
+        fold["selected"]["normalise"] = "recording"
+    (tmp_path / "rec.json").write_text(json.dumps({"methods": {"ukr_clm": {"folds": folds}}}))
+    assert run_command(register_train_classes, [*argv[:-1], str(tmp_path / "rec.json")]) == 0
+    assert "warning: the evaluation chose normalisation 'recording'" in capsys.readouterr().err
     (tmp_path / "bad.json").write_text(json.dumps({"methods": {"dtw_1nn": {"folds": folds}}}))
     assert run_command(register_train_classes, [*argv[:-1], str(tmp_path / "bad.json")]) == 2
     assert "has no parameters for ['ukr_clm']" in capsys.readouterr().err

@@ -1,8 +1,9 @@
-"""docs/tutorial_gestures.md from an empty directory: wall time per command and the recognition figures
+"""docs/tutorial_gestures.md from an empty directory: wall and CPU time per command and the recognition figures
 (docs/benchmarks.md, "Teach your own gestures").
 
 Runs the page's ```bash commands as written, in order, in a fresh temporary directory, and times each
-one; then reads the figures the page names: the dataset's repetitions, the leave-one-recording-out
+one (wall, and the CPU time of its processes: on a shared machine the wall time depends on the load);
+then reads the figures the page names: the dataset's repetitions, the leave-one-recording-out
 estimate (``out/check.json``), and on the live run the share of frames of each performed gesture
 labelled right — live (labels on arrival) and in the lock-step replay (final labels) — and the share
 of the untaught ``turn`` labelled unknown.  Baseline, measured in the same run on the same live
@@ -18,6 +19,7 @@ import argparse
 import json
 import os
 import re
+import resource
 import subprocess
 import tempfile
 import time
@@ -35,12 +37,15 @@ def page_commands(page: Path = PAGE) -> list[str]:
     return [line.strip() for b in blocks for line in b.splitlines() if line.strip() and not line.startswith("#")]
 
 
-def timed(cmd: str, cwd: Path) -> float:
-    t0 = time.perf_counter()
+def timed(cmd: str, cwd: Path) -> tuple[float, float]:
+    """Wall and CPU seconds (user + system of the command and every process it waited for) of ``cmd``."""
+    t0, c0 = time.perf_counter(), resource.getrusage(resource.RUSAGE_CHILDREN)
     proc = subprocess.run(["bash", "-c", cmd], cwd=cwd, capture_output=True, text=True)
     if proc.returncode != 0:
         raise SystemExit(f"{cmd} failed ({proc.returncode}):\n{proc.stderr[-3000:]}")
-    return round(time.perf_counter() - t0, 1)
+    c1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = c1.ru_utime - c0.ru_utime + c1.ru_stime - c0.ru_stime
+    return round(time.perf_counter() - t0, 1), round(cpu, 1)
 
 
 def shares(ws: Path, replayed: str) -> dict:
@@ -65,8 +70,10 @@ def main() -> None:
         commands = page_commands()
         steps = []
         for cmd in commands:
-            steps.append({"command": cmd.split(" --")[0], "seconds": timed(cmd, ws)})
+            wall, cpu = timed(cmd, ws)
+            steps.append({"command": cmd.split(" --")[0], "seconds": wall, "cpu_s": cpu})
         total = round(sum(s["seconds"] for s in steps), 1)
+        cpu_total = round(sum(s["cpu_s"] for s in steps), 1)
         check = json.loads((ws / "out/check.json").read_text())["methods"]["ukr_clm"]
         ours = shares(ws, "out/replayed.mcap")
         timed("handflow train-classes out/gestures.npz --out models_default", ws)
@@ -78,6 +85,7 @@ def main() -> None:
         baseline = shares(ws, "out/replayed_default.mcap")
     result = {
         "wall_s": total,
+        "cpu_s": cpu_total,
         "handflow_commands": sum(c.startswith("handflow ") for c in commands),
         "steps": steps,
         "estimate": {k: round(check[k], 4) for k in ("open_set_accuracy", "known_accuracy", "unknown_rejection")},
@@ -88,9 +96,12 @@ def main() -> None:
     if args.json:
         print(json.dumps(result, indent=1))
         return
-    print(f"tutorial from an empty directory: {total:.0f} s wall, {result['handflow_commands']} handflow commands")
+    print(
+        f"tutorial from an empty directory: {total:.0f} s wall, {cpu_total:.0f} s CPU, "
+        f"{result['handflow_commands']} handflow commands"
+    )
     for s in steps:
-        print(f"  {s['seconds']:7.1f} s  {s['command']}")
+        print(f"  {s['seconds']:7.1f} s wall {s['cpu_s']:7.1f} s CPU  {s['command']}")
     print(f"estimate (leave one recording out): {result['estimate']}")
     print(f"tutorial models: {ours}")
     print(f"baseline (train-classes defaults): {baseline}")

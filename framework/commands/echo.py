@@ -93,7 +93,8 @@ def run(args: argparse.Namespace) -> int:
     session, graph, info = joined
     try:
         nodes = info.get("nodes", [])
-        if not node.startswith("_") and node not in nodes:
+        external = f"{node}/{port}" in info.get("external", [])  # fed from outside the graph (collect's cues)
+        if not node.startswith("_") and node not in nodes and not external:
             print(f"error: graph '{graph}' has no node '{node}' (its nodes: {', '.join(nodes)})", file=sys.stderr)
             return 2
         received: queue.SimpleQueue = queue.SimpleQueue()

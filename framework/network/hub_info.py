@@ -21,9 +21,10 @@ def info_key(graph: str) -> str:
     return f"{PREFIX}/{graph}/_runtime/info"
 
 
-def declare_info(session: Any, graph: str, host: str | None, nodes: list[str]) -> Any:
-    """The hub's queryable: replies ``{"graph", "host", "nodes"}`` (``nodes``: all of the graph's nodes)."""
-    payload = json.dumps({"graph": graph, "host": host, "nodes": sorted(nodes)})
+def declare_info(session: Any, graph: str, host: str | None, nodes: list[str], external: list[str] = ()) -> Any:
+    """The hub's queryable: replies ``{"graph", "host", "nodes", "external"}`` (``nodes``: all of the graph's
+    nodes; ``external``: the ``node/port`` topics fed from outside it, e.g. the cues of ``handflow collect``)."""
+    payload = json.dumps({"graph": graph, "host": host, "nodes": sorted(nodes), "external": sorted(external)})
     return session.declare_queryable(info_key(graph), lambda query: query.reply(info_key(graph), payload))
 
 

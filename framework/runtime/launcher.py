@@ -133,7 +133,9 @@ class Launcher:
             self._report_pub = self.session.declare_publisher(keys.report_key(graph.name))
             self._event_pub = self.session.declare_publisher(keys.topic_key(graph.name, "_runtime", "events"))
             self._event_seq = 0
-            self._info = hub_info.declare_info(self.session, graph.name, host, list(graph.nodes))
+            self._info = hub_info.declare_info(
+                self.session, graph.name, host, list(graph.nodes), list(graph.spec.external)
+            )
             self.ros2 = Ros2Bridge(self.session, graph, host) if graph.spec.ros2 is not None else None
             if self.ros2 is not None:
                 undo.callback(self.ros2.close)
@@ -385,7 +387,9 @@ class Launcher:
             self.event("reload", u, f"{verb}: {why}")
         self.params.serve([nid for u in self.units for nid in u.node_ids])
         self._info.undeclare()
-        self._info = hub_info.declare_info(self.session, graph.name, self.host, list(graph.nodes))
+        self._info = hub_info.declare_info(
+            self.session, graph.name, self.host, list(graph.nodes), list(graph.spec.external)
+        )
         return [f"{verb} {', '.join(u.node_ids)}" for verb, u in done]
 
     def alive(self) -> bool:

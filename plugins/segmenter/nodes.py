@@ -68,9 +68,13 @@ def running_normaliser(scaling: ChannelScaling | None, frames: int) -> Callable[
     return lambda y: scaling.inverse_transform(stream.push(y))
 
 
+DEFAULT_HISTORY = 10
+"""The CLM neighbourhood H of the nodes when neither the parameter nor the models (``train-classes``) set it."""
+
+
 class RecognizerParams(StrictModel):
     models: Models | list[Models] = Field(description="folder written by `handflow train-classes`, or model files")
-    history: int = Field(10, ge=1, description="H: history length / CLM neighbourhood")
+    history: int = Field(DEFAULT_HISTORY, ge=1, description="H: history length / CLM neighbourhood")
     joints: list[str] = Field(
         default_factory=list,
         description="joint names to use, in model column order (empty: all positions as they come)",
@@ -150,6 +154,12 @@ class OnlineCLMNode(_RecognizerNode):
             None,
             description="source minirocket: scale the evidence down where the window's features lie beyond this "
             "robust z-score from every training window (docs/segmentation.md, feature novelty; null = off)",
+        )
+        history: int | None = Field(
+            None,
+            ge=1,
+            description="H: history length / CLM neighbourhood; null = the one `train-classes` stored with the "
+            "models (source ukr: the evaluation's choice with --params, else the history of its calibration), else 10",
         )
         window: int = Field(200, ge=2, description="observations in the sliding window")
         background_factor: float | None = live(
@@ -267,9 +277,10 @@ class OnlineCLMNode(_RecognizerNode):
 
     def setup(self) -> None:
         p = self.params
+        models = self.load_models() if p.source == "ukr" else None
         common = dict(
             window=p.window,
-            history=p.history,
+            history=_first_set(p.history, models.history if models is not None else None, DEFAULT_HISTORY),
             background=p.background,
             error_scale=p.error_scale,
             order_rating=p.order_rating,
@@ -282,8 +293,7 @@ class OnlineCLMNode(_RecognizerNode):
             random_state=p.seed,
         )
         self.running = None
-        if p.source == "ukr":
-            models = self.load_models()
+        if models is not None:
             if p.enroll:
                 models = self.enrolled(models)
             channels = models.n_channels
@@ -400,6 +410,7 @@ class OnlineCLMNode(_RecognizerNode):
 
 
 def _first_set(*values: float | None) -> float:
+    """The first of ``values`` that is not None."""
     return next(v for v in values if v is not None)
 
 

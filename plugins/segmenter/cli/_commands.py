@@ -134,7 +134,8 @@ def register_train_classes(parser: argparse.ArgumentParser) -> None:
         type=int,
         default=10,
         help="continuous recordings: the CLM neighbourhood H at which the background level is calibrated on inner "
-        "folds for the online node (default 10, the node's default history; docs/segmentation.md)",
+        "folds for the online node, stored with the models: the node's history unless its parameter is set "
+        "(default 10; docs/segmentation.md)",
     )
     parser.add_argument(
         "--params",

@@ -218,6 +218,12 @@ def run_train_recording_models(args, progress) -> int:
         if chosen is not None:
             args.delay, args.history, args.derived = int(chosen["delay"]), int(chosen["history"]), chosen["derived"]
             progress(f"--params {args.params}: ukr_clm's choice of most folds, {choice_summary(chosen)}")
+            if chosen["normalise"] != "training":
+                progress(
+                    f"warning: the evaluation chose normalisation {chosen['normalise']!r}; train-classes z-scores with "
+                    "all training frames (docs/segmentation.md, per-recording normalisation: not built), so the "
+                    "models differ from the evaluated ones"
+                )
         by_class = known_segments(args.dataset, args.classes, "--classes")
         if args.delay < 1:
             raise ValueError(f"--delay must be >= 1 frame, got {args.delay}")
@@ -236,10 +242,11 @@ def run_train_recording_models(args, progress) -> int:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     background = _chosen_background(args, chosen) if chosen else _calibrated_background(args, list(by_class), progress)
-    provenance = {"dataset": str(args.dataset), "steps": args.steps, **background}
+    provenance = {"dataset": str(args.dataset), "steps": args.steps, "history": args.history, **background}
     out = save_class_models(cands, args.out, provenance=provenance)
     progress(
-        f"wrote {len(cands)} models (delay {args.delay}, derived {args.derived}) to {out} in {time.perf_counter() - t0:.1f}s"
+        f"wrote {len(cands)} models (delay {args.delay}, derived {args.derived}; the online node's history "
+        f"{args.history}) to {out} in {time.perf_counter() - t0:.1f}s"
     )
     if args.params and (estimate := estimate_line(args.params)) is not None:
         print(estimate)
@@ -290,7 +297,7 @@ def _calibrated_background(args, classes: list[str], progress) -> dict:
     else:
         progress(
             f"background level: background_factor {choice.reject:g} at history {args.history} "
-            f"(inner-fold objective {choice.objective:.3f}); the online node uses it by default"
+            f"(inner-fold objective {choice.objective:.3f}); the online node uses both by default"
         )
     return {"background_factor": float(choice.reject), "background_calibration": report}
 

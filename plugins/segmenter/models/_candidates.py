@@ -197,6 +197,8 @@ class CandidateSet:
         self.reconstruction = str(provenances[0].get("reconstruction", "absolute"))  # what the models were made for
         calibrated = provenances[0].get("background_factor")  # chosen by `train-classes` on recordings
         self.background_factor = None if calibrated is None else float(calibrated)
+        history = provenances[0].get("history")  # the CLM neighbourhood `train-classes` chose or calibrated at
+        self.history = None if history is None else int(history)
 
     def _batched_projector(self):
         """The batched projector over all candidates, or None when some are not 1D periodic UKR."""

@@ -80,5 +80,5 @@ def enrolled_models(
         scaling="none" if models.scaling is None else "standard",
         derived=models.derived.kind,
     )
-    refit.background_factor = models.background_factor
+    refit.background_factor, refit.history = models.background_factor, models.history
     return refit, alignment

@@ -4,6 +4,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from handflow.framework.graphs.model import load_graph
 from handflow.framework.testkit.harness import NodeHarness
 from handflow.plugins.segmenter import EXPERIMENTS, METHODS, load_candidates
 from handflow.plugins.segmenter.cli import register_evaluate, register_train_classes
@@ -78,6 +79,7 @@ def test_train_classes_on_recordings_calibrates_the_background_of_the_online_nod
     assert provenance["background_calibration"]["rejection"] == "calibrated" and factor > 0
     assert provenance["background_calibration"]["validation_objective"] > 0.55
     assert f"background_factor {factor:g} at history 10" in capsys.readouterr().err
+    assert provenance["history"] == 10  # the history the level was calibrated at, the node's
     assert NodeHarness(OnlineCLMNode, {"models": str(out)}).setup().node.segmenter.background_factor == factor
     given = NodeHarness(OnlineCLMNode, {"models": str(out), "background_factor": 3.0}).setup()
     assert given.node.segmenter.background_factor == 3.0  # the parameter overrides the calibrated level
@@ -109,6 +111,18 @@ def test_train_classes_with_params_trains_ukr_clms_choice_of_most_folds(tmp_path
     model = np.load(out / index["classes"][next(iter(index["classes"]))])
     meta = json.loads(str(model["metadata"])) if "metadata" in model.files else {}
     assert "delay 4, history 20" in capsys.readouterr().err and json.dumps(meta).count('"velocities"') >= 1
+    # the chosen history reaches the online node, as the shipped gesture graphs run it, unless a graph sets it
+    assert index["provenance"]["history"] == 20
+    for graph in ("recognise_gestures", "segment_gestures"):
+        params = dict(load_graph(graph).nodes["segmenter"].spec.params, models=str(out))
+        assert NodeHarness(OnlineCLMNode, params).setup().node.segmenter.history == 20, graph
+    given = NodeHarness(OnlineCLMNode, {"models": str(out), "history": 10}).setup()
+    assert given.node.segmenter.history == 10  # the parameter overrides the choice
+    for fold in folds:  # a normalisation train-classes does not train with is said, not silently dropped
+        fold["selected"]["normalise"] = "recording"
+    (tmp_path / "rec.json").write_text(json.dumps({"methods": {"ukr_clm": {"folds": folds}}}))
+    assert run_command(register_train_classes, [*argv[:-1], str(tmp_path / "rec.json")]) == 0
+    assert "warning: the evaluation chose normalisation 'recording'" in capsys.readouterr().err
     (tmp_path / "bad.json").write_text(json.dumps({"methods": {"dtw_1nn": {"folds": folds}}}))
     assert run_command(register_train_classes, [*argv[:-1], str(tmp_path / "bad.json")]) == 2
     assert "has no parameters for ['ukr_clm']" in capsys.readouterr().err

@@ -64,9 +64,11 @@ def pytest_configure(config):
     os.environ["TMPDIR"] = str(private)
     os.environ["HANDFLOW_RUN_DIR"] = str(private / "runs")
     tempfile.tempdir = None  # gettempdir() reads $TMPDIR again
-    if getattr(config.option, "maxschedchunk", False) is None:  # pytest-xdist --dist load, no chunk size given
-        # hand tests out one at a time, in the longest-first order above (pytest_collection_modifyitems);
-        # by default each worker's first batch is a run of consecutive tests, the longest all on one worker
+    slow_tier = "not slow" not in (config.option.markexpr or "")  # the slow tier, or both tiers
+    if slow_tier and getattr(config.option, "maxschedchunk", False) is None:  # pytest-xdist, no chunk size given
+        # hand tests out one at a time, in the longest-first order of pytest_collection_modifyitems; by default
+        # each worker's first batch is a run of consecutive tests, the longest all on one worker.  The default
+        # tier (no test there is listed) keeps xdist's batches, which keep a module's tests on fewer workers.
         config.option.maxschedchunk = 1
 
 

@@ -11,7 +11,9 @@ import argparse
 import ast
 import importlib.util
 import logging
+import os
 import re
+import select
 import signal
 import sys
 from importlib.metadata import EntryPoint
@@ -167,7 +169,34 @@ def _terminated(signum, frame) -> None:
     raise KeyboardInterrupt  # SIGTERM stops a command like Ctrl-C does (commands install finer handlers)
 
 
+def _stdout_gone() -> bool:
+    """Whether stdout is a pipe whose reader has gone (``handflow inspect F | head -1``): its write end then
+    polls as an error.  Another broken pipe (a socket, a child's stdin) is not this."""
+    try:
+        poller = select.poll()
+        poller.register(sys.stdout.fileno(), select.POLLOUT)
+        return any(events & (select.POLLERR | select.POLLHUP) for _, events in poller.poll(0))
+    except (AttributeError, OSError, ValueError):  # no poll, or a stdout without a file descriptor
+        return False
+
+
 def main(argv: list[str] | None = None) -> int:
+    """Run one command; its exit code.  A reader of stdout that goes away early ends the command quietly
+    with 141 (128 + SIGPIPE, what a shell shows for ``yes | head -1``'s ``yes``), every ``finally`` of the
+    command having run, and no traceback (docs/reliability.md)."""
+    try:
+        try:
+            return _main(argv)
+        finally:
+            sys.stdout.flush()  # the output still buffered fails here, not in the interpreter's exit
+    except BrokenPipeError:
+        if not _stdout_gone():
+            raise
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # nothing left to flush at exit
+        return 141
+
+
+def _main(argv: list[str] | None) -> int:
     signal.signal(signal.SIGTERM, _terminated)
     try:
         parser = build_parser(argv)

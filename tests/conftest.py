@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import shutil
 import signal
@@ -19,6 +20,37 @@ import pytest
 REPO = Path(__file__).resolve().parents[1]
 
 
+DURATIONS = Path(__file__).with_name("slow_durations.json")  # test id → seconds in a measured slow-tier run
+
+
+def pytest_collection_modifyitems(config, items):
+    """Longest first (docs/testing.md): modules by the seconds their tests took in a measured run
+    (``tests/slow_durations.json``), the longest tests first within a module, tests not listed after the
+    listed ones in their collected order.  pytest-xdist hands the tests out in this order, so the workers
+    start the long ones at once and finish together, rather than one running a long test alone at the end;
+    a module's tests stay together, so its module-scoped fixtures are set up once per worker."""
+    known = json.loads(DURATIONS.read_text()) if DURATIONS.exists() else {}
+    if not any(item.nodeid in known for item in items):
+        return
+    module_seconds: dict[str, float] = {}
+    for item in items:
+        module_seconds[item.nodeid.split("::")[0]] = module_seconds.get(item.nodeid.split("::")[0], 0.0) + known.get(
+            item.nodeid, 0.0
+        )
+    first = {}
+    for i, item in enumerate(items):
+        first.setdefault(item.nodeid.split("::")[0], i)
+    order = {id(item): i for i, item in enumerate(items)}
+    items.sort(
+        key=lambda item: (
+            -module_seconds[item.nodeid.split("::")[0]],
+            first[item.nodeid.split("::")[0]],
+            -known.get(item.nodeid, 0.0),
+            order[id(item)],
+        )
+    )
+
+
 @pytest.hookimpl(trylast=True)  # after pytest's temporary-folder factory is configured
 def pytest_configure(config):
     """Each pytest process (an xdist worker, or the only one) gets a private ``$TMPDIR`` — so its own iceoryx2
@@ -32,6 +64,12 @@ def pytest_configure(config):
     os.environ["TMPDIR"] = str(private)
     os.environ["HANDFLOW_RUN_DIR"] = str(private / "runs")
     tempfile.tempdir = None  # gettempdir() reads $TMPDIR again
+    slow_tier = "not slow" not in (config.option.markexpr or "")  # the slow tier, or both tiers
+    if slow_tier and getattr(config.option, "maxschedchunk", False) is None:  # pytest-xdist, no chunk size given
+        # hand tests out one at a time, in the longest-first order of pytest_collection_modifyitems; by default
+        # each worker's first batch is a run of consecutive tests, the longest all on one worker.  The default
+        # tier (no test there is listed) keeps xdist's batches, which keep a module's tests on fewer workers.
+        config.option.maxschedchunk = 1
 
 
 def pytest_unconfigure(config):

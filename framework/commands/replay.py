@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import logging
-import signal
 import sys
 import threading
 from pathlib import Path
@@ -27,6 +26,7 @@ from ..recorder.replay import (
 )
 from ..runtime.discovery import DiscoveryError, add_auth_arguments, join
 from ..runtime.launcher import Launcher
+from ..runtime.stop_signals import StopSignals
 from ._shared import add_foxglove_option, add_set_option, graph_with_sets
 
 log = logging.getLogger("handflow.replay")
@@ -110,12 +110,19 @@ def _check_args(args: argparse.Namespace) -> str | None:
 
 
 def run(args: argparse.Namespace) -> int:
+    """Ctrl-C and SIGTERM ask to stop (:class:`..runtime.stop_signals.StopSignals`, from the first line on):
+    before the graph is joined or launched the command exits 130 (``interrupted``); after, the replay stops
+    at its next message, the launched graph stops in order, what was replayed is printed and it exits 0
+    (docs/reliability.md)."""
+    with StopSignals() as signals:
+        return _run(args, signals.event)
+
+
+def _run(args: argparse.Namespace, stop: threading.Event) -> int:
     problem = _check_args(args)
     if problem:
         print(f"error: {problem}", file=sys.stderr)
         return 2
-    stop = threading.Event()
-    old = {s: signal.signal(s, lambda *_: stop.set()) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
         recorded = _recorded_graph(args.file)
         if args.into:
@@ -127,17 +134,20 @@ def run(args: argparse.Namespace) -> int:
     except ReplayError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 1
-    finally:
-        for s, h in old.items():
-            signal.signal(s, h)
 
 
-def _print_stats(stats: ReplayStats, where: str) -> None:
+def _interrupted() -> int:
+    print("interrupted", file=sys.stderr)
+    return 130
+
+
+def _print_stats(stats: ReplayStats, where: str, stopped: bool = False) -> None:
     if stats.report is not None and stats.report.recovered:
         print(f"warning: {stats.report.describe()}", file=sys.stderr)
     print(
         f"replayed {stats.total} message(s) on {len(stats.published)} topic(s) into {where}"
         + (f" ({stats.loops} loops)" if stats.loops > 1 else "")
+        + (" before it was stopped (Ctrl-C or SIGTERM)" if stopped else "")
     )
 
 
@@ -148,6 +158,8 @@ def _replay_join(args: argparse.Namespace, recorded: str | None, stop: threading
         None if args.connect else target, args.connect, args.certs, args.cert_name, args.credentials, args.user
     )
     try:
+        if stop.is_set():  # before anything was published
+            return _interrupted()
         graph = None
         if info is not None and Path(info.graph_file).is_file():
             try:
@@ -157,7 +169,7 @@ def _replay_join(args: argparse.Namespace, recorded: str | None, stop: threading
         target = info.graph if info is not None else target
         watcher = GraphWatcher(session, target)
         if graph is not None:  # heartbeats prove the routes to its nodes exist
-            watcher.wait_alive(graph.nodes, args.ready_timeout)
+            watcher.wait_alive(graph.nodes, args.ready_timeout, stop=stop)
         elif not watcher.wait_for(lambda: bool(watcher.health), min(args.ready_timeout, 3.0)) and args.certs:
             raise ReplayError(
                 f"no heartbeat of graph '{target}' reached this machine over {args.connect}: is it running, and "
@@ -174,7 +186,7 @@ def _replay_join(args: argparse.Namespace, recorded: str | None, stop: threading
         watcher.close()
     finally:
         session.close()
-    _print_stats(stats, f"graph '{target}'")
+    _print_stats(stats, f"graph '{target}'", stop.is_set())
     return 0
 
 
@@ -197,6 +209,8 @@ def _replay_into(args: argparse.Namespace, recorded: str | None, stop: threading
         )
         return 2
     plan = ReplayPlan(Path(args.file), args.topics, graph.name, sources)
+    if stop.is_set():  # nothing launched yet
+        return _interrupted()
     launcher = Launcher(
         graph, lockstep=args.lockstep, log_level=logging.getLevelName(logging.getLogger().level), graph_text=text
     )
@@ -210,7 +224,7 @@ def _replay_into(args: argparse.Namespace, recorded: str | None, stop: threading
         launcher.start()
         watcher = GraphWatcher(launcher.session, graph.name)
         poll = launcher.poll
-        watcher.wait_alive(graph.nodes, args.ready_timeout, poll)
+        watcher.wait_alive(graph.nodes, args.ready_timeout, poll, stop)
         if args.lockstep:
             replayer = LockstepReplayer(
                 launcher.session, graph, graph.nodes, watcher, step_timeout_s=args.step_timeout, stop=stop, poll=poll
@@ -229,7 +243,10 @@ def _replay_into(args: argparse.Namespace, recorded: str | None, stop: threading
         else:
             bridge, replayer = _timed(args, launcher.session, plan, graph.name, stop)
             work = replayer.run
-            replayer.pubs.prepare([keys.topic_key(graph.name, *s.split("/", 1)) for s in sources], args.ready_timeout)
+            if not stop.is_set():
+                replayer.pubs.prepare(
+                    [keys.topic_key(graph.name, *s.split("/", 1)) for s in sources], args.ready_timeout
+                )
         thread = threading.Thread(target=_capture, args=(work, result), name="replay", daemon=True)
         thread.start()
         while thread.is_alive():  # supervise the graph while the replay runs
@@ -238,7 +255,8 @@ def _replay_into(args: argparse.Namespace, recorded: str | None, stop: threading
         if "error" in result:
             raise result["error"]  # type: ignore[misc]
         stats: ReplayStats = result["stats"]  # type: ignore[assignment]
-        if not args.lockstep and not stop.is_set():
+        stopped = stop.is_set()  # by a signal (the block below sets it to end the replay on any path)
+        if not args.lockstep and not stopped:
             _drain(graph, watcher, stats, launcher.poll)
         watcher.close()
     finally:
@@ -249,8 +267,8 @@ def _replay_into(args: argparse.Namespace, recorded: str | None, stop: threading
         if bridge is not None:
             bridge.close()
         launcher.close()
-    _print_stats(stats, f"graph '{graph.name}'" + (" (lock-step)" if args.lockstep else ""))
-    if stats.total == 0:
+    _print_stats(stats, f"graph '{graph.name}'" + (" (lock-step)" if args.lockstep else ""), stopped)
+    if stats.total == 0 and not stopped:
         print(
             f"warning: nothing replayed; the recording (graph '{recorded}') has none of the topics "
             f"{', '.join(sorted(sources))} that graph '{graph.name}' reads from outside",

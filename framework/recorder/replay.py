@@ -125,10 +125,18 @@ class GraphWatcher:
                     poll()
         return True
 
-    def wait_alive(self, node_ids: Iterable[str], timeout_s: float, poll: Callable[[], None] | None = None) -> None:
-        """Block until every node has sent a heartbeat; :class:`ReplayError` names the missing ones."""
+    def wait_alive(
+        self,
+        node_ids: Iterable[str],
+        timeout_s: float,
+        poll: Callable[[], None] | None = None,
+        stop: threading.Event | None = None,
+    ) -> None:
+        """Block until every node has sent a heartbeat, or ``stop`` is set; :class:`ReplayError` names the
+        missing ones."""
         ids = set(node_ids)
-        if not self.wait_for(lambda: ids <= set(self.health), timeout_s, poll):
+        stopped = stop.is_set if stop is not None else lambda: False
+        if not self.wait_for(lambda: ids <= set(self.health) or stopped(), timeout_s, poll):
             missing = sorted(ids - set(self.health))
             raise ReplayError(
                 f"node(s) {', '.join(missing)} of graph '{self.graph_name}' sent no heartbeat within "

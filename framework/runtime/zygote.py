@@ -62,6 +62,7 @@ def _child(sock: socket.socket, request: dict, stderr_fd: int, zygote: int) -> N
         for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGCHLD):
             signal.signal(sig, signal.SIG_DFL)
         signal.signal(signal.SIGINT, signal.default_int_handler)
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGTERM})  # a stop sent meanwhile ends it now
         os.chdir(request["cwd"])
         os.environ.clear()
         os.environ.update(request["env"])
@@ -125,9 +126,13 @@ def serve(sock: socket.socket) -> None:
             line, buffer = buffer.split(b"\n", 1)
             stderr_fd = fds.pop(0)
             zygote = os.getpid()
+            # the launcher's SIGTERM may reach the child before it has left the zygote's SIG_IGN: blocked over
+            # the fork, it waits in the child until its own disposition is set, instead of being lost
+            blocked = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGTERM})
             pid = os.fork()
             if pid == 0:
                 _child(sock, json.loads(line), stderr_fd, zygote)
+            signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
             os.close(stderr_fd)
             if not _reply(sock, {"spawned": pid}):
                 return

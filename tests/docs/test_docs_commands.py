@@ -64,7 +64,7 @@ REPO = Path(__file__).resolve().parents[2]
 TESTED_ELSEWHERE = {"recording.md", "monitoring.md"}  # tests/framework/test_recording_docs.py
 FROM_ANY_DIRECTORY = {"tutorial_training.md", "tutorial_gestures.md"}  # run from an empty directory below
 BENCHMARKS = {
-    "soak.py": "its bounded variant (3 min of the 60-minute soak) is tests/flagship/test_flagship_soak.py",
+    "soak.py": "its bounded variant (1 min of the 60-minute soak) is tests/flagship/test_flagship_soak.py",
     "decode_fuzz.py": "its bounded variant is tests/framework/test_decode_robustness.py",
     "gesture_tutorial.py": "the page it times is run by test_the_gestures_tutorial_works_from_an_empty_directory",
     **dict.fromkeys(

@@ -1,6 +1,8 @@
-"""The CI version of the soak (benchmarks/soak.py, docs/reliability.md): three minutes of the flagship
-with camera and recording — no restarts, loss (sequence gaps in the recording and input gaps the nodes
-counted) below 0.1 % of the recorded messages, every node's memory steady."""
+"""The CI version of the soak (benchmarks/soak.py, docs/reliability.md): a minute of the flagship with
+camera and recording (about 30 000 messages) — no restarts, loss (sequence gaps in the recording and
+input gaps the nodes counted) below 0.1 % of the recorded messages, every process's memory steady over
+the 40 s after a 20 s warm-up (RSS every 5 s).  Slow leaks are the hour-long benchmark's to find
+(docs/benchmarks.md, "Soak"); ``HANDFLOW_SOAK_SECONDS`` runs this one longer."""
 
 from __future__ import annotations
 
@@ -14,10 +16,10 @@ import pytest
 from tests.conftest import REPO
 
 pytestmark = pytest.mark.slow
-SECONDS = float(os.environ.get("HANDFLOW_SOAK_SECONDS", "180"))
+SECONDS = float(os.environ.get("HANDFLOW_SOAK_SECONDS", "60"))
 
 
-def test_three_minutes_of_the_flagship_lose_nothing_and_restart_nothing(tmp_path):
+def test_a_minute_of_the_flagship_loses_nothing_and_restarts_nothing(tmp_path):
     proc = subprocess.run(
         [sys.executable, str(REPO / "benchmarks" / "soak.py"), "--duration", str(SECONDS), "--sample", "5", "--json"],
         cwd=tmp_path,

@@ -99,3 +99,19 @@ def wait_until(pred, timeout: float = 30.0, what: str = "condition") -> None:
 
 def read_jsonl(path: Path) -> list[dict]:
     return [json.loads(line) for line in path.read_text().splitlines()] if path.exists() else []
+
+
+def wait_counted(session, graph: str, counters: dict[str, str], timeout: float = 60.0) -> None:
+    """Until each node of ``counters`` (node id → a counter of its heartbeat: ``handled.PORT``,
+    ``published.PORT``) reports it above 0 on ``_health``, which crosses every link whoever reads: the graph's
+    nodes are up and its data flows to them, across machines too."""
+    from handflow.framework.recorder.replay import GraphWatcher
+
+    watcher = GraphWatcher(session, graph)
+    try:
+        if not watcher.wait_for(
+            lambda: all(watcher.health.get(n, {}).get(c, 0) > 0 for n, c in counters.items()), timeout
+        ):
+            raise AssertionError(f"timed out waiting for {counters} of graph '{graph}': {watcher.health}")
+    finally:
+        watcher.close()

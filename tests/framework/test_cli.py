@@ -3,7 +3,17 @@
 from __future__ import annotations
 
 import importlib.metadata
+import os
 import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from handflow.framework import cli
+
+REPO = Path(__file__).resolve().parents[2]
 
 
 def test_version_prints_the_installed_distributions_version(run_handflow):
@@ -57,3 +67,31 @@ def test_every_command_and_group_has_a_one_line_description_in_help(run_handflow
     proc = run_handflow("--help", timeout=60)
     assert proc.returncode == 0 and "see `handflow" not in proc.stdout
     assert "Compare two recordings" in proc.stdout and "init: create a certificate authority" in proc.stdout
+
+
+@pytest.mark.parametrize("args", [["inspect", "recordings/gestures.mcap"], ["plugins"]], ids=["inspect", "plugins"])
+def test_a_command_whose_reader_goes_away_ends_quietly_with_141(args):
+    """``handflow inspect F | head -1``: stdout's reader is gone before the command writes (the case that loses
+    every race), so every write fails; the command ends with 128 + SIGPIPE and no traceback."""
+    read_end, write_end = os.pipe()
+    os.close(read_end)
+    try:
+        proc = subprocess.run(
+            [sys.executable, "-m", "handflow.framework.cli", *args],
+            stdout=write_end,
+            stderr=subprocess.PIPE,
+            text=True,
+            cwd=REPO,
+            timeout=120,
+        )
+    finally:
+        os.close(write_end)
+    assert proc.returncode == 141, proc.stderr
+    assert proc.stderr == ""  # no traceback, no "Exception ignored" at the interpreter's exit
+
+
+def test_a_broken_pipe_that_is_not_stdout_is_not_hidden(monkeypatch):
+    """Only stdout's reader going away is taken for ``| head``; any other broken pipe stays an error."""
+    monkeypatch.setattr(cli, "_main", lambda argv: (_ for _ in ()).throw(BrokenPipeError("a socket")))
+    with pytest.raises(BrokenPipeError, match="a socket"):
+        cli.main(["plugins"])

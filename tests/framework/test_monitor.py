@@ -16,7 +16,7 @@ from handflow.framework.network import sessions as transport
 from handflow.framework.network.settings import ZenohSettings
 from handflow.framework.observe.monitor import Monitor, render, summarize
 from handflow.framework.recorder.replay import wait_matching
-from tests.framework._rec_helpers import chain, handflow, start, unique, wait_until
+from tests.framework._rec_helpers import chain, handflow, start, unique, wait_counted, wait_until
 
 
 @pytest.fixture(autouse=True)
@@ -167,10 +167,14 @@ def test_monitor_once_json_on_a_running_graph(tmp_path, monkeypatch):
     graph = chain(tmp_path / "g.yaml", name, rate=50)
     proc = start("run", str(graph))
     try:
-        from handflow.framework.runtime.discovery import live_runs
+        from handflow.framework.runtime.discovery import join, live_runs
 
         wait_until(lambda: any(r.graph == name for r in live_runs()), what="the run-file")
-        time.sleep(1.0)  # nodes up and publishing
+        session = join(name)[0]
+        try:  # nodes up and publishing: the sink has handled a message
+            wait_counted(session, name, {"sink": "handled.in"})
+        finally:
+            session.close()
         mon = handflow("monitor", "--graph", name, "--once", "--json", "--listen", "2")
         assert mon.returncode == 0, mon.stderr
         snap = json.loads(mon.stdout)

@@ -25,6 +25,7 @@ from handflow.framework.observe.monitor import Monitor
 from handflow.framework.runtime.discovery import join_graphs, live_runs
 from handflow.framework.security import certs
 
+from ._rec_helpers import wait_counted, wait_until
 from .test_runtime_e2e import start
 
 pytestmark = pytest.mark.slow
@@ -102,7 +103,11 @@ def two_machines(tmp_path_factory):
             while len(live_runs()) < len(launchers):
                 assert time.time() < deadline and launchers[-1].poll() is None, launchers[-1].communicate()
                 time.sleep(0.2)
-        time.sleep(5)  # both machines' nodes are up and linked
+        session = join_graphs(None, f"tls/127.0.0.1:{port_a}", str(ca), "laptop")[0]
+        try:  # both machines' nodes are up and linked: b's sink handles what a's source sends
+            wait_counted(session, "two_machines", {"scale": "handled.in", "sink": "handled.in"})
+        finally:
+            session.close()
         yield {"ca": ca, "a": f"tls/127.0.0.1:{port_a}", "b": f"tls/127.0.0.1:{port_b}", "relay": relay}
     finally:
         for proc in reversed(launchers):
@@ -123,18 +128,22 @@ def test_the_link_carries_the_other_machines_topics_only_while_a_reader_subscrib
     alone = relay.rate_to_target()  # b -> a: health and progress of b's nodes only
     session, _, found = join_graphs(None, two_machines["a"], str(two_machines["ca"]), "laptop")
     monitor = Monitor(session, list(found))
+    b_output = lambda: {t["topic"]: t["count"] for t in monitor.snapshot()["topics"]}.get(  # noqa: E731
+        "handflow/two_machines/scale/out", 0
+    )
     try:
-        time.sleep(1)
+        wait_until(lambda: b_output() > 0, timeout=30, what="b's output to reach the reader")
         watched = relay.rate_to_target()
         counts = {t["topic"]: t["count"] for t in monitor.snapshot()["topics"]}
     finally:
         monitor.close()
         session.close()
-    time.sleep(1)
+    quiet: list[float] = []  # the link's rate over 1 s windows once the reader has left, until it is b's own again
+    wait_until(lambda: quiet.append(relay.rate_to_target(1.0)) or quiet[-1] < 1.25 * alone, 30, "the link to quiet")
     after = relay.rate_to_target()
     assert counts.get("handflow/two_machines/scale/out", 0) > 100, counts  # b's 50 Hz output reached the reader
     assert watched - alone > 50 * 50, (alone, watched)  # ... over the link: ≥ 50 B for each of 50 msg/s
-    assert abs(after - alone) < 0.25 * alone, (alone, watched, after)  # and stops when the reader leaves
+    assert abs(after - alone) < 0.25 * alone, (alone, watched, quiet, after)  # and stops when the reader leaves
 
 
 @pytest.mark.parametrize("hub", ["a", "b"])
@@ -201,7 +210,12 @@ nodes:
             while len(live_runs()) < len(launchers):
                 assert time.time() < deadline and launchers[-1].poll() is None, launchers[-1].communicate()
                 time.sleep(0.2)
-        time.sleep(3)
+        session = join_graphs(None, endpoint)[0]
+        try:  # both graphs' sources publish
+            for name in ("left", "right"):
+                wait_counted(session, name, {"source": "published.out"})
+        finally:
+            session.close()
         monitor = start("monitor", "--connect", endpoint, "--once", "--json")
         out, err = monitor.communicate(timeout=60)
         record = start("record", "--connect", endpoint, "--out", str(tmp_path / "x.mcap"), "--duration", "1")

@@ -3,8 +3,11 @@
 from __future__ import annotations
 
 import argparse
+import re
+import signal
 import subprocess
 import sys
+import threading
 
 import numpy as np
 import pytest
@@ -14,7 +17,7 @@ from handflow.framework.files.mcap_writer import McapWriter
 from handflow.framework.graphs.model import load_graph
 from handflow.framework.messages import Array, Header
 from handflow.framework.recorder.replay import external_inputs, remap_key
-from tests.framework._rec_helpers import handflow, read_jsonl, unique, write_graph
+from tests.framework._rec_helpers import ended_within, handflow, read_jsonl, unique, wait_until, write_graph
 
 T0 = 1_700_000_000_000_000_000
 N = 60
@@ -187,3 +190,62 @@ def test_lockstep_replay_is_identical_whatever_the_load(tmp_path, recording):
 
     recorded_scaled = [m.to_dict() for t, m, _ in read_messages(tmp_path / "replayed.mcap") if t.endswith("/scale/out")]
     assert recorded_scaled == quiet["scaled"]
+
+
+def test_a_stop_before_the_graph_is_launched_exits_130(tmp_path, recording, capsys):
+    stop = threading.Event()
+    stop.set()  # Ctrl-C while the recording and the graph were read
+    args = _args(file=str(recording), into=str(_into_graph(tmp_path)))
+    assert replay_cmd._run(args, stop) == 130
+    assert capsys.readouterr().err.strip() == "interrupted"
+    assert not (tmp_path / "raw.jsonl").exists()  # nothing was launched
+
+
+def _long_recording(path, seconds: float = 30.0):
+    """``seconds`` of graph 'field''s source/out at 100 Hz: a replay still running when it is signalled."""
+    with McapWriter(path) as w:
+        for i in range(int(seconds * 100)):
+            t = T0 + i * 10_000_000
+            msg = Array(data=[float(i), 0.0, 1.0])
+            msg.header = Header("source", i + 1, t)
+            w.write("handflow/field/source/out", msg, log_time_ns=t)
+    return path
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("moment", ["replaying", "starting"])
+def test_a_signalled_replay_stops_in_order_and_says_what_it_replayed(tmp_path, moment):
+    """``handflow replay --into`` takes SIGTERM (replaying) and Ctrl-C (while its graph starts) as a stop
+    request (:class:`StopSignals`): it exits 0 within 10 s leaving no process, prints how much it replayed
+    and its ``--record`` file opens with every message the graph's sink wrote."""
+    from handflow.framework.files.mcap_reader import iter_recording
+
+    take = _long_recording(tmp_path / "take.mcap")
+    out = tmp_path / "replayed.mcap"
+    with open(tmp_path / "stdout.txt", "w") as stdout_file:
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "handflow.framework.cli", "replay", str(take)]
+            + ["--into", str(_into_graph(tmp_path)), "--record", str(out)],
+            cwd=tmp_path,
+            text=True,
+            stdout=stdout_file,
+            stderr=subprocess.PIPE,
+        )
+    if moment == "replaying":
+        wait_until(lambda: len(read_jsonl(tmp_path / "raw.jsonl")) >= 50, timeout=60, what="the sink's 50th message")
+        err = ended_within(proc, 10, tmp_path, "replay", signal.SIGTERM)
+    else:  # the launcher's run-file: its hub is open, its nodes are starting
+        wait_until(lambda: list((tmp_path / "runs").glob("*.json")), timeout=60, what="the launcher's run-file")
+        err = ended_within(proc, 10, tmp_path, "replay", signal.SIGINT)
+    stdout = (tmp_path / "stdout.txt").read_text()
+    assert proc.returncode == 0, err
+    assert "Traceback" not in err
+    replayed = re.fullmatch(
+        r"replayed (\d+) message\(s\) on [01] topic\(s\) into graph '\w+' before it was stopped \(Ctrl-C or SIGTERM\)",
+        stdout.strip(),
+    )
+    assert replayed, stdout
+    n = int(replayed.group(1))
+    assert (n >= 50) if moment == "replaying" else (n < 3000), n
+    topics = [rm.topic for rm in iter_recording(out)]  # a complete MCAP
+    assert topics.count(f"handflow/{load_graph(tmp_path / 'into.yaml').name}/source/out") == n

@@ -57,6 +57,14 @@ def read_sink(path: Path) -> list[dict]:
     return [json.loads(line) for line in path.read_text().splitlines()] if path.exists() else []
 
 
+def _wait_rows(path: Path, n: int, timeout: float = 60.0) -> None:
+    """Until the sink has written ``n`` rows to ``path``: its graph is up and data flows through it."""
+    deadline = time.monotonic() + timeout
+    while len(read_sink(path)) < n:
+        assert time.monotonic() < deadline, f"the sink wrote {len(read_sink(path))} of {n} rows"
+        time.sleep(0.1)
+
+
 def test_three_processes_pass_data_end_to_end(tmp_path):
     graph = chain_graph(tmp_path)
     proc = start("run", str(graph), "--duration", "3", "--summary-json", str(tmp_path / "summary.json"))
@@ -89,7 +97,7 @@ def test_kill_9_restarts_node_and_counts_gaps(tmp_path):
         pid = next((int(x.group(1)) for x in m if x), None)
         time.sleep(0.1)
     assert pid, "".join(lines)
-    time.sleep(2.0)
+    _wait_rows(tmp_path / "sink.jsonl", 50)  # the graph runs before 'scale' is killed
     os.kill(pid, signal.SIGKILL)
     killed_at = time.time_ns()
     proc.wait(timeout=60)
@@ -110,7 +118,7 @@ def test_kill_9_restarts_node_and_counts_gaps(tmp_path):
 def test_sigint_stops_in_order(tmp_path):
     graph = chain_graph(tmp_path)
     proc = start("run", str(graph))
-    time.sleep(3)
+    _wait_rows(tmp_path / "sink.jsonl", 50)
     proc.send_signal(signal.SIGINT)
     out, err = proc.communicate(timeout=30)
     assert proc.returncode == 0, err

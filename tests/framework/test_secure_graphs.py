@@ -27,6 +27,7 @@ from handflow.framework.runtime.discovery import join, live_runs
 from handflow.framework.security import certs
 from handflow.framework.security.access import access_control
 
+from ._rec_helpers import wait_until
 from .test_runtime_e2e import chain_graph, read_sink, start
 
 
@@ -109,14 +110,20 @@ def test_access_control_follows_the_graph(ca, tmp_path):
     assert not any(r.startswith("readers") for r in rules)
 
 
-def _session(endpoint: str, ca_dir: Path | None, name: str | None, root: Path | None = None) -> zenoh.Session:
+def _session(
+    endpoint: str, ca_dir: Path | None, name: str | None, root: Path | None = None, mode: str = "peer"
+) -> zenoh.Session:
     conf = zenoh.Config()
-    conf.insert_json5("mode", '"peer"')
+    conf.insert_json5("mode", json.dumps(mode))
     conf.insert_json5("scouting/multicast/enabled", "false")
     conf.insert_json5("connect/endpoints", json.dumps([endpoint]))
     tls = {"root_ca_certificate": str(root or ca_dir / "ca.pem"), "verify_name_on_connect": False}
     if name:
-        tls |= {"connect_certificate": str(ca_dir / f"{name}.pem"), "connect_private_key": str(ca_dir / f"{name}.key")}
+        tls |= {  # presented only with mTLS on (without, every one of these sessions was refused alike)
+            "connect_certificate": str(ca_dir / f"{name}.pem"),
+            "connect_private_key": str(ca_dir / f"{name}.key"),
+            "enable_mtls": True,
+        }
     for key, value in tls.items():
         conf.insert_json5(f"transport/link/tls/{key}", json.dumps(value))
     return zenoh.open(conf)
@@ -131,16 +138,21 @@ def test_two_graphs_over_mutual_tls_admit_only_rightful_peers(ca, tmp_path, monk
     graph_b = tmp_path / "graph_b.yaml"
     graph_b.write_text(graph.read_text().replace(f"listen: [{tls_ep}]", f"connect: [{tls_ep}]"))
     name = load_graph(graph).name
-    a = start("run", str(graph), "--host", "a", "--duration", "14")
+    a = start("run", str(graph), "--host", "a")
+    b = None
+    sessions: list[zenoh.Session] = []
     try:
         deadline = time.time() + 20
         while time.time() < deadline and not live_runs():
             time.sleep(0.2)
         assert live_runs(), "launcher a did not start"
         hub = live_runs()[0].hub
-        b = start("run", str(graph_b), "--host", "b", "--duration", "10")
+        b = start("run", str(graph_b), "--host", "b")
         seen: list[tuple[str, bytes]] = []
-        local = _session(hub, None, None, root=ca / "ca.pem")  # a trusted process on machine A (loopback)
+        # a trusted process on machine A (loopback), a client of the hub like its node processes: a peer would
+        # listen, and the peers that gossip finds on the hub (mallory's session) would link to it directly
+        local = _session(hub, None, None, root=ca / "ca.pem", mode="client")
+        sessions.append(local)
         local.declare_subscriber(f"handflow/{name}/**", lambda s: seen.append((str(s.key_expr), s.payload.to_bytes())))
         # intruders: no certificate, a certificate of another CA, a valid certificate of an unknown host,
         # and host b's valid certificate trying to publish a topic only host a's node owns
@@ -153,28 +165,39 @@ def test_two_graphs_over_mutual_tls_admit_only_rightful_peers(ca, tmp_path, monk
             "mallory": _session(tls_ep, ca, "mallory"),
             "b": _session(tls_ep, ca, "b"),
         }
+        sessions += intruders.values()
         received: dict[str, list[bytes]] = {k: [] for k in intruders}
         for who, s in intruders.items():
             s.declare_subscriber(
                 f"handflow/{name}/**", lambda smp, who=who: received[who].append(smp.payload.to_bytes())
             )
-        time.sleep(4)
-        for _ in range(20):
+        # b's nodes are up and a's data reaches them over TLS, their heartbeats reach a, and the intruder with
+        # b's valid certificate is linked to a (the others are refused by TLS)
+        wait_until(lambda: len(read_sink(tmp_path / "sink.jsonl")) > 100, 60, "b's sink to handle 100 messages")
+        wait_until(lambda: f"handflow/{name}/scale/_health" in {k for k, _ in seen}, 30, "b's heartbeats on a")
+        linked = lambda s: list(s.info.routers_zid()) or list(s.info.peers_zid())  # noqa: E731
+        wait_until(lambda: linked(intruders["b"]), 30, "the session with b's certificate to link to a")
+        for _ in range(20):  # paced, over 2 s
             for who, s in intruders.items():
                 s.put(f"handflow/{name}/source/out", b"FORGED " + who.encode())
                 s.put(f"handflow/{name}/scale/out", b"FORGED " + who.encode())
             time.sleep(0.1)
-        time.sleep(1)
+        b.send_signal(signal.SIGINT)  # the trusted session goes on listening while both launchers stop
         _, err_b = b.communicate(timeout=60)
+        a.send_signal(signal.SIGINT)
         _, err_a = a.communicate(timeout=60)
     finally:
-        if a.poll() is None:
-            a.kill()
+        for session in sessions:  # an open session's threads would hold pytest at its exit
+            session.close()
+        for proc in (a, b):
+            if proc is not None and proc.poll() is None:
+                proc.kill()
     assert a.returncode == 0 and b.returncode == 0, err_a + err_b
     assert len(read_sink(tmp_path / "sink.jsonl")) > 100  # a's source reached b's nodes over TLS
     keys = {k for k, _ in seen}
     assert f"handflow/{name}/scale/_health" in keys  # b's runtime topics reach a through both access controls
-    assert f"handflow/{name}/scale/out" not in keys  # ... but not outputs no node of a consumes
+    # ... but not outputs no node of a consumes (the session holding b's certificate may put its own there)
+    assert not any(k == f"handflow/{name}/scale/out" and not p.startswith(b"FORGED") for k, p in seen)
     forged = {p for _, p in seen if p.startswith(b"FORGED")}
     assert forged <= {b"FORGED b"}, forged  # only b's own topic (scale/out) may come from b
     assert not any(k.endswith("/source/out") and p.startswith(b"FORGED") for k, p in seen)
@@ -218,6 +241,7 @@ nodes:
             msg.header = Header("glove", i + 1, 1_700_000_000_000_000_000 + i * 10_000_000)
             w.write("handflow/field/glove/raw", msg, log_time_ns=msg.header.stamp_ns)
     a = start("run", str(graph), "--host", "a", "--duration", "60")
+    sessions: list[zenoh.Session] = []
     try:
         deadline = time.time() + 20
         while time.time() < deadline and not live_runs():
@@ -225,6 +249,7 @@ nodes:
         assert live_runs(), "launcher a did not start"
         seen: list[tuple[str, bytes]] = []
         local = join(None, live_runs()[0].hub)[0]  # a trusted process on machine A (loopback)
+        sessions.append(local)
         local.declare_subscriber(f"handflow/{name}/**", lambda s: seen.append((str(s.key_expr), s.payload.to_bytes())))
         while time.time() < deadline + 20 and not any(k.endswith("/source/out") for k, _ in seen):
             time.sleep(0.2)  # the graph's nodes are up
@@ -233,7 +258,13 @@ nodes:
             for label, d, who in (("viewer", ca, "viewer"), ("mallory", ca, "mallory"), ("foreign", other, "viewer"))
         }
         forgers = {who: join(None, tls_ep, str(ca), who)[0] for who in ("viewer", "laptop")}
-        time.sleep(2)
+        sessions += forgers.values()
+        heard: dict[str, int] = dict.fromkeys(forgers, 0)  # the readers' sessions receive the graph: linked
+        for who, forger in forgers.items():
+            forger.declare_subscriber(
+                f"handflow/{name}/source/out", lambda _s, who=who: heard.__setitem__(who, heard[who] + 1)
+            )
+        wait_until(lambda: all(heard.values()), timeout=30, what="the readers' sessions to be linked to a")
         for _ in range(20):
             for who, s in forgers.items():
                 s.put(f"handflow/{name}/source/out", b"FORGED " + who.encode())
@@ -247,6 +278,8 @@ nodes:
         a.send_signal(signal.SIGINT)
         _, err_a = a.communicate(timeout=60)
     finally:
+        for session in sessions:
+            session.close()
         if a.poll() is None:
             a.kill()
     assert a.returncode == 0, err_a

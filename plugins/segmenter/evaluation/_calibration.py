@@ -196,8 +196,16 @@ class InnerFoldCalibration:
 
     @staticmethod
     def _fit_key(method, params: dict, train: list[Recording], fidelity: Fidelity) -> tuple:
+        """What identifies a fitted model: the fidelity only where it changes one (``cheaper_fits``)."""
         fit_params = {k: v for k, v in params.items() if k not in getattr(method, "label_params", ())}
-        return (method.fit_key, repr(sorted(fit_params.items())), tuple(r.name for r in train), fidelity.models)
+        models = fidelity.models if method.cheaper_fits else None
+        return (method.fit_key, repr(sorted(fit_params.items())), tuple(r.name for r in train), models)
+
+    def _split_key(self, method, v: Recording, rest: list[Recording], params: dict, fidelity: Fidelity, present):
+        """What identifies one split's models (:meth:`split_models`): the fit's key, how the
+        fidelity treats pseudo-unknowns, the validation recording and the classes it holds."""
+        fit = self._fit_key(method, params, rest, fidelity)
+        return ("split", *fit, fidelity.pseudo_unknowns, v.name, tuple(present))
 
     def _known_truth(self, splits: list[Split]) -> np.ndarray:
         """The validation recordings' labels of known classes (others −1: they never count)."""
@@ -217,7 +225,7 @@ class InnerFoldCalibration:
         the split never held the class), or None where dropping the class is exact or the
         evaluation or ``fidelity`` drops classes (``pseudo_unknowns="drop"``).  Computed once per
         fold, or by the preview's workers (:meth:`._preview.PreviewRunner._warm`)."""
-        key = ("split", *self._fit_key(method, params, rest, fidelity), v.name, tuple(present))
+        key = self._split_key(method, v, rest, params, fidelity, present)
         if key not in self._cache:
             fitted = self._fit(method, rest, params, fidelity)
             unseen = {c: self._unseen(method, fitted, rest, v, params, c, fidelity) for c in present}

@@ -28,6 +28,7 @@ class ScoreCLMMethod(Method):
     swept at the scorer's deciles and calibrated like every method's, and off wherever the
     scorer's is (``rejects_with``; docs/segmentation.md)."""
 
+    cheaper_fits = False  # its scorer's fit
     history = 10
     thresholds = 11  # quantiles of the null class's score sweep (documented choice: each costs CLM runs)
     run_length = 2048  # longer recordings are solved in overlapping runs (documented choice: linear cost)
@@ -109,6 +110,7 @@ class NoveltyCLMMethod(ScoreCLMMethod):
     factor (the novelty weights, not the scores, decide what falls below chance); a pseudo-unknown of the calibration has the scorer refitted
     without its class (:meth:`without_class`) and its manifold left out (docs/segmentation.md)."""
 
+    cheaper_fits = True  # the manifolds beside the scorer
     ukr = UKRMethod()
     delays = ((8,), (8, 16))  # delay windows of the manifolds in the quick and the full grid
     novelties = ((0.125, 0.25), (0.125, 0.25, 0.5))  # of the quick and the full grid

@@ -63,6 +63,7 @@ class Method:
     batch: Method | None = None
     rejects_with: Method | None = None
     requires: dict[str, str] = {}
+    cheaper_fits = True  # a fidelity changes its fitted models (the class manifolds have cheaper forms)
 
 
 class ThresholdOnTrajectories:
@@ -85,6 +86,7 @@ class ScoreMethod(Method, ABC):
     """Methods with per-frame class scores; rejection = a threshold on the winning score."""
 
     has_features = False  # whether :meth:`prepare_with_novelty` gives a feature novelty
+    cheaper_fits = False  # every fidelity fits the same model: the screen's fits are the refinement's
 
     @property
     def fit_key(self) -> str:
@@ -98,7 +100,7 @@ class ScoreMethod(Method, ABC):
     @abstractmethod
     def fit(self, segments: dict[int, list[np.ndarray]], params: dict, seed: int, fidelity: Fidelity = FULL) -> Fitted:
         """Fit on training segments per known class (global class indices); ``fidelity``: what
-        the fit may spend (:mod:`._selection`; only the class manifolds have a cheaper form)."""
+        the fit may spend (:mod:`._selection`; only the class manifolds have a cheaper form, :attr:`Method.cheaper_fits`)."""
 
     @abstractmethod
     def prepare(self, fitted: Fitted, X: np.ndarray) -> np.ndarray:

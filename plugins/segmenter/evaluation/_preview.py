@@ -72,7 +72,7 @@ class PreviewRunner:
         for splits, params in candidates:
             present = self.present(splits)
             for v, rest in splits:
-                key = ("split", *self._fit_key(method, params, rest, fidelity), v.name, tuple(present))
+                key = self._split_key(method, v, rest, params, fidelity, present)
                 if key not in self._cache:
                     todo[key] = (v, rest, params, present)
         if not todo:

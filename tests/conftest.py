@@ -33,22 +33,25 @@ def pytest_collection_modifyitems(config, items):
     if not any(item.nodeid in known for item in items):
         return
     module_seconds: dict[str, float] = {}
-    for item in items:
-        module_seconds[item.nodeid.split("::")[0]] = module_seconds.get(item.nodeid.split("::")[0], 0.0) + known.get(
-            item.nodeid, 0.0
-        )
-    first = {}
+    first: dict[str, int] = {}
     for i, item in enumerate(items):
-        first.setdefault(item.nodeid.split("::")[0], i)
+        module = _module(item)
+        module_seconds[module] = module_seconds.get(module, 0.0) + known.get(item.nodeid, 0.0)
+        first.setdefault(module, i)
     order = {id(item): i for i, item in enumerate(items)}
     items.sort(
         key=lambda item: (
-            -module_seconds[item.nodeid.split("::")[0]],
-            first[item.nodeid.split("::")[0]],
+            -module_seconds[_module(item)],
+            first[_module(item)],
             -known.get(item.nodeid, 0.0),
             order[id(item)],
         )
     )
+
+
+def _module(item) -> str:
+    """The test file of a collected test (its node id up to the first ``::``)."""
+    return item.nodeid.split("::")[0]
 
 
 @pytest.hookimpl(trylast=True)  # after pytest's temporary-folder factory is configured

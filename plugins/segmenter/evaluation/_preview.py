@@ -35,18 +35,12 @@ from ._report import choice_summary
 from ._third_party import counted_warnings
 
 
-def _shipped_replay(evaluator, name: str, fitted, reject: float, test) -> dict:
-    """One held-out recording's online replays (:meth:`._recordings.RecordingsEvaluator._replayed`)
-    in a worker process (one BLAS thread)."""
+def _in_worker(evaluator, task: str, name: str, *args):
+    """``evaluator.<task>(REGISTRY[name], *args)`` in a worker process (one BLAS thread): a split's
+    models (:meth:`._calibration.InnerFoldCalibration.split_models`) or a held-out recording's
+    online replays (:meth:`._recordings.RecordingsEvaluator._replayed`)."""
     with threadpool_limits(1):
-        return evaluator._replayed(REGISTRY[name], fitted, reject, test)
-
-
-def _shipped_split(evaluator, name: str, v, rest, params: dict, fidelity: Fidelity, present: list[int]) -> tuple:
-    """One split's models (:meth:`._calibration.InnerFoldCalibration.split_models`) in a worker
-    process (one BLAS thread)."""
-    with threadpool_limits(1):
-        return evaluator.split_models(REGISTRY[name], v, rest, params, fidelity, present)
+        return getattr(evaluator, task)(REGISTRY[name], *args)
 
 
 class PreviewRunner:
@@ -74,15 +68,18 @@ class PreviewRunner:
             for v, rest in splits:
                 key = self._split_key(method, v, rest, params, fidelity, present)
                 if key not in self._cache:
-                    todo[key] = (v, rest, params, present)
+                    todo[key] = (v, rest, params, fidelity, present)
         if not todo:
             return
-        with parallel_config(backend="loky", inner_max_num_threads=1):
-            done = Parallel(n_jobs=min(self.jobs, len(todo)))(
-                delayed(_shipped_split)(self, method.name, v, rest, params, fidelity, present)
-                for v, rest, params, present in todo.values()
-            )
+        done = self._over_workers("split_models", method, list(todo.values()))
         self._cache.update(zip(todo, done))
+
+    def _over_workers(self, task: str, method, calls: list[tuple]) -> list:
+        """``self.<task>(method, *call)`` of every call over ``jobs`` processes (:func:`_in_worker`)."""
+        with parallel_config(backend="loky", inner_max_num_threads=1):
+            return Parallel(n_jobs=min(self.jobs, len(calls)))(
+                delayed(_in_worker)(self, task, method.name, *call) for call in calls
+            )
 
     def _preview_folds(self) -> tuple[list[FoldResult], dict]:
         """Every fold's result (recording order) and the timing of the preview."""
@@ -170,10 +167,8 @@ class PreviewRunner:
         online = self._replaying(method)
         if self.jobs < 2 or not online:
             return [self._replayed(method, fitted, reject, test) for fitted, _, test in fits]
-        with self._timed(" + ".join(online), "labelling"), parallel_config(backend="loky", inner_max_num_threads=1):
-            return Parallel(n_jobs=min(self.jobs, len(fits)))(
-                delayed(_shipped_replay)(self, method.name, fitted, reject, test) for fitted, _, test in fits
-            )
+        with self._timed(" + ".join(online), "labelling"):
+            return self._over_workers("_replayed", method, [(fitted, reject, test) for fitted, _, test in fits])
 
     def _refined(self, method, params: dict, splits: dict) -> list[tuple]:
         """Per fold: ``method`` with ``params`` fitted at the refinement's fidelity on the fold's

@@ -149,5 +149,6 @@ def test_without_an_inner_fold_gain_of_the_margin_the_enrolment_is_not_used(tmp_
     assert set(report["adaptations"]["chosen"]["chosen"].values()) == {"none"} and report["gain"] == 0
     for f in ev.folds_:
         inner = f.selected["ukr_clm"]["enrol_validation"]
-        assert set(inner) == {"none", "refit", "align"} and inner["align"] > inner["none"]  # kept out by the margin only
+        assert set(inner) == {"none", "refit", "align"}
+        assert inner["align"] > inner["none"]  # better on the inner folds: only the margin keeps it out
         assert all(np.array_equal(f.enrolled["chosen"][m], f.labels[m]) for m in ("ukr_clm", "ukr_clm_online"))

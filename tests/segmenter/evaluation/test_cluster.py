@@ -6,6 +6,7 @@ import json
 import pytest
 
 from handflow.plugins.segmenter.cli import register_evaluate
+from handflow.plugins.segmenter.evaluation import _folds as folds_module
 from tests.conftest import run_command
 
 distributed = pytest.importorskip("dask.distributed", reason="the cluster extra: pip install 'handflow[cluster]'")
@@ -31,7 +32,8 @@ def test_folds_on_a_cluster_of_two_workers_give_the_local_figures(three_recordin
     assert [f["recording"] for f in remote["methods"]["ukr_clm"]["folds"]] == ["r0", "r1", "r2"]
 
 
-def test_no_scheduler_at_the_address_says_how_to_start_one(three_class_npz, capsys):
+def test_no_scheduler_at_the_address_says_how_to_start_one(three_class_npz, capsys, monkeypatch):
+    monkeypatch.setattr(folds_module, "CONNECT_TIMEOUT", "1s")  # nothing listens there: the documented 10 s, shortened
     argv = [str(three_class_npz), "--quick", "--methods", "dtw_1nn", "--scheduler", "tcp://127.0.0.1:9"]
     assert run_command(register_evaluate, argv) == 2
     err = capsys.readouterr().err

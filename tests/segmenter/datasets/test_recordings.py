@@ -191,10 +191,10 @@ def _synthetic_recordings(seed: int):
     return np.vstack(X), np.concatenate(y)
 
 
-def held_out_class_evaluation(tmp_path, method: str) -> tuple[RecordingsEvaluator, dict]:
-    """Five synthetic recordings of classes a, b, c evaluated with c unknown (never trained on)."""
+def held_out_class_evaluation(tmp_path, method: str, recordings: int = 5) -> tuple[RecordingsEvaluator, dict]:
+    """``recordings`` synthetic recordings of classes a, b, c evaluated with c unknown (never trained on)."""
     arrays = {"class_names": np.array(["a", "b", "c"])}
-    for k in range(5):
+    for k in range(recordings):
         arrays[f"X_r{k}"], arrays[f"y_r{k}"] = _synthetic_recordings(k)
     np.savez(tmp_path / "s.npz", **arrays)
     ev = RecordingsEvaluator(load_recordings(tmp_path / "s.npz"), known=["a", "b"], methods=(method,), quick=True)

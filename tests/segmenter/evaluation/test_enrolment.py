@@ -36,13 +36,13 @@ def test_enrolment_takes_the_first_k_segments_of_each_known_class_and_scores_the
         enrolment_split(LABELS, [0, 1], 3, ["a", "b", "c"])
 
 
-def _session_set(path, shifted: bool = False):
-    """Four synthetic recordings of three motion classes, each class twice in either half;
-    ``shifted``: each session moved and scaled as a new glove fit would."""
+def _session_set(path, shifted: bool = False, seeds=((0, 10), (1, 11), (2, 12), (3, 13))):
+    """Synthetic recordings of three motion classes, one per tuple of ``seeds`` made of one part per
+    seed (:func:`_synthetic_recordings`: each class twice per part); ``shifted``: each session moved
+    and scaled as a new glove fit would."""
     arrays = {"class_names": np.array(["a", "b", "c"])}
-    for k in range(4):
-        halves = [_synthetic_recordings(k), _synthetic_recordings(k + 10)]
-        X, arrays[f"y_r{k}"] = (np.concatenate(part) for part in zip(*halves))
+    for k, parts in enumerate(seeds):
+        X, arrays[f"y_r{k}"] = (np.concatenate(part) for part in zip(*map(_synthetic_recordings, parts)))
         arrays[f"X_r{k}"] = (1.0 + 0.8 * k) * X + np.array([2.0 * k, -1.5 * k]) if shifted else X
     np.savez(path, **arrays)
     return load_recordings(path)
@@ -137,13 +137,18 @@ def test_the_chosen_adaptation_is_one_of_the_others_per_fold_and_its_labels_are_
 
 
 @pytest.mark.slow  # a whole evaluation (docs/testing.md)
-def test_without_an_inner_fold_gain_of_the_margin_the_enrolment_is_not_used(sessions, monkeypatch):
+def test_without_an_inner_fold_gain_of_the_margin_the_enrolment_is_not_used(tmp_path, monkeypatch):
     monkeypatch.setattr(enrolment_module, "ENROL_MARGIN", 1.0)  # no adaptation gains a whole unit of accuracy
+    # the fewest recordings (three), of one part each (a quarter of the fits of four two-part sessions), shifted: the
+    # alignment labels every inner fold better than no enrolment, by less than the margin
+    data = _session_set(tmp_path / "s.npz", shifted=True, seeds=((10,), (11,), (12,)))
     ev = RecordingsEvaluator(
-        sessions, methods=("ukr_clm", "ukr_clm_online"), quick=True, normalise="training", derived=("none",), enroll=1
+        data, methods=("ukr_clm", "ukr_clm_online"), quick=True, normalise="training", derived=("none",), enroll=1
     )
     report = ev.evaluate()["methods"]["ukr_clm_online"]["enrolment"]
     assert set(report["adaptations"]["chosen"]["chosen"].values()) == {"none"} and report["gain"] == 0
     for f in ev.folds_:
-        assert set(f.selected["ukr_clm"]["enrol_validation"]) == {"none", "refit", "align"}
+        inner = f.selected["ukr_clm"]["enrol_validation"]
+        assert set(inner) == {"none", "refit", "align"}
+        assert inner["align"] > inner["none"]  # better on the inner folds: only the margin keeps it out
         assert all(np.array_equal(f.enrolled["chosen"][m], f.labels[m]) for m in ("ukr_clm", "ukr_clm_online"))

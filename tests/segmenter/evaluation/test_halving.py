@@ -42,10 +42,10 @@ def test_the_screen_tries_every_third_rejection_value_and_the_last():
 
 
 @pytest.mark.slow  # a whole evaluation (docs/testing.md)
-def test_selection_screens_every_view_and_refines_the_best_third(three_class_npz):
+def test_selection_screens_every_view_and_refines_the_best_third(three_recordings_npz):
     lines = []
     ev = RecordingsEvaluator(
-        load_recordings(three_class_npz),
+        load_recordings(three_recordings_npz),
         methods=("ukr_clm",),
         quick=True,
         normalise=("training", "recording"),
@@ -60,16 +60,25 @@ def test_selection_screens_every_view_and_refines_the_best_third(three_class_npz
     view = f"'derived': '{chosen['derived']}', 'normalise': '{chosen['normalise']}'"
     assert any(view in line for line in refined)  # the choice is a refined candidate
     # the held-out recording is labelled by the full models, the screen's trained fewer steps
-    train = ev.fold_views("r0")[chosen["normalise"], chosen["derived"]][0]
+    train = ev.views("r0")[chosen["normalise"], chosen["derived"]][0]  # the fold's cache kept: its full fit
     full, cheap = (ev._fit(REGISTRY["ukr_clm"], train, chosen, f).model for f in (FULL, SCREEN))
     steps = [(len(full.models[c].model.history_), len(cheap.models[c].model.history_)) for c in full.models]
     assert all(f > c for f, c in steps), steps
 
 
+@pytest.fixture(scope="module")
+def evaluated(three_recordings_npz) -> tuple[RecordingsEvaluator, dict]:
+    """An evaluation of a manifold method, its online replay and a score method (shared by the
+    tests of its JSON: one evaluation per module and worker)."""
+    ev = RecordingsEvaluator(
+        load_recordings(three_recordings_npz), methods=("ukr_clm", "ukr_clm_online", "dtw_1nn"), quick=True
+    )
+    return ev, ev.evaluate()
+
+
 @pytest.mark.slow  # a whole evaluation (docs/testing.md)
-def test_the_json_reports_time_per_method_and_phase(three_class_npz):
-    ev = RecordingsEvaluator(load_recordings(three_class_npz), methods=("ukr_clm", "ukr_clm_online"), quick=True)
-    result = ev.evaluate()
+def test_the_json_reports_time_per_method_and_phase(evaluated):
+    result = evaluated[1]
     timing = result["timing"]
     assert set(timing["methods"]["ukr_clm"]) == {"selection", "final_fit", "labelling"}
     assert set(timing["methods"]["ukr_clm_online"]) == {"labelling"}
@@ -99,10 +108,10 @@ def test_params_that_are_no_evaluation_result_say_so(bad):
 
 
 @pytest.mark.slow  # a whole evaluation (docs/testing.md)
-def test_params_rerun_the_choices_with_the_labels_of_the_run_that_chose_them(three_class_npz, tmp_path):
-    data, methods = load_recordings(three_class_npz), ("ukr_clm", "ukr_clm_online", "dtw_1nn")
-    first = RecordingsEvaluator(data, methods=methods, quick=True)
-    result = first.evaluate()
+def test_params_rerun_the_choices_with_the_labels_of_the_run_that_chose_them(evaluated, tmp_path):
+    first, result = evaluated
+    data, methods = first.data, first.methods
+    assert methods == ("ukr_clm", "ukr_clm_online", "dtw_1nn")
     (tmp_path / "r.json").write_text(json.dumps(result))
     again = RecordingsEvaluator(data, methods=methods, quick=True, chosen=ChosenParameters.load(tmp_path / "r.json"))
     rerun = again.evaluate()
@@ -134,9 +143,10 @@ def test_a_new_recording_gets_the_choice_of_most_folds_ties_to_the_first():
 
 
 @pytest.mark.slow  # a whole evaluation (docs/testing.md)
-def test_the_cache_gives_the_same_json_and_computes_only_a_method_added(three_class_npz, tmp_path, capsys):
+def test_the_cache_gives_the_same_json_and_computes_only_a_method_added(three_recordings_npz, tmp_path, capsys):
     def run(methods: str, *extra: str) -> tuple[dict, str]:
-        argv = [str(three_class_npz), "--quick", "--json", "--jobs", "1", "--methods", methods, *extra]
+        views = ["--normalise", "training", "--derived", "none"]  # one view: no screen of four
+        argv = [str(three_recordings_npz), "--quick", "--json", "--jobs", "1", *views, "--methods", methods, *extra]
         assert run_command(register_evaluate, [*argv, "--cache", str(tmp_path / "cache")]) == 0
         out = capsys.readouterr()
         result = json.loads(out.out)
@@ -146,13 +156,13 @@ def test_the_cache_gives_the_same_json_and_computes_only_a_method_added(three_cl
     first, err = run("ukr_clm,ukr_clm_online")
     assert "taken from" not in err
     again, err = run("ukr_clm,ukr_clm_online")
-    assert again == first and err.count("ukr_clm taken from") == 4
+    assert again == first and err.count("ukr_clm taken from") == 3
     more, err = run("ukr_clm,ukr_clm_online,dtw_1nn")
-    assert err.count("ukr_clm taken from") == 4 and "dtw_1nn taken from" not in err
+    assert err.count("ukr_clm taken from") == 3 and "dtw_1nn taken from" not in err
     assert more["methods"]["ukr_clm"] == first["methods"]["ukr_clm"]
     # another setting: computed again (every method's key holds every setting, `_method_store`; dtw_1nn, cached by
     # the run above, is the cheap one to compute again)
     _, err = run("dtw_1nn")
-    assert err.count("dtw_1nn taken from") == 4
+    assert err.count("dtw_1nn taken from") == 3
     _, err = run("dtw_1nn", "--lag", "2")
     assert "taken from" not in err

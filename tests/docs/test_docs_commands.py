@@ -28,7 +28,8 @@ language that holds commands must be ```bash or ```text (a synopsis).
 
 Commands run in order, per document, with ``bash`` in a scratch copy of ``configs/``, ``docs/``
 and ``recordings/`` (so nothing in the repository changes); ``handflow`` and ``python`` are this
-interpreter.  ``CMD &`` starts a background job (waited for until its graph's run-file appears),
+interpreter.  ``CMD &`` starts a background job (waited for until its graph's run-file appears and each of its nodes has
+sent a heartbeat),
 ``kill -INT %N`` stops job N (numbered as bash numbers jobs: after the highest one still running) and
 requires exit code 0.
 """
@@ -423,11 +424,25 @@ def _graph_name(ws: Path, cmd: str) -> str:
 
 
 def _wait_started(name: str, count: int, timeout: float = 60.0) -> None:
+    """Until ``count`` launchers of graph ``name`` run and every node of the newest has sent a heartbeat."""
+    from handflow.framework.recorder.replay import GraphWatcher
+    from handflow.framework.runtime.discovery import join
+
     deadline = time.monotonic() + timeout
     while sum(r.graph == name for r in live_runs()) < count:
         assert time.monotonic() < deadline, f"graph '{name}' did not start within {timeout:.0f}s"
         time.sleep(0.2)
-    time.sleep(2.0)  # let its nodes come up
+    session, run = join(name)
+    try:
+        nodes = set(load_graph(run.graph_file).nodes)
+        watcher = GraphWatcher(session, name)
+        try:
+            up = watcher.wait_for(lambda: nodes <= set(watcher.beats), max(deadline - time.monotonic(), 1.0))
+            assert up, f"graph '{name}': no heartbeat within {timeout:.0f}s from {sorted(nodes - set(watcher.beats))}"
+        finally:
+            watcher.close()
+    finally:
+        session.close()
 
 
 @pytest.mark.parametrize("doc", _params())

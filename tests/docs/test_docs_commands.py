@@ -28,10 +28,9 @@ language that holds commands must be ```bash or ```text (a synopsis).
 
 Commands run in order, per document, with ``bash`` in a scratch copy of ``configs/``, ``docs/``
 and ``recordings/`` (so nothing in the repository changes); ``handflow`` and ``python`` are this
-interpreter.  ``CMD &`` starts a background job (waited for until its graph's run-file appears and each of its nodes has
-sent a heartbeat),
-``kill -INT %N`` stops job N (numbered as bash numbers jobs: after the highest one still running) and
-requires exit code 0.
+interpreter.  ``CMD &`` starts a background job (waited for until its graph's run-file appears and each
+of its nodes has sent a heartbeat), ``kill -INT %N`` stops job N (numbered as bash numbers jobs: after
+the highest one still running) and requires exit code 0.
 """
 
 from __future__ import annotations

@@ -28,8 +28,8 @@ language that holds commands must be ```bash or ```text (a synopsis).
 
 Commands run in order, per document, with ``bash`` in a scratch copy of ``configs/``, ``docs/``
 and ``recordings/`` (so nothing in the repository changes); ``handflow`` and ``python`` are this
-interpreter.  ``CMD &`` starts a background job (waited for until its graph's run-file appears and each
-of its nodes has sent a heartbeat), ``kill -INT %N`` stops job N (numbered as bash numbers jobs: after
+interpreter.  ``CMD &`` starts a background job (waited for until its launcher says its nodes are up),
+``kill -INT %N`` stops job N (numbered as bash numbers jobs: after
 the highest one still running) and requires exit code 0.
 """
 
@@ -46,6 +46,7 @@ import signal
 import subprocess
 import sys
 import textwrap
+import threading
 import time
 from contextlib import nullcontext
 from dataclasses import dataclass, field
@@ -57,7 +58,6 @@ import yaml
 
 from handflow.framework.files.mcap_reader import iter_recording
 from handflow.framework.graphs.model import load_graph
-from handflow.framework.runtime.discovery import live_runs
 from tests.conftest import cpu_hog
 
 REPO = Path(__file__).resolve().parents[2]
@@ -417,31 +417,46 @@ def workspace(tmp_path, monkeypatch):
     return ws
 
 
-def _graph_name(ws: Path, cmd: str) -> str:
-    graph = next(w for w in shlex.split(cmd) if w.endswith(".yaml"))
-    return yaml.safe_load((ws / graph).read_text())["name"]
+class Job:
+    """A background command (``CMD &``), its output read as it comes so that its graph's start can be waited for."""
 
+    STARTED = ("all nodes ready", "the other nodes start without")  # the launcher's start-up lines (runtime/startup.py)
 
-def _wait_started(name: str, count: int, timeout: float = 60.0) -> None:
-    """Until ``count`` launchers of graph ``name`` run and every node of the newest has sent a heartbeat."""
-    from handflow.framework.recorder.replay import GraphWatcher
-    from handflow.framework.runtime.discovery import join
+    def __init__(self, cmd: str, cwd: Path) -> None:
+        self.proc = subprocess.Popen(
+            ["bash", "-c", f"exec {cmd}"], cwd=cwd, text=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE
+        )
+        self.since = time.time()
+        self._started = threading.Event()
+        self._out: list[str] = []
+        self._err: list[str] = []
+        self._readers = [
+            threading.Thread(target=self._read, args=(stream, lines), daemon=True)
+            for stream, lines in ((self.proc.stdout, self._out), (self.proc.stderr, self._err))
+        ]
+        for reader in self._readers:
+            reader.start()
 
-    deadline = time.monotonic() + timeout
-    while sum(r.graph == name for r in live_runs()) < count:
-        assert time.monotonic() < deadline, f"graph '{name}' did not start within {timeout:.0f}s"
-        time.sleep(0.2)
-    session, run = join(name)
-    try:
-        nodes = set(load_graph(run.graph_file).nodes)
-        watcher = GraphWatcher(session, name)
-        try:
-            up = watcher.wait_for(lambda: nodes <= set(watcher.beats), max(deadline - time.monotonic(), 1.0))
-            assert up, f"graph '{name}': no heartbeat within {timeout:.0f}s from {sorted(nodes - set(watcher.beats))}"
-        finally:
-            watcher.close()
-    finally:
-        session.close()
+    def _read(self, stream, lines: list[str]) -> None:
+        for line in stream:
+            lines.append(line)
+            if any(text in line for text in self.STARTED):
+                self._started.set()
+        self._started.set()  # the command ended: nothing more to wait for
+
+    def wait_started(self, where: str, timeout: float = 60.0) -> None:
+        """Until the launcher says its nodes are up (an event, not a fixed time)."""
+        assert self._started.wait(timeout), f"{where}: no start-up line within {timeout:.0f}s\n{''.join(self._err)}"
+        assert self.proc.poll() is None, f"{where}: ended at once (exit {self.proc.returncode})\n{''.join(self._err)}"
+
+    def stop(self, sig: int = signal.SIGINT) -> tuple[str, str]:
+        """Send ``sig``, wait for the command's end and return its whole stdout and stderr."""
+        if self.proc.poll() is None:
+            self.proc.send_signal(sig)
+        self.proc.wait(timeout=60)
+        for reader in self._readers:
+            reader.join(timeout=10)
+        return "".join(self._out), "".join(self._err)
 
 
 @pytest.mark.parametrize("doc", _params())
@@ -451,8 +466,7 @@ def test_documented_commands_run(doc, workspace):
 
 def run_page(doc: Path, workspace: Path) -> None:
     """Run a page's commands in order in ``workspace``, checking each one's stated outcome."""
-    jobs: list[subprocess.Popen | None] = []  # by job number - 1, as bash numbers them (None: stopped)
-    started: dict[str, int] = {}  # running jobs per graph name
+    jobs: list[Job | None] = []  # by job number - 1, as bash numbers them (None: stopped)
     shipped = set(workspace.glob("configs/*.yaml"))  # the installed package's graphs: `handflow run NAME`
     try:
         for block in doc_blocks(doc):
@@ -463,47 +477,31 @@ def run_page(doc: Path, workspace: Path) -> None:
                     target.write_text(block.text)
             busy = cpu_hog() if any(kind == "busy" for kind, _ in block.markers) else nullcontext()
             with busy:
-                _run_block(doc, block, workspace, jobs, started)
+                _run_block(doc, block, workspace, jobs)
     finally:
         for job in jobs:
-            if job is not None and job.poll() is None:
-                job.kill()
-                job.communicate()
+            if job is not None:
+                job.stop(signal.SIGKILL)
     added = sorted(p.name for p in set(workspace.glob("configs/*.yaml")) - shipped)
     assert not added, (
         f"{doc.name} writes graph(s) {added} into the package, listed as shipped; write to the current directory"
     )
 
 
-def _run_block(
-    doc: Path, block: Block, workspace: Path, jobs: list[subprocess.Popen | None], started: dict[str, int]
-) -> None:
+def _run_block(doc: Path, block: Block, workspace: Path, jobs: list[Job | None]) -> None:
     """Run one block's commands in ``workspace``: background jobs into ``jobs``, checking each outcome."""
     for original, cmd in block.runnable():
         where = f"{doc.name}:{block.line}: {cmd}"
         if kill := JOB_STOP.fullmatch(cmd):
             job = jobs[int(kill.group(1)) - 1]
-            job.send_signal(signal.SIGINT)
-            out, err = job.communicate(timeout=60)
-            _check(block, original, Outcome(workspace, out, err, job.returncode, job.since), where)
-            started[job.graph] -= 1
+            out, err = job.stop()
+            _check(block, original, Outcome(workspace, out, err, job.proc.returncode, job.since), where)
             jobs[int(kill.group(1)) - 1] = None
             while jobs and jobs[-1] is None:  # a new job is numbered after the highest one still running
                 jobs.pop()
         elif cmd.endswith("&"):
-            name = _graph_name(workspace, cmd)
-            started[name] = started.get(name, 0) + 1
-            jobs.append(
-                subprocess.Popen(
-                    ["bash", "-c", f"exec {cmd[:-1]}"],
-                    cwd=workspace,
-                    text=True,
-                    stdout=subprocess.PIPE,
-                    stderr=subprocess.PIPE,
-                )
-            )
-            jobs[-1].since, jobs[-1].graph = time.time(), name
-            _wait_started(name, started[name])
+            jobs.append(Job(cmd[:-1], workspace))
+            jobs[-1].wait_started(where)
         else:
             since = time.time()
             proc = subprocess.run(["bash", "-c", cmd], cwd=workspace, capture_output=True, text=True, timeout=300)

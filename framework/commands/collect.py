@@ -26,6 +26,7 @@ from ..recorder.graph_recorder import GraphRecorder
 from ..runtime.launcher import Launcher
 from ..runtime.param_service import LOCAL
 from ..runtime.runner import START_WAIT_S
+from ..runtime.zygote import Zygote, start_unless_disabled
 from ._shared import add_foxglove_option
 
 CUE_TOPIC = "cue/labels"
@@ -172,6 +173,16 @@ class Cuer:
 
 
 def run(args: argparse.Namespace) -> int:
+    # the zygote imports the plugins for the node processes while the graph is checked here (as `handflow run`)
+    zygote = start_unless_disabled(args.graph)
+    try:
+        return _run(args, zygote)
+    finally:  # the nodes have stopped (or never started): the zygote has nothing left to fork
+        if zygote is not None:
+            zygote.close()
+
+
+def _run(args: argparse.Namespace, zygote: Zygote | None) -> int:
     try:
         graph = load_graph(args.graph, preflight=True)
     except GraphError as exc:
@@ -197,7 +208,7 @@ def run(args: argparse.Namespace) -> int:
         return 2
     bridge = None
     try:
-        launcher = Launcher(graph)
+        launcher = Launcher(graph, zygote=zygote)
     except ValueError as exc:
         recorder.close(log_summary=False)
         print(f"error: {exc}", file=sys.stderr)

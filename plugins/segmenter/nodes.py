@@ -16,6 +16,7 @@ from typing import Annotated, Literal
 
 import numpy as np
 from pydantic import Field, model_validator
+from threadpoolctl import ThreadpoolController
 
 from handflow.framework.files.inputs import InputPath
 from handflow.framework.files.npz import format_check
@@ -82,10 +83,25 @@ class RecognizerParams(StrictModel):
 
 
 class _RecognizerNode(Node):
-    """Shared input handling, model loading and message building; subclasses define ``recognise``."""
+    """Shared input handling, model loading and message building; subclasses define ``recognise``.
+
+    Documented choice: a recogniser computes on one BLAS thread (:meth:`one_blas_thread`).  Its
+    products are small (one observation against every candidate's training points); a second
+    OpenBLAS thread made each update slower and tripled its CPU time (6.2 against 2.1 ms of CPU per
+    observation, 4.9 against 2.2 ms wall, for 3 gesture models; docs/benchmarks.md, "Teach your own
+    gestures"), and its spinning takes a core from the other nodes.  The labels are the same.
+    """
 
     inputs = {"joints": JointState, "array": Array}
     outputs = {"labels": Label, "events": SegmentEvent}
+    _blas: ThreadpoolController | None = None  # the process's BLAS libraries, found once
+
+    @classmethod
+    def one_blas_thread(cls):
+        """A context in which BLAS runs on one thread (the previous limits restored after it; ~10 µs)."""
+        if _RecognizerNode._blas is None:
+            _RecognizerNode._blas = ThreadpoolController()
+        return _RecognizerNode._blas.limit(limits=1, user_api="blas")
 
     def load_models(self, src: str | list[str] | None = None) -> CandidateSet:
         src = self.params.models if src is None else src
@@ -123,7 +139,8 @@ class _RecognizerNode(Node):
     def on_message(self, port: str, msg: Message) -> None:
         try:
             y = self.observation(port, msg)
-            self.recognise(y, msg.header.stamp_ns)
+            with self.one_blas_thread():
+                self.recognise(y, msg.header.stamp_ns)
         except ValueError as exc:  # the runtime drops, counts and logs it (docs/robustness.md)
             raise MessageError(f"observation dropped: {exc}") from None
 
@@ -356,7 +373,8 @@ class OnlineCLMNode(_RecognizerNode):
         setup: on the first observation it would stall every node of the process for 1–2 s
         (docs/flagship.md).  The stream and the solver's generator start afresh afterwards, so the
         labels are those without the warm-up."""
-        self.segmenter.update(np.zeros(channels))
+        with self.one_blas_thread():
+            self.segmenter.update(np.zeros(channels))
         self.segmenter.set_params(random_state=self.params.seed)
         self.segmenter.reset()
 

@@ -95,6 +95,27 @@ def test_ukr_only_node_takes_joint_states_in_model_order(model_dir, two_letters)
     assert len(h.published["labels"]) == 60 and len(h.dropped) == 1
 
 
+@pytest.mark.parametrize("cls", [OnlineCLMNode, UKROnlyNode])
+def test_recognisers_compute_on_one_blas_thread_and_restore_the_limit(model_dir, two_letters, cls):
+    """Each observation is recognised with BLAS limited to one thread (docs/segmentation.md, "Nodes"),
+    and the process's limit is back afterwards (other nodes of the group keep theirs)."""
+    from threadpoolctl import threadpool_info, threadpool_limits
+
+    def blas_threads() -> set[int]:
+        return {lib["num_threads"] for lib in threadpool_info() if lib["user_api"] == "blas"}
+
+    Y, _ = two_letters
+    with threadpool_limits(2, user_api="blas"):
+        before = blas_threads()
+        h = NodeHarness(cls, {"models": str(model_dir)}).setup()
+        seen, recognise = [], h.node.recognise
+        h.node.recognise = lambda y, stamp: (seen.append(blas_threads()), recognise(y, stamp))
+        for i, y in enumerate(Y[:5]):
+            h.send("array", Array(data=y), stamp_ns=i)
+        assert seen == [{1}] * 5 and len(h.published["labels"]) == 5
+        assert blas_threads() == before
+
+
 def test_missing_models_fail_setup_with_the_training_hint(tmp_path):
     with pytest.raises(ModelsMissingError, match="train-classes"):
         NodeHarness(OnlineCLMNode, {"models": str(tmp_path / "none")}).setup()

@@ -40,8 +40,10 @@ from ..models import (
 )
 from ._recordings import _progress, protocol_line, run_recordings_evaluation, run_train_recording_models
 
+TRAJECTORY_STEPS = 300  # RPROP steps per class model on labelled trajectories (the thesis' models)
 
-def _add_dataset_args(parser: argparse.ArgumentParser) -> None:
+
+def _add_dataset_args(parser: argparse.ArgumentParser, steps_help: str = "UKR optimisation steps per class") -> None:
     parser.add_argument(
         "dataset",
         help="folder with train/validation/test sub-folders of <label>_*.csv, or an .npz (see docs/segmentation.md)",
@@ -53,7 +55,7 @@ def _add_dataset_args(parser: argparse.ArgumentParser) -> None:
         help="keep the pen-lift tail marked in an .npz's metadata (default: cut it)",
     )
     parser.add_argument("--beta", default="auto", help="periodic UKR bandwidth, or 'auto' = 12·mean_length/45")
-    parser.add_argument("--steps", type=int, default=300, help="UKR optimisation steps per class")
+    parser.add_argument("--steps", type=int, default=TRAJECTORY_STEPS, help=steps_help)
     parser.add_argument(
         "--init",
         choices=INITS,
@@ -114,8 +116,19 @@ def register_train_classes(parser: argparse.ArgumentParser) -> None:
         "(the thesis' models), or of every labelled segment of continuous recordings (delay-embedded models "
         "for real streams, docs/segmentation.md)."
     )
-    _add_dataset_args(parser)
+    _add_dataset_args(
+        parser,
+        steps_help=f"UKR optimisation steps per class (default: {TRAJECTORY_STEPS} on labelled trajectories; on continuous "
+        "recordings 150, the steps of the class models `evaluate segmentation` scores)",
+    )
+    parser.set_defaults(steps=None)
     parser.add_argument("--out", required=True, help="output folder (gets <label>.npz and classes.json)")
+    parser.add_argument(
+        "--jobs",
+        type=int,
+        help="continuous recordings: the class models are fitted over this many processes, one BLAS thread each "
+        "(default: the cores; 1 = one after the other; the same models either way)",
+    )
     parser.add_argument(
         "--delay",
         type=int,
@@ -200,6 +213,8 @@ def run_train_classes(args) -> int:
             print(HEADINGS_ON_RECORDINGS, file=sys.stderr)
             return 2
         return run_train_recording_models(args, _progress)
+    if args.steps is None:
+        args.steps = TRAJECTORY_STEPS
     try:
         if args.derived != "none":
             raise DatasetError("--derived applies to continuous recordings (docs/segmentation.md)")

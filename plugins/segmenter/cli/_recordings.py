@@ -213,6 +213,8 @@ def run_train_recording_models(args, progress) -> int:
     the background level for the online node calibrated on inner folds
     (:func:`..evaluation.calibrate_background`), reported and stored with the models."""
     t0 = time.perf_counter()
+    if args.steps is None:  # the evaluation's class models (docs/segmentation.md)
+        args.steps = REGISTRY["ukr_clm"].steps
     try:
         chosen = _chosen_ukr_clm(args.params) if args.params else None
         if chosen is not None:
@@ -237,6 +239,7 @@ def run_train_recording_models(args, progress) -> int:
             scaling="standard",
             progress=progress,
             derived=args.derived,
+            jobs=getattr(args, "jobs", None) or default_jobs(),
         )
     except ValueError as exc:
         print(f"error: {exc}", file=sys.stderr)

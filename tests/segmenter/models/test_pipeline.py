@@ -73,3 +73,25 @@ def test_the_error_metric_comes_from_at_most_the_capped_frames_per_class():
     assert reference != full_reference
     for c in by_class:  # the manifolds themselves are fitted on the same points
         np.testing.assert_array_equal(capped.models[c].model.latents_, full.models[c].model.latents_)
+
+
+def test_class_models_fitted_over_processes_are_those_fitted_one_after_the_other():
+    """``jobs=2`` fits the class manifolds in forked workers on one BLAS thread (train-classes on
+    recordings): the same latents, provenance and projections as the fits in this process."""
+    rng = np.random.default_rng(2)
+    t = np.linspace(0, 6 * np.pi, 240)
+    by_class = {
+        c: [np.c_[np.sin(k * t), np.cos(t), np.sin(t + k)] + 0.01 * rng.normal(size=(240, 3))]
+        for c, k in (("a", 1), ("b", 2), ("c", 3))
+    }
+    alone, pooled = (
+        fit_recording_models(by_class, delay=4, n_steps=20, random_state=0, scaling="standard", jobs=jobs)
+        for jobs in (1, 2)
+    )
+    assert list(pooled.models) == ["a", "b", "c"]
+    for c in by_class:
+        a, b = alone.models[c].model, pooled.models[c].model
+        np.testing.assert_array_equal(a.latents_, b.latents_)
+        assert a.provenance_ == b.provenance_
+    X = np.vstack(by_class["b"])
+    np.testing.assert_array_equal(alone.project(X).errors, pooled.project(X).errors)

@@ -7,7 +7,9 @@ them itself (``sensor_msgs/Image`` in the Image panel, ``position[3]`` of a join
 Runtime-internal topics (``_progress``, ``_clock``) are skipped; heartbeats (``_health``) and runtime
 events are shown.  Payloads that are not valid messages are not forwarded (docs/robustness.md).
 Serving a replay driven from the playback bar, it forwards nothing from a seek until the replay
-reaches the target (:meth:`handflow.framework.recorder.playback.Playback.shows`).
+reaches the target (:meth:`handflow.framework.recorder.playback.Playback.shows`); a message is checked
+and logged under the playback's lock, so one that passed the check is on its way before the seek is
+answered.
 For one graph, the server also offers Foxglove's Parameters capability (:mod:`.foxglove_params`), and
 given the graph file the ConnectionGraph capability (:mod:`.foxglove_graph`).
 """
@@ -169,7 +171,12 @@ class FoxgloveBridge:
                 )
                 channel = foxglove.Channel(ros_name(key), schema=schema, message_encoding="cdr", context=self.context)
                 self._channels[(key, msg.TYPE)] = channel
-        channel.log(payload, log_time=msg.header.stamp_ns or None)
+        if self.playback is None:
+            channel.log(payload, log_time=msg.header.stamp_ns or None)
+            return
+        with self.playback.cond:  # checked again, and logged, before a seek can be answered
+            if self.playback.shows(key, msg.header.seq):
+                channel.log(payload, log_time=msg.header.stamp_ns or None)
 
     @property
     def topics(self) -> list[str]:

@@ -9,8 +9,10 @@ on that clock, each once the graph handled the one before: a seek forward releas
 up to the target as fast as the graph handles them, a seek back first restarts the graph's nodes
 (their start state) and replays from the start up to the target the same way.  Until the replay
 reaches the target, the Foxglove bridge forwards nothing, not even what the graph published on the
-way and delivers late (:meth:`Playback.shows`), and the bar shows the target, status Buffering.  :class:`PlaybackListener` answers Foxglove's PlaybackControl
-requests.
+way and delivers late (:meth:`Playback.shows`), and the bar shows the target, status Buffering.  Only
+the pass that took the seek (:meth:`Playback.take_seek`) reaches its target: one a seek interrupts,
+even while a message is released, never does (:meth:`Playback.arrived`).  :class:`PlaybackListener`
+answers Foxglove's PlaybackControl requests.
 """
 
 from __future__ import annotations
@@ -83,11 +85,22 @@ class Playback:
                 self.seek_to, self.ended, self.seeking, self.next_ns = now, False, True, now
             self.cond.notify_all()
 
+    def take_seek(self) -> int | None:
+        """The target of the seek the replay takes now (None if none is pending); the pass that follows is
+        the only one that can reach it (:meth:`arrived`)."""
+        with self.cond:
+            target, self.seek_to = self.seek_to, None
+            return target
+
     def arrived(self, hidden: dict[str, int]) -> bool:
         """The replay reached the seek target: the clock runs on from the target, from now, and messages up to
-        the sequence numbers in ``hidden`` (topic key → number) stay hidden; True if it was seeking."""
+        the sequence numbers in ``hidden`` (topic key → number) stay hidden; True if it was seeking.
+
+        Only the pass that took the seek (:meth:`take_seek`) arrives: while a seek is pending, the replay
+        is still on a pass started before it, whatever its position, and everything the graph computes
+        on it belongs to frames before the target, so it stays hidden (False)."""
         with self.cond:
-            if not self.seeking:
+            if not self.seeking or self.seek_to is not None:
                 return False
             self.seeking, self.hidden = False, hidden
             self._anchor = (time.monotonic(), self._anchor[1])
@@ -100,7 +113,8 @@ class Playback:
     def wait_for(self, log_ns: int, stop: threading.Event) -> bool:
         """Wait until the replay reaches ``log_ns``; False when a seek (or stop) came first."""
         with self.cond:
-            self.next_ns = log_ns
+            if self.seek_to is None:  # a pending seek's target stays the message waited for
+                self.next_ns = log_ns
             while not stop.is_set() and self.seek_to is None:
                 if self.playing:
                     wall, rec = self._anchor
@@ -164,9 +178,8 @@ class _BarDriven(ABC):
             stats.report = ReadReport(self.plan.path)
             if self._play_from(target, stats):
                 self._wait_at_end()
-            with self.playback.cond:
-                if self.playback.seek_to is not None:
-                    target, self.playback.seek_to = self.playback.seek_to, None
+            taken = self.playback.take_seek()
+            target = target if taken is None else taken
         self.close()
         return stats
 
@@ -208,6 +221,8 @@ class _BarDriven(ABC):
     def _wait_at_end(self) -> None:
         self._arrive()  # a seek past the last message
         with self.playback.cond:
+            if self.playback.seek_to is not None:  # a seek came on the way to the end: take it instead
+                return
             self.playback.ended, self.playback.next_ns = True, self.playback.end_ns
         self._broadcast_state()
         with self.playback.cond:  # the end: wait for a seek back (or stop)

@@ -23,6 +23,7 @@ import json
 import multiprocessing
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
+from contextlib import nullcontext
 from functools import partial
 from pathlib import Path
 
@@ -256,9 +257,9 @@ def fit_recording_models(
     return final
 
 
-def _periodic_fit(seqs: list[np.ndarray], n_steps: int, random_state: int | None):
-    """One class manifold of :func:`fit_recording_models` on its pieces, on one BLAS thread (a worker's task)."""
-    with threadpool_limits(1):
+def _periodic_fit(seqs: list[np.ndarray], n_steps: int, random_state: int | None, one_thread: bool = False):
+    """One class manifold of :func:`fit_recording_models` on its pieces (on one BLAS thread: a worker's task)."""
+    with threadpool_limits(1) if one_thread else nullcontext():
         return periodic_class_model(seqs, auto_beta(seqs), n_steps=n_steps, random_state=random_state)
 
 
@@ -269,12 +270,11 @@ def _fit_manifolds(pieces: dict[str, list[np.ndarray]], n_steps: int, random_sta
     evaluation's workers fit — a second OpenBLAS thread next to the other worker made a fit of 611 points
     twice as costly in CPU (5.4 against 2.5 s, docs/benchmarks.md, "Teach your own gestures")."""
     if jobs <= 1 or len(pieces) <= 1:
-        return {
-            c: periodic_class_model(s, auto_beta(s), n_steps=n_steps, random_state=random_state)
-            for c, s in pieces.items()
-        }
+        return {c: _periodic_fit(s, n_steps, random_state) for c, s in pieces.items()}
     with ProcessPoolExecutor(min(jobs, len(pieces)), mp_context=multiprocessing.get_context("fork")) as pool:
-        fitted = pool.map(partial(_periodic_fit, n_steps=n_steps, random_state=random_state), pieces.values())
+        fitted = pool.map(
+            partial(_periodic_fit, n_steps=n_steps, random_state=random_state, one_thread=True), pieces.values()
+        )
         return dict(zip(pieces, fitted))
 
 

@@ -276,14 +276,16 @@ class _Run:
 @contextmanager
 def _running(tmp_path: Path, prefix: str, seconds: int, again: tuple[str, int] | None = None):
     """The iceoryx2 graph running for at most ``seconds``, read by a remote-style peer, once its sink handles
-    messages; stopped with Ctrl-C at the end of the block.  ``again``: the name and hub port of a graph run
-    before (the same iceoryx2 services)."""
+    messages and both publishers have reported a path; stopped with Ctrl-C at the end of the block.
+    ``again``: the name and hub port of a graph run before (the same iceoryx2 services)."""
     name, port = again or (unique(prefix), free_tcp_port())
     proc = start("run", str(_graph(tmp_path, name, "iceoryx2", port)), "--duration", str(seconds))
     run = _Run(name, _peer(port))
     try:
         run.health = _Health(run.session, name)
         wait_until(lambda: (run.health.get("sink", "handled.in") or 0) > 20, timeout=60, what="the sink handling")
+        # each node reports on its own clock: a publisher's first heartbeat after it published may come later
+        wait_until(lambda: all(run.health.get(n, "path.out") for n in ("source", "scale")), timeout=10, what="paths")
         yield run
     except AssertionError as exc:  # the graph's log says why
         run.err = ended_within(proc, 30.0, tmp_path, "the launcher", sig=signal.SIGINT)

@@ -8,6 +8,7 @@ import signal
 import subprocess
 import sys
 import textwrap
+import threading
 
 import pytest
 import zenoh
@@ -137,17 +138,22 @@ def test_buffers_held_by_a_killed_process_never_block_publishing_and_its_pool_is
     conf.insert_json5("scouting/multicast/enabled", "false")
     conf.insert_json5("listen/endpoints", json.dumps([f"tcp/127.0.0.1:{port}"]))
     session = zenoh.open(conf)
-    pub = session.declare_publisher("shmtest/x")
+    # every payload must arrive: Zenoh's default drops a message whose queue stays full for a
+    # millisecond, which a 256 KiB payload sent over the network meets on a loaded machine
+    pub = session.declare_publisher("shmtest/x", congestion_control=zenoh.CongestionControl.BLOCK)
     pool = shm.SharedPayloads(True, pool_bytes=1 << 20)  # room for three 256 KiB buffers (and headers)
     holder = subprocess.Popen(
         [sys.executable, "-c", HOLDER, f"tcp/127.0.0.1:{port}"], stdout=subprocess.PIPE, text=True
     )
+    counts: list[str] = []  # the holder's count after each payload
+    threading.Thread(target=lambda: counts.extend(line.strip() for line in holder.stdout), daemon=True).start()
     try:
         # the holder's subscriber is routed (a fixed pause lost the first payload on a loaded machine)
         wait_until(lambda: pub.matching_status.matching, timeout=60, what="the holder's subscriber")
         for i in range(6):
             pub.put(pool.wrap(bytes([i]) * (256 << 10)))
-            assert holder.stdout.readline().strip() == str(i + 1)
+            wait_until(lambda n=i + 1: len(counts) >= n, timeout=60, what=f"the holder's receipt of payload {i + 1}")
+        assert counts == [str(i + 1) for i in range(6)]
         # the holder pins every buffer: the pool ran out and later payloads went over the network
         assert pool.sent >= 2 and pool.fallbacks >= 1 and pool.sent + pool.fallbacks == 6
     finally:

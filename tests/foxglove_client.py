@@ -5,6 +5,7 @@ frames of the playback bar."""
 from __future__ import annotations
 
 import json
+import re
 import struct
 import subprocess
 import sys
@@ -14,6 +15,11 @@ from pathlib import Path
 from websockets.sync.client import connect
 
 from handflow.framework.network.sessions import free_tcp_port
+
+# foxglove-sdk advertises a channel that appears while a client is connected just before it records the channel
+# for that client, so a fast subscription can be refused with this status (docs/foxglove.md, "Topics")
+UNKNOWN_CHANNEL = re.compile(r"Unknown channel ID: (\d+)")
+RESUBSCRIPTIONS = 5  # per channel, 0.1 s apart: the server records the channel right after advertising it
 
 
 def handflow_with_foxglove(args: list[str], env: dict[str, str], cwd: Path) -> tuple[subprocess.Popen, int]:
@@ -46,24 +52,41 @@ def connect_foxglove(port: int, timeout: float):
 class FoxgloveClient:
     """The Foxglove app's side of the protocol: JSON requests, replies picked by their ``op``.  Every status
     message, playback state and advertised topic received on the way is kept (``statuses``, ``states``,
-    ``topics``)."""
+    ``topics``).  A subscription refused for a channel the server has just advertised is sent again, as
+    docs/foxglove.md tells programmatic clients to do; the refusals are kept in ``resubscribed`` (channel ids),
+    not in ``statuses``."""
 
     def __init__(self, port: int, timeout: float = 30.0) -> None:
         self.ws = connect_foxglove(port, timeout)
         self.statuses: list[dict] = []
         self.states: list[dict] = []
         self.topics: set[str] = set()
+        self.resubscribed: list[int] = []
+        self._subscriptions: dict[int, list[dict]] = {}  # channel id → the subscriptions sent for it
 
     def recv(self, timeout: float) -> str | bytes:
         """The next frame (``TimeoutError`` after ``timeout``), noting statuses and playback states."""
         frame = self.ws.recv(timeout=timeout)
         if isinstance(frame, str) and (msg := json.loads(frame)).get("op") == "status":
-            self.statuses.append(msg)
+            if not self._subscribe_again(msg):
+                self.statuses.append(msg)
         elif isinstance(frame, str) and msg.get("op") == "advertise":
             self.topics |= {c["topic"] for c in msg["channels"]}
         elif isinstance(frame, bytes) and frame[0] == 5:
             self.states.append(playback_state(frame))
         return frame
+
+    def _subscribe_again(self, status: dict) -> bool:
+        """Whether ``status`` refused a subscription of ours that was sent again (at most
+        :data:`RESUBSCRIPTIONS` times per channel)."""
+        unknown = UNKNOWN_CHANNEL.search(status.get("message", ""))
+        channel = int(unknown.group(1)) if unknown else None
+        if channel not in self._subscriptions or self.resubscribed.count(channel) >= RESUBSCRIPTIONS:
+            return False
+        self.resubscribed.append(channel)
+        time.sleep(0.1)
+        self.ws.send(json.dumps({"op": "subscribe", "subscriptions": self._subscriptions[channel]}))
+        return True
 
     def problems(self) -> list[dict]:
         """The status messages of level warning (1) or error (2) received so far."""
@@ -78,6 +101,9 @@ class FoxgloveClient:
         self.ws.__exit__(*exc)
 
     def send(self, **msg) -> None:
+        if msg.get("op") == "subscribe":
+            for sub in msg["subscriptions"]:
+                self._subscriptions.setdefault(sub["channelId"], []).append(sub)
         self.ws.send(json.dumps(msg))
 
     def next(self, op: str, timeout: float = 15.0, **match) -> dict:

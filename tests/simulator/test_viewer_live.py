@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import re
 import struct
 import subprocess
 import sys
@@ -14,7 +13,7 @@ import pytest
 from handflow.framework.network.sessions import free_tcp_port
 from handflow.framework.ros2.types import decode_cdr
 from tests.conftest import REPO
-from tests.foxglove_client import connect_foxglove
+from tests.foxglove_client import FoxgloveClient
 from tests.simulator.test_viewer import assert_tree_matches_urdf
 
 pytestmark = pytest.mark.slow
@@ -35,13 +34,6 @@ WANTED = {
     "/handflow/fx3d/sim/description": "std_msgs/msg/String",
     "/handflow/fx3d/camera/compressed": "sensor_msgs/msg/CompressedImage",
 }
-
-
-UNKNOWN_CHANNEL = re.compile(r"Unknown channel ID: (\d+)")
-
-
-def _subscribe(ws, sub: int, channel_id: int) -> None:
-    ws.send(json.dumps({"op": "subscribe", "subscriptions": [{"id": sub, "channelId": channel_id}]}))
 
 
 def test_live_bridge_serves_the_hand_description_tf_markers_and_jpeg(tmp_path):
@@ -68,11 +60,11 @@ def test_live_bridge_serves_the_hand_description_tf_markers_and_jpeg(tmp_path):
     received: dict[str, bytes] = {}
     try:
         deadline = time.time() + 35
-        with connect_foxglove(port, deadline - time.time()) as ws:
+        with FoxgloveClient(port, deadline - time.time()) as fox:  # it subscribes again when refused
             subscribed: dict[int, str] = {}
             while time.time() < deadline and len(received) < len(WANTED):
                 try:
-                    frame = ws.recv(timeout=1)
+                    frame = fox.recv(timeout=1)
                 except TimeoutError:
                     continue
                 if isinstance(frame, str):
@@ -82,14 +74,7 @@ def test_live_bridge_serves_the_hand_description_tf_markers_and_jpeg(tmp_path):
                             if ch["topic"] in WANTED and ch["topic"] not in channels:
                                 channels[ch["topic"]] = ch
                                 subscribed[len(subscribed) + 1] = ch["topic"]
-                                _subscribe(ws, len(subscribed), ch["id"])
-                    elif msg.get("op") == "status" and (unknown := UNKNOWN_CHANNEL.search(msg.get("message", ""))):
-                        # foxglove-sdk sends an advertisement before it records the channel for the client,
-                        # so a fast subscription can be refused; a client subscribes again
-                        channel_id = int(unknown.group(1))
-                        sub = next(s for s, t in subscribed.items() if channels[t]["id"] == channel_id)
-                        time.sleep(0.1)
-                        _subscribe(ws, sub, channel_id)
+                                fox.send(op="subscribe", subscriptions=[{"id": len(subscribed), "channelId": ch["id"]}])
                 elif frame[0] == 0x01:  # message data: opcode, subscription id, receive time, payload
                     (sub,) = struct.unpack_from("<I", frame, 1)
                     received.setdefault(subscribed[sub], bytes(frame[13:]))
@@ -97,6 +82,7 @@ def test_live_bridge_serves_the_hand_description_tf_markers_and_jpeg(tmp_path):
         proc.terminate()
         _, err = proc.communicate(timeout=30)
     assert set(received) == set(WANTED), (sorted(received), err[-2000:])
+    assert fox.problems() == [], fox.problems()
     for topic, schema in WANTED.items():
         assert (channels[topic]["schemaName"], channels[topic]["encoding"]) == (schema, "cdr")
     tf = decode_cdr(received["/handflow/fx3d/sim/tf"], WANTED["/handflow/fx3d/sim/tf"])

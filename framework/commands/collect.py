@@ -26,7 +26,7 @@ from ..recorder.graph_recorder import GraphRecorder
 from ..runtime.launcher import Launcher
 from ..runtime.param_service import LOCAL
 from ..runtime.runner import START_WAIT_S
-from ..runtime.zygote import Zygote, start_unless_disabled
+from ..runtime.zygote import Zygote, zygote_while
 from ._shared import add_foxglove_option
 
 CUE_TOPIC = "cue/labels"
@@ -174,12 +174,8 @@ class Cuer:
 
 def run(args: argparse.Namespace) -> int:
     # the zygote imports the plugins for the node processes while the graph is checked here (as `handflow run`)
-    zygote = start_unless_disabled(args.graph)
-    try:
+    with zygote_while(args.graph) as zygote:
         return _run(args, zygote)
-    finally:  # the nodes have stopped (or never started): the zygote has nothing left to fork
-        if zygote is not None:
-            zygote.close()
 
 
 def _run(args: argparse.Namespace, zygote: Zygote | None) -> int:

@@ -27,7 +27,7 @@ from ..recorder.replay import (
 from ..runtime.discovery import DiscoveryError, add_auth_arguments, join
 from ..runtime.launcher import Launcher
 from ..runtime.stop_signals import StopSignals
-from ..runtime.zygote import start_unless_disabled
+from ..runtime.zygote import Zygote, zygote_while
 from ._shared import add_foxglove_option, add_set_option, graph_with_sets
 
 log = logging.getLogger("handflow.replay")
@@ -194,38 +194,37 @@ def _replay_join(args: argparse.Namespace, recorded: str | None, stop: threading
 def _replay_into(args: argparse.Namespace, recorded: str | None, stop: threading.Event) -> int:
     """Launch ``--into`` (lock-step or not), feed it, let it drain, stop it."""
     # the zygote imports the plugins for the node processes while the graph is loaded here (as `handflow run`)
-    zygote = start_unless_disabled(args.into)
-    launcher = None
+    with zygote_while(args.into) as zygote:
+        return _launch_into(args, recorded, stop, zygote)
+
+
+def _launch_into(args: argparse.Namespace, recorded: str | None, stop: threading.Event, zygote: Zygote | None) -> int:
     try:
-        try:
-            graph, text = graph_with_sets(args.into, getattr(args, "set", None) or [])
-        except GraphError as exc:
-            print(f"{exc}\n{args.into}: fix the graph file (see `handflow validate {args.into}`)", file=sys.stderr)
-            return 2
-        except ValueError as exc:  # a --set that cannot be applied
-            print(f"error: {exc}", file=sys.stderr)
-            return 2
-        sources = external_inputs(graph)
-        if not sources:
-            print(
-                f"error: graph '{graph.name}' has no inputs fed from outside; declare the recorded topics its nodes "
-                f"should read under 'external:' (e.g. glove/frames: GloveFrame) and point the inputs at them",
-                file=sys.stderr,
-            )
-            return 2
-        plan = ReplayPlan(Path(args.file), args.topics, graph.name, sources)
-        if stop.is_set():  # nothing launched yet
-            return _interrupted()
-        launcher = Launcher(
-            graph,
-            lockstep=args.lockstep,
-            log_level=logging.getLevelName(logging.getLogger().level),
-            zygote=zygote,
-            graph_text=text,
+        graph, text = graph_with_sets(args.into, getattr(args, "set", None) or [])
+    except GraphError as exc:
+        print(f"{exc}\n{args.into}: fix the graph file (see `handflow validate {args.into}`)", file=sys.stderr)
+        return 2
+    except ValueError as exc:  # a --set that cannot be applied
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    sources = external_inputs(graph)
+    if not sources:
+        print(
+            f"error: graph '{graph.name}' has no inputs fed from outside; declare the recorded topics its nodes "
+            f"should read under 'external:' (e.g. glove/frames: GloveFrame) and point the inputs at them",
+            file=sys.stderr,
         )
-    finally:  # from here on the launcher closes the zygote
-        if launcher is None and zygote is not None:
-            zygote.close()
+        return 2
+    plan = ReplayPlan(Path(args.file), args.topics, graph.name, sources)
+    if stop.is_set():  # nothing launched yet
+        return _interrupted()
+    launcher = Launcher(
+        graph,
+        lockstep=args.lockstep,
+        log_level=logging.getLevelName(logging.getLogger().level),
+        zygote=zygote,
+        graph_text=text,
+    )
     recorder = None
     result: dict[str, object] = {}
     bridge = None

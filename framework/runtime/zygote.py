@@ -33,7 +33,8 @@ import sys
 import threading
 import time
 import traceback
-from collections.abc import Collection
+from collections.abc import Collection, Iterator
+from contextlib import contextmanager
 
 from .plugin_sources import forget
 from .wakeup import wakeup_queue
@@ -158,6 +159,19 @@ def _reply(sock: socket.socket, body: dict) -> bool:
 def start_unless_disabled(graph_source: str | os.PathLike) -> Zygote | None:
     """A started :class:`Zygote`, or None when ``HANDFLOW_ZYGOTE=0`` asks for fresh interpreters."""
     return Zygote.start(graph_source) if os.environ.get("HANDFLOW_ZYGOTE", "1") != "0" else None
+
+
+@contextmanager
+def zygote_while(graph_source: str | os.PathLike) -> Iterator[Zygote | None]:
+    """:func:`start_unless_disabled` for a command's block, closed at its end: the nodes have stopped
+    (or never started), so it has nothing left to fork.  A launcher given it may close it first; closing
+    twice is harmless."""
+    zygote = start_unless_disabled(graph_source)
+    try:
+        yield zygote
+    finally:
+        if zygote is not None:
+            zygote.close()
 
 
 def _alive(pid: int) -> bool:

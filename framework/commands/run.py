@@ -8,7 +8,7 @@ import sys
 
 from ..runtime.startup import StartupProgress
 from ..runtime.stop_signals import StopSignals
-from ..runtime.zygote import start_unless_disabled
+from ..runtime.zygote import Zygote, zygote_while
 from ._shared import add_foxglove_option, add_set_option, graph_with_sets
 
 
@@ -53,7 +53,11 @@ def _run(args: argparse.Namespace, stop: StopSignals) -> int:
     progress = StartupProgress()
     progress.say("handflow run %s: importing its plugins, checking its inputs, starting its processes", args.graph)
     # imports the plugins for the node processes while the graph is checked here
-    zygote = start_unless_disabled(args.graph)
+    with zygote_while(args.graph) as zygote:
+        return _run_with(args, stop, progress, zygote)
+
+
+def _run_with(args: argparse.Namespace, stop: StopSignals, progress: StartupProgress, zygote: Zygote | None) -> int:
     # the rest of what a run needs, imported once the first line is out (docs/pipelines.md, "Start-up")
     from ..graphs.model import FoxgloveSettings, GraphError
     from ..graphs.overrides import OverrideError
@@ -70,19 +74,11 @@ def _run(args: argparse.Namespace, stop: StopSignals) -> int:
             )
         graph, text = graph_with_sets(args.graph, args.set, args.host)
     except (GraphError, OverrideError) as exc:
-        if zygote is not None:
-            zygote.close()
         print(exc if isinstance(exc, GraphError) else f"error: {exc}", file=sys.stderr)
         if isinstance(exc, GraphError):
             print(f"{args.graph}: fix the problems above (see `handflow validate {args.graph}`)", file=sys.stderr)
         return 2
-    except BaseException:
-        if zygote is not None:
-            zygote.close()
-        raise
     if stop.is_set():  # before anything ran: nothing to stop, no recording begun
-        if zygote is not None:
-            zygote.close()
         print("interrupted", file=sys.stderr)
         return 130
     record_path = args.record or (graph.spec.record.path if graph.spec.record else None)
@@ -120,9 +116,7 @@ def _run(args: argparse.Namespace, stop: StopSignals) -> int:
     except (ValueError, BridgeError, EndpointInUse) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    finally:  # the nodes have stopped (or never started): the zygote has nothing left to fork
-        if zygote is not None:
-            zygote.close()
+    finally:
         if status is not None:
             status.close()
         if recorder is not None:

@@ -10,6 +10,7 @@ import signal
 import subprocess
 import sys
 import time
+from concurrent.futures import ThreadPoolExecutor
 
 import pytest
 from websockets.exceptions import ConnectionClosed
@@ -89,6 +90,12 @@ def test_ctrl_c_keeps_finished_repetitions_and_append_adds_rounds(tmp_path):
     assert not list(tmp_path.glob("out/*.part.mcap"))
 
 
+def _monitor_and_echo(cwd, env) -> tuple[subprocess.CompletedProcess, subprocess.CompletedProcess]:
+    """``handflow monitor --once`` and ``handflow echo cue/labels -n 1`` on the running session."""
+    monitored = handflow("monitor", "--once", "--json", "--listen", "4", cwd=cwd, env=env)
+    return monitored, handflow("echo", "cue/labels", "-n", "1", "--json", cwd=cwd, env=env, timeout=30)
+
+
 @pytest.mark.slow
 def test_the_cue_topic_shows_in_monitor_echo_and_foxglove_as_a_user_sees_it(tmp_path):
     """The cues of a running ``handflow collect --foxglove``: ``handflow monitor`` lists the ``Label`` topic with
@@ -108,13 +115,16 @@ def test_the_cue_topic_shows_in_monitor_echo_and_foxglove_as_a_user_sees_it(tmp_
                 advertised = fox.next("advertise", timeout=60)["channels"]
                 channel = next((c for c in advertised if c["topic"] == "/" + CUES), None)
             fox.send(op="subscribe", subscriptions=[{"id": 1, "channelId": channel["id"]}])
-            monitored = handflow("monitor", "--once", "--json", "--listen", "4", cwd=tmp_path, env=env)
-            echoed = handflow("echo", "cue/labels", "-n", "1", "--json", cwd=tmp_path, env=env, timeout=30)
-            with contextlib.suppress(ConnectionClosed):  # until the session ends and its bridge closes
-                while True:
-                    frame = fox.recv(timeout=60)
-                    if isinstance(frame, bytes) and frame[0] == 1 and int.from_bytes(frame[1:5], "little") == 1:
-                        seen.append(decode_cdr(frame[13:], "handflow.Label"))
+            # monitor and echo run while the client reads, as beside an open Foxglove app: a refused subscription
+            # (docs/foxglove.md, "Topics") is sent again at once, not after them
+            with ThreadPoolExecutor(1) as pool:
+                commands = pool.submit(_monitor_and_echo, tmp_path, env)
+                with contextlib.suppress(ConnectionClosed):  # until the session ends and its bridge closes
+                    while True:
+                        frame = fox.recv(timeout=60)
+                        if isinstance(frame, bytes) and frame[0] == 1 and int.from_bytes(frame[1:5], "little") == 1:
+                            seen.append(decode_cdr(frame[13:], "handflow.Label"))
+                monitored, echoed = commands.result()
     finally:
         try:
             _, err = proc.communicate(timeout=60)  # the session ends by itself
